@@ -1,0 +1,12 @@
+"""The one exception family heatcurv raises for bad input."""
+
+__all__ = ["HeatcurvError"]
+
+
+class HeatcurvError(ValueError):
+    """Raised when the input cannot give a meaningful result.
+
+    The message names the problem (non-finite coordinates, wrong shape, too few
+    points, collinear or coincident points, ...) and, where it can, what to do.
+    It subclasses :class:`ValueError`, so ``except ValueError`` also catches it.
+    """
