@@ -1,6 +1,6 @@
-"""heatcurv: mesh-free differential geometry of point clouds with the heat kernel."""
+"""heatcurv (development placeholder; full exports restored when all modules exist)."""
 
 from .errors import HeatcurvError
+from .estimator import CurvatureResult, estimate
 
 __version__ = "0.1.0"
-__all__ = ["HeatcurvError", "__version__"]

@@ -1,0 +1,161 @@
+"""Input checks, centring and duplicate merging: the boundary of the numerical core.
+
+Every public entry point passes its coordinates through :func:`prepare_points`
+first, so the stages after it can assume a finite ``(m, 3)`` float64 array of
+distinct points, centred near the origin (scans come in UTM-like coordinates of
+1e6 and more; centring first keeps the differences ``xi - xj`` exact to the last
+bits).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import HeatcurvError
+
+__all__ = ["PreparedPoints", "prepare_points", "prepare_normals"]
+
+
+@dataclass(frozen=True)
+class PreparedPoints:
+    """Distinct, centred points and the map back to the caller's rows.
+
+    Attributes
+    ----------
+    points : ndarray, shape (m, 3), float64
+        The distinct input points minus ``offset``, in lexicographic order.
+    offset : ndarray, shape (3,)
+        What was subtracted (the centre of the bounding box).
+    inverse : ndarray, shape (n,), int64
+        ``points[inverse]`` are the caller's points (centred), row for row:
+        exact duplicates share one row and so get their twin's values.
+    first : ndarray, shape (m,), int64
+        For each distinct point, the first input row that holds it.
+    """
+
+    points: np.ndarray
+    offset: np.ndarray
+    inverse: np.ndarray
+    first: np.ndarray
+
+    @property
+    def n_input(self) -> int:
+        """Number of input rows, duplicates included."""
+        return int(self.inverse.shape[0])
+
+    @property
+    def n_distinct(self) -> int:
+        """Number of distinct points used by the computation."""
+        return int(self.points.shape[0])
+
+    def to_input_order(self, values: np.ndarray) -> np.ndarray:
+        """Expand per-distinct-point ``values`` (shape ``(m, ...)``) to the input rows."""
+        return values[self.inverse]
+
+
+def _as_float_array(points, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise HeatcurvError(f"{name} must be numeric array-like of shape (n, 3): {exc}") from None
+    return arr
+
+
+def prepare_points(points, min_points: int = 7) -> PreparedPoints:
+    """Validate ``points``, centre them and merge exact duplicates.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+        Point coordinates in any length unit.
+    min_points : int, optional
+        The fewest distinct points the pipeline can work with (one point and
+        the neighbours its fit needs).
+
+    Returns
+    -------
+    PreparedPoints
+
+    Raises
+    ------
+    HeatcurvError
+        If the array does not have shape ``(n, 3)``, holds NaN or infinite
+        values, has fewer than ``min_points`` distinct points, or its points
+        all coincide or all lie on one line (no surface to measure).
+    """
+    arr = _as_float_array(points, "points")
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise HeatcurvError(
+            f"points must have shape (n, 3), got shape {arr.shape}; "
+            "pass one row of x, y, z coordinates per point"
+        )
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        rows = np.flatnonzero(bad)
+        shown = ", ".join(str(r) for r in rows[:5]) + (", ..." if rows.size > 5 else "")
+        raise HeatcurvError(
+            f"points hold NaN or infinite coordinates in {rows.size} row(s) "
+            f"(rows {shown}); remove or repair them first"
+        )
+    if arr.shape[0] == 0:
+        raise HeatcurvError("points is empty: a point cloud needs at least a few points")
+
+    offset = 0.5 * (arr.min(axis=0) + arr.max(axis=0))
+    centred = arr - offset
+    distinct, first, inverse = np.unique(centred, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    m = distinct.shape[0]
+    if m == 1:
+        raise HeatcurvError(
+            f"all {arr.shape[0]} points coincide: there is no surface to measure"
+        )
+    if m < min_points:
+        raise HeatcurvError(
+            f"too few points: {m} distinct point(s), the neighbourhoods need at least {min_points}"
+        )
+    # Degeneracy: the cloud's extent along its second principal axis relative to the first.
+    sing = np.linalg.svd(distinct - distinct.mean(axis=0), compute_uv=False)
+    if sing[1] <= 1e-10 * sing[0]:
+        raise HeatcurvError(
+            f"all {m} distinct points lie on one line: a point cloud surface needs "
+            "points spread in two directions"
+        )
+    return PreparedPoints(points=distinct, offset=offset, inverse=inverse, first=first)
+
+
+def prepare_normals(normals, prepared: PreparedPoints) -> np.ndarray:
+    """Validate caller-given normals and reduce them to the distinct points.
+
+    Parameters
+    ----------
+    normals : array_like, shape (n, 3)
+        One normal per input row (need not be unit length).
+    prepared : PreparedPoints
+        The prepared points of the same input.
+
+    Returns
+    -------
+    ndarray, shape (m, 3)
+        Unit normals of the distinct points (the first input row of each).
+
+    Raises
+    ------
+    HeatcurvError
+        On a shape that does not match the points, non-finite or zero normals.
+    """
+    arr = _as_float_array(normals, "normals")
+    if arr.shape != (prepared.n_input, 3):
+        raise HeatcurvError(
+            f"normals must have shape ({prepared.n_input}, 3) like the points, got {arr.shape}"
+        )
+    if not np.isfinite(arr).all():
+        raise HeatcurvError("normals hold NaN or infinite values")
+    arr = arr[prepared.first]
+    length = np.linalg.norm(arr, axis=1)
+    if np.any(length <= 0):
+        raise HeatcurvError(
+            f"{int(np.sum(length <= 0))} normal(s) have zero length; cannot orient curvature signs"
+        )
+    return arr / length[:, None]
