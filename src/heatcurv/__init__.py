@@ -1,6 +1,59 @@
-"""heatcurv (development placeholder; full exports restored when all modules exist)."""
+"""heatcurv: mesh-free differential geometry of point clouds with the heat kernel.
 
+The main entry point is :func:`estimate`; the stages it chains are public
+building blocks (see the module of each):
+
+=====================  ======================================================
+``validation``         checks, centring, duplicate merging
+``spacing``            the distance parameter h (eqs 2.6, 2.7)
+``neighbourhood``      ball neighbourhoods as CSR arrays
+``kernel``             heat-kernel weights, t = m h^2 (eq 2.8)
+``areas``              per-point areas from H A = 1 (section 2.2)
+``laplacian``          the Laplace-Beltrami matrix (eq 2.9)
+``mean_curvature``     mean-curvature normal and mean curvature (eqs 2.10-2.12)
+``normals``            PCA normals and their orientation
+``principal``          the curvature-tensor fit (section 3, eq 3.1)
+``features``           sharp-feature detection from the mean curvature
+``surfaces``           analytic surfaces with exact values, and samplers
+=====================  ======================================================
+"""
+
+from . import surfaces
+from .areas import point_areas
 from .errors import HeatcurvError
 from .estimator import CurvatureResult, estimate
+from .features import FeatureResult, sharp_features
+from .laplacian import laplace_beltrami_matrix, laplacian
+from .mean_curvature import mean_curvature, mean_curvature_normal
+from .neighbourhood import Neighbourhood, ball_neighbourhood
+from .normals import orient_normals, pca_normals
+from .pipeline import METHODS, HeatKernelOperator, Options, build_operator
+from .principal import principal_fit
+from .spacing import global_spacing, local_spacing
 
 __version__ = "0.1.0"
+__all__ = [
+    "CurvatureResult",
+    "FeatureResult",
+    "HeatKernelOperator",
+    "HeatcurvError",
+    "METHODS",
+    "Neighbourhood",
+    "Options",
+    "ball_neighbourhood",
+    "build_operator",
+    "estimate",
+    "global_spacing",
+    "laplace_beltrami_matrix",
+    "laplacian",
+    "local_spacing",
+    "mean_curvature",
+    "mean_curvature_normal",
+    "orient_normals",
+    "pca_normals",
+    "point_areas",
+    "principal_fit",
+    "sharp_features",
+    "surfaces",
+    "__version__",
+]

@@ -212,7 +212,10 @@ def estimate(
     timings["mean"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
-    pair_w = op.weights * nbhd.distances**2 * op.areas[nbhd.indices]
+    # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
+    # samples can give negative A_j; a least-squares objective with negative
+    # weights has no minimum, so those neighbours get weight zero.
+    pair_w = op.weights * nbhd.distances**2 * np.maximum(op.areas, 0.0)[nbhd.indices]
     pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
     timings["principal"] = time.perf_counter() - tic
 
