@@ -16,8 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .errors import HeatcurvError
 from .mean_curvature import mean_curvature, mean_curvature_normal
-from .normals import orient_normals, orient_towards_viewpoint, pca_normals
+from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
 from .pipeline import Options, build_operator, resolve_options
 from .principal import principal_fit
 from .validation import prepare_normals
@@ -128,9 +129,11 @@ def estimate(
     method : {"default", "paper"}, optional
         ``"paper"`` follows the paper literally (eq 2.6 spacing, alpha = 4,
         m = 1/4, mean curvature ``1/2 |K|`` of eq 2.11, constrained fit of
-        eq 3.1): the reproducible reference. ``"default"`` takes the mean
-        curvature as ``1/2 K . n`` (eq 2.12), correct up to the border of open
-        surfaces. Every option below overrides the preset.
+        eq 3.1): the reproducible reference. ``"default"`` uses the same
+        spacing, kernel and areas but fits the curvature tensor freely
+        (``fit="unconstrained"``), the mean curvature being ``(k1 + k2)/2``
+        of the fit: measured 10-100x more accurate on regular samples. Every
+        option below overrides the preset (``heatcurv.METHODS`` lists them).
     alpha : float, optional
         Ball radius ``r = alpha h`` (paper: 4).
     m : float, optional
@@ -144,7 +147,9 @@ def estimate(
     mean_formula : {"projection", "norm"}, optional
         Eq 2.12 or eq 2.11.
     fit : {"constrained", "unconstrained"}, optional
-        Principal fit with or without eq 3.1's constraints.
+        Principal fit with eq 3.1's constraints (mean curvature from the
+        quadrature of eq 2.11/2.12, ``mean_formula``) or free (mean curvature
+        ``(k1 + k2)/2`` of the fit).
     area_solver : {"auto", "cg", "bicgstab", "direct"}, optional
         Solver of ``H A = 1``.
     viewpoint : array_like, shape (3,), optional
@@ -186,6 +191,9 @@ def estimate(
         min_neighbors=min_neighbors,
         workers=workers,
     )
+    if normals is not None and viewpoint is not None:
+        raise HeatcurvError("give either normals or a viewpoint, not both")
+    vp = None if viewpoint is None else as_viewpoint(viewpoint)
     op = build_operator(points, opts)
     X, nbhd, prepared = op.points, op.neighbourhood, op.prepared
     timings = dict(op.timings)
@@ -193,15 +201,11 @@ def estimate(
     tic = time.perf_counter()
     planarity = np.ones(X.shape[0])
     if normals is not None:
-        if viewpoint is not None:
-            from .errors import HeatcurvError
-
-            raise HeatcurvError("give either normals or a viewpoint, not both")
         nrm = prepare_normals(normals, prepared)
     else:
         nrm, planarity = pca_normals(X, nbhd)
-        if viewpoint is not None:
-            nrm = orient_towards_viewpoint(X, nrm, np.asarray(viewpoint, dtype=np.float64) - prepared.offset)
+        if vp is not None:
+            nrm = orient_towards_viewpoint(X, nrm, vp - prepared.offset)
         else:
             nrm = orient_normals(X, nrm, nbhd, op.areas)
     timings["normals"] = time.perf_counter() - tic

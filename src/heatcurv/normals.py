@@ -170,11 +170,20 @@ def orient_towards_viewpoint(points: np.ndarray, normals: np.ndarray, viewpoint)
     -------
     ndarray, shape (n, 3)
     """
-    v = np.asarray(viewpoint, dtype=np.float64)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise HeatcurvError(f"viewpoint must be 3 finite numbers (x, y, z), got {viewpoint!r}")
+    v = as_viewpoint(viewpoint)
     facing = np.einsum("ij,ij->i", normals, v - points)
     return np.where(facing[:, None] < 0, -normals, normals)
+
+
+def as_viewpoint(viewpoint) -> np.ndarray:
+    """Validate a sensor position: 3 finite numbers, returned as a float64 array of shape (3,)."""
+    try:
+        v = np.asarray(viewpoint, dtype=np.float64)
+    except (TypeError, ValueError):
+        v = np.empty(0)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise HeatcurvError(f"viewpoint must be 3 finite numbers (x, y, z), got {viewpoint!r}")
+    return v
 
 
 def tangent_frames(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -117,7 +117,9 @@ def prepare_points(points, min_points: int = 7) -> PreparedPoints:
         )
     # Degeneracy: the cloud's extent along its second principal axis relative to the first.
     sing = np.linalg.svd(distinct - distinct.mean(axis=0), compute_uv=False)
-    if sing[1] <= 1e-10 * sing[0]:
+    # rounding of the input coordinates themselves sets a floor (far-off scans)
+    rounding = 100.0 * np.finfo(np.float64).eps * float(np.abs(arr).max()) * np.sqrt(m)
+    if sing[1] <= max(1e-10 * sing[0], rounding):
         raise HeatcurvError(
             f"all {m} distinct points lie on one line: a point cloud surface needs "
             "points spread in two directions"
