@@ -9,7 +9,11 @@ normal of eq 2.10 evaluates in closed form (two half-planes each tilted by
     kappa_M = 1/2 K . n = 2 sin(beta) / (sqrt(pi) h)       (t = h^2 / 4)
 
 so ``2 arcsin(sqrt(pi) |kappa_M| h / 2)`` recovers the turning angle from the
-mean curvature and the spacing. We use it as the feature score, in degrees:
+mean curvature and the spacing. That is the continuum limit; on a grid whose
+step equals ``h`` (eq 2.6) the sum over the lattice replaces
+``int |s| exp(-s^2/h^2) ds = h^2`` by ``2 sum_k k exp(-k^2) h^2 = 0.81 h^2``, and
+the measured score at the crease of the paper's folded square (961 points) is
+0.63-0.86 times the true turning angle (1 to 120 degrees). We use it as the feature score, in degrees:
 it is independent of the cloud's scale and density, it reads as "how much
 the surface turns within about two spacings", and on a smooth surface of
 radius ``R`` it is about ``sqrt(pi) h / R`` radians, small when the sampling
@@ -97,7 +101,11 @@ def otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
     mu0 = s0 / np.maximum(w0, 1)
     mu1 = (np.sum(hist * centers) - s0) / np.maximum(w1, 1)
     between = w0 * w1 * (mu0 - mu1) ** 2
-    return float(edges[1 + int(np.argmax(between))])
+    # Between well-separated populations the criterion is flat over the gap (moving the
+    # split past a few stragglers barely changes it); take the middle of the near-optimal
+    # splits rather than the first, so the threshold sits in the gap.
+    near = np.flatnonzero(between >= 0.99 * between.max())
+    return float(edges[1 + (near[0] + near[-1]) // 2])
 
 
 def sharp_features(points_or_result, threshold: float | None = None, min_angle: float = 10.0, **options) -> FeatureResult:
@@ -136,7 +144,10 @@ def sharp_features(points_or_result, threshold: float | None = None, min_angle: 
         res = points_or_result
     else:
         res = estimate(points_or_result, **options)
-    score = feature_score(res.mean, res.spacing)
+    # the heat-kernel mean curvature 1/2 K.n (eq 2.12), whatever estimator filled res.mean:
+    # the closed form above holds for it
+    kappa = 0.5 * np.einsum("ij,ij->i", res.mean_curvature_normal, res.normals)
+    score = feature_score(kappa, res.spacing)
     if threshold is None:
         thr = max(otsu_threshold(score), float(min_angle))
     else:
