@@ -6,7 +6,7 @@ import pytest
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
 from heatcurv.areas import area_matrix, point_areas
-from heatcurv.laplacian import laplace_beltrami_matrix
+from heatcurv.laplace_beltrami import laplace_beltrami_matrix
 from heatcurv.mean_curvature import mean_curvature_normal
 from heatcurv.pipeline import build_operator
 

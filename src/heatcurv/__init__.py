@@ -9,7 +9,7 @@ building blocks (see the module of each):
 ``neighbourhood``      ball neighbourhoods as CSR arrays
 ``kernel``             heat-kernel weights, t = m h^2 (eq 2.8)
 ``areas``              per-point areas from H A = 1 (section 2.2)
-``laplacian``          the Laplace-Beltrami matrix (eq 2.9)
+``laplace_beltrami``  the Laplace-Beltrami matrix (eq 2.9)
 ``mean_curvature``     mean-curvature normal and mean curvature (eqs 2.10-2.12)
 ``normals``            PCA normals and their orientation
 ``principal``          the curvature-tensor fit (section 3, eq 3.1)
@@ -23,7 +23,7 @@ from .areas import point_areas
 from .errors import HeatcurvError
 from .estimator import CurvatureResult, estimate
 from .features import FeatureResult, sharp_features
-from .laplacian import laplace_beltrami_matrix, laplacian
+from .laplace_beltrami import laplace_beltrami_matrix, laplacian
 from .mean_curvature import mean_curvature, mean_curvature_normal
 from .neighbourhood import Neighbourhood, ball_neighbourhood
 from .normals import orient_normals, pca_normals

@@ -1,0 +1,18 @@
+"""The examples in the public docstrings run and print what they claim."""
+
+import doctest
+
+import pytest
+
+import heatcurv.estimator
+import heatcurv.features
+import heatcurv.laplace_beltrami
+
+MODULES = [heatcurv.estimator, heatcurv.features, heatcurv.laplace_beltrami]
+
+
+@pytest.mark.parametrize("module", MODULES, ids=lambda m: m.__name__)
+def test_docstring_examples(module):
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0
+    assert result.failed == 0
