@@ -9,12 +9,15 @@ building blocks (see the module of each):
 ``neighbourhood``      ball neighbourhoods as CSR arrays
 ``kernel``             heat-kernel weights, t = m h^2 (eq 2.8)
 ``areas``              per-point areas from H A = 1 (section 2.2)
-``laplace_beltrami``  the Laplace-Beltrami matrix (eq 2.9)
+``laplace_beltrami``   the Laplace-Beltrami matrix (eq 2.9)
 ``mean_curvature``     mean-curvature normal and mean curvature (eqs 2.10-2.12)
 ``normals``            PCA normals and their orientation
 ``principal``          the curvature-tensor fit (section 3, eq 3.1)
 ``features``           sharp-feature detection from the mean curvature
 ``surfaces``           analytic surfaces with exact values, and samplers
+``evaluation``         error measures against exact values (eqs 4.1, 5.1)
+``estimator``          :func:`estimate`, chaining the stages
+``cli``                the ``heatcurv`` command
 =====================  ======================================================
 """
 
