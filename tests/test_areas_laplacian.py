@@ -132,3 +132,13 @@ def test_laplacian_rejects_duplicates(sphere_sample):
     pts = np.vstack([sphere_sample.points[:500], sphere_sample.points[:3]])
     with pytest.raises(HeatcurvError, match="3 exact duplicate"):
         heatcurv.laplacian(pts)
+
+
+def test_unconverged_area_solve_warns_and_flags():
+    # m = 1 makes H A = 1 ill-posed on this sample: CG stops at its cap (measured: 1000
+    # iterations, residual 5e-3, 388 negative areas); the result must say so
+    pts = surfaces.Sphere().sample(1024, "fibonacci").points
+    with pytest.warns(heatcurv.HeatcurvWarning, match="did not converge"):
+        res = heatcurv.estimate(pts, method="paper", m=1.0)
+    assert not res.info["area_solve"].converged
+    assert not res.reliable.any()

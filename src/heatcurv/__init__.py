@@ -23,7 +23,7 @@ building blocks (see the module of each):
 
 from . import surfaces
 from .areas import point_areas
-from .errors import HeatcurvError
+from .errors import HeatcurvError, HeatcurvWarning
 from .estimator import CurvatureResult, estimate
 from .features import FeatureResult, sharp_features
 from .laplace_beltrami import laplace_beltrami_matrix, laplacian
@@ -40,6 +40,7 @@ __all__ = [
     "FeatureResult",
     "HeatKernelOperator",
     "HeatcurvError",
+    "HeatcurvWarning",
     "METHODS",
     "Neighbourhood",
     "Options",

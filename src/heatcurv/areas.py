@@ -10,6 +10,12 @@ which is ``(1/(pi h^2)) sum_j exp(-|xi-xj|^2/h^2) A_j = 1`` at ``m = 1/4``.
 The ball includes ``x_i`` itself, so ``H`` has the diagonal ``1/(4 pi t_i)``.
 With the global spacing (eq 2.6) ``H`` is symmetric and, on regular samples,
 well conditioned: conjugate gradients converge in a few tens of iterations.
+On irregular samples it is not: the solution goes negative and the total
+area drifts (-50 % on a random torus), with any solver.
+
+:func:`density_areas` is the default estimator's replacement: a local
+density estimate with no linear solve, accurate on lattices and on random
+samples alike (see its docstring for the derivation).
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from .errors import HeatcurvError
 from .kernel import area_normalisation
 from .neighbourhood import Neighbourhood
 
-__all__ = ["area_matrix", "point_areas", "AreaSolve"]
+__all__ = ["area_matrix", "point_areas", "AreaSolve", "density_areas", "TAPER_START"]
 
 
 @dataclass(frozen=True)
@@ -147,3 +153,68 @@ def point_areas(
         raise HeatcurvError(f"the area system H A = 1 could not be solved ({solver} gave non-finite areas)")
     info = AreaSolve(solver=solver, iterations=iterations, residual=residual, converged=residual <= max(rtol, 1e-12) * 10)
     return (areas, info) if return_info else areas
+
+
+#: Where the density kernel starts to taper, as a fraction of the ball radius.
+TAPER_START = 0.7
+
+
+def _taper(u: np.ndarray, u0: float = TAPER_START) -> np.ndarray:
+    """Flat-top profile: 1 up to ``u0``, a raised cosine down to 0 at ``u = 1``."""
+    out = np.where(u <= u0, 1.0, 0.5 * (1.0 + np.cos(np.pi * (u - u0) / (1.0 - u0))))
+    return np.where(u >= 1.0, 0.0, out)
+
+
+def _taper_moments(u0: float = TAPER_START) -> tuple[float, float]:
+    """``I1 = int W dA`` and ``I2 = int W^2 dA`` over the unit disc, by Gauss-Legendre quadrature."""
+    x, w = np.polynomial.legendre.leggauss(64)
+    # the profile is smooth on [0, u0] and [u0, 1]: integrate the pieces separately
+    total1 = total2 = 0.0
+    for a, b in ((0.0, u0), (u0, 1.0)):
+        u = 0.5 * (b - a) * x + 0.5 * (a + b)
+        f = _taper(u, u0)
+        total1 += 0.5 * (b - a) * np.sum(w * f * 2 * np.pi * u)
+        total2 += 0.5 * (b - a) * np.sum(w * f * f * 2 * np.pi * u)
+    return float(total1), float(total2)
+
+
+def density_areas(nbhd: Neighbourhood) -> np.ndarray:
+    """Per-point areas from a flat-top kernel density estimate, no linear solve.
+
+    With ``R_i`` the ball radius of point ``i`` and ``W`` a flat-top profile
+    (1 up to ``0.7 R``, a raised cosine to 0 at ``R``),
+
+        A_i = I_W R_i^2 / (sum_{j != i} W(|xi - xj| / R_i) + beta),
+
+    ``I_W = int W dA`` over the unit disc. The ``beta`` term is the point
+    itself, and what it must be depends on how regular the sampling is: on a
+    lattice, the kernel sum *with* the point itself is the quadrature of
+    ``rho I_W R^2`` (``beta = 1``); on random (Poisson) points the sum without
+    it is unbiased, and Jensen's inequality, ``E[1/(beta + S)] ~ (1/mu)(1 +
+    (q - beta)/mu)`` with ``q = int W^2 / int W``, asks for ``beta = q``. A
+    flat-top kernel has ``q = 0.91`` (a Gaussian has 1/2), so the midpoint
+    ``beta = (1 + q)/2`` leaves at most ``(1 - q)/(2 mu)``, about 0.1 % with
+    60 neighbours in the ball, for any sampling between the two.
+
+    Measured total-area errors with 60 neighbours, 20 000 points: random
+    torus -0.33 %, random sphere -0.12 %, Fibonacci torus -0.12 %, jittered
+    torus -0.16 %, parameter-grid torus (density varying 2.5x) -0.09 %. The
+    residual on the torus is the curvature of the ball's cut (a ball of chord
+    radius R cuts exactly ``pi R^2`` from a sphere, not from a torus).
+
+    Parameters
+    ----------
+    nbhd : Neighbourhood
+        Ball neighbourhoods; ``nbhd.radius`` is ``R_i``.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Positive areas; their sum estimates the surface area.
+    """
+    radius = nbhd.radius
+    u = nbhd.distances / np.repeat(radius, nbhd.counts)
+    total = nbhd.segment_sum(_taper(u))
+    i1, i2 = _taper_moments()
+    beta = 0.5 * (1.0 + i2 / i1)
+    return i1 * radius**2 / (total + beta)

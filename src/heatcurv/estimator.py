@@ -54,7 +54,8 @@ class CurvatureResult:
         False where the values are not to be trusted: the point's ball held
         too few neighbours (nearest neighbours were used instead), its
         neighbourhood is not surface-like (PCA planarity < 0.05), the tensor
-        fit was ill-posed, or its area came out non-positive.
+        fit was ill-posed, or its area came out non-positive; everywhere if
+        the area system did not converge (a ``HeatcurvWarning`` says so).
     spacing : ndarray, shape (n,)
         The spacing ``h`` used at each point (eq 2.6 or 2.7).
     neighbours : ndarray, shape (n,), int
@@ -224,6 +225,7 @@ def estimate(
     timings["principal"] = time.perf_counter() - tic
 
     reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (op.areas > 0)
+    reliable &= op.area_solve.converged
     back = prepared.to_input_order
     return CurvatureResult(
         normals=back(nrm),

@@ -10,13 +10,14 @@ from its result.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from .areas import AreaSolve, point_areas
-from .errors import HeatcurvError
+from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import heat_kernel_weights
 from .neighbourhood import Neighbourhood, ball_neighbourhood
 from .spacing import spacing as compute_spacing
@@ -205,5 +206,13 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
     tic = time.perf_counter()
     weights = heat_kernel_weights(nbhd, h, options.m)
     areas, info = point_areas(nbhd, weights, h, options.m, solver=options.area_solver, return_info=True)
+    if not info.converged:
+        warnings.warn(
+            f"the area system H A = 1 did not converge ({info.solver}: {info.iterations} iterations, "
+            f"relative residual {info.residual:.2g}); areas and everything built on them are marked "
+            "unreliable. Try area_solver='direct', a smaller m or a larger alpha.",
+            HeatcurvWarning,
+            stacklevel=3,
+        )
     timings["areas"] = time.perf_counter() - tic
     return HeatKernelOperator(prepared, tree, h, nbhd, weights, areas, info, options, timings)

@@ -1,0 +1,243 @@
+"""The default estimator's curvature fit: edge chord curvatures with tilt and cubic terms.
+
+The paper's principal fit (section 3, :mod:`heatcurv.principal`) fits
+Euler's formula ``kN(theta) = k1 cos^2 + k2 sin^2`` to the edge normal
+curvatures ``kN_ij = 2 (xi-xj).n / |xi-xj|^2`` (eq 2.12). ``kN_ij`` is the
+curvature of the circle through ``x_i`` and ``x_j`` tangent to the plane
+normal to ``n``: exact on any circle, which makes it far better than a
+height-function (jet) fit of the same order. Two things spoil it on real
+clouds, and this module adds a term for each:
+
+* the normal is only estimated. A tilt ``g`` of the tangent plane adds
+  ``-2 (g . t) / r`` to ``kN`` along the unit tangent direction ``t`` of an
+  edge of tangential length ``r``: two odd terms ``cos(theta)/r`` and
+  ``sin(theta)/r`` absorb it, and their coefficients correct the normal,
+  ``n <- n - g_1 e_1 - g_2 e_2`` (a second pass then refits with the
+  corrected normal);
+* neighbourhoods are wide enough to see the third-order shape. A cubic
+  height ``-C(x, y)/6`` adds ``r C(cos, sin)/3`` to ``kN``: four terms
+  ``r cos^3, r cos^2 sin, r cos sin^2, r sin^3``.
+
+The model per point, in its tangent frame ``(e_1, e_2, n)``, is therefore
+
+    kN_ij = a c^2 + 2 b c s + d s^2 + (t_1 c + t_2 s)/r + r (g_0 c^3 + g_1 c^2 s + g_2 c s^2 + g_3 s^3)
+
+with ``c, s = cos, sin`` of the edge's tangent direction, fitted by weighted
+least squares; ``B = [[a, b], [b, d]]`` gives ``k1, k2, d1, d2`` as in the
+paper (section 3), without the constraint of eq 3.1.
+
+Under noise the chord denominator ``|xi - xj|^2 = r^2 + z^2`` is inflated by
+the noise in ``z``. The ``denoised`` form fits heights instead of curvatures:
+first a plain height fit (``-2 z = r^2 * model``, the classical jet), then a
+refit in which the denominator uses the *fitted* heights,
+``-2 (z - z_0) = (r^2 + zhat^2) * model``, with an offset ``z_0`` for the
+noise of the centre point itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .neighbourhood import Neighbourhood
+from .normals import tangent_frames
+from .principal import PrincipalCurvatures, tensor_to_principal
+
+__all__ = ["ChordFit", "chord_fit", "segment_lstsq"]
+
+#: Pairs processed at once; bounds the temporary (pairs x unknowns^2) arrays.
+BLOCK_PAIRS = 400_000
+
+
+@dataclass(frozen=True)
+class ChordFit:
+    """Result of :func:`chord_fit`.
+
+    Attributes
+    ----------
+    principal : PrincipalCurvatures
+        ``k1, k2, d1, d2, mean, gaussian`` and ``well_posed``.
+    normals : ndarray, shape (n, 3)
+        The normals of the last pass (the starting normals corrected by the
+        tilt of every earlier pass); ``d1 x d2 = normals``.
+    sigma : ndarray, shape (n,)
+        Root-mean-square height residual of the fit (weighted), length units:
+        near zero on clean data, the noise level on noisy data.
+    """
+
+    principal: PrincipalCurvatures
+    normals: np.ndarray
+    sigma: np.ndarray
+
+
+def segment_lstsq(nbhd: Neighbourhood, design: np.ndarray, response: np.ndarray, weights: np.ndarray, ridge: float = 1e-10):
+    """Weighted least squares for every point's neighbour pairs at once.
+
+    Minimises ``sum_j w_ij (y_ij - X_ij . beta_i)^2`` for each point ``i``.
+
+    Parameters
+    ----------
+    nbhd : Neighbourhood
+        CSR neighbour pairs; rows are the points.
+    design : ndarray, shape (nnz, p)
+        ``X_ij``.
+    response : ndarray, shape (nnz,)
+        ``y_ij``.
+    weights : ndarray, shape (nnz,)
+        ``w_ij >= 0``.
+    ridge : float, optional
+        Tikhonov term relative to the trace of each normal matrix, so that
+        rank-deficient neighbourhoods give a finite (flagged) answer.
+
+    Returns
+    -------
+    beta : ndarray, shape (n, p)
+        Coefficients.
+    rss : ndarray, shape (n,)
+        Weighted residual sum of squares.
+    well_posed : ndarray, shape (n,), bool
+        Whether the normal matrix was well conditioned (reciprocal condition
+        number above 1e-10).
+    """
+    n, p = nbhd.n_points, design.shape[1]
+    iu = np.triu_indices(p)
+    G = np.zeros((n, p, p))
+    r = np.zeros((n, p))
+    yy = np.zeros(n)
+    # process whole rows in blocks of about BLOCK_PAIRS pairs
+    bounds = np.searchsorted(nbhd.indptr, np.arange(0, nbhd.n_pairs + BLOCK_PAIRS, BLOCK_PAIRS))
+    bounds = np.unique(np.clip(bounds, 0, n))
+    if bounds[0] != 0:
+        bounds = np.concatenate([[0], bounds])
+    if bounds[-1] != n:
+        bounds = np.append(bounds, n)
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        a, b = nbhd.indptr[lo], nbhd.indptr[hi]
+        if a == b:
+            continue
+        sub = Neighbourhood(
+            indptr=nbhd.indptr[lo : hi + 1] - a,
+            indices=nbhd.indices[a:b],
+            distances=nbhd.distances[a:b],
+            radius=nbhd.radius[lo:hi],
+            augmented=nbhd.augmented[lo:hi],
+        )
+        X, y, w = design[a:b], response[a:b], weights[a:b]
+        wX = w[:, None] * X
+        prod = sub.segment_sum(wX[:, iu[0]] * X[:, iu[1]])
+        G[lo:hi, iu[0], iu[1]] = prod
+        G[lo:hi, iu[1], iu[0]] = prod
+        r[lo:hi] = sub.segment_sum(wX * y[:, None])
+        yy[lo:hi] = sub.segment_sum(w * y * y)
+    scale = np.maximum(np.trace(G, axis1=1, axis2=2) / p, 1e-300)
+    Greg = G + (ridge * scale)[:, None, None] * np.eye(p)
+    beta = np.linalg.solve(Greg, r[:, :, None])[:, :, 0]
+    rss = np.maximum(yy - 2 * np.einsum("ij,ij->i", beta, r) + np.einsum("ij,ijk,ik->i", beta, G, beta), 0.0)
+    evals = np.linalg.eigvalsh(G)
+    well_posed = evals[:, 0] > 1e-10 * np.maximum(evals[:, -1], 1e-300)
+    return beta, rss, well_posed
+
+
+def _local_coordinates(points, nbhd, normals):
+    rows = nbhd.rows
+    d = points[nbhd.indices] - points[rows]
+    e1, e2 = tangent_frames(normals)
+    x = np.einsum("ij,ij->i", d, e1[rows])
+    y = np.einsum("ij,ij->i", d, e2[rows])
+    z = np.einsum("ij,ij->i", d, normals[rows])
+    return x, y, z, e1, e2
+
+
+def _shape_columns(x, y, tilt: bool, cubic: bool):
+    """Columns of the kN model: tensor (3), tilt (2), cubic (4); shape (nnz, p)."""
+    r = np.sqrt(x * x + y * y)
+    safe = np.where(r > 0, r, 1.0)
+    c, s = np.where(r > 0, x / safe, 1.0), np.where(r > 0, y / safe, 0.0)
+    cols = [c * c, 2 * c * s, s * s]
+    if tilt:
+        cols += [c / safe, s / safe]
+    if cubic:
+        cols += [r * c**3, r * c * c * s, r * c * s * s, r * s**3]
+    return np.stack(cols, 1), r
+
+
+def chord_fit(
+    points: np.ndarray,
+    nbhd: Neighbourhood,
+    normals: np.ndarray,
+    weights: np.ndarray,
+    *,
+    passes: int = 2,
+    tilt: bool = True,
+    cubic: bool = True,
+    denoise: bool = False,
+) -> ChordFit:
+    """Fit curvature tensor, normal tilt and cubic terms to the edge chord curvatures.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        Distinct (centred) points.
+    nbhd : Neighbourhood
+        Neighbour pairs.
+    normals : ndarray, shape (n, 3)
+        Unit, consistently oriented starting normals (PCA); the signs of all
+        curvatures follow them.
+    weights : ndarray, shape (nnz,)
+        Pair weights, e.g. heat kernel times neighbour area ``W_ij A_j``.
+    passes : int, optional
+        Fits; each after the first starts from the normals the previous
+        one's tilt corrected. 2 is enough (a third changed no measured
+        digit).
+    tilt, cubic : bool, optional
+        Include the tilt and the cubic terms.
+    denoise : bool, optional
+        Fit heights with the denoised chord denominator and a centre offset
+        (for noisy clouds) instead of the chord curvatures.
+
+    Returns
+    -------
+    ChordFit
+    """
+    nrm = normals
+    for _ in range(max(1, passes)):
+        x, y, z, e1, e2 = _local_coordinates(points, nbhd, nrm)
+        cols, r = _shape_columns(x, y, tilt, cubic)
+        r2 = r * r
+        if not denoise:
+            D2 = r2 + z * z
+            kN = np.where(D2 > 0, -2.0 * z / np.where(D2 > 0, D2, 1.0), 0.0)
+            beta, rss, ok = segment_lstsq(nbhd, cols, kN, weights)
+            # height residual: kN residual times D^2 / 2
+            resid = (kN - np.einsum("ij,ij->i", cols, beta[nbhd.rows])) * D2 / 2
+            sigma2 = nbhd.segment_sum(weights * resid * resid) / np.maximum(nbhd.segment_sum(weights), 1e-300)
+        else:
+            # 1) plain height fit: z = z0 - r^2/2 * model
+            design = np.concatenate([-0.5 * r2[:, None] * cols, np.ones((len(r2), 1))], 1)
+            beta, rss, ok = segment_lstsq(nbhd, design, z, weights)
+            zhat = np.einsum("ij,ij->i", design, beta[nbhd.rows])
+            z0 = beta[nbhd.rows, -1]
+            # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2
+            D2 = r2 + (zhat - z0) ** 2
+            design = np.concatenate([-0.5 * D2[:, None] * cols, np.ones((len(r2), 1))], 1)
+            beta, rss, ok = segment_lstsq(nbhd, design, z, weights)
+            resid = z - np.einsum("ij,ij->i", design, beta[nbhd.rows])
+            sigma2 = nbhd.segment_sum(weights * resid * resid) / np.maximum(nbhd.segment_sum(weights), 1e-300)
+            beta = beta[:, :-1]
+        a, b, d = beta[:, 0], beta[:, 1], beta[:, 2]
+        pc = tensor_to_principal(0.5 * (a + d), 0.5 * (a - d), b, e1, e2, nrm)
+        if tilt:
+            # coefficient of cos/r is -2 g_1 (and of sin/r, -2 g_2): the tangent plane is z = g . (x, y)
+            g1, g2 = -0.5 * beta[:, 3], -0.5 * beta[:, 4]
+            refined = nrm - g1[:, None] * e1 - g2[:, None] * e2
+            refined /= np.linalg.norm(refined, axis=1)[:, None]
+        else:
+            refined = nrm
+        used, nrm = nrm, refined
+    principal = PrincipalCurvatures(
+        k1=pc.k1, k2=pc.k2, d1=pc.d1, d2=pc.d2, mean=pc.mean, gaussian=pc.gaussian, well_posed=ok
+    )
+    # report the normal the last fit was done in, so that d1 x d2 = n holds exactly; the
+    # last tilt correction is below the measured normal error (0.001 deg on clean clouds)
+    return ChordFit(principal=principal, normals=used, sigma=np.sqrt(sigma2))
