@@ -22,31 +22,34 @@ def test_feature_score_closed_form():
     assert feature_score(np.array([1e9]), np.array([1.0]))[0] == 180.0
 
 
-@pytest.mark.parametrize("angle", [90, 120, 150])
+@pytest.mark.parametrize("angle", [60, 90, 120, 150])
 def test_auto_threshold_finds_the_fold(angle):
     sample, res = fold(angle)
     feat = heatcurv.sharp_features(res)
     on_fold = sample.fold_distance < 1e-9
-    h = res.spacing.max()
+    h = np.median(res.spacing)  # default: h = d_60 / 2, about 2.1 grid steps here
     assert feat.mask[on_fold].all()
-    # measured: the mask is exactly the crease line (no point beyond 0 h)
-    assert sample.fold_distance[feat.mask].max() <= 1.01 * h
-    # the score estimates the turning angle: measured 0.63-0.82 of it at the crease
+    # measured: the mask reaches 1.9 h (60 degrees), 0.9 h (90) and 0.5 h (120, 150) from the crease
+    assert sample.fold_distance[feat.mask].max() <= 2.0 * h
+    # the score estimates the turning angle: measured 0.43-0.93 of it at the crease (the
+    # sharpest fold, 60 degrees, has its sheets 1.7 h apart 1 h from the crease)
     turn = 180.0 - angle
-    assert np.all(feat.score[on_fold] > 0.55 * turn) and np.all(feat.score[on_fold] < 1.05 * turn)
+    assert np.all(feat.score[on_fold] > 0.4 * turn) and np.all(feat.score[on_fold] < 1.1 * turn)
     assert feat.threshold >= 10.0
 
 
 @pytest.mark.parametrize("angle, threshold", [(170, 3.0), (179, 0.3)])
 def test_user_threshold_finds_shallow_folds(angle, threshold):
     # turning 10 and 1 degrees: below the automatic floor of 10 degrees, found with a user
-    # threshold. Measured: crease scores 8.0-8.6 and 0.80-0.86, elsewhere <= 0.25 and 0.025
+    # threshold. Measured: crease scores 9.3-10.7 and 0.93-1.07; the mask reaches 0.47 h
     sample, res = fold(angle)
     feat = heatcurv.sharp_features(res, threshold=threshold)
     on_fold = sample.fold_distance < 1e-9
-    np.testing.assert_array_equal(feat.mask, on_fold)
+    assert feat.mask[on_fold].all()
+    assert sample.fold_distance[feat.mask].max() <= 0.5 * np.median(res.spacing)
     assert feat.threshold == threshold
-    assert not heatcurv.sharp_features(res).mask.any()  # the automatic floor ignores them
+    if angle == 179:
+        assert not heatcurv.sharp_features(res).mask.any()  # the automatic floor ignores 1 degree
 
 
 @pytest.mark.parametrize(
@@ -59,7 +62,8 @@ def test_user_threshold_finds_shallow_folds(angle, threshold):
     ids=["sphere", "torus", "plane"],
 )
 def test_smooth_surfaces_have_no_features(sample):
-    # measured max scores: sphere 5.5, torus 6.9, plane 0 degrees (below the 10 degree floor)
+    # measured: max scores 11.5 (sphere), 14.4 (torus), 0 (plane) degrees, under the automatic
+    # threshold of 3x the median score (34 and 37 degrees) and the 10 degree floor
     feat = heatcurv.sharp_features(sample.points)
     assert not feat.mask.any()
 
@@ -78,5 +82,5 @@ def test_feature_errors():
         heatcurv.sharp_features(res, threshold=-1)
     with pytest.raises(HeatcurvError, match="cannot change a result"):
         heatcurv.sharp_features(res, alpha=3.0)
-    direct = heatcurv.sharp_features(sample.points, alpha=4.0)
+    direct = heatcurv.sharp_features(sample.points)
     np.testing.assert_allclose(direct.score, heatcurv.sharp_features(res).score)

@@ -64,14 +64,27 @@ class ChordFit:
     sigma : ndarray, shape (n,)
         Root-mean-square height residual of the fit (weighted), length units:
         near zero on clean data, the noise level on noisy data.
+    mean_variance_factor : ndarray, shape (n,)
+        Variance of the fitted mean curvature per unit height-noise variance:
+        ``Var(kappa_M) = sigma^2 * factor`` for independent height noise of
+        standard deviation ``sigma``.
     """
 
     principal: PrincipalCurvatures
     normals: np.ndarray
     sigma: np.ndarray
+    mean_variance_factor: np.ndarray
 
 
-def segment_lstsq(nbhd: Neighbourhood, design: np.ndarray, response: np.ndarray, weights: np.ndarray, ridge: float = 1e-10):
+def segment_lstsq(
+    nbhd: Neighbourhood,
+    design: np.ndarray,
+    response: np.ndarray,
+    weights: np.ndarray,
+    ridge: float = 1e-10,
+    contrast: np.ndarray | None = None,
+    noise_scale: np.ndarray | None = None,
+):
     """Weighted least squares for every point's neighbour pairs at once.
 
     Minimises ``sum_j w_ij (y_ij - X_ij . beta_i)^2`` for each point ``i``.
@@ -89,6 +102,12 @@ def segment_lstsq(nbhd: Neighbourhood, design: np.ndarray, response: np.ndarray,
     ridge : float, optional
         Tikhonov term relative to the trace of each normal matrix, so that
         rank-deficient neighbourhoods give a finite (flagged) answer.
+    contrast : ndarray, shape (p,), optional
+        A linear combination ``c . beta`` whose variance per unit noise
+        variance, ``c^T G^-1 (X^T W^2 S^2 X) G^-1 c``, is also returned.
+    noise_scale : ndarray, shape (nnz,), optional
+        ``S``: the standard deviation of each response per unit noise
+        (default 1, homoscedastic).
 
     Returns
     -------
@@ -99,49 +118,59 @@ def segment_lstsq(nbhd: Neighbourhood, design: np.ndarray, response: np.ndarray,
     well_posed : ndarray, shape (n,), bool
         Whether the normal matrix was well conditioned (reciprocal condition
         number above 1e-10).
+    variance : ndarray, shape (n,)
+        Only with ``contrast``: the variance factor of ``c . beta``.
     """
     n, p = nbhd.n_points, design.shape[1]
-    iu = np.triu_indices(p)
     G = np.zeros((n, p, p))
     r = np.zeros((n, p))
     yy = np.zeros(n)
-    # process whole rows in blocks of about BLOCK_PAIRS pairs
-    bounds = np.searchsorted(nbhd.indptr, np.arange(0, nbhd.n_pairs + BLOCK_PAIRS, BLOCK_PAIRS))
-    bounds = np.unique(np.clip(bounds, 0, n))
-    if bounds[0] != 0:
-        bounds = np.concatenate([[0], bounds])
-    if bounds[-1] != n:
-        bounds = np.append(bounds, n)
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
+    G2 = np.zeros((n, p, p)) if contrast is not None else None
+    counts = nbhd.counts
+    # Rows are padded to a common length and multiplied as batched matrices
+    # (X^T W X per point); blocks of about BLOCK_PAIRS padded pairs bound the memory.
+    width = max(int(counts.max()) if n else 1, 1)
+    rows_per_block = max(1, BLOCK_PAIRS // width)
+    for lo in range(0, n, rows_per_block):
+        hi = min(n, lo + rows_per_block)
         a, b = nbhd.indptr[lo], nbhd.indptr[hi]
         if a == b:
             continue
-        sub = Neighbourhood(
-            indptr=nbhd.indptr[lo : hi + 1] - a,
-            indices=nbhd.indices[a:b],
-            distances=nbhd.distances[a:b],
-            radius=nbhd.radius[lo:hi],
-            augmented=nbhd.augmented[lo:hi],
-        )
-        X, y, w = design[a:b], response[a:b], weights[a:b]
-        wX = w[:, None] * X
-        prod = sub.segment_sum(wX[:, iu[0]] * X[:, iu[1]])
-        G[lo:hi, iu[0], iu[1]] = prod
-        G[lo:hi, iu[1], iu[0]] = prod
-        r[lo:hi] = sub.segment_sum(wX * y[:, None])
-        yy[lo:hi] = sub.segment_sum(w * y * y)
+        local_rows = np.repeat(np.arange(hi - lo), counts[lo:hi])
+        slot = np.arange(b - a) - (nbhd.indptr[lo:hi] - a)[local_rows]
+        Xp = np.zeros((hi - lo, width, p))
+        wp = np.zeros((hi - lo, width))
+        yp = np.zeros((hi - lo, width))
+        Xp[local_rows, slot] = design[a:b]
+        wp[local_rows, slot] = weights[a:b]
+        yp[local_rows, slot] = response[a:b]
+        wXp = Xp * wp[:, :, None]
+        G[lo:hi] = np.matmul(wXp.transpose(0, 2, 1), Xp)
+        r[lo:hi] = np.einsum("mcp,mc->mp", wXp, yp)
+        yy[lo:hi] = np.einsum("mc,mc->m", wp * yp, yp)
+        if G2 is not None:
+            s2 = wp * wp
+            if noise_scale is not None:
+                sp_ = np.zeros((hi - lo, width))
+                sp_[local_rows, slot] = noise_scale[a:b]
+                s2 = s2 * sp_ * sp_
+            G2[lo:hi] = np.matmul((Xp * s2[:, :, None]).transpose(0, 2, 1), Xp)
     scale = np.maximum(np.trace(G, axis1=1, axis2=2) / p, 1e-300)
     Greg = G + (ridge * scale)[:, None, None] * np.eye(p)
     beta = np.linalg.solve(Greg, r[:, :, None])[:, :, 0]
     rss = np.maximum(yy - 2 * np.einsum("ij,ij->i", beta, r) + np.einsum("ij,ijk,ik->i", beta, G, beta), 0.0)
     evals = np.linalg.eigvalsh(G)
     well_posed = evals[:, 0] > 1e-10 * np.maximum(evals[:, -1], 1e-300)
-    return beta, rss, well_posed
+    if contrast is None:
+        return beta, rss, well_posed
+    u = np.linalg.solve(Greg, np.broadcast_to(np.asarray(contrast, float), (n, p))[:, :, None])[:, :, 0]
+    variance = np.einsum("ij,ijk,ik->i", u, G2, u)
+    return beta, rss, well_posed, variance
 
 
-def _local_coordinates(points, nbhd, normals):
+def _local_coordinates(centres, points, nbhd, normals):
     rows = nbhd.rows
-    d = points[nbhd.indices] - points[rows]
+    d = points[nbhd.indices] - centres[rows]
     e1, e2 = tangent_frames(normals)
     x = np.einsum("ij,ij->i", d, e1[rows])
     y = np.einsum("ij,ij->i", d, e2[rows])
@@ -172,18 +201,19 @@ def chord_fit(
     tilt: bool = True,
     cubic: bool = True,
     denoise: bool = False,
+    centres: np.ndarray | None = None,
 ) -> ChordFit:
     """Fit curvature tensor, normal tilt and cubic terms to the edge chord curvatures.
 
     Parameters
     ----------
     points : ndarray, shape (n, 3)
-        Distinct (centred) points.
+        Distinct (centred) points; ``nbhd.indices`` index them.
     nbhd : Neighbourhood
-        Neighbour pairs.
-    normals : ndarray, shape (n, 3)
-        Unit, consistently oriented starting normals (PCA); the signs of all
-        curvatures follow them.
+        Neighbour pairs, one row per centre.
+    normals : ndarray, shape (m, 3)
+        Unit, consistently oriented starting normals of the centres (PCA);
+        the signs of all curvatures follow them.
     weights : ndarray, shape (nnz,)
         Pair weights, e.g. heat kernel times neighbour area ``W_ij A_j``.
     passes : int, optional
@@ -195,20 +225,36 @@ def chord_fit(
     denoise : bool, optional
         Fit heights with the denoised chord denominator and a centre offset
         (for noisy clouds) instead of the chord curvatures.
+    centres : ndarray, shape (m, 3), optional
+        The points the fits are centred on (default ``points``): a subset,
+        or all points fitted against a coarser level of neighbours.
 
     Returns
     -------
     ChordFit
     """
+    if centres is None:
+        centres = points
+    # Work in units of each centre's ball radius: every column of the design is then
+    # of order one whatever the cloud's unit, so the solve (and its ridge) is
+    # scale-free; curvatures are converted back at the end.
+    unit = nbhd.radius
+    unit_pair = np.repeat(unit, nbhd.counts)
     nrm = normals
     for _ in range(max(1, passes)):
-        x, y, z, e1, e2 = _local_coordinates(points, nbhd, nrm)
+        x, y, z, e1, e2 = _local_coordinates(centres, points, nbhd, nrm)
+        x, y, z = x / unit_pair, y / unit_pair, z / unit_pair
         cols, r = _shape_columns(x, y, tilt, cubic)
         r2 = r * r
         if not denoise:
             D2 = r2 + z * z
             kN = np.where(D2 > 0, -2.0 * z / np.where(D2 > 0, D2, 1.0), 0.0)
-            beta, rss, ok = segment_lstsq(nbhd, cols, kN, weights)
+            contrast = np.zeros(cols.shape[1])
+            contrast[[0, 2]] = 0.5  # H = (a + d) / 2
+            # a height error eps moves kN by 2 eps / D^2: response noise scale per unit sigma
+            beta, rss, ok, var_factor = segment_lstsq(
+                nbhd, cols, kN, weights, contrast=contrast, noise_scale=2.0 / np.where(D2 > 0, D2, np.inf)
+            )
             # height residual: kN residual times D^2 / 2
             resid = (kN - np.einsum("ij,ij->i", cols, beta[nbhd.rows])) * D2 / 2
             sigma2 = nbhd.segment_sum(weights * resid * resid) / np.maximum(nbhd.segment_sum(weights), 1e-300)
@@ -221,11 +267,13 @@ def chord_fit(
             # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2
             D2 = r2 + (zhat - z0) ** 2
             design = np.concatenate([-0.5 * D2[:, None] * cols, np.ones((len(r2), 1))], 1)
-            beta, rss, ok = segment_lstsq(nbhd, design, z, weights)
+            contrast = np.zeros(design.shape[1])
+            contrast[[0, 2]] = 0.5  # H = (a + d) / 2
+            beta, rss, ok, var_factor = segment_lstsq(nbhd, design, z, weights, contrast=contrast)
             resid = z - np.einsum("ij,ij->i", design, beta[nbhd.rows])
             sigma2 = nbhd.segment_sum(weights * resid * resid) / np.maximum(nbhd.segment_sum(weights), 1e-300)
             beta = beta[:, :-1]
-        a, b, d = beta[:, 0], beta[:, 1], beta[:, 2]
+        a, b, d = beta[:, 0] / unit, beta[:, 1] / unit, beta[:, 2] / unit
         pc = tensor_to_principal(0.5 * (a + d), 0.5 * (a - d), b, e1, e2, nrm)
         if tilt:
             # coefficient of cos/r is -2 g_1 (and of sin/r, -2 g_2): the tangent plane is z = g . (x, y)
@@ -240,4 +288,7 @@ def chord_fit(
     )
     # report the normal the last fit was done in, so that d1 x d2 = n holds exactly; the
     # last tilt correction is below the measured normal error (0.001 deg on clean clouds)
-    return ChordFit(principal=principal, normals=used, sigma=np.sqrt(sigma2))
+    # back to the cloud's units: sigma scales with the radius, Var(kappa_M) = sigma^2 factor / R^4
+    return ChordFit(
+        principal=principal, normals=used, sigma=np.sqrt(sigma2) * unit, mean_variance_factor=var_factor / unit**4
+    )

@@ -12,15 +12,19 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .areas import ball_area_factor, density_areas
+from .border import border_points
 from .errors import HeatcurvError
+from .kernel import ball_taper
 from .mean_curvature import mean_curvature, mean_curvature_normal
 from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
 from .pipeline import Options, build_operator, resolve_options
 from .principal import principal_fit
+from .scale import fit_at_scale, select_scale
 from .validation import prepare_normals
 
 __all__ = ["CurvatureResult", "estimate"]
@@ -54,19 +58,30 @@ class CurvatureResult:
         False where the values are not to be trusted: the point's ball held
         too few neighbours (nearest neighbours were used instead), its
         neighbourhood is not surface-like (PCA planarity < 0.05), the tensor
-        fit was ill-posed, or its area came out non-positive; everywhere if
-        the area system did not converge (a ``HeatcurvWarning`` says so).
+        fit was ill-posed, its area came out non-positive, or it is a border
+        point; everywhere if the area system did not converge (a
+        ``HeatcurvWarning`` says so).
+    border : ndarray, shape (n,), bool
+        Points whose ball is cut by the border of an open surface
+        (:mod:`heatcurv.border`): their values come from one-sided
+        neighbourhoods.
     spacing : ndarray, shape (n,)
-        The spacing ``h`` used at each point (eq 2.6 or 2.7).
+        The spacing ``h`` of the heat kernel (``t = m h^2``; eq 2.6, 2.7, or
+        ``d_k / alpha``) at each point: the kernel of the Laplace-Beltrami
+        operator and of ``mean_curvature_normal``. The chord fit may use a
+        wider kernel; ``info["scale"]`` says which.
     neighbours : ndarray, shape (n,), int
-        Points in each ball (the point itself excluded).
+        Points in each heat-kernel ball (the point itself excluded).
     mean_curvature_normal : ndarray, shape (n, 3)
         ``K = L x`` of eq 2.10, approximately ``2 mean * normals``.
     options : Options
         The resolved options the result was computed with.
     info : dict
         ``n_distinct`` (points after merging duplicates), ``area_solve``
-        (solver, iterations, residual), ``timings`` (seconds per stage).
+        (solver, iterations, residual), ``timings`` (seconds per stage), and
+        for the chord fit ``scale``: the kernel chosen (``k`` neighbours,
+        ``fit`` label), the noise estimate ``sigma`` (length units) and
+        ``relative_noise`` (``sigma / h``).
     """
 
     normals: np.ndarray
@@ -78,6 +93,7 @@ class CurvatureResult:
     d2: np.ndarray
     area: np.ndarray
     reliable: np.ndarray
+    border: np.ndarray
     spacing: np.ndarray
     neighbours: np.ndarray
     mean_curvature_normal: np.ndarray
@@ -110,8 +126,11 @@ def estimate(
     spacing: str | None = None,
     gamma: float | None = None,
     k_local: int | None = None,
+    neighbors: int | None = None,
+    area_method: str | None = None,
     mean_formula: str | None = None,
     fit: str | None = None,
+    scale=None,
     area_solver: str | None = None,
     viewpoint=None,
     min_neighbors: int | None = None,
@@ -129,30 +148,39 @@ def estimate(
         them. Need not be unit length.
     method : {"default", "paper"}, optional
         ``"paper"`` follows the paper literally (eq 2.6 spacing, alpha = 4,
-        m = 1/4, mean curvature ``1/2 |K|`` of eq 2.11, constrained fit of
-        eq 3.1): the reproducible reference. ``"default"`` uses the same
-        spacing, kernel and areas but fits the curvature tensor freely
-        (``fit="unconstrained"``), the mean curvature being ``(k1 + k2)/2``
-        of the fit: measured 10-100x more accurate on regular samples. Every
-        option below overrides the preset (``heatcurv.METHODS`` lists them).
+        m = 1/4, areas from ``H A = 1``, mean curvature ``1/2 |K|`` of
+        eq 2.11, constrained fit of eq 3.1): the reproducible reference,
+        accurate on regular samples only. ``"default"`` is accurate on
+        irregular, scanned and noisy clouds: spacing from the density (the
+        ball holds 60 neighbours), density areas, and the chord fit with tilt
+        and cubic terms at a kernel chosen from the measured noise. Every
+        option below overrides the preset (``heatcurv.METHODS`` lists both).
     alpha : float, optional
-        Ball radius ``r = alpha h`` (paper: 4).
+        Ball radius ``r = alpha h`` (paper: 4; default: 2).
     m : float, optional
-        ``t = m h^2`` (paper: 1/4).
-    spacing : {"global", "local"}, optional
-        ``h`` from eq 2.6 or eq 2.7.
+        ``t = m h^2`` (1/4).
+    spacing : {"global", "local", "density"}, optional
+        ``h`` from eq 2.6, eq 2.7 or the density (``d_k / alpha``).
     gamma : float, optional
         Blend of eq 2.7 (0.25).
     k_local : int, optional
         Neighbours of eq 2.7's min/max (8).
+    neighbors : int, optional
+        Neighbours in the density ball, and the narrowest kernel of the
+        chord fit (60).
+    area_method : {"system", "density"}, optional
+        Areas from ``H A = 1`` (paper) or the density estimate (default).
     mean_formula : {"projection", "norm"}, optional
-        Eq 2.12 or eq 2.11.
-    fit : {"constrained", "unconstrained"}, optional
-        Principal fit with eq 3.1's constraints (mean curvature from the
-        quadrature of eq 2.11/2.12, ``mean_formula``) or free (mean curvature
-        ``(k1 + k2)/2`` of the fit).
+        Eq 2.12 or eq 2.11, where the mean curvature comes from the quadrature
+        (``fit="constrained"``).
+    fit : {"chord", "constrained", "unconstrained"}, optional
+        The chord fit with tilt and cubic terms (default); the paper's tensor
+        fit with eq 3.1's constraints; or the tensor fit without them.
+    scale : "auto" or int, optional
+        Kernel of the chord fit: chosen from the noise (``"auto"``), or a
+        fixed neighbour count. ``res.info["scale"]`` reports the choice.
     area_solver : {"auto", "cg", "bicgstab", "direct"}, optional
-        Solver of ``H A = 1``.
+        Solver of ``H A = 1`` (``area_method="system"``).
     viewpoint : array_like, shape (3,), optional
         Sensor position, in the input coordinates: orient every estimated
         normal towards it instead of propagating one orientation.
@@ -186,8 +214,11 @@ def estimate(
         spacing=spacing,
         gamma=gamma,
         k_local=k_local,
+        neighbors=neighbors,
+        area_method=area_method,
         mean_formula=mean_formula,
         fit=fit,
+        scale=scale,
         area_solver=area_solver,
         min_neighbors=min_neighbors,
         workers=workers,
@@ -204,7 +235,8 @@ def estimate(
     if normals is not None:
         nrm = prepare_normals(normals, prepared)
     else:
-        nrm, planarity = pca_normals(X, nbhd)
+        taper = ball_taper(nbhd) if opts.taper else None
+        nrm, planarity = pca_normals(X, nbhd, taper)
         if vp is not None:
             nrm = orient_towards_viewpoint(X, nrm, vp - prepared.offset)
         else:
@@ -217,32 +249,81 @@ def estimate(
     timings["mean"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
-    # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
-    # samples can give negative A_j; a least-squares objective with negative
-    # weights has no minimum, so those neighbours get weight zero.
-    pair_w = op.weights * nbhd.distances**2 * np.maximum(op.areas, 0.0)[nbhd.indices]
-    pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
+    info = {"n_distinct": prepared.n_distinct, "area_solve": op.area_solve}
+    areas = op.areas
+    if opts.fit == "chord":
+        fit, areas, info["scale"] = _chord_estimate(op, nrm, keep_normals=normals is not None)
+        pc, nrm = fit.principal, fit.normals
+        mean = pc.mean
+    else:
+        # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
+        # samples can give negative A_j; a least-squares objective with negative
+        # weights has no minimum, so those neighbours get weight zero.
+        pair_w = op.weights * nbhd.distances**2 * np.maximum(op.areas, 0.0)[nbhd.indices]
+        pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
+        if opts.fit == "unconstrained":
+            mean = pc.mean
     timings["principal"] = time.perf_counter() - tic
 
-    reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (op.areas > 0)
+    border = border_points(X, nbhd, nrm, weights=ball_taper(nbhd) if opts.taper else None)
+    reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~border
     reliable &= op.area_solve.converged
+    info["timings"] = timings
     back = prepared.to_input_order
     return CurvatureResult(
         normals=back(nrm),
-        mean=back(pc.mean if opts.fit == "unconstrained" else mean),
+        mean=back(mean),
         gaussian=back(pc.gaussian),
         k1=back(pc.k1),
         k2=back(pc.k2),
         d1=back(pc.d1),
         d2=back(pc.d2),
-        area=_share_area(op.areas, prepared),
+        area=_share_area(areas, prepared),
         reliable=back(reliable),
+        border=back(border),
         spacing=back(op.h),
         neighbours=back(nbhd.counts),
         mean_curvature_normal=back(K),
         options=opts,
-        info={"n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "timings": timings},
+        info=info,
     )
+
+
+def _chord_estimate(op, normals, keep_normals: bool):
+    """The chord fit at the kernel ``op.options.scale`` asks for (or chooses).
+
+    Returns the fit, the areas (recomputed on the fit's kernel when it is
+    wider than the base one, so noise does not inflate them) and the scale
+    record for ``info``.
+    """
+    opts, X = op.options, op.points
+    choice = select_scale(
+        X, op.tree, normals, op.areas, base_k=int(opts.neighbors), alpha=opts.alpha,
+        fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers,
+    )
+    fit, h, nbhd, fraction = fit_at_scale(
+        X, op.tree, normals, op.areas, choice.scale, alpha=opts.alpha, passes=1 if keep_normals else 2,
+        workers=opts.workers,
+    )
+    if opts.area_method == "density":
+        area_nbhd = op.neighbourhood if choice.scale.k <= opts.neighbors else nbhd
+        areas = op.areas if area_nbhd is op.neighbourhood else density_areas(nbhd, fraction=fraction)
+        pc = fit.principal
+        areas = areas * ball_area_factor(area_nbhd.radius, pc.k1, pc.k2)
+    else:
+        areas = op.areas
+    if keep_normals:
+        fit = replace(fit, normals=normals)
+    record = {
+        "k": choice.scale.k,
+        "median_h": float(np.median(h)),
+        "fit": choice.scale.label,
+        "sigma": choice.sigma,
+        "relative_noise": choice.relative_noise,
+        "candidates": [c.label for c in choice.candidates],
+        "sd": choice.sd,
+    }
+    return fit, areas, record
 
 
 def _share_area(areas: np.ndarray, prepared) -> np.ndarray:

@@ -21,8 +21,10 @@ resolves the surface.
 
 The automatic threshold is Otsu's between-class variance split of the scores
 (features and smooth surface form two populations), but never below
-``min_angle`` (10 degrees by default), so smooth or flat clouds report no
-features rather than their largest curvatures.
+``min_angle`` (10 degrees by default) nor below ``background`` (3) times the
+median score: a feature turns markedly more than the surface around it, so a
+smooth or flat cloud, or a coarsely sampled curved one whose every point
+turns by a similar angle within the kernel, reports no features.
 """
 
 from __future__ import annotations
@@ -108,7 +110,9 @@ def otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
     return float(edges[1 + (near[0] + near[-1]) // 2])
 
 
-def sharp_features(points_or_result, threshold: float | None = None, min_angle: float = 10.0, **options) -> FeatureResult:
+def sharp_features(
+    points_or_result, threshold: float | None = None, min_angle: float = 10.0, background: float = 3.0, **options
+) -> FeatureResult:
     """Detect sharp features (creases, corners) from the mean curvature.
 
     Parameters
@@ -118,9 +122,12 @@ def sharp_features(points_or_result, threshold: float | None = None, min_angle: 
         or a result already computed.
     threshold : float, optional
         Turning angle in degrees above which a point is a feature. Default:
-        automatic (Otsu's split of the scores, at least ``min_angle``).
+        automatic (Otsu's split of the scores, at least ``min_angle`` and at
+        least ``background`` times the median score).
     min_angle : float, optional
         Floor of the automatic threshold, degrees.
+    background : float, optional
+        The automatic threshold is at least this multiple of the median score.
     **options
         Passed to :func:`heatcurv.estimate`.
 
@@ -149,7 +156,7 @@ def sharp_features(points_or_result, threshold: float | None = None, min_angle: 
     kappa = 0.5 * np.einsum("ij,ij->i", res.mean_curvature_normal, res.normals)
     score = feature_score(kappa, res.spacing)
     if threshold is None:
-        thr = max(otsu_threshold(score), float(min_angle))
+        thr = max(otsu_threshold(score), float(min_angle), float(background) * float(np.median(score)))
     else:
         thr = float(threshold)
         if not np.isfinite(thr) or thr < 0:

@@ -18,7 +18,15 @@ import numpy as np
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood
 
-__all__ = ["heat_kernel_weights", "diffusion_time", "area_normalisation", "laplacian_normalisation"]
+__all__ = [
+    "heat_kernel_weights",
+    "diffusion_time",
+    "area_normalisation",
+    "laplacian_normalisation",
+    "flat_top",
+    "ball_taper",
+    "TAPER_START",
+]
 
 
 def diffusion_time(h: np.ndarray, m: float) -> np.ndarray:
@@ -60,3 +68,37 @@ def heat_kernel_weights(nbhd: Neighbourhood, h: np.ndarray, m: float = 0.25) -> 
     t = diffusion_time(h, m)
     t_pair = np.repeat(t, nbhd.counts)
     return np.exp(-(nbhd.distances**2) / (4.0 * t_pair))
+
+
+#: Where the flat-top profile starts to fall, as a fraction of the ball radius.
+TAPER_START = 0.7
+
+
+def flat_top(u: np.ndarray, start: float = TAPER_START) -> np.ndarray:
+    """Flat-top profile: 1 up to ``start``, a raised cosine down to 0 at ``u = 1``.
+
+    Parameters
+    ----------
+    u : ndarray
+        Distance in units of the ball radius.
+    start : float, optional
+        Where the fall begins.
+
+    Returns
+    -------
+    ndarray
+        Same shape as ``u``; 0 for ``u >= 1``.
+    """
+    out = np.where(u <= start, 1.0, 0.5 * (1.0 + np.cos(np.pi * (u - start) / (1.0 - start))))
+    return np.where(u >= 1.0, 0.0, out)
+
+
+def ball_taper(nbhd: Neighbourhood) -> np.ndarray:
+    """``flat_top(|xi - xj| / r_i)`` for every pair, shape ``(nnz,)``.
+
+    Multiplying a kernel by it makes every sum over the ball continuous in the
+    points: a neighbour entering or leaving the ball at its radius has weight
+    0, so rounding (a rigid motion, a change of units) cannot change a result
+    by a jump.
+    """
+    return flat_top(nbhd.distances / np.repeat(nbhd.radius, nbhd.counts))

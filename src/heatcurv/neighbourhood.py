@@ -88,69 +88,88 @@ def ball_neighbourhood(
     tree: cKDTree | None = None,
     min_neighbors: int = 6,
     workers: int = -1,
+    queries: np.ndarray | None = None,
+    source_index: np.ndarray | None = None,
 ) -> Neighbourhood:
-    """All neighbours within ``radius`` of each point, in CSR form.
+    """All neighbours within ``radius`` of each query point, in CSR form.
 
     Parameters
     ----------
     points : ndarray, shape (n, 3)
-        Distinct points.
-    radius : float or ndarray, shape (n,)
-        Ball radius ``r_i = alpha h_i``; a scalar gives the symmetric
-        neighbourhood of the paper's global spacing.
+        Distinct points to search (the tree's points).
+    radius : float or ndarray, shape (m,)
+        Ball radius ``r_i = alpha h_i`` of each query; a scalar gives the
+        symmetric neighbourhood of the paper's global spacing.
     tree : scipy.spatial.cKDTree, optional
         A tree already built on ``points``.
     min_neighbors : int, optional
-        A point whose ball holds fewer neighbours gets its ``min_neighbors``
+        A query whose ball holds fewer neighbours gets its ``min_neighbors``
         nearest ones instead and is marked in ``augmented``; without it,
         isolated points would have no normal and no curvature.
     workers : int, optional
         Threads for the k-d tree queries.
+    queries : ndarray, shape (m, 3), optional
+        Centres of the balls (default: ``points`` themselves). A query that
+        coincides with a point does not count itself as its neighbour.
+    source_index : ndarray, shape (n,), optional
+        Global index of each of ``points``: when ``points`` is a subset of a
+        larger cloud (a coarser level), the returned ``indices`` are mapped
+        through it.
 
     Returns
     -------
     Neighbourhood
+        One row per query.
     """
-    n = points.shape[0]
     if tree is None:
         tree = cKDTree(points)
-    radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (n,)).copy()
+    if queries is None:
+        queries = points
+    n_src, m = points.shape[0], queries.shape[0]
+    radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (m,)).copy()
     if not np.all(np.isfinite(radius)) or np.any(radius <= 0):
         raise HeatcurvError("the ball radius must be finite and positive")
-    if min_neighbors >= n:
-        raise HeatcurvError(f"need more than {min_neighbors} points for {min_neighbors} neighbours, got {n}")
-    lists = tree.query_ball_point(points, radius, workers=workers, return_sorted=True)
-    counts = np.fromiter(map(len, lists), dtype=np.int64, count=n)
-    flat = np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
+    if min_neighbors >= n_src:
+        raise HeatcurvError(f"need more than {min_neighbors} points for {min_neighbors} neighbours, got {n_src}")
+    lists = tree.query_ball_point(queries, radius, workers=workers, return_sorted=True)
+    counts = np.fromiter(map(len, lists), dtype=np.int64, count=m)
+    cols = np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
     del lists
-    rows = np.repeat(np.arange(n), counts)
-    keep = flat != rows  # drop the point itself
-    rows, cols = rows[keep], flat[keep]
-    counts = counts - 1
+    rows = np.repeat(np.arange(m), counts)
+    dist = np.linalg.norm(points[cols] - queries[rows], axis=1)
+    keep = dist > 0  # the points are distinct: distance 0 is the query itself
+    rows, cols, dist = rows[keep], cols[keep], dist[keep]
+    counts = np.bincount(rows, minlength=m)
 
     augmented = counts < min_neighbors
     if augmented.any():
         sparse_ids = np.flatnonzero(augmented)
-        _, nn = tree.query(points[sparse_ids], k=min_neighbors + 1, workers=workers)
-        nn = nn[:, 1:]
-        keep_rows = ~np.isin(rows, sparse_ids)
+        nd, nn = tree.query(queries[sparse_ids], k=min_neighbors + 1, workers=workers)
+        # drop the query itself where it is one of the points, else the farthest
+        self_hit = nd[:, 0] == 0
+        nn = np.where(self_hit[:, None], nn[:, 1:], nn[:, :-1])
+        nd = np.where(self_hit[:, None], nd[:, 1:], nd[:, :-1])
+        keep_rows = ~augmented[rows]
         rows = np.concatenate([rows[keep_rows], np.repeat(sparse_ids, min_neighbors)])
         cols = np.concatenate([cols[keep_rows], nn.reshape(-1)])
+        dist = np.concatenate([dist[keep_rows], nd.reshape(-1)])
         order = np.lexsort((cols, rows))
-        rows, cols = rows[order], cols[order]
-        counts = np.bincount(rows, minlength=n)
+        rows, cols, dist = rows[order], cols[order], dist[order]
+        counts = np.bincount(rows, minlength=m)
         # radius of an augmented point: its farthest neighbour
-        radius[sparse_ids] = np.maximum(
-            radius[sparse_ids], np.linalg.norm(points[nn[:, -1]] - points[sparse_ids], axis=1)
-        )
+        radius[sparse_ids] = np.maximum(radius[sparse_ids], nd[:, -1])
 
-    indptr = np.zeros(n + 1, dtype=np.int64)
+    indptr = np.zeros(m + 1, dtype=np.int64)
     np.cumsum(counts, out=indptr[1:])
-    distances = np.linalg.norm(points[cols] - points[rows], axis=1)
+    if source_index is not None:
+        cols = np.asarray(source_index)[cols]
+        n_global = int(np.max(source_index)) + 1
+    else:
+        n_global = n_src
     return Neighbourhood(
         indptr=indptr,
-        indices=cols.astype(_index_dtype(n)),
-        distances=distances,
+        indices=cols.astype(_index_dtype(n_global)),
+        distances=dist,
         radius=radius,
         augmented=augmented,
     )

@@ -27,7 +27,7 @@ from .neighbourhood import Neighbourhood
 __all__ = ["pca_normals", "orient_normals", "orient_towards_viewpoint", "tangent_frames"]
 
 
-def pca_normals(points: np.ndarray, nbhd: Neighbourhood) -> tuple[np.ndarray, np.ndarray]:
+def pca_normals(points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unoriented PCA normals of the ball neighbourhoods.
 
     Parameters
@@ -35,7 +35,12 @@ def pca_normals(points: np.ndarray, nbhd: Neighbourhood) -> tuple[np.ndarray, np
     points : ndarray, shape (n, 3)
         Distinct points.
     nbhd : Neighbourhood
-        Neighbour pairs; each point's own position is included in its covariance.
+        Neighbour pairs; each point's own position is included in its
+        covariance (with weight 1).
+    weights : ndarray, shape (nnz,), optional
+        Weight of each neighbour in the covariance (default 1: the paper's
+        plain PCA). :func:`heatcurv.kernel.ball_taper` makes the normal a
+        continuous function of the points.
 
     Returns
     -------
@@ -47,14 +52,15 @@ def pca_normals(points: np.ndarray, nbhd: Neighbourhood) -> tuple[np.ndarray, np
         not a surface (a line, a blob) and the normal is not defined.
     """
     rows = nbhd.rows
-    counts = nbhd.counts + 1.0
-    # neighbourhood mean including the point itself
-    mean = (nbhd.segment_sum(points[nbhd.indices]) + points) / counts[:, None]
+    w = np.ones(nbhd.n_pairs) if weights is None else np.asarray(weights, dtype=np.float64)
+    total = nbhd.segment_sum(w) + 1.0
+    # weighted neighbourhood mean including the point itself
+    mean = (nbhd.segment_sum(w[:, None] * points[nbhd.indices]) + points) / total[:, None]
     d = points[nbhd.indices] - mean[rows]
     d0 = points - mean
-    outer = (d[:, :, None] * d[:, None, :]).reshape(-1, 9)
+    outer = (w[:, None, None] * d[:, :, None] * d[:, None, :]).reshape(-1, 9)
     cov = (nbhd.segment_sum(outer) + (d0[:, :, None] * d0[:, None, :]).reshape(-1, 9)).reshape(-1, 3, 3)
-    cov /= counts[:, None, None]
+    cov /= total[:, None, None]
     evals, evecs = np.linalg.eigh(cov)
     normals = evecs[:, :, 0]
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -1,9 +1,9 @@
 """Options, method presets and the shared heat-kernel operator (the first stages).
 
 ``build_operator`` runs the stages every estimator shares, once:
-validation -> k-d tree -> spacing h (eq 2.6 / 2.7) -> ball neighbourhood of
-radius ``alpha h`` -> heat-kernel weights (eq 2.8) -> areas from ``H A = 1``
-(section 2.2). :func:`heatcurv.estimate` and :func:`heatcurv.laplacian` start
+validation -> k-d tree -> spacing h (eq 2.6 / 2.7, or density) -> ball
+neighbourhood of radius ``alpha h`` -> heat-kernel weights (eq 2.8) -> areas
+(``H A = 1``, section 2.2, or a density estimate). :func:`heatcurv.estimate` and :func:`heatcurv.laplacian` start
 from its result.
 """
 
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .areas import AreaSolve, point_areas
+from .areas import AreaSolve, density_areas, point_areas
 from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import heat_kernel_weights
 from .neighbourhood import Neighbourhood, ball_neighbourhood
@@ -28,7 +28,7 @@ __all__ = ["Options", "METHODS", "resolve_options", "HeatKernelOperator", "build
 
 @dataclass(frozen=True)
 class Options:
-    """Every knob of the pipeline, with the paper's names.
+    """Every knob of the pipeline, with the paper's names where the paper has one.
 
     Attributes
     ----------
@@ -38,18 +38,34 @@ class Options:
         Ball radius in units of the spacing, ``r = alpha h`` (paper: 3.5-4.5).
     m : float
         Diffusion-time constant, ``t = m h^2`` (eq 2.8; paper: 1/4).
-    spacing : {"global", "local"}
-        ``h`` from eq 2.6 (one value) or eq 2.7 (per point).
+    spacing : {"global", "local", "density"}
+        ``h`` from eq 2.6 (one value), eq 2.7 (per point), or the density
+        radius ``d_k / alpha`` with ``k = neighbors``.
     gamma : float
         Blend of eq 2.7 (paper: 0.1-0.5).
     k_local : int
         Nearest neighbours the min/max of eq 2.7 run over.
+    neighbors : int
+        Neighbours in the ball of the density spacing, and the narrowest
+        kernel of the chord fit.
+    area_method : {"system", "density"}
+        Areas from the paper's ``H A = 1`` (section 2.2) or from the
+        flat-top density estimate (:func:`heatcurv.areas.density_areas`).
     mean_formula : {"norm", "projection"}
-        Mean curvature as ``1/2 |K|`` signed (eq 2.11) or ``1/2 K . n`` (eq 2.12).
-    fit : {"constrained", "unconstrained"}
-        Principal fit with the constraints of eq 3.1, or free.
+        Mean curvature as ``1/2 |K|`` signed (eq 2.11) or ``1/2 K . n`` (eq 2.12),
+        for the fits that take it from the quadrature.
+    fit : {"constrained", "unconstrained", "chord"}
+        Principal fit with the constraints of eq 3.1, free, or the chord fit
+        with tilt and cubic terms (:mod:`heatcurv.chordfit`).
+    scale : "auto" or int
+        Kernel of the chord fit: ``"auto"`` chooses it from the measured noise
+        (:mod:`heatcurv.scale`); an integer ``k`` fixes it to ``k`` neighbours.
     area_solver : {"auto", "cg", "bicgstab", "direct"}
         Solver of ``H A = 1``.
+    taper : bool
+        Weight the PCA and the border test by a flat-top taper that falls to
+        0 at the ball's edge (:func:`heatcurv.kernel.ball_taper`), so results
+        are continuous in the points; False is the paper's plain PCA.
     min_neighbors : int
         Fewest neighbours a point may have; sparser points get their nearest ones.
     workers : int
@@ -57,37 +73,49 @@ class Options:
     """
 
     method: str = "default"
-    alpha: float = 4.0
+    alpha: float = 2.0
     m: float = 0.25
-    spacing: str = "global"
+    spacing: str = "density"
     gamma: float = 0.25
     k_local: int = 8
+    neighbors: int = 60
+    area_method: str = "density"
     mean_formula: str = "projection"
-    fit: str = "unconstrained"
+    fit: str = "chord"
+    scale: object = "auto"
     area_solver: str = "auto"
+    taper: bool = True
     min_neighbors: int = 6
     workers: int = -1
 
 
-#: The presets of ``method=``. ``"paper"`` follows the paper literally and is
-#: the reproducible reference. ``"default"`` keeps the paper's spacing,
-#: kernel and areas but fits the curvature tensor without the constraint of
-#: eq 3.1 (``fit="unconstrained"``), so the mean curvature is the fitted
-#: ``(k1 + k2) / 2`` instead of the quadrature of eq 2.11/2.12: on the
-#: paper's own regular samples this measured 10-100x more accurate for
-#: kappa_M, and 2-5x for k1, k2 and K (docs/paper_reproduction.md). Where the
-#: quadrature is still used (``fit="constrained"``), the default reads it as
-#: ``1/2 K . n`` (eq 2.12), which stays correct up to the border of open
-#: surfaces, where ``1/2 |K|`` (eq 2.11) picks up the tangential part of K.
+#: The presets of ``method=``.
+#:
+#: ``"paper"`` follows the paper literally and is the reproducible reference:
+#: eq 2.6 spacing, ``alpha = 4``, ``m = 1/4``, areas from ``H A = 1``, mean
+#: curvature ``1/2 |K|`` (eq 2.11), the constrained fit of eq 3.1.
+#:
+#: ``"default"`` replaces the stages that fail on irregular and noisy clouds,
+#: each by a named option: spacing from density (``spacing="density"``, the
+#: ball holds 60 neighbours, ``alpha = 2``), areas from a density estimate
+#: (``area_method="density"``), and the chord fit with tilt and cubic terms at
+#: a noise-adapted kernel (``fit="chord"``, ``scale="auto"``). The heat kernel
+#: (``t = h^2/4``, eq 2.8) weights the fit, and the mean-curvature normal of
+#: eq 2.10 is still computed (``result.mean_curvature_normal``, used by the
+#: feature detector).
 METHODS: dict[str, Options] = {
-    "paper": Options(method="paper", mean_formula="norm", fit="constrained"),
-    "default": Options(method="default", mean_formula="projection", fit="unconstrained"),
+    "paper": Options(
+        method="paper", alpha=4.0, spacing="global", area_method="system", mean_formula="norm",
+        fit="constrained", scale=None, taper=False,
+    ),
+    "default": Options(method="default"),
 }
 
 _CHOICES = {
-    "spacing": ("global", "local"),
+    "spacing": ("global", "local", "density"),
+    "area_method": ("system", "density"),
     "mean_formula": ("norm", "projection"),
-    "fit": ("constrained", "unconstrained"),
+    "fit": ("constrained", "unconstrained", "chord"),
     "area_solver": ("auto", "cg", "bicgstab", "direct"),
 }
 
@@ -118,6 +146,13 @@ def resolve_options(method: str = "default", **overrides) -> Options:
         raise HeatcurvError(f"gamma must lie in [0, 1] (paper: 0.1-0.5), got {opts.gamma}")
     if int(opts.min_neighbors) < 3:
         raise HeatcurvError(f"min_neighbors must be at least 3 (the tensor fit has 3 unknowns), got {opts.min_neighbors}")
+    if int(opts.neighbors) < 20:
+        raise HeatcurvError(f"neighbors must be at least 20 (the chord fit has 9 unknowns), got {opts.neighbors}")
+    if opts.fit == "chord":
+        if opts.scale is None:
+            opts = replace(opts, scale="auto")
+        if not (opts.scale == "auto" or (isinstance(opts.scale, (int, np.integer)) and opts.scale >= 20)):
+            raise HeatcurvError(f"scale must be 'auto' or a neighbour count >= 20, got {opts.scale!r}")
     return opts
 
 
@@ -186,7 +221,10 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
         options = resolve_options(**overrides)
     timings = {}
     tic = time.perf_counter()
-    prepared = prepare_points(points, min_points=int(options.min_neighbors) + 1)
+    need = int(options.min_neighbors) + 1
+    if options.spacing == "density" or options.fit == "chord":
+        need = max(need, int(options.neighbors) + 1)
+    prepared = prepare_points(points, min_points=need)
     X = prepared.points
     tree = cKDTree(X)
     timings["validate"] = time.perf_counter() - tic
@@ -194,7 +232,8 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
     tic = time.perf_counter()
     if options.spacing == "local" and options.k_local >= prepared.n_distinct:
         raise HeatcurvError(f"too few points for the local spacing over {options.k_local} neighbours")
-    h = compute_spacing(X, options.spacing, gamma=options.gamma, k=options.k_local, tree=tree, workers=options.workers)
+    k = options.neighbors if options.spacing == "density" else options.k_local
+    h = compute_spacing(X, options.spacing, gamma=options.gamma, k=k, tree=tree, workers=options.workers, alpha=options.alpha)
     if not np.all(h > 0):
         raise HeatcurvError("a point's spacing is zero; this should not happen after merging duplicates")
     timings["spacing"] = time.perf_counter() - tic
@@ -205,7 +244,10 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
 
     tic = time.perf_counter()
     weights = heat_kernel_weights(nbhd, h, options.m)
-    areas, info = point_areas(nbhd, weights, h, options.m, solver=options.area_solver, return_info=True)
+    if options.area_method == "density":
+        areas, info = density_areas(nbhd), AreaSolve("density", 0, 0.0, True)
+    else:
+        areas, info = point_areas(nbhd, weights, h, options.m, solver=options.area_solver, return_info=True)
     if not info.converged:
         warnings.warn(
             f"the area system H A = 1 did not converge ({info.solver}: {info.iterations} iterations, "

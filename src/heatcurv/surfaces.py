@@ -20,7 +20,7 @@ are some orthonormal tangent frame with the same handedness.
 
 Normal orientation
 ------------------
-Closed surfaces (:class:`Sphere`, :class:`Torus`): outward.  Graphs
+Closed surfaces (:class:`Sphere`, :class:`Ellipsoid`, :class:`Torus`): outward.  Graphs
 (:class:`Graph`, :class:`Paraboloid`, :class:`Saddle`, :class:`Arch`,
 :class:`Plane`) and :class:`FoldedSquare`: positive z-component.
 :class:`Cylinder`: away from the axis.  Consequently an upward-opening
@@ -34,14 +34,19 @@ Samplers
     not repeat the seam, and the numbers of rows and columns are chosen so
     that cells are nearly square in 3-D (``m x m`` with ``m = round(sqrt(n))``
     for the square graph domains).  On the sphere a latitude-longitude grid
-    degenerates at the poles, so ``"grid"`` gives the Fibonacci sphere there.
+    degenerates at the poles, so ``"grid"`` gives the Fibonacci sphere there
+    (and on the :class:`Ellipsoid`, the Fibonacci sphere mapped, see below).
 ``"fibonacci"``
     The 2-D Fibonacci lattice ``((i + 0.5) / n, frac(i * golden))`` in the
     unit square, mapped by the surface's area-preserving map where it has one
     (sphere: the classic Fibonacci sphere, torus: inverse CDF of the area
     element in the tube angle, cylinder: linear) and by the plain linear
     parameter map otherwise (graphs, plane, folded square: *not*
-    area-uniform on curved graphs).  Exactly ``n`` points.
+    area-uniform on curved graphs).  The :class:`Ellipsoid` takes the
+    sphere's lattice in its (longitude, latitude) parameters, i.e. the
+    Fibonacci sphere stretched by ``diag(a, b, c)``: nearly uniform in
+    parameter space but *not* area-uniform (denser where the stretch is
+    smaller).  Exactly ``n`` points.
 ``"random"``
     Area-uniform random points, exactly ``n``, by rejection sampling in the
     parameter domain with acceptance ``|X_u x X_v| / max``.
@@ -50,7 +55,28 @@ Samplers
     space (reflected back at a domain border, wrapped in periodic
     directions).  On the sphere the jitter moves the
     Fibonacci points, along the east and north directions by up to
-    +-0.25 cell (cell side ``sqrt(4 pi / n) R``), then projected back.
+    +-0.25 cell (cell side ``sqrt(4 pi / n) R``), then projected back; the
+    :class:`Ellipsoid` maps the jittered unit-sphere points the same way as
+    its ``"fibonacci"`` lattice.
+``"scan"``
+    A simulated terrestrial / structured-light scan, see :meth:`Surface.scan`:
+    rays on a regular azimuth x elevation grid from a few viewpoints, first
+    hits kept, grazing hits (incidence > 80 degrees) dropped.  The density
+    varies (overlapping scans, scan lines, fall-off with distance and
+    incidence), parts of the surface may stay unseen (holes), and the count
+    is about ``n`` (exactly ``n`` unless the scan came out short, see
+    :meth:`Surface.scan`).  ``border_distance`` then also bounds the distance
+    to the unseen region, approximately.
+
+Inverse parametrisation and rays
+--------------------------------
+Every surface also has an inverse parametrisation :meth:`Surface.parameters_of`
+(``position(parameters_of(p)) == p`` up to rounding for points on the
+surface), an implicit function :meth:`Surface.implicit` (zero on the surface,
+positive on the side the normal points to) and a vectorised first-hit ray
+caster :meth:`Surface.ray_intersect` (closed form for the sphere, ellipsoid
+and cylinder, safe marching plus bisection on the implicit function for the
+others).
 
 ``noise > 0`` adds isotropic Gaussian noise of standard deviation
 ``noise * diag`` (``diag`` = bounding-box diagonal of the clean points); the
@@ -60,11 +86,12 @@ exact quantities are always those of the clean points.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from numbers import Integral, Real
 from typing import Callable
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from heatcurv.errors import HeatcurvError
 
@@ -72,6 +99,7 @@ __all__ = [
     "Arch",
     "Curvature",
     "Cylinder",
+    "Ellipsoid",
     "FoldedSquare",
     "Graph",
     "Paraboloid",
@@ -87,7 +115,7 @@ __all__ = [
 ]
 
 #: Names of the supported samplers, see :meth:`Surface.sample`.
-SAMPLERS = ("grid", "fibonacci", "random", "jittered")
+SAMPLERS = ("grid", "fibonacci", "random", "jittered", "scan")
 
 _GOLDEN = (1.0 + math.sqrt(5.0)) / 2.0
 _UMBILIC_RTOL = 1e-9
@@ -155,6 +183,16 @@ def _finite(name: str, value) -> float:
     return value
 
 
+def _check_n(n) -> int:
+    """Validate a requested point count (an integer >= 4)."""
+    if isinstance(n, bool) or not isinstance(n, Integral):
+        raise HeatcurvError(f"n must be an integer, got {n!r}")
+    n = int(n)
+    if n < 4:
+        raise HeatcurvError(f"n must be at least 4, got {n}")
+    return n
+
+
 def _fibonacci_unit(n: int) -> tuple[np.ndarray, np.ndarray]:
     """The 2-D Fibonacci lattice ``((i + 0.5) / n, frac(i * golden))``, i < n."""
     i = np.arange(n, dtype=np.float64)
@@ -177,6 +215,121 @@ def _wrap(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
     y = np.mod(x - lo, period)
     y = np.where(y >= period, 0.0, y)  # np.mod(-tiny, p) can round to p
     return lo + y
+
+
+def _as_points(points, name: str = "points") -> np.ndarray:
+    """Return ``points`` as a finite float64 array of shape (n, 3)."""
+    try:
+        p = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise HeatcurvError(f"{name} must be a numeric array of shape (n, 3): {exc}") from exc
+    if p.ndim == 1 and p.shape[0] == 3:
+        p = p[None, :]
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise HeatcurvError(f"{name} must have shape (n, 3), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise HeatcurvError(f"{name} must be finite (found NaN or inf)")
+    return p
+
+
+def _as_rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
+    """Broadcast ray origins and directions to (m, 3); directions made unit."""
+    o = _as_points(origins, "origins")
+    d = _as_points(directions, "directions")
+    try:
+        o, d = np.broadcast_arrays(o, d)
+    except ValueError:
+        raise HeatcurvError(
+            f"origins and directions must broadcast, got shapes {o.shape} and {d.shape}"
+        ) from None
+    length = np.linalg.norm(d, axis=1)
+    if np.any(length == 0.0):
+        raise HeatcurvError("ray directions must be non-zero")
+    return np.ascontiguousarray(o), d / length[:, None]
+
+
+def _slab(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray):
+    """Entry and exit ray parameters of the box ``[lo, hi]`` (entry clipped at 0).
+
+    Shapes: ``o``, ``d`` (m, 3); returns two arrays of shape (m,); the ray
+    misses the box where ``entry >= exit``.
+    """
+    safe = np.where(d == 0.0, 1e-300, d)
+    ta = (lo - o) / safe
+    tb = (hi - o) / safe
+    enter = np.max(np.minimum(ta, tb), axis=1)
+    leave = np.min(np.maximum(ta, tb), axis=1)
+    return np.maximum(enter, 0.0), leave
+
+
+def _first_quadric_root(qa, qb, qc, valid=None, tmin=0.0):
+    """Smallest root ``t > tmin`` of ``qa t^2 + 2 qb t + qc = 0`` (``inf`` if none).
+
+    Vectorised over arrays of shape (m,), cancellation-free.  ``valid`` is an
+    optional callable ``valid(t) -> bool array`` a root must also satisfy
+    (e.g. lying within the cylinder's height).
+    """
+    disc = qb * qb - qa * qc
+    ok = (disc >= 0.0) & (qa > 0.0)
+    root = np.sqrt(np.where(ok, disc, 0.0))
+    q = -(qb + np.copysign(root, qb))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r1 = np.where(ok, q / qa, np.inf)
+        r2 = np.where(ok & (q != 0.0), qc / q, np.inf)
+    near = np.minimum(r1, r2)
+    far = np.maximum(r1, r2)
+    out = np.full(qa.shape, np.inf)
+    for t in (far, near):  # the nearer valid root wins, so assign it last
+        good = ok & np.isfinite(t) & (t > tmin)
+        if valid is not None:
+            good &= valid(np.where(good, t, 0.0))
+        out = np.where(good, t, out)
+    return out
+
+
+def _unit_sphere_jitter(n: int, rng: np.random.Generator):
+    """Fibonacci-sphere parameters moved by +-0.25 cell along east and north.
+
+    Cell side ``sqrt(4 pi / n)`` on the unit sphere; the moved point is
+    projected back onto the sphere.  Returns longitude in ``[0, 2 pi)`` and
+    latitude, arrays of shape (n,).
+    """
+    i = np.arange(n, dtype=np.float64)
+    t1, t2 = (i + 0.5) / n, np.mod(i * (_GOLDEN - 1.0), 1.0)
+    u, v = _TWO_PI * t2, np.arcsin(np.clip(1.0 - 2.0 * t1, -1.0, 1.0))
+    cell = math.sqrt(4.0 * math.pi / n)
+    radial = _vec(n, np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v))
+    east = _vec(n, -np.sin(u), np.cos(u), 0.0)
+    north = np.cross(radial, east)
+    a = rng.uniform(-0.25, 0.25, n)[:, None] * cell
+    b = rng.uniform(-0.25, 0.25, n)[:, None] * cell
+    p = _unit(radial + a * east + b * north)
+    u = _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
+    v = np.arcsin(np.clip(p[:, 2], -1.0, 1.0))
+    return u, v
+
+
+def _view_positions(views, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Viewpoints from ``(azimuth, elevation, distance)`` triples, shape (k, 3).
+
+    Angles in degrees about the centre of the box ``[lo, hi]``, distances in
+    bounding radii (half the box diagonal).
+    """
+    az = np.radians([a for a, _, _ in views])
+    el = np.radians([e for _, e, _ in views])
+    dist = np.array([r for _, _, r in views]) * 0.5 * float(np.linalg.norm(hi - lo))
+    unit = np.column_stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    return 0.5 * (lo + hi) + dist[:, None] * unit
+
+
+#: (azimuth, elevation, distance) of the default scan viewpoints around an
+#: object and above a graph patch: degrees, and bounding radii (half the
+#: bounding-box diagonal) from the box centre; see
+#: :meth:`Surface.default_viewpoints`.  Different distances give the scans
+#: different densities (one angular step for all), as with a real scanner
+#: set up at several stations.
+_AROUND = ((30.0, 35.0, 2.5), (150.0, -25.0, 3.0), (270.0, 10.0, 3.5))
+_ABOVE = ((0.0, 65.0, 2.0), (120.0, 55.0, 2.75), (240.0, 72.0, 3.5))
 
 
 # ---------------------------------------------------------------------------
@@ -288,6 +441,11 @@ class SurfaceSample:
     feature_distance : ndarray, shape (n,)
         Distance along the surface to the nearest sharp feature (the fold of a
         :class:`FoldedSquare`); ``inf`` on smooth surfaces.
+    viewpoints : ndarray, shape (m, 3), or None
+        ``"scan"`` samples: the scanner positions; None for the other samplers.
+    viewpoint_index : ndarray of int, shape (n,), or None
+        ``"scan"`` samples: the viewpoint (row of ``viewpoints``) whose ray
+        produced each point; None for the other samplers.
     """
 
     surface: "Surface"
@@ -309,9 +467,67 @@ class SurfaceSample:
     total_area: float
     border_distance: np.ndarray
     feature_distance: np.ndarray = field(repr=False)
+    viewpoints: np.ndarray | None = field(default=None, repr=False)
+    viewpoint_index: np.ndarray | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
+
+    def transformed(self, scale: float = 1.0, rotation=None, translation=None) -> "SurfaceSample":
+        """The same sample after ``x -> scale * rotation @ x + translation``.
+
+        Every exact quantity is mapped accordingly: normals and principal
+        directions are rotated, curvatures divided by ``scale`` (Gaussian by
+        ``scale**2``), ``total_area`` multiplied by ``scale**2``, distances
+        (``border_distance``, ``feature_distance``, ``sigma``) by ``scale``;
+        ``points`` (noise included) and ``viewpoints`` are moved like the clean
+        points.  ``surface``, ``u`` and ``v`` still refer to the untransformed
+        surface.
+
+        Parameters
+        ----------
+        scale : float
+            ``> 0``.
+        rotation : array_like, shape (3, 3), optional
+            A proper rotation (orthonormal, determinant +1, to 1e-9); a
+            reflection would break ``d1 x d2 = n``.  Default identity.
+        translation : array_like, shape (3,), optional
+            Default zero.
+
+        Returns
+        -------
+        SurfaceSample
+        """
+        s = _positive("scale", scale)
+        rot = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
+        if rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
+            raise HeatcurvError(f"rotation must be a finite 3 x 3 matrix, got shape {rot.shape}")
+        if not (np.allclose(rot @ rot.T, np.eye(3), atol=1e-9) and np.linalg.det(rot) > 0):
+            raise HeatcurvError("rotation must be a proper rotation matrix (orthonormal, det = +1)")
+        shift = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
+        if shift.shape != (3,) or not np.all(np.isfinite(shift)):
+            raise HeatcurvError(f"translation must be 3 finite numbers, got {translation!r}")
+
+        def move(p):
+            return s * (p @ rot.T) + shift
+
+        return replace(
+            self,
+            points=move(self.points),
+            clean_points=move(self.clean_points),
+            normals=self.normals @ rot.T,
+            d1=self.d1 @ rot.T,
+            d2=self.d2 @ rot.T,
+            mean=self.mean / s,
+            k1=self.k1 / s,
+            k2=self.k2 / s,
+            gaussian=self.gaussian / (s * s),
+            sigma=self.sigma * s,
+            total_area=self.total_area * s * s,
+            border_distance=self.border_distance * s,
+            feature_distance=self.feature_distance * s,
+            viewpoints=None if self.viewpoints is None else move(self.viewpoints),
+        )
 
     @property
     def n(self) -> int:
@@ -573,6 +789,357 @@ class Surface:
         u, _ = _as_uv(u, v)
         return np.full(u.shape, np.inf)
 
+    # -- inverse parametrisation, implicit form, rays ----------------------
+
+    def parameters_of(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Parameters ``(u, v)`` of points on the surface, the inverse of :meth:`position`.
+
+        For points on the surface ``position(*parameters_of(p))`` reproduces
+        ``p`` up to rounding.  Points off the surface are mapped to the
+        parameters of a nearby surface point (a radial or vertical projection,
+        documented per surface), not necessarily the nearest one.  Periodic
+        parameters are wrapped into the domain, the others are *not* clipped.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        raise NotImplementedError
+
+    def implicit(self, points) -> np.ndarray:
+        """An implicit function of the surface (ignoring the border of open ones).
+
+        Zero on the surface, positive on the side the normal points to
+        (outside for closed surfaces, above for graphs).  It is
+        Lipschitz-continuous along any unit direction with the constant
+        :meth:`_implicit_lipschitz`, which lets :meth:`ray_intersect` march
+        safely.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        ndarray, shape (n,)
+        """
+        raise NotImplementedError
+
+    def _implicit_lipschitz(self) -> float:
+        """Upper bound of ``|grad implicit|`` (a distance function has 1)."""
+        return 1.0
+
+    def bounding_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """An axis-aligned box containing the surface (tight for the closed forms).
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (3,)
+        """
+        raise NotImplementedError
+
+    def _march_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Box the ray marcher searches: the bounding box, slightly padded.
+
+        Open surfaces whose border is given by the box (graphs) override this
+        so that the box does not extend past the border.
+        """
+        lo, hi = self.bounding_box()
+        pad = 1e-6 * float(np.linalg.norm(hi - lo)) + 1e-300
+        return lo - pad, hi + pad
+
+    def ray_intersect(self, origins, directions) -> np.ndarray:
+        """Distance along each ray to its first intersection with the surface.
+
+        Parameters
+        ----------
+        origins : array_like, shape (m, 3) or (3,)
+            Ray origins (broadcast against ``directions``).
+        directions : array_like, shape (m, 3) or (3,)
+            Ray directions, need not be unit length.
+
+        Returns
+        -------
+        ndarray, shape (m,)
+            ``t > 0`` such that ``origin + t * direction / |direction|`` is the
+            first surface point hit (the border of open surfaces respected),
+            ``inf`` where the ray misses.  Closed forms for the
+            :class:`Sphere`, :class:`Ellipsoid` and :class:`Cylinder`; the
+            other surfaces march along the ray with steps
+            ``max(|implicit| / Lipschitz, 2e-4 * box diagonal)`` (a step
+            that cannot jump over the surface unless the ray stays within
+            ~``2e-4`` box diagonals of it, i.e. is grazing), then bisect the
+            first sign change to full precision.
+        """
+        o, d = _as_rays(origins, directions)
+        return self._intersect(o, d)
+
+    def _intersect(self, o: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Generic first hit: safe marching plus bisection (unit ``d``)."""
+        m = o.shape[0]
+        out = np.full(m, np.inf)
+        lo, hi = self._march_box()
+        enter, leave = _slab(o, d, lo, hi)
+        idx = np.flatnonzero(enter < leave)
+        if idx.size == 0:
+            return out
+        lip = float(self._implicit_lipschitz())
+        hmin = 2e-4 * float(np.linalg.norm(hi - lo))
+        oo, dd, t, t_end = o[idx], d[idx], enter[idx], leave[idx]
+        g = self.implicit(oo + t[:, None] * dd)
+        at_zero = g == 0.0
+        out[idx[at_zero]] = t[at_zero]
+        keep = ~at_zero
+        idx, oo, dd, t, t_end, g = idx[keep], oo[keep], dd[keep], t[keep], t_end[keep], g[keep]
+        b_ids, b_lo, b_hi, b_neg = [], [], [], []
+        while idx.size:
+            step = np.maximum(np.abs(g) / lip, hmin)
+            tn = np.minimum(t + step, t_end)
+            gn = self.implicit(oo + tn[:, None] * dd)
+            cross = (gn == 0.0) | (np.signbit(gn) != np.signbit(g))
+            if np.any(cross):
+                b_ids.append(idx[cross])
+                b_lo.append(t[cross])
+                b_hi.append(tn[cross])
+                b_neg.append(np.signbit(g[cross]))
+            keep = ~(cross | (tn >= t_end))
+            idx, oo, dd, t, t_end, g = idx[keep], oo[keep], dd[keep], tn[keep], t_end[keep], gn[keep]
+        if not b_ids:
+            return out
+        ids = np.concatenate(b_ids)
+        a, b = np.concatenate(b_lo), np.concatenate(b_hi)
+        neg_a = np.concatenate(b_neg)
+        oo, dd = o[ids], d[ids]
+        for _ in range(200):  # bisection to adjacent floats (~60 halvings)
+            mid = 0.5 * (a + b)
+            if np.all((mid == a) | (mid == b)):
+                break
+            gm = self.implicit(oo + mid[:, None] * dd)
+            zero = gm == 0.0
+            same = (np.signbit(gm) == neg_a) & ~zero
+            a = np.where(same | zero, mid, a)
+            b = np.where(same, b, mid)
+        out[ids] = 0.5 * (a + b)
+        return out
+
+    def default_viewpoints(self) -> np.ndarray:
+        """Default scanner positions of :meth:`scan`.
+
+        Three positions looking at the bounding-box centre from 2.5, 3 and 3.5
+        bounding radii (half the bounding-box diagonal): for closed surfaces
+        around the object at azimuths 30, 150, 270 degrees and elevations
+        +35, -25, +10 degrees; graphs (and the folded square) are looked at
+        from above, from 2, 2.75 and 3.5 bounding radii at azimuths 0, 120,
+        240 and elevations 65, 55, 72 degrees (steeper than the surfaces'
+        slopes, so only the upper side is seen); the cylinder from the side
+        (azimuths as above) at heights +0.6, -0.6 and 0 half-heights, so the
+        inside of the tube stays unseen.
+
+        Returns
+        -------
+        ndarray, shape (3, 3)
+        """
+        return _view_positions(_AROUND, *self.bounding_box())
+
+    def _scan_grid(self, viewpoints: np.ndarray, delta: float):
+        """Rays of the angular scan grids: origins, unit directions, viewpoint index.
+
+        Each viewpoint looks at the bounding-box centre; its rays are spaced
+        ``delta`` radians in azimuth (about the viewpoint's vertical axis) and
+        elevation, ordered in scan lines of constant azimuth, and limited to the
+        cone around the bounding sphere.
+        """
+        lo, hi = self.bounding_box()
+        centre = 0.5 * (lo + hi)
+        rb = 0.5 * float(np.linalg.norm(hi - lo))
+        origins, dirs, index = [], [], []
+        for i, c in enumerate(viewpoints):
+            fwd = centre - c
+            dist = float(np.linalg.norm(fwd))
+            f = fwd / dist
+            half = min(math.asin(min(rb / dist, 1.0)) * 1.02, 0.5 * math.pi)
+            up0 = np.array([0.0, 0.0, 1.0]) if abs(f[2]) < 0.99 else np.array([1.0, 0.0, 0.0])
+            right = np.cross(f, up0)
+            right /= np.linalg.norm(right)
+            up = np.cross(right, f)
+            k = int(math.ceil(half / delta))
+            ang = delta * np.arange(-k, k + 1, dtype=np.float64)
+            phi, theta = np.meshgrid(ang, ang, indexing="ij")  # scan lines: constant azimuth
+            phi, theta = phi.ravel(), theta.ravel()
+            inside = np.cos(theta) * np.cos(phi) >= math.cos(half)
+            phi, theta = phi[inside], theta[inside]
+            ct = np.cos(theta)[:, None]
+            d = ct * (np.cos(phi)[:, None] * f + np.sin(phi)[:, None] * right) + np.sin(theta)[:, None] * up
+            dirs.append(d / np.linalg.norm(d, axis=1)[:, None])
+            origins.append(np.broadcast_to(c, d.shape))
+            index.append(np.full(d.shape[0], i, dtype=np.int64))
+        return np.concatenate(origins), np.concatenate(dirs), np.concatenate(index)
+
+    def _clip_uv(self, u: np.ndarray, v: np.ndarray):
+        """Wrap periodic parameters and clip the others into the domain (rounding)."""
+        out = []
+        for t, (t0, t1), per in zip((u, v), self.domain, self.periodic):
+            out.append(_wrap(t, t0, t1) if per else np.clip(t, t0, t1))
+        return out[0], out[1]
+
+    def _scan_hits(self, viewpoints: np.ndarray, delta: float, min_cos: float):
+        """Cast the scan grid; the kept first hits' parameters and viewpoint index."""
+        o, d, index = self._scan_grid(viewpoints, delta)
+        t = self._intersect(o, d)
+        hit = np.isfinite(t)
+        o, d, t, index = o[hit], d[hit], t[hit], index[hit]
+        u, v = self._clip_uv(*self.parameters_of(o + t[:, None] * d))
+        facing = np.abs(_dot(self.normal(u, v), d)) >= min_cos
+        return u[facing], v[facing], index[facing]
+
+    def _covered(self, q: np.ndarray, nq: np.ndarray, viewpoints: np.ndarray, min_cos: float):
+        """Which points ``q`` (normals ``nq``) some viewpoint sees unoccluded, not grazing."""
+        lo, hi = self.bounding_box()
+        tol = 1e-7 * float(np.linalg.norm(hi - lo))
+        covered = np.zeros(q.shape[0], dtype=bool)
+        for c in viewpoints:
+            vec = q - c
+            dist = np.linalg.norm(vec, axis=1)
+            d = vec / dist[:, None]
+            sel = np.flatnonzero(~covered & (np.abs(_dot(nq, d)) >= min_cos))
+            if sel.size == 0:
+                continue
+            t = self._intersect(np.broadcast_to(c, (sel.size, 3)), d[sel])
+            covered[sel[t >= dist[sel] - tol]] = True
+        return covered
+
+    def _scan_border_distance(self, u, v, viewpoints, min_cos, n):
+        """``border_distance`` of scan points: min of the surface's and the hole's.
+
+        The unseen region is found on a dense reference sample (the
+        ``"grid"`` layout with ``clip(2 n, 4000, 100000)`` points): a reference
+        point is seen if some viewpoint sees it unoccluded and within the
+        incidence limit.  The distance to the unseen region is approximated
+        by the 3-D distance to the nearest unseen reference point minus the
+        largest reference nearest-neighbour distance (clipped at 0): close to
+        a lower bound of the distance along the surface, to about one
+        reference spacing.
+        """
+        own = self.border_distance(u, v)
+        ur, vr = self._grid_uv(int(min(max(2 * n, 4000), 100000)))
+        q = self.position(ur, vr)
+        seen = self._covered(q, self.normal(ur, vr), viewpoints, min_cos)
+        if np.all(seen):
+            return own
+        spacing = float(np.max(cKDTree(q).query(q, 2)[0][:, 1]))
+        hole = cKDTree(q[~seen]).query(self.position(u, v))[0]
+        return np.minimum(own, np.maximum(hole - spacing, 0.0))
+
+    def scan(
+        self,
+        n,
+        viewpoints=None,
+        noise: float = 0.0,
+        seed=None,
+        max_incidence: float = 80.0,
+    ) -> SurfaceSample:
+        """A simulated terrestrial / structured-light scan with exact ground truth.
+
+        From each viewpoint, rays are cast on a regular angular grid (scan
+        lines of constant azimuth about the viewpoint's vertical axis, the same
+        angular step in azimuth and elevation, covering the cone of the
+        bounding sphere) and the *first* hit of each ray is kept, unless it
+        is grazing (angle between ray and normal > ``max_incidence``).  Hits
+        of all viewpoints are pooled, so the density varies: overlaps, scan
+        lines, fall-off with distance and with incidence (``~ cos(incidence) /
+        distance^2``); regions no viewpoint sees stay empty (holes, also on
+        closed surfaces).  Open surfaces can be hit on either side (e.g. the
+        inside of the :class:`Cylinder` through its ends, with viewpoints not
+        of the default); ``normals`` keep the surface's orientation.
+
+        The angular step is chosen from a coarse pilot scan so that the hit
+        count is about ``1.03 n``; the excess hits are then dropped at random
+        (seeded, order preserved), which gives exactly ``n`` points.  If a scan
+        still comes out short after three refinements of the step (it should
+        not), fewer points are returned.  The exact values at each hit come
+        from its parameters, :meth:`parameters_of` of the hit point, so
+        ``clean_points == position(u, v)`` exactly.  ``border_distance`` is
+        the minimum of the surface's own and an approximate distance to the
+        unseen region (see :meth:`_scan_border_distance`), so
+        :meth:`SurfaceSample.interior` excludes the borders of holes as well.
+
+        Parameters
+        ----------
+        n : int
+            Requested number of points (>= 4).
+        viewpoints : array_like, shape (m, 3), optional
+            Scanner positions, each outside the bounding sphere (centre and
+            half-diagonal of :meth:`bounding_box`); default
+            :meth:`default_viewpoints`.
+        noise : float
+            As in :meth:`sample` (``noise * diag`` standard deviation).
+        seed : None, int, or numpy.random.Generator
+            Seeds the dropping of excess hits and the noise; same seed, same
+            sample.
+        max_incidence : float
+            Largest kept angle between ray and surface normal, degrees in
+            ``(0, 90)``.
+
+        Returns
+        -------
+        SurfaceSample
+            ``sampler == "scan"``, with ``viewpoints`` (m, 3) and
+            ``viewpoint_index`` (n,) set.
+
+        Raises
+        ------
+        HeatcurvError
+            For ``n < 4``, bad viewpoints (shape, non-finite, inside the
+            bounding sphere), a bad ``max_incidence`` or noise, or when no
+            ray hits the surface.
+        """
+        n = _check_n(n)
+        noise = _finite("noise", noise)
+        if noise < 0.0:
+            raise HeatcurvError(f"noise must be >= 0, got {noise}")
+        inc = _finite("max_incidence", max_incidence)
+        if not 0.0 < inc < 90.0:
+            raise HeatcurvError(f"max_incidence must be in (0, 90) degrees, got {max_incidence!r}")
+        min_cos = math.cos(math.radians(inc))
+        lo, hi = self.bounding_box()
+        centre = 0.5 * (lo + hi)
+        rb = 0.5 * float(np.linalg.norm(hi - lo))
+        if viewpoints is None:
+            vps = self.default_viewpoints()
+        else:
+            vps = _as_points(viewpoints, "viewpoints")
+        far = np.linalg.norm(vps - centre, axis=1)
+        if np.any(far <= rb * (1.0 + 1e-9)):
+            raise HeatcurvError(
+                f"scan viewpoints must lie outside the bounding sphere (centre {centre.tolist()}, "
+                f"radius {rb:.6g}); distances {far.tolist()}"
+            )
+        rng = np.random.default_rng(seed)
+        # pilot: ~3000 rays per viewpoint over the widest cone
+        half = max(math.asin(min(rb / float(f), 1.0)) for f in far)
+        delta0 = 1.02 * half * math.sqrt(math.pi / 3000.0)
+        u, _, _ = self._scan_hits(vps, delta0, min_cos)
+        if u.size == 0:
+            raise HeatcurvError("no scan ray hit the surface from these viewpoints")
+        target = 1.03 * n + 8
+        delta = delta0 * math.sqrt(u.size / target)
+        for _ in range(4):
+            u, v, index = self._scan_hits(vps, delta, min_cos)
+            if u.size >= n:
+                break
+            delta *= 0.99 * math.sqrt(max(u.size, 1) / target)
+        if u.size > n:
+            keep = np.sort(rng.choice(u.size, size=n, replace=False))
+            u, v, index = u[keep], v[keep], index[keep]
+        border = self._scan_border_distance(u, v, vps, min_cos, n)
+        return self._make_sample(
+            u, v, "scan", noise, rng, border_distance=border, viewpoints=vps, viewpoint_index=index
+        )
+
     # -- parameter samplers ------------------------------------------------
 
     def _grid_axes(self, n: int):
@@ -672,9 +1239,11 @@ class Surface:
         n : int
             Requested number of points (>= 4).  ``"fibonacci"`` and
             ``"random"`` return exactly ``n``; ``"grid"`` and ``"jittered"``
-            return the nearest grid size.
-        sampler : {"grid", "fibonacci", "random", "jittered"}
-            See the module docstring.
+            return the nearest grid size; ``"scan"`` about ``n`` (see
+            :meth:`scan`).
+        sampler : {"grid", "fibonacci", "random", "jittered", "scan"}
+            See the module docstring; ``"scan"`` is :meth:`scan` with the
+            default viewpoints.
         noise : float
             Standard deviation of isotropic Gaussian noise added to
             ``points``, as a fraction of the bounding-box diagonal of the clean
@@ -692,15 +1261,13 @@ class Surface:
         HeatcurvError
             For an unknown sampler, ``n < 4`` or a negative/non-finite noise.
         """
-        if isinstance(n, bool) or not isinstance(n, Integral):
-            raise HeatcurvError(f"n must be an integer, got {n!r}")
-        n = int(n)
-        if n < 4:
-            raise HeatcurvError(f"n must be at least 4, got {n}")
+        n = _check_n(n)
         if sampler not in SAMPLERS:
             raise HeatcurvError(
                 f"unknown sampler {sampler!r}; supported samplers: {', '.join(SAMPLERS)}"
             )
+        if sampler == "scan":
+            return self.scan(n, noise=noise, seed=seed)
         rng = np.random.default_rng(seed)
         if sampler == "grid":
             u, v = self._grid_uv(n)
@@ -733,7 +1300,9 @@ class Surface:
         u, v = u.copy(), v.copy()  # never alias the caller's arrays
         return self._make_sample(u, v, "custom", noise, np.random.default_rng(seed))
 
-    def _make_sample(self, u, v, sampler, noise, rng) -> SurfaceSample:
+    def _make_sample(
+        self, u, v, sampler, noise, rng, border_distance=None, viewpoints=None, viewpoint_index=None
+    ) -> SurfaceSample:
         noise = _finite("noise", noise)
         if noise < 0.0:
             raise HeatcurvError(f"noise must be >= 0, got {noise}")
@@ -765,8 +1334,12 @@ class Surface:
             d2=curv.d2,
             umbilic=curv.umbilic,
             total_area=float(self.area()),
-            border_distance=self.border_distance(u, v),
+            border_distance=(
+                self.border_distance(u, v) if border_distance is None else border_distance
+            ),
             feature_distance=self.feature_distance(u, v),
+            viewpoints=viewpoints,
+            viewpoint_index=viewpoint_index,
         )
 
     def __repr__(self) -> str:
@@ -872,17 +1445,175 @@ class Sphere(Surface):
         # Move each Fibonacci point by up to +-0.25 cell along east and north
         # (cell side sqrt(4 pi / n) on the unit sphere) and project back.  A
         # jitter in the unit square would be badly anisotropic near the poles.
-        u, v = self._fibonacci_uv(n)
-        cell = math.sqrt(4.0 * math.pi / n)
-        radial = self._radial(u, v)
-        east = _vec(n, -np.sin(u), np.cos(u), 0.0)
-        north = np.cross(radial, east)
-        a = rng.uniform(-0.25, 0.25, n)[:, None] * cell
-        b = rng.uniform(-0.25, 0.25, n)[:, None] * cell
-        p = _unit(radial + a * east + b * north)
+        return _unit_sphere_jitter(n, rng)
+
+    def parameters_of(self, points):
+        """Longitude and latitude of ``points`` seen from the centre (radial projection).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        p = _as_points(points) - self.center
         u = _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
-        v = np.arcsin(np.clip(p[:, 2], -1.0, 1.0))
-        return u, v
+        return u, np.arctan2(p[:, 2], np.hypot(p[:, 0], p[:, 1]))
+
+    def implicit(self, points):
+        """Signed distance ``|p - center| - R``, shape (n,)."""
+        p = _as_points(points)
+        return np.linalg.norm(p - self.center, axis=1) - self.radius
+
+    def bounding_box(self):
+        return self.center - self.radius, self.center + self.radius
+
+    def _intersect(self, o, d):
+        rel = o - self.center
+        return _first_quadric_root(
+            np.ones(o.shape[0]), _dot(rel, d), _dot(rel, rel) - self.radius**2
+        )
+
+
+class Ellipsoid(Surface):
+    """Ellipsoid ``x^2/a^2 + y^2/b^2 + z^2/c^2 = 1`` about the origin, outward normals.
+
+    ``X(u, v) = (a cos v cos u, b cos v sin u, c sin v)`` with longitude ``u``
+    in ``[0, 2 pi)`` and latitude ``v`` in ``[-pi/2, pi/2]`` (the sphere's
+    parametrisation, stretched).  With distinct semi-axes ``k1 != k2``
+    everywhere except at 4 umbilics (in the plane of the longest and the
+    shortest axis).  Normal and curvature come from the implicit form
+    ``F = x^2/a^2 + y^2/b^2 + z^2/c^2``: ``n = grad F / |grad F|`` and the
+    shape operator ``P Hess(F) P / |grad F|`` (``P`` the tangent projector)
+    in the frame ``e1 = (-a sin u, b cos u, 0) / |.|`` (east, also at the
+    poles), ``e2 = n x e1``; so ``Gaussian = 1 / (a b c |g|^2)^2`` and ``mean
+    = (a^2 + b^2 + c^2 - |X|^2) / (2 a^2 b^2 c^2 |g|^3)`` with
+    ``g = (x/a^2, y/b^2, z/c^2)``.  The area is a quadrature (trapezoidal in
+    ``u``, 128-point Gauss-Legendre in ``sin v``, both spectrally accurate).
+    ``"grid"`` is the Fibonacci sphere mapped (as ``"fibonacci"``: *not*
+    area-uniform), ``"jittered"`` the jittered Fibonacci sphere mapped,
+    ``"random"`` is area-uniform.
+
+    Parameters
+    ----------
+    a, b, c : float
+        Semi-axes along x, y and z, ``> 0`` (any order).
+    """
+
+    name = "ellipsoid"
+    closed = True
+    periodic = (True, False)
+
+    def __init__(self, a: float = 1.0, b: float = 0.8, c: float = 0.6):
+        self.a = _positive("a", a)
+        self.b = _positive("b", b)
+        self.c = _positive("c", c)
+        self.axes = np.array([self.a, self.b, self.c])
+        self.domain = ((0.0, _TWO_PI), (-0.5 * math.pi, 0.5 * math.pi))
+
+    def _params(self):
+        return {"a": self.a, "b": self.b, "c": self.c}
+
+    def position(self, u, v):
+        u, v = _as_uv(u, v)
+        cv = np.cos(v)
+        return _vec(u.size, self.a * cv * np.cos(u), self.b * cv * np.sin(u), self.c * np.sin(v))
+
+    def _gradient(self, u, v):
+        """``g = (x/a^2, y/b^2, z/c^2)`` at ``X(u, v)``, shape (n, 3)."""
+        cv = np.cos(v)
+        return _vec(u.size, cv * np.cos(u) / self.a, cv * np.sin(u) / self.b, np.sin(v) / self.c)
+
+    def normal(self, u, v):
+        u, v = _as_uv(u, v)
+        return _unit(self._gradient(u, v))
+
+    def tangents(self, u, v):
+        u, v = _as_uv(u, v)
+        a, b, c = self.a, self.b, self.c
+        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
+        return (
+            _vec(u.size, -a * cv * su, b * cv * cu, 0.0),
+            _vec(u.size, -a * sv * cu, -b * sv * su, c * cv),
+        )
+
+    def second_derivatives(self, u, v):
+        u, v = _as_uv(u, v)
+        a, b, c = self.a, self.b, self.c
+        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
+        return (
+            _vec(u.size, -a * cv * cu, -b * cv * su, 0.0),
+            _vec(u.size, a * sv * su, -b * sv * cu, 0.0),
+            _vec(u.size, -a * cv * cu, -b * cv * su, -c * sv),
+        )
+
+    def curvature(self, u, v):
+        u, v = _as_uv(u, v)
+        g = self._gradient(u, v)
+        q = np.linalg.norm(g, axis=1)
+        nrm = g / q[:, None]
+        e1 = _unit(_vec(u.size, -self.a * np.sin(u), self.b * np.cos(u), 0.0))
+        e2 = np.cross(nrm, e1)
+        w = 1.0 / self.axes**2  # Hess(F) / 2
+
+        def form(x, y):
+            return np.einsum("ij,ij,j->i", x, y, w) / q
+
+        return _curvature_in_frame(e1, e2, form(e1, e1), form(e1, e2), form(e2, e2))
+
+    def area(self):
+        cached = getattr(self, "_cached_area", None)
+        if cached is None:
+            # dA = a b c sqrt((1 - s^2) alpha(u) + s^2 / c^2) du ds with s = sin v
+            s_nodes, s_weights = np.polynomial.legendre.leggauss(128)
+            u = _TWO_PI * np.arange(512) / 512
+            alpha = np.cos(u) ** 2 / self.a**2 + np.sin(u) ** 2 / self.b**2
+            s2 = s_nodes[:, None] ** 2
+            integrand = np.sqrt((1.0 - s2) * alpha[None, :] + s2 / self.c**2)
+            cached = float(self.a * self.b * self.c * _TWO_PI / 512 * (s_weights @ integrand.sum(axis=1)))
+            self._cached_area = cached
+        return cached
+
+    def _from_unit_square(self, t1, t2):
+        return _TWO_PI * t2, np.arcsin(np.clip(1.0 - 2.0 * t1, -1.0, 1.0))
+
+    def _grid_uv(self, n):
+        return self._fibonacci_uv(n)
+
+    def _jittered_uv(self, n, rng):
+        return _unit_sphere_jitter(n, rng)
+
+    def parameters_of(self, points):
+        """Longitude and latitude of ``points / (a, b, c)`` (a radial projection).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        p = _as_points(points) / self.axes
+        u = _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
+        return u, np.arctan2(p[:, 2], np.hypot(p[:, 0], p[:, 1]))
+
+    def implicit(self, points):
+        """``|p / (a, b, c)| - 1``, shape (n,); Lipschitz ``1 / min(a, b, c)``."""
+        p = _as_points(points)
+        return np.linalg.norm(p / self.axes, axis=1) - 1.0
+
+    def _implicit_lipschitz(self):
+        return 1.0 / float(np.min(self.axes))
+
+    def bounding_box(self):
+        return -self.axes.copy(), self.axes.copy()
+
+    def _intersect(self, o, d):
+        os_, ds = o / self.axes, d / self.axes
+        return _first_quadric_root(_dot(ds, ds), _dot(os_, ds), _dot(os_, os_) - 1.0)
 
 
 class Torus(Surface):
@@ -995,6 +1726,35 @@ class Torus(Surface):
     def _from_unit_square(self, t1, t2):
         return _TWO_PI * t2, self._tube_angle(t1)
 
+    def parameters_of(self, points):
+        """Angles of ``points``: ``u`` about the z axis, ``v`` about the tube's centre circle.
+
+        Off the surface this is the nearest-point projection onto the torus
+        (radial from the centre circle).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        p = _as_points(points)
+        rho = np.hypot(p[:, 0], p[:, 1])
+        u = _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
+        v = _wrap(np.arctan2(p[:, 2], rho - self.r2), 0.0, _TWO_PI)
+        return u, v
+
+    def implicit(self, points):
+        """Signed distance ``|p - centre circle| - r1``, shape (n,)."""
+        p = _as_points(points)
+        return np.hypot(np.hypot(p[:, 0], p[:, 1]) - self.r2, p[:, 2]) - self.r1
+
+    def bounding_box(self):
+        r = self.r1 + self.r2
+        return np.array([-r, -r, -self.r1]), np.array([r, r, self.r1])
+
 
 class Cylinder(Surface):
     """Open circular cylinder about the z axis, normals away from the axis.
@@ -1065,6 +1825,52 @@ class Cylinder(Surface):
 
     def _from_unit_square(self, t1, t2):
         return _TWO_PI * t2, -0.5 * self.height + self.height * t1
+
+    def parameters_of(self, points):
+        """Angle about the z axis and height ``z`` (radial projection; ``v`` not clipped).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        p = _as_points(points)
+        return _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI), p[:, 2].copy()
+
+    def implicit(self, points):
+        """Signed distance to the infinite cylinder, ``hypot(x, y) - R``, shape (n,)."""
+        p = _as_points(points)
+        return np.hypot(p[:, 0], p[:, 1]) - self.radius
+
+    def bounding_box(self):
+        r, h = self.radius, 0.5 * self.height
+        return np.array([-r, -r, -h]), np.array([r, r, h])
+
+    def _intersect(self, o, d):
+        h = 0.5 * self.height
+        qa = d[:, 0] ** 2 + d[:, 1] ** 2
+        qb = o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]
+        qc = o[:, 0] ** 2 + o[:, 1] ** 2 - self.radius**2
+        return _first_quadric_root(qa, qb, qc, valid=lambda t: np.abs(o[:, 2] + t * d[:, 2]) <= h)
+
+    def default_viewpoints(self):
+        """Three viewpoints around the tube, from the side (see :meth:`Surface.default_viewpoints`).
+
+        Returns
+        -------
+        ndarray, shape (3, 3)
+        """
+        lo, hi = self.bounding_box()
+        radius = 0.5 * float(np.linalg.norm(hi - lo))
+        heights = (0.6, -0.6, 0.0)
+        views = [
+            (az, math.degrees(math.asin(f * 0.5 * self.height / (r * radius))), r)
+            for (az, _, r), f in zip(_AROUND, heights)
+        ]
+        return _view_positions(views, lo, hi)
 
 
 # ---------------------------------------------------------------------------
@@ -1151,6 +1957,62 @@ class Graph(Surface):
             _vec(u.size, 0.0, 0.0, self._eval(self._fxy, u, v, "fxy")),
             _vec(u.size, 0.0, 0.0, self._eval(self._fyy, u, v, "fyy")),
         )
+
+    def parameters_of(self, points):
+        """``(x, y)`` of ``points`` (vertical projection; not clipped to the square).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        p = _as_points(points)
+        return p[:, 0].copy(), p[:, 1].copy()
+
+    def implicit(self, points):
+        """``z - f(x, y)``, shape (n,) (positive above the graph)."""
+        p = _as_points(points)
+        return p[:, 2] - self._eval(self._f, p[:, 0], p[:, 1], "f")
+
+    def _graph_bounds(self):
+        """``(G, zmin, zmax)``: a bound of ``|grad f|`` and a z range, on a dense grid."""
+        cached = getattr(self, "_cached_graph_bounds", None)
+        if cached is None:
+            m = 257
+            t = np.linspace(-self.size, self.size, m)
+            xx, yy = np.meshgrid(t, t)
+            x, y = xx.ravel(), yy.ravel()
+            z = self._eval(self._f, x, y, "f")
+            grad = np.hypot(self._eval(self._fx, x, y, "fx"), self._eval(self._fy, x, y, "fy"))
+            big = 1.25 * float(np.max(grad)) + 1e-12  # the grid maximum can miss a peak
+            slack = big * math.sqrt(2.0) * (t[1] - t[0]) + 1e-9 * self.size
+            cached = (big, float(np.min(z)) - slack, float(np.max(z)) + slack)
+            self._cached_graph_bounds = cached
+        return cached
+
+    def _implicit_lipschitz(self):
+        return math.sqrt(1.0 + self._graph_bounds()[0] ** 2)
+
+    def bounding_box(self):
+        _, zmin, zmax = self._graph_bounds()
+        s = self.size
+        return np.array([-s, -s, zmin]), np.array([s, s, zmax])
+
+    def _march_box(self):
+        lo, hi = self.bounding_box()
+        return lo, hi  # z already has slack; x, y are exactly the border
+
+    def default_viewpoints(self):
+        """Three viewpoints above the patch (see :meth:`Surface.default_viewpoints`).
+
+        Returns
+        -------
+        ndarray, shape (3, 3)
+        """
+        return _view_positions(_ABOVE, *self.bounding_box())
 
     def area(self):
         cached = getattr(self, "_cached_area", None)
@@ -1395,6 +2257,47 @@ class FoldedSquare(Surface):
         """Same as :meth:`fold_distance`."""
         return self.fold_distance(u, v)
 
+    def parameters_of(self, points):
+        """``(x / cos b, y)`` of ``points`` (vertical projection; not clipped).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        p = _as_points(points)
+        return p[:, 0] / math.cos(self.beta), p[:, 1].copy()
+
+    def implicit(self, points):
+        """``z + |x| tan b``, shape (n,) (positive above the roof)."""
+        p = _as_points(points)
+        return p[:, 2] + np.abs(p[:, 0]) * math.tan(self.beta)
+
+    def _implicit_lipschitz(self):
+        return 1.0 / math.cos(self.beta)
+
+    def bounding_box(self):
+        s = self.size
+        x = s * math.cos(self.beta)
+        return np.array([-x, -s, -s * math.sin(self.beta)]), np.array([x, s, 0.0])
+
+    def _march_box(self):
+        lo, hi = self.bounding_box()
+        pad = 1e-6 * float(np.linalg.norm(hi - lo)) + 1e-12
+        return lo - np.array([0.0, 0.0, pad]), hi + np.array([0.0, 0.0, pad])
+
+    def default_viewpoints(self):
+        """Three viewpoints above the roof, as for a :class:`Graph`.
+
+        Returns
+        -------
+        ndarray, shape (3, 3)
+        """
+        return _view_positions(_ABOVE, *self.bounding_box())
+
 
 # ---------------------------------------------------------------------------
 # registry
@@ -1403,6 +2306,7 @@ class FoldedSquare(Surface):
 #: Ready-to-use surfaces by name (:class:`Graph` is not listed: it needs ``f``).
 SURFACES: dict[str, type[Surface]] = {
     "sphere": Sphere,
+    "ellipsoid": Ellipsoid,
     "torus": Torus,
     "paraboloid": Paraboloid,
     "saddle": Saddle,
