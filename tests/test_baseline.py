@@ -191,27 +191,35 @@ def test_errors():
         quadric_curvature(pts[:, :2])
     bad = pts.copy()
     bad[3, 1] = np.nan
-    with pytest.raises(HeatcurvError, match="finite"):
+    with pytest.raises(HeatcurvError, match="NaN or infinite"):
         quadric_curvature(bad)
     with pytest.raises(HeatcurvError, match="at least 7"):
         quadric_curvature(pts, k=6)
     with pytest.raises(HeatcurvError, match="integer"):
         quadric_curvature(pts, k=40.5)
-    with pytest.raises(HeatcurvError, match="at least k"):
+    with pytest.raises(HeatcurvError, match="too few points: 30 distinct"):
         quadric_curvature(pts[:30])
     with pytest.raises(HeatcurvError, match="normals"):
         quadric_curvature(pts, normals=pts[:10])
-    with pytest.raises(HeatcurvError, match="non-zero"):
+    with pytest.raises(HeatcurvError, match="zero length"):
         quadric_curvature(pts, normals=np.zeros_like(pts))
 
 
-def test_degenerate_neighbourhoods_are_unreliable():
-    # points on a line: no surface, the fit is singular everywhere
+def test_collinear_input_is_refused():
+    # points on a line: no surface; the shared input checks say so
     t = np.linspace(0, 1, 100)
     line = np.column_stack([t, 2 * t, -t])
-    res = quadric_curvature(line, k=10)
-    assert not np.any(res.reliable)
-    assert np.all(np.isfinite(res.mean))
+    with pytest.raises(HeatcurvError, match="lie on one line"):
+        quadric_curvature(line, k=10)
+
+
+def test_duplicates_share_values_and_area():
+    pts = hs.Sphere(radius=2.0).sample(2000, "random", seed=1).points
+    twice = np.vstack([pts, pts[:50]])
+    res, ref = quadric_curvature(twice), quadric_curvature(pts)
+    np.testing.assert_allclose(res.mean[2000:], res.mean[:50])
+    np.testing.assert_allclose(res.mean[:2000], ref.mean, rtol=1e-12)
+    assert res.area.sum() == pytest.approx(ref.area.sum(), rel=1e-12)
 
 
 def test_docstring_example():

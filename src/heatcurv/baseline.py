@@ -36,6 +36,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import HeatcurvError
+from .validation import prepare_normals, prepare_points
 from .neighbourhood import Neighbourhood
 from .normals import orient_normals, tangent_frames
 
@@ -139,34 +140,12 @@ class QuadricResult:
         return {name: getattr(self, name) for name in self.FIELDS + ("reliable",)}
 
 
-def _validate(points, k, normals):
-    try:
-        X = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise HeatcurvError(f"points must be a numeric array of shape (n, 3): {exc}") from exc
-    if X.ndim != 2 or X.shape[1] != 3:
-        raise HeatcurvError(f"points must have shape (n, 3), got {X.shape}")
-    if not np.all(np.isfinite(X)):
-        raise HeatcurvError("points must be finite (found NaN or inf)")
+def _validate_k(k) -> int:
     if isinstance(k, bool) or not isinstance(k, Integral):
         raise HeatcurvError(f"k must be an integer, got {k!r}")
-    k = int(k)
-    if k < 7:
+    if int(k) < 7:
         raise HeatcurvError(f"k must be at least 7 (the quadric has 6 coefficients), got {k}")
-    if X.shape[0] < k:
-        raise HeatcurvError(f"need at least k = {k} points, got {X.shape[0]}")
-    if normals is not None:
-        try:
-            N = np.asarray(normals, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise HeatcurvError(f"normals must be a numeric array of shape (n, 3): {exc}") from exc
-        if N.shape != X.shape:
-            raise HeatcurvError(f"normals must have the shape of points {X.shape}, got {N.shape}")
-        length = np.linalg.norm(N, axis=1)
-        if not np.all(np.isfinite(length)) or np.any(length == 0):
-            raise HeatcurvError("normals must be finite and non-zero")
-        normals = N / length[:, None]
-    return X, k, normals
+    return int(k)
 
 
 def _knn_neighbourhood(idx: np.ndarray, dist: np.ndarray) -> Neighbourhood:
@@ -289,10 +268,11 @@ def quadric_curvature(
     """
     timings = {}
     tic = time.perf_counter()
-    P, k, given = _validate(points, k, normals)
+    k = _validate_k(k)
+    prepared = prepare_points(points, min_points=k)
+    given = None if normals is None else prepare_normals(normals, prepared)
     block = max(1, int(block))
-    offset = 0.5 * (P.min(axis=0) + P.max(axis=0))
-    X = P - offset
+    X, offset = prepared.points, prepared.offset
     n = X.shape[0]
     dist, idx = cKDTree(X).query(X, k=k, workers=workers)
     radius = dist[:, -1]
@@ -343,18 +323,19 @@ def quadric_curvature(
         out_d2 = np.cross(out_n, out_d1)
     timings["fit"] = time.perf_counter() - tic
 
+    back = prepared.to_input_order
     return QuadricResult(
-        normals=out_n,
-        mean=0.5 * (out_k1 + out_k2),
-        gaussian=out_k1 * out_k2,
-        k1=out_k1,
-        k2=out_k2,
-        d1=out_d1,
-        d2=out_d2,
-        area=area,
-        reliable=well_posed & np.all(np.isfinite(out_n), axis=1),
-        spacing=radius.copy(),
-        neighbours=np.full(n, k - 1, dtype=np.int64),
+        normals=back(out_n),
+        mean=back(0.5 * (out_k1 + out_k2)),
+        gaussian=back(out_k1 * out_k2),
+        k1=back(out_k1),
+        k2=back(out_k2),
+        d1=back(out_d1),
+        d2=back(out_d2),
+        area=prepared.share_among_duplicates(area),
+        reliable=back(well_posed & np.all(np.isfinite(out_n), axis=1)),
+        spacing=back(radius),
+        neighbours=np.full(prepared.n_input, k - 1, dtype=np.int64),
         options=QuadricOptions(k=k),
         info={"timings": timings, "offset": offset},
     )

@@ -278,7 +278,7 @@ def estimate(
         k2=back(pc.k2),
         d1=back(pc.d1),
         d2=back(pc.d2),
-        area=_share_area(areas, prepared),
+        area=prepared.share_among_duplicates(areas),
         reliable=back(reliable),
         border=back(border),
         spacing=back(op.h),
@@ -324,9 +324,3 @@ def _chord_estimate(op, normals, keep_normals: bool):
         "sd": choice.sd,
     }
     return fit, areas, record
-
-
-def _share_area(areas: np.ndarray, prepared) -> np.ndarray:
-    """Split each distinct point's area evenly over its duplicates, so the sum stays the surface area."""
-    multiplicity = np.bincount(prepared.inverse, minlength=prepared.n_distinct)
-    return (areas / multiplicity)[prepared.inverse]

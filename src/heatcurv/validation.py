@@ -54,6 +54,17 @@ class PreparedPoints:
         """Expand per-distinct-point ``values`` (shape ``(m, ...)``) to the input rows."""
         return values[self.inverse]
 
+    def share_among_duplicates(self, values: np.ndarray) -> np.ndarray:
+        """Expand an additive per-point quantity (an area): duplicates split their point's value.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            Sums over the input rows equal sums over the distinct points.
+        """
+        multiplicity = np.bincount(self.inverse, minlength=self.n_distinct)
+        return (values / multiplicity)[self.inverse]
+
 
 def _as_float_array(points, name: str) -> np.ndarray:
     try:
