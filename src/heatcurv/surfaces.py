@@ -85,6 +85,7 @@ exact quantities are always those of the clean points.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 from numbers import Integral, Real
@@ -287,26 +288,49 @@ def _first_quadric_root(qa, qb, qc, valid=None, tmin=0.0):
     return out
 
 
-def _unit_sphere_jitter(n: int, rng: np.random.Generator):
-    """Fibonacci-sphere parameters moved by +-0.25 cell along east and north.
+def _longitude(p: np.ndarray) -> np.ndarray:
+    """Angle of the points ``p`` (shape (n, 3)) about the z axis, in ``[0, 2 pi)``."""
+    return _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
 
-    Cell side ``sqrt(4 pi / n)`` on the unit sphere; the moved point is
-    projected back onto the sphere.  Returns longitude in ``[0, 2 pi)`` and
-    latitude, arrays of shape (n,).
+
+def _radial(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Unit vectors ``(cos v cos u, cos v sin u, sin v)``, shape (n, 3)."""
+    cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
+    return _vec(u.size, cv * cu, cv * su, sv)
+
+
+def _east(u: np.ndarray) -> np.ndarray:
+    """Unit vectors ``(-sin u, cos u, 0)`` along the parallels, shape (n, 3)."""
+    return _vec(u.size, -np.sin(u), np.cos(u), 0.0)
+
+
+def _check_noise(noise) -> float:
+    """Validate a relative noise level (finite, >= 0)."""
+    noise = _finite("noise", noise)
+    if noise < 0.0:
+        raise HeatcurvError(f"noise must be >= 0, got {noise}")
+    return noise
+
+
+def _cached_in(attr: str):
+    """Decorator: keep the result of an argument-less method in ``self.<attr>``.
+
+    The value is computed on the first call (or whenever the attribute is
+    missing or None) and returned from the attribute afterwards.
     """
-    i = np.arange(n, dtype=np.float64)
-    t1, t2 = (i + 0.5) / n, np.mod(i * (_GOLDEN - 1.0), 1.0)
-    u, v = _TWO_PI * t2, np.arcsin(np.clip(1.0 - 2.0 * t1, -1.0, 1.0))
-    cell = math.sqrt(4.0 * math.pi / n)
-    radial = _vec(n, np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v))
-    east = _vec(n, -np.sin(u), np.cos(u), 0.0)
-    north = np.cross(radial, east)
-    a = rng.uniform(-0.25, 0.25, n)[:, None] * cell
-    b = rng.uniform(-0.25, 0.25, n)[:, None] * cell
-    p = _unit(radial + a * east + b * north)
-    u = _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
-    v = np.arcsin(np.clip(p[:, 2], -1.0, 1.0))
-    return u, v
+
+    def decorate(method):
+        @functools.wraps(method)
+        def cached(self):
+            value = getattr(self, attr, None)
+            if value is None:
+                value = method(self)
+                setattr(self, attr, value)
+            return value
+
+        return cached
+
+    return decorate
 
 
 def _view_positions(views, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -372,6 +396,23 @@ def _umbilic_mask(k1: np.ndarray, k2: np.ndarray) -> np.ndarray:
     return np.abs(k1 - k2) <= _UMBILIC_RTOL * scale
 
 
+def _principal_curvature(k1, k2, d1, d2, mean=None, umbilic=None) -> Curvature:
+    """A :class:`Curvature` from principal curvatures and directions.
+
+    ``mean`` defaults to ``(k1 + k2) / 2`` and ``umbilic`` to the tolerance
+    test documented in :class:`Curvature`; ``gaussian`` is ``k1 * k2``.
+    """
+    return Curvature(
+        mean=0.5 * (k1 + k2) if mean is None else mean,
+        gaussian=k1 * k2,
+        k1=k1,
+        k2=k2,
+        d1=d1,
+        d2=d2,
+        umbilic=_umbilic_mask(k1, k2) if umbilic is None else umbilic,
+    )
+
+
 def _curvature_in_frame(e1, e2, b11, b12, b22) -> Curvature:
     """Diagonalise the symmetric shape operator ``[[b11, b12], [b12, b22]]``.
 
@@ -392,15 +433,7 @@ def _curvature_in_frame(e1, e2, b11, b12, b22) -> Curvature:
     s = np.sin(theta)[:, None]
     d1 = c * e1 + s * e2
     d2 = c * e2 - s * e1  # = n x d1
-    return Curvature(
-        mean=mean,
-        gaussian=k1 * k2,
-        k1=k1,
-        k2=k2,
-        d1=d1,
-        d2=d2,
-        umbilic=_umbilic_mask(k1, k2),
-    )
+    return _principal_curvature(k1, k2, d1, d2, mean=mean)
 
 
 @dataclass(frozen=True, eq=False)
@@ -945,6 +978,11 @@ class Surface:
         """
         return _view_positions(_AROUND, *self.bounding_box())
 
+    def _bounding_sphere(self) -> tuple[np.ndarray, float]:
+        """Centre and radius (half the diagonal) of the bounding box's sphere."""
+        lo, hi = self.bounding_box()
+        return 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
+
     def _scan_grid(self, viewpoints: np.ndarray, delta: float):
         """Rays of the angular scan grids: origins, unit directions, viewpoint index.
 
@@ -953,9 +991,7 @@ class Surface:
         elevation, ordered in scan lines of constant azimuth, and limited to the
         cone around the bounding sphere.
         """
-        lo, hi = self.bounding_box()
-        centre = 0.5 * (lo + hi)
-        rb = 0.5 * float(np.linalg.norm(hi - lo))
+        centre, rb = self._bounding_sphere()
         origins, dirs, index = [], [], []
         for i, c in enumerate(viewpoints):
             fwd = centre - c
@@ -979,12 +1015,16 @@ class Surface:
             index.append(np.full(d.shape[0], i, dtype=np.int64))
         return np.concatenate(origins), np.concatenate(dirs), np.concatenate(index)
 
-    def _clip_uv(self, u: np.ndarray, v: np.ndarray):
-        """Wrap periodic parameters and clip the others into the domain (rounding)."""
+    def _map_into_domain(self, u: np.ndarray, v: np.ndarray, bounded: Callable):
+        """Wrap periodic parameters; map the others by ``bounded(t, t0, t1)``."""
         out = []
         for t, (t0, t1), per in zip((u, v), self.domain, self.periodic):
-            out.append(_wrap(t, t0, t1) if per else np.clip(t, t0, t1))
+            out.append(_wrap(t, t0, t1) if per else bounded(t, t0, t1))
         return out[0], out[1]
+
+    def _clip_uv(self, u: np.ndarray, v: np.ndarray):
+        """Wrap periodic parameters and clip the others into the domain (rounding)."""
+        return self._map_into_domain(u, v, np.clip)
 
     def _scan_hits(self, viewpoints: np.ndarray, delta: float, min_cos: float):
         """Cast the scan grid; the kept first hits' parameters and viewpoint index."""
@@ -1098,16 +1138,12 @@ class Surface:
             ray hits the surface.
         """
         n = _check_n(n)
-        noise = _finite("noise", noise)
-        if noise < 0.0:
-            raise HeatcurvError(f"noise must be >= 0, got {noise}")
+        noise = _check_noise(noise)
         inc = _finite("max_incidence", max_incidence)
         if not 0.0 < inc < 90.0:
             raise HeatcurvError(f"max_incidence must be in (0, 90) degrees, got {max_incidence!r}")
         min_cos = math.cos(math.radians(inc))
-        lo, hi = self.bounding_box()
-        centre = 0.5 * (lo + hi)
-        rb = 0.5 * float(np.linalg.norm(hi - lo))
+        centre, rb = self._bounding_sphere()
         if viewpoints is None:
             vps = self.default_viewpoints()
         else:
@@ -1168,10 +1204,8 @@ class Surface:
         return uu.ravel(), vv.ravel()
 
     def _into_domain(self, u: np.ndarray, v: np.ndarray):
-        out = []
-        for t, (t0, t1), per in zip((u, v), self.domain, self.periodic):
-            out.append(_wrap(t, t0, t1) if per else _reflect(t, t0, t1))
-        return out[0], out[1]
+        """Wrap periodic parameters and reflect the others back into the domain."""
+        return self._map_into_domain(u, v, _reflect)
 
     def _jittered_uv(self, n: int, rng: np.random.Generator):
         us, vs, du, dv = self._grid_axes(n)
@@ -1191,15 +1225,12 @@ class Surface:
     def _fibonacci_uv(self, n: int):
         return self._from_unit_square(*_fibonacci_unit(n))
 
+    @_cached_in("_cached_bound")
     def _area_element_bound(self) -> float:
         """An upper bound of ``|X_u x X_v|`` (dense grid maximum + 2 %)."""
-        bound = getattr(self, "_cached_bound", None)
-        if bound is None:
-            (u0, u1), (v0, v1) = self.domain
-            uu, vv = np.meshgrid(np.linspace(u0, u1, 257), np.linspace(v0, v1, 257))
-            bound = 1.02 * float(np.max(self.area_element(uu.ravel(), vv.ravel())))
-            self._cached_bound = bound
-        return bound
+        (u0, u1), (v0, v1) = self.domain
+        uu, vv = np.meshgrid(np.linspace(u0, u1, 257), np.linspace(v0, v1, 257))
+        return 1.02 * float(np.max(self.area_element(uu.ravel(), vv.ravel())))
 
     def _random_uv(self, n: int, rng: np.random.Generator):
         """Area-uniform rejection sampling in the parameter rectangle."""
@@ -1303,9 +1334,7 @@ class Surface:
     def _make_sample(
         self, u, v, sampler, noise, rng, border_distance=None, viewpoints=None, viewpoint_index=None
     ) -> SurfaceSample:
-        noise = _finite("noise", noise)
-        if noise < 0.0:
-            raise HeatcurvError(f"noise must be >= 0, got {noise}")
+        noise = _check_noise(noise)
         u, v = _as_uv(u, v)
         clean = self.position(u, v)
         curv = self.curvature(u, v)
@@ -1355,7 +1384,93 @@ class Surface:
 # ---------------------------------------------------------------------------
 
 
-class Sphere(Surface):
+class _LatitudeLongitude(Surface):
+    """Closed surface parametrised like the sphere, by longitude and latitude.
+
+    ``X(u, v) = center + (a cos v cos u, b cos v sin u, c sin v)`` with the
+    semi-axes ``(a, b, c)`` of :meth:`_semi_axes`, longitude ``u`` in
+    ``[0, 2 pi)`` and latitude ``v`` in ``[-pi/2, pi/2]``; the subclasses give
+    the position, normal and closed-form curvature.  A latitude-longitude grid
+    clusters at the poles, so the samplers use the Fibonacci sphere in these
+    parameters: ``"fibonacci"`` and ``"grid"`` its lattice, ``"jittered"`` its
+    points jittered along east and north on the unit sphere.
+    """
+
+    closed = True
+    periodic = (True, False)
+    domain = ((0.0, _TWO_PI), (-0.5 * math.pi, 0.5 * math.pi))
+
+    def _semi_axes(self) -> tuple[float, float, float]:
+        """The stretch ``(a, b, c)`` of the unit sphere's parametrisation."""
+        raise NotImplementedError
+
+    def _angle_frame(self, p: np.ndarray) -> np.ndarray:
+        """Points in which longitude and latitude are the polar angles about the origin."""
+        raise NotImplementedError
+
+    def tangents(self, u, v):
+        u, v = _as_uv(u, v)
+        a, b, c = self._semi_axes()
+        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
+        return (
+            _vec(u.size, -a * cv * su, b * cv * cu, 0.0),
+            _vec(u.size, -a * sv * cu, -b * sv * su, c * cv),
+        )
+
+    def second_derivatives(self, u, v):
+        u, v = _as_uv(u, v)
+        a, b, c = self._semi_axes()
+        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
+        return (
+            _vec(u.size, -a * cv * cu, -b * cv * su, 0.0),
+            _vec(u.size, a * sv * su, -b * sv * cu, 0.0),
+            _vec(u.size, -a * cv * cu, -b * cv * su, -c * sv),
+        )
+
+    def _from_unit_square(self, t1, t2):
+        # Archimedes: z = sin(latitude) is area-uniform on the sphere.
+        return _TWO_PI * t2, np.arcsin(np.clip(1.0 - 2.0 * t1, -1.0, 1.0))
+
+    def _grid_uv(self, n):
+        return self._fibonacci_uv(n)
+
+    def _jittered_uv(self, n, rng):
+        """Fibonacci-sphere parameters moved by +-0.25 cell along east and north.
+
+        Cell side ``sqrt(4 pi / n)`` on the unit sphere; the moved point is
+        projected back onto the sphere (a jitter in the unit square would be
+        badly anisotropic near the poles).  Returns longitude in ``[0, 2 pi)``
+        and latitude, arrays of shape (n,).
+        """
+        u, v = self._fibonacci_uv(n)
+        cell = math.sqrt(4.0 * math.pi / n)
+        radial = _radial(u, v)
+        east = _east(u)
+        north = np.cross(radial, east)
+        a = rng.uniform(-0.25, 0.25, n)[:, None] * cell
+        b = rng.uniform(-0.25, 0.25, n)[:, None] * cell
+        p = _unit(radial + a * east + b * north)
+        return _longitude(p), np.arcsin(np.clip(p[:, 2], -1.0, 1.0))
+
+    def parameters_of(self, points):
+        """Longitude and latitude of ``points`` (a radial projection).
+
+        On the :class:`Sphere` the angles of ``points`` seen from the centre,
+        on the :class:`Ellipsoid` those of ``points / (a, b, c)``.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        p = self._angle_frame(_as_points(points))
+        return _longitude(p), np.arctan2(p[:, 2], np.hypot(p[:, 0], p[:, 1]))
+
+
+class Sphere(_LatitudeLongitude):
     """Sphere of radius ``R`` about ``center``, outward normals.
 
     ``X(u, v) = center + R (cos v cos u, cos v sin u, sin v)`` with longitude
@@ -1372,8 +1487,6 @@ class Sphere(Surface):
     """
 
     name = "sphere"
-    closed = True
-    periodic = (True, False)
 
     def __init__(self, radius: float = 1.0, center=(0.0, 0.0, 0.0)):
         self.radius = _positive("radius", radius)
@@ -1381,86 +1494,34 @@ class Sphere(Surface):
         if c.shape != (3,) or not np.all(np.isfinite(c)):
             raise HeatcurvError(f"center must be 3 finite numbers, got {center!r}")
         self.center = c
-        self.domain = ((0.0, _TWO_PI), (-0.5 * math.pi, 0.5 * math.pi))
 
     def _params(self):
         return {"radius": self.radius, "center": tuple(self.center.tolist())}
 
-    @staticmethod
-    def _radial(u, v):
-        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
-        return _vec(u.size, cv * cu, cv * su, sv)
+    def _semi_axes(self):
+        return self.radius, self.radius, self.radius
+
+    def _angle_frame(self, p):
+        return p - self.center
 
     def position(self, u, v):
         u, v = _as_uv(u, v)
-        return self.center + self.radius * self._radial(u, v)
+        return self.center + self.radius * _radial(u, v)
 
     def normal(self, u, v):
         u, v = _as_uv(u, v)
-        return self._radial(u, v)
-
-    def tangents(self, u, v):
-        u, v = _as_uv(u, v)
-        r = self.radius
-        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
-        xu = _vec(u.size, -r * cv * su, r * cv * cu, 0.0)
-        xv = _vec(u.size, -r * sv * cu, -r * sv * su, r * cv)
-        return xu, xv
-
-    def second_derivatives(self, u, v):
-        u, v = _as_uv(u, v)
-        r = self.radius
-        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
-        xuu = _vec(u.size, -r * cv * cu, -r * cv * su, 0.0)
-        xuv = _vec(u.size, r * sv * su, -r * sv * cu, 0.0)
-        xvv = _vec(u.size, -r * cv * cu, -r * cv * su, -r * sv)
-        return xuu, xuv, xvv
+        return _radial(u, v)
 
     def curvature(self, u, v):
         u, v = _as_uv(u, v)
         k = np.full(u.shape, 1.0 / self.radius)
-        n = self._radial(u, v)
-        east = _vec(u.size, -np.sin(u), np.cos(u), 0.0)  # unit even at the poles
-        return Curvature(
-            mean=k.copy(),
-            gaussian=k * k,
-            k1=k.copy(),
-            k2=k.copy(),
-            d1=east,
-            d2=np.cross(n, east),
-            umbilic=np.ones(u.shape, dtype=bool),
-        )
+        east = _east(u)  # unit even at the poles
+        north = np.cross(_radial(u, v), east)
+        every = np.ones(u.shape, dtype=bool)
+        return _principal_curvature(k.copy(), k.copy(), east, north, mean=k, umbilic=every)
 
     def area(self):
         return 4.0 * math.pi * self.radius**2
-
-    def _from_unit_square(self, t1, t2):
-        # Archimedes: z = sin(latitude) is area-uniform.
-        return _TWO_PI * t2, np.arcsin(np.clip(1.0 - 2.0 * t1, -1.0, 1.0))
-
-    def _grid_uv(self, n):
-        return self._fibonacci_uv(n)
-
-    def _jittered_uv(self, n, rng):
-        # Move each Fibonacci point by up to +-0.25 cell along east and north
-        # (cell side sqrt(4 pi / n) on the unit sphere) and project back.  A
-        # jitter in the unit square would be badly anisotropic near the poles.
-        return _unit_sphere_jitter(n, rng)
-
-    def parameters_of(self, points):
-        """Longitude and latitude of ``points`` seen from the centre (radial projection).
-
-        Parameters
-        ----------
-        points : array_like, shape (n, 3)
-
-        Returns
-        -------
-        u, v : ndarray, shape (n,)
-        """
-        p = _as_points(points) - self.center
-        u = _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
-        return u, np.arctan2(p[:, 2], np.hypot(p[:, 0], p[:, 1]))
 
     def implicit(self, points):
         """Signed distance ``|p - center| - R``, shape (n,)."""
@@ -1477,7 +1538,7 @@ class Sphere(Surface):
         )
 
 
-class Ellipsoid(Surface):
+class Ellipsoid(_LatitudeLongitude):
     """Ellipsoid ``x^2/a^2 + y^2/b^2 + z^2/c^2 = 1`` about the origin, outward normals.
 
     ``X(u, v) = (a cos v cos u, b cos v sin u, c sin v)`` with longitude ``u``
@@ -1503,18 +1564,21 @@ class Ellipsoid(Surface):
     """
 
     name = "ellipsoid"
-    closed = True
-    periodic = (True, False)
 
     def __init__(self, a: float = 1.0, b: float = 0.8, c: float = 0.6):
         self.a = _positive("a", a)
         self.b = _positive("b", b)
         self.c = _positive("c", c)
         self.axes = np.array([self.a, self.b, self.c])
-        self.domain = ((0.0, _TWO_PI), (-0.5 * math.pi, 0.5 * math.pi))
 
     def _params(self):
         return {"a": self.a, "b": self.b, "c": self.c}
+
+    def _semi_axes(self):
+        return self.a, self.b, self.c
+
+    def _angle_frame(self, p):
+        return p / self.axes
 
     def position(self, u, v):
         u, v = _as_uv(u, v)
@@ -1523,31 +1587,11 @@ class Ellipsoid(Surface):
 
     def _gradient(self, u, v):
         """``g = (x/a^2, y/b^2, z/c^2)`` at ``X(u, v)``, shape (n, 3)."""
-        cv = np.cos(v)
-        return _vec(u.size, cv * np.cos(u) / self.a, cv * np.sin(u) / self.b, np.sin(v) / self.c)
+        return _radial(u, v) / self.axes
 
     def normal(self, u, v):
         u, v = _as_uv(u, v)
         return _unit(self._gradient(u, v))
-
-    def tangents(self, u, v):
-        u, v = _as_uv(u, v)
-        a, b, c = self.a, self.b, self.c
-        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
-        return (
-            _vec(u.size, -a * cv * su, b * cv * cu, 0.0),
-            _vec(u.size, -a * sv * cu, -b * sv * su, c * cv),
-        )
-
-    def second_derivatives(self, u, v):
-        u, v = _as_uv(u, v)
-        a, b, c = self.a, self.b, self.c
-        cu, su, cv, sv = np.cos(u), np.sin(u), np.cos(v), np.sin(v)
-        return (
-            _vec(u.size, -a * cv * cu, -b * cv * su, 0.0),
-            _vec(u.size, a * sv * su, -b * sv * cu, 0.0),
-            _vec(u.size, -a * cv * cu, -b * cv * su, -c * sv),
-        )
 
     def curvature(self, u, v):
         u, v = _as_uv(u, v)
@@ -1563,42 +1607,15 @@ class Ellipsoid(Surface):
 
         return _curvature_in_frame(e1, e2, form(e1, e1), form(e1, e2), form(e2, e2))
 
+    @_cached_in("_cached_area")
     def area(self):
-        cached = getattr(self, "_cached_area", None)
-        if cached is None:
-            # dA = a b c sqrt((1 - s^2) alpha(u) + s^2 / c^2) du ds with s = sin v
-            s_nodes, s_weights = np.polynomial.legendre.leggauss(128)
-            u = _TWO_PI * np.arange(512) / 512
-            alpha = np.cos(u) ** 2 / self.a**2 + np.sin(u) ** 2 / self.b**2
-            s2 = s_nodes[:, None] ** 2
-            integrand = np.sqrt((1.0 - s2) * alpha[None, :] + s2 / self.c**2)
-            cached = float(self.a * self.b * self.c * _TWO_PI / 512 * (s_weights @ integrand.sum(axis=1)))
-            self._cached_area = cached
-        return cached
-
-    def _from_unit_square(self, t1, t2):
-        return _TWO_PI * t2, np.arcsin(np.clip(1.0 - 2.0 * t1, -1.0, 1.0))
-
-    def _grid_uv(self, n):
-        return self._fibonacci_uv(n)
-
-    def _jittered_uv(self, n, rng):
-        return _unit_sphere_jitter(n, rng)
-
-    def parameters_of(self, points):
-        """Longitude and latitude of ``points / (a, b, c)`` (a radial projection).
-
-        Parameters
-        ----------
-        points : array_like, shape (n, 3)
-
-        Returns
-        -------
-        u, v : ndarray, shape (n,)
-        """
-        p = _as_points(points) / self.axes
-        u = _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
-        return u, np.arctan2(p[:, 2], np.hypot(p[:, 0], p[:, 1]))
+        # dA = a b c sqrt((1 - s^2) alpha(u) + s^2 / c^2) du ds with s = sin v
+        s_nodes, s_weights = np.polynomial.legendre.leggauss(128)
+        u = _TWO_PI * np.arange(512) / 512
+        alpha = np.cos(u) ** 2 / self.a**2 + np.sin(u) ** 2 / self.b**2
+        s2 = s_nodes[:, None] ** 2
+        integrand = np.sqrt((1.0 - s2) * alpha[None, :] + s2 / self.c**2)
+        return float(self.a * self.b * self.c * _TWO_PI / 512 * (s_weights @ integrand.sum(axis=1)))
 
     def implicit(self, points):
         """``|p / (a, b, c)| - 1``, shape (n,); Lipschitz ``1 / min(a, b, c)``."""
@@ -1659,8 +1676,7 @@ class Torus(Surface):
 
     def normal(self, u, v):
         u, v = _as_uv(u, v)
-        cv = np.cos(v)
-        return _vec(u.size, cv * np.cos(u), cv * np.sin(u), np.sin(v))
+        return _radial(u, v)
 
     def tangents(self, u, v):
         u, v = _as_uv(u, v)
@@ -1690,15 +1706,7 @@ class Torus(Surface):
         k2 = cv / (self.r2 + self.r1 * cv)
         d1 = _vec(u.size, -sv * cu, -sv * su, cv)  # meridian (around the tube)
         d2 = _vec(u.size, su, -cu, 0.0)  # n x d1
-        return Curvature(
-            mean=0.5 * (k1 + k2),
-            gaussian=k1 * k2,
-            k1=k1,
-            k2=k2,
-            d1=d1,
-            d2=d2,
-            umbilic=_umbilic_mask(k1, k2),
-        )
+        return _principal_curvature(k1, k2, d1, d2)
 
     def area(self):
         return 4.0 * math.pi**2 * self.r1 * self.r2
@@ -1742,9 +1750,7 @@ class Torus(Surface):
         """
         p = _as_points(points)
         rho = np.hypot(p[:, 0], p[:, 1])
-        u = _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI)
-        v = _wrap(np.arctan2(p[:, 2], rho - self.r2), 0.0, _TWO_PI)
-        return u, v
+        return _longitude(p), _wrap(np.arctan2(p[:, 2], rho - self.r2), 0.0, _TWO_PI)
 
     def implicit(self, points):
         """Signed distance ``|p - centre circle| - r1``, shape (n,)."""
@@ -1810,15 +1816,7 @@ class Cylinder(Surface):
         u, v = _as_uv(u, v)
         k1 = np.full(u.shape, 1.0 / self.radius)
         k2 = np.zeros(u.shape)
-        return Curvature(
-            mean=0.5 * k1,
-            gaussian=k1 * k2,
-            k1=k1,
-            k2=k2,
-            d1=_vec(u.size, -np.sin(u), np.cos(u), 0.0),
-            d2=_vec(u.size, 0.0, 0.0, 1.0),
-            umbilic=_umbilic_mask(k1, k2),
-        )
+        return _principal_curvature(k1, k2, _east(u), _vec(u.size, 0.0, 0.0, 1.0), mean=0.5 * k1)
 
     def area(self):
         return _TWO_PI * self.radius * self.height
@@ -1838,7 +1836,7 @@ class Cylinder(Surface):
         u, v : ndarray, shape (n,)
         """
         p = _as_points(points)
-        return _wrap(np.arctan2(p[:, 1], p[:, 0]), 0.0, _TWO_PI), p[:, 2].copy()
+        return _longitude(p), p[:, 2].copy()
 
     def implicit(self, points):
         """Signed distance to the infinite cylinder, ``hypot(x, y) - R``, shape (n,)."""
@@ -1878,7 +1876,56 @@ class Cylinder(Surface):
 # ---------------------------------------------------------------------------
 
 
-class Graph(Surface):
+class _SquarePatch(Surface):
+    """Open patch over the parameter square ``[-size, size]^2``, seen from above.
+
+    What the graphs and the folded square share: the square domain, the
+    inverse parametrisation by vertical projection (``u`` from ``x`` by
+    :meth:`_u_of_x`, ``v = y``) and the scan viewpoints above the patch.
+    """
+
+    closed = False
+    periodic = (False, False)
+
+    def _set_size(self, size) -> None:
+        """Validate the half-width ``size`` and set the square domain."""
+        self.size = _positive("size", size)
+        self.domain = ((-self.size, self.size), (-self.size, self.size))
+
+    def _u_of_x(self, x: np.ndarray) -> np.ndarray:
+        """The parameter ``u`` of the surface points with coordinate ``x`` (a new array)."""
+        raise NotImplementedError
+
+    def parameters_of(self, points):
+        """Parameters of ``points`` by vertical projection (not clipped to the square).
+
+        ``(x, y)`` on a :class:`Graph`, ``(x / cos b, y)`` on the
+        :class:`FoldedSquare`.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3)
+
+        Returns
+        -------
+        u, v : ndarray, shape (n,)
+        """
+        p = _as_points(points)
+        return self._u_of_x(p[:, 0]), p[:, 1].copy()
+
+    def default_viewpoints(self):
+        """Three viewpoints above the patch, the graph or the folded square's roof.
+
+        See :meth:`Surface.default_viewpoints`.
+
+        Returns
+        -------
+        ndarray, shape (3, 3)
+        """
+        return _view_positions(_ABOVE, *self.bounding_box())
+
+
+class Graph(_SquarePatch):
     """Graph ``z = f(x, y)`` over ``[-size, size]^2``, upward normals.
 
     The parameters are ``u = x``, ``v = y``.  Curvature comes from the
@@ -1902,9 +1949,6 @@ class Graph(Surface):
         Name of the surface.
     """
 
-    closed = False
-    periodic = (False, False)
-
     def __init__(
         self,
         f: Callable,
@@ -1920,18 +1964,16 @@ class Graph(Surface):
         for label, fn in funcs.items():
             if not callable(fn):
                 raise HeatcurvError(f"{label} must be a callable of (x, y), got {fn!r}")
-        self._f, self._fx, self._fy = f, fx, fy
-        self._fxx, self._fxy, self._fyy = fxx, fxy, fyy
-        self.size = _positive("size", size)
+        self._funcs = funcs
+        self._set_size(size)
         self.name = str(name)
-        self.domain = ((-self.size, self.size), (-self.size, self.size))
 
     def _params(self):
         return {"size": self.size, "name": self.name}
 
-    @staticmethod
-    def _eval(fn, x, y, label):
-        out = np.asarray(fn(x, y), dtype=np.float64)
+    def _eval(self, label, x, y):
+        """The function ``label`` (``"f"``, ``"fx"``, ...) at ``(x, y)``, shape of ``x``."""
+        out = np.asarray(self._funcs[label](x, y), dtype=np.float64)
         try:
             return np.broadcast_to(out, x.shape)
         except ValueError:
@@ -1941,57 +1983,38 @@ class Graph(Surface):
 
     def position(self, u, v):
         u, v = _as_uv(u, v)
-        return _vec(u.size, u, v, self._eval(self._f, u, v, "f"))
+        return _vec(u.size, u, v, self._eval("f", u, v))
 
     def tangents(self, u, v):
         u, v = _as_uv(u, v)
         return (
-            _vec(u.size, 1.0, 0.0, self._eval(self._fx, u, v, "fx")),
-            _vec(u.size, 0.0, 1.0, self._eval(self._fy, u, v, "fy")),
+            _vec(u.size, 1.0, 0.0, self._eval("fx", u, v)),
+            _vec(u.size, 0.0, 1.0, self._eval("fy", u, v)),
         )
 
     def second_derivatives(self, u, v):
         u, v = _as_uv(u, v)
-        return (
-            _vec(u.size, 0.0, 0.0, self._eval(self._fxx, u, v, "fxx")),
-            _vec(u.size, 0.0, 0.0, self._eval(self._fxy, u, v, "fxy")),
-            _vec(u.size, 0.0, 0.0, self._eval(self._fyy, u, v, "fyy")),
-        )
+        return tuple(_vec(u.size, 0.0, 0.0, self._eval(k, u, v)) for k in ("fxx", "fxy", "fyy"))
 
-    def parameters_of(self, points):
-        """``(x, y)`` of ``points`` (vertical projection; not clipped to the square).
-
-        Parameters
-        ----------
-        points : array_like, shape (n, 3)
-
-        Returns
-        -------
-        u, v : ndarray, shape (n,)
-        """
-        p = _as_points(points)
-        return p[:, 0].copy(), p[:, 1].copy()
+    def _u_of_x(self, x):
+        return x.copy()
 
     def implicit(self, points):
         """``z - f(x, y)``, shape (n,) (positive above the graph)."""
         p = _as_points(points)
-        return p[:, 2] - self._eval(self._f, p[:, 0], p[:, 1], "f")
+        return p[:, 2] - self._eval("f", p[:, 0], p[:, 1])
 
+    @_cached_in("_cached_graph_bounds")
     def _graph_bounds(self):
         """``(G, zmin, zmax)``: a bound of ``|grad f|`` and a z range, on a dense grid."""
-        cached = getattr(self, "_cached_graph_bounds", None)
-        if cached is None:
-            m = 257
-            t = np.linspace(-self.size, self.size, m)
-            xx, yy = np.meshgrid(t, t)
-            x, y = xx.ravel(), yy.ravel()
-            z = self._eval(self._f, x, y, "f")
-            grad = np.hypot(self._eval(self._fx, x, y, "fx"), self._eval(self._fy, x, y, "fy"))
-            big = 1.25 * float(np.max(grad)) + 1e-12  # the grid maximum can miss a peak
-            slack = big * math.sqrt(2.0) * (t[1] - t[0]) + 1e-9 * self.size
-            cached = (big, float(np.min(z)) - slack, float(np.max(z)) + slack)
-            self._cached_graph_bounds = cached
-        return cached
+        t = np.linspace(-self.size, self.size, 257)
+        xx, yy = np.meshgrid(t, t)
+        x, y = xx.ravel(), yy.ravel()
+        z = self._eval("f", x, y)
+        grad = np.hypot(self._eval("fx", x, y), self._eval("fy", x, y))
+        big = 1.25 * float(np.max(grad)) + 1e-12  # the grid maximum can miss a peak
+        slack = big * math.sqrt(2.0) * (t[1] - t[0]) + 1e-9 * self.size
+        return big, float(np.min(z)) - slack, float(np.max(z)) + slack
 
     def _implicit_lipschitz(self):
         return math.sqrt(1.0 + self._graph_bounds()[0] ** 2)
@@ -2005,28 +2028,42 @@ class Graph(Surface):
         lo, hi = self.bounding_box()
         return lo, hi  # z already has slack; x, y are exactly the border
 
-    def default_viewpoints(self):
-        """Three viewpoints above the patch (see :meth:`Surface.default_viewpoints`).
-
-        Returns
-        -------
-        ndarray, shape (3, 3)
-        """
-        return _view_positions(_ABOVE, *self.bounding_box())
-
+    @_cached_in("_cached_area")
     def area(self):
-        cached = getattr(self, "_cached_area", None)
-        if cached is None:
-            nodes, weights = np.polynomial.legendre.leggauss(200)
-            x = self.size * nodes
-            xx, yy = np.meshgrid(x, x, indexing="ij")
-            w = self.area_element(xx.ravel(), yy.ravel()).reshape(xx.shape)
-            cached = float(self.size**2 * (weights @ w @ weights))
-            self._cached_area = cached
-        return cached
+        nodes, weights = np.polynomial.legendre.leggauss(200)
+        x = self.size * nodes
+        xx, yy = np.meshgrid(x, x, indexing="ij")
+        w = self.area_element(xx.ravel(), yy.ravel()).reshape(xx.shape)
+        return float(self.size**2 * (weights @ w @ weights))
 
 
-class Paraboloid(Graph):
+class _CoefficientGraph(Graph):
+    """A :class:`Graph` family ``z = f(x, y; a)`` with one real coefficient ``a``.
+
+    Subclasses give ``f`` and its derivatives for a coefficient in
+    :meth:`_functions` and pass their parameters and name on to ``__init__``.
+
+    Parameters
+    ----------
+    a : float
+    size : float
+    """
+
+    def __init__(self, a: float, size: float, name: str):
+        a = _finite("a", a)
+        self.a = a
+        super().__init__(*self._functions(a), size=size, name=name)
+
+    @staticmethod
+    def _functions(a: float) -> tuple[Callable, ...]:
+        """``f, fx, fy, fxx, fxy, fyy`` for the coefficient ``a``."""
+        raise NotImplementedError
+
+    def _params(self):
+        return {"a": self.a, "size": self.size}
+
+
+class Paraboloid(_CoefficientGraph):
     """Paraboloid ``z = a (x^2 + y^2)`` over ``[-size, size]^2``.
 
     With upward normals an upward-opening paraboloid (``a > 0``) bends
@@ -2042,24 +2079,21 @@ class Paraboloid(Graph):
     name = "paraboloid"
 
     def __init__(self, a: float = 0.5, size: float = 1.0):
-        a = _finite("a", a)
-        self.a = a
-        super().__init__(
+        super().__init__(a, size, name="paraboloid")
+
+    @staticmethod
+    def _functions(a):
+        return (
             lambda x, y: a * (x * x + y * y),
             lambda x, y: 2.0 * a * x,
             lambda x, y: 2.0 * a * y,
             lambda x, y: 2.0 * a,
             lambda x, y: 0.0,
             lambda x, y: 2.0 * a,
-            size=size,
-            name="paraboloid",
         )
 
-    def _params(self):
-        return {"a": self.a, "size": self.size}
 
-
-class Saddle(Graph):
+class Saddle(_CoefficientGraph):
     """Hyperbolic paraboloid ``z = a (x^2 - y^2)`` over ``[-size, size]^2``.
 
     Parameters
@@ -2071,24 +2105,21 @@ class Saddle(Graph):
     name = "saddle"
 
     def __init__(self, a: float = 0.5, size: float = 1.0):
-        a = _finite("a", a)
-        self.a = a
-        super().__init__(
+        super().__init__(a, size, name="saddle")
+
+    @staticmethod
+    def _functions(a):
+        return (
             lambda x, y: a * (x * x - y * y),
             lambda x, y: 2.0 * a * x,
             lambda x, y: -2.0 * a * y,
             lambda x, y: 2.0 * a,
             lambda x, y: 0.0,
             lambda x, y: -2.0 * a,
-            size=size,
-            name="saddle",
         )
 
-    def _params(self):
-        return {"a": self.a, "size": self.size}
 
-
-class Arch(Graph):
+class Arch(_CoefficientGraph):
     """Parabolic-cylinder arch ``z = -a x^2`` over ``[-size, size]^2``.
 
     A ridge along the y axis: ``k1 = 2a / (1 + 4 a^2 x^2)^{3/2} > 0`` across
@@ -2103,21 +2134,18 @@ class Arch(Graph):
     name = "arch"
 
     def __init__(self, a: float = 0.5, size: float = 1.0):
-        a = _finite("a", a)
-        self.a = a
-        super().__init__(
+        super().__init__(a, size, name="arch")
+
+    @staticmethod
+    def _functions(a):
+        return (
             lambda x, y: -a * x * x,
             lambda x, y: -2.0 * a * x,
             lambda x, y: 0.0,
             lambda x, y: -2.0 * a,
             lambda x, y: 0.0,
             lambda x, y: 0.0,
-            size=size,
-            name="arch",
         )
-
-    def _params(self):
-        return {"a": self.a, "size": self.size}
 
 
 class Plane(Graph):
@@ -2134,16 +2162,10 @@ class Plane(Graph):
     name = "plane"
 
     def __init__(self, size: float = 1.0):
-        super().__init__(
-            lambda x, y: 0.0,
-            lambda x, y: 0.0,
-            lambda x, y: 0.0,
-            lambda x, y: 0.0,
-            lambda x, y: 0.0,
-            lambda x, y: 0.0,
-            size=size,
-            name="plane",
-        )
+        def zero(x, y):
+            return 0.0
+
+        super().__init__(zero, zero, zero, zero, zero, zero, size=size, name="plane")
 
     def _params(self):
         return {"size": self.size}
@@ -2157,7 +2179,7 @@ class Plane(Graph):
 # ---------------------------------------------------------------------------
 
 
-class FoldedSquare(Surface):
+class FoldedSquare(_SquarePatch):
     """Square folded along the y axis into a roof (the paper's Fig. 10).
 
     The parameter square ``[-size, size]^2`` is mapped isometrically,
@@ -2184,8 +2206,6 @@ class FoldedSquare(Surface):
     """
 
     name = "folded_square"
-    closed = False
-    periodic = (False, False)
 
     def __init__(self, interior_angle: float = 90.0, size: float = 1.0):
         angle = _finite("interior_angle", interior_angle)
@@ -2194,9 +2214,8 @@ class FoldedSquare(Surface):
                 f"interior_angle must be in (0, 180] degrees, got {interior_angle!r}"
             )
         self.interior_angle = angle
-        self.size = _positive("size", size)
+        self._set_size(size)
         self.beta = math.radians(0.5 * (180.0 - angle))
-        self.domain = ((-self.size, self.size), (-self.size, self.size))
 
     def _params(self):
         return {"interior_angle": self.interior_angle, "size": self.size}
@@ -2225,15 +2244,10 @@ class FoldedSquare(Surface):
         u, v = _as_uv(u, v)
         xu, _ = self.tangents(u, v)
         zero = np.zeros(u.shape)
-        return Curvature(
-            mean=zero.copy(),
-            gaussian=zero.copy(),
-            k1=zero.copy(),
-            k2=zero.copy(),
-            d1=_unit(xu),
-            d2=_vec(u.size, 0.0, 1.0, 0.0),
-            umbilic=np.ones(u.shape, dtype=bool),
-        )
+        d2 = _vec(u.size, 0.0, 1.0, 0.0)
+        every = np.ones(u.shape, dtype=bool)
+        d1 = _unit(xu)
+        return _principal_curvature(zero.copy(), zero.copy(), d1, d2, mean=zero, umbilic=every)
 
     def area(self):
         return (2.0 * self.size) ** 2
@@ -2257,19 +2271,8 @@ class FoldedSquare(Surface):
         """Same as :meth:`fold_distance`."""
         return self.fold_distance(u, v)
 
-    def parameters_of(self, points):
-        """``(x / cos b, y)`` of ``points`` (vertical projection; not clipped).
-
-        Parameters
-        ----------
-        points : array_like, shape (n, 3)
-
-        Returns
-        -------
-        u, v : ndarray, shape (n,)
-        """
-        p = _as_points(points)
-        return p[:, 0] / math.cos(self.beta), p[:, 1].copy()
+    def _u_of_x(self, x):
+        return x / math.cos(self.beta)
 
     def implicit(self, points):
         """``z + |x| tan b``, shape (n,) (positive above the roof)."""
@@ -2288,15 +2291,6 @@ class FoldedSquare(Surface):
         lo, hi = self.bounding_box()
         pad = 1e-6 * float(np.linalg.norm(hi - lo)) + 1e-12
         return lo - np.array([0.0, 0.0, pad]), hi + np.array([0.0, 0.0, pad])
-
-    def default_viewpoints(self):
-        """Three viewpoints above the roof, as for a :class:`Graph`.
-
-        Returns
-        -------
-        ndarray, shape (3, 3)
-        """
-        return _view_positions(_ABOVE, *self.bounding_box())
 
 
 # ---------------------------------------------------------------------------
