@@ -62,9 +62,10 @@ class CurvatureResult:
         point; everywhere if the area system did not converge (a
         ``HeatcurvWarning`` says so).
     border : ndarray, shape (n,), bool
-        Points whose ball is cut by the border of an open surface
+        Points whose fit's ball is cut by the border of an open surface
         (:mod:`heatcurv.border`): their values come from one-sided
-        neighbourhoods.
+        neighbourhoods. Noisy clouds are fitted with wider balls, so their
+        border band is wider.
     spacing : ndarray, shape (n,)
         The spacing ``h`` of the heat kernel (``t = m h^2``; eq 2.6, 2.7, or
         ``d_k / alpha``) at each point: the kernel of the Laplace-Beltrami
@@ -80,8 +81,9 @@ class CurvatureResult:
         ``n_distinct`` (points after merging duplicates), ``area_solve``
         (solver, iterations, residual), ``timings`` (seconds per stage), and
         for the chord fit ``scale``: the kernel chosen (``k`` neighbours,
-        ``fit`` label), the noise estimate ``sigma`` (length units) and
-        ``relative_noise`` (``sigma / h``).
+        ``fit`` label, ``radius``: 99th percentile of its ball radii), the
+        noise estimate ``sigma`` (length units) and ``relative_noise``
+        (``sigma / h``).
     """
 
     normals: np.ndarray
@@ -250,9 +252,9 @@ def estimate(
 
     tic = time.perf_counter()
     info = {"n_distinct": prepared.n_distinct, "area_solve": op.area_solve}
-    areas = op.areas
+    areas, fit_nbhd = op.areas, nbhd
     if opts.fit == "chord":
-        fit, areas, info["scale"] = _chord_estimate(op, nrm, keep_normals=normals is not None)
+        fit, areas, fit_nbhd, info["scale"] = _chord_estimate(op, nrm, keep_normals=normals is not None)
         pc, nrm = fit.principal, fit.normals
         mean = pc.mean
     else:
@@ -265,7 +267,8 @@ def estimate(
             mean = pc.mean
     timings["principal"] = time.perf_counter() - tic
 
-    border = border_points(X, nbhd, nrm, weights=ball_taper(nbhd) if opts.taper else None)
+    # border of open surfaces, on the neighbourhood the curvature was fitted on
+    border = border_points(X, fit_nbhd, nrm, weights=ball_taper(fit_nbhd) if opts.taper else None)
     reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~border
     reliable &= op.area_solve.converged
     info["timings"] = timings
@@ -293,8 +296,8 @@ def _chord_estimate(op, normals, keep_normals: bool):
     """The chord fit at the kernel ``op.options.scale`` asks for (or chooses).
 
     Returns the fit, the areas (recomputed on the fit's kernel when it is
-    wider than the base one, so noise does not inflate them) and the scale
-    record for ``info``.
+    wider than the base one, so noise does not inflate them), the fit's
+    neighbourhood and the scale record for ``info``.
     """
     opts, X = op.options, op.points
     choice = select_scale(
@@ -317,10 +320,11 @@ def _chord_estimate(op, normals, keep_normals: bool):
     record = {
         "k": choice.scale.k,
         "median_h": float(np.median(h)),
+        "radius": float(np.percentile(nbhd.radius, 99)),
         "fit": choice.scale.label,
         "sigma": choice.sigma,
         "relative_noise": choice.relative_noise,
         "candidates": [c.label for c in choice.candidates],
         "sd": choice.sd,
     }
-    return fit, areas, record
+    return fit, areas, nbhd, record

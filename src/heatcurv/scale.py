@@ -226,7 +226,10 @@ def select_scale(
         clouds of 3000-20 000 points); noise enters the chord residual through
         ``2 z / |x_i - x_j|^2`` amplified, and the ratio jumps to about 4
         (measured 2.2-4.4 for noise from 1e-6 to 1.2e-3 of the bounding-box
-        diagonal).
+        diagonal). Strong noise saturates the chord residual (``|kN| <=
+        1/|z|``) and the ratio falls back (1.4 at ``sigma / h = 0.37``), so
+        a cloud with ``sigma / h`` above 1 % never counts as clean (clean
+        clouds measured at most 3.5e-4).
     fixed_k : int, optional
         Use this kernel width instead of choosing one: only the noise is
         measured, to pick the chord fit (clean) or the denoised one.
@@ -264,7 +267,9 @@ def select_scale(
             sigma = float(np.median(fit.sigma))
             h0 = float(np.median(h))
             sigma_chord = float(np.median(chord.sigma))
-            clean = sigma_chord <= clean_ratio * sigma
+            # large noise saturates the chord residual (|kN| <= 1/|z|), so the ratio alone
+            # cannot tell; past sigma/h = 1 % no clean cloud gets (measured <= 3.5e-4)
+            clean = sigma_chord <= clean_ratio * sigma and sigma < 0.01 * h0
             if clean or fixed_k is not None:
                 k_use = base_k if fixed_k is None else int(fixed_k)
                 return ScaleChoice(
