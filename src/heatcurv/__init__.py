@@ -13,9 +13,13 @@ building blocks (see the module of each):
 ``mean_curvature``     mean-curvature normal and mean curvature (eqs 2.10-2.12)
 ``normals``            PCA normals and their orientation
 ``principal``          the curvature-tensor fit (section 3, eq 3.1)
+``chordfit``           the default's fit: chord curvatures with tilt and cubic terms
+``scale``              the default's kernel width: noise estimate, Lepski's rule
+``border``             border points of open surfaces
 ``features``           sharp-feature detection from the mean curvature
 ``surfaces``           analytic surfaces with exact values, and samplers
 ``evaluation``         error measures against exact values (eqs 4.1, 5.1)
+``baseline``           the classical k-NN quadric fit, for comparison
 ``estimator``          :func:`estimate`, chaining the stages
 ``cli``                the ``heatcurv`` command
 =====================  ======================================================
