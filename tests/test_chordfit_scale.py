@@ -162,3 +162,24 @@ def test_border_points_of_an_open_patch():
     assert flagged[edge].all()
     assert not flagged[sample.border_distance > R].any()
     assert np.median(offset[sample.border_distance > R]) < 0.1 < BORDER_OFFSET
+
+
+def test_fitting_in_blocks_changes_nothing(monkeypatch):
+    import heatcurv.scale as scale_module
+
+    sample = surfaces.Torus().sample(3000, "random", seed=6)
+    whole = heatcurv.estimate(sample.points)
+    monkeypatch.setattr(scale_module, "FIT_BLOCK_PAIRS", 5000)  # about 80 blocks
+    blocked = heatcurv.estimate(sample.points)
+    for name in whole.FIELDS:
+        np.testing.assert_allclose(getattr(blocked, name), getattr(whole, name), rtol=1e-12, atol=1e-12)
+
+
+def test_row_blocks_cover_every_row_once():
+    pts = np.random.default_rng(7).random((500, 3))
+    nb = ball_neighbourhood(pts, 0.2, min_neighbors=3)
+    blocks = list(nb.row_blocks(300))
+    assert blocks[0][0] == 0 and blocks[-1][1] == 500
+    assert all(b[1] == c[0] for b, c in zip(blocks, blocks[1:]))
+    sub = nb.rows_slice(*blocks[1])
+    np.testing.assert_array_equal(sub.counts, nb.counts[blocks[1][0] : blocks[1][1]])

@@ -75,6 +75,22 @@ class ChordFit:
     sigma: np.ndarray
     mean_variance_factor: np.ndarray
 
+    @staticmethod
+    def concatenate(parts: list) -> "ChordFit":
+        """Join the fits of consecutive blocks of centres into one."""
+        if len(parts) == 1:
+            return parts[0]
+        cat = lambda get: np.concatenate([get(p) for p in parts])  # noqa: E731
+        pc = PrincipalCurvatures(
+            **{name: cat(lambda p, name=name: getattr(p.principal, name)) for name in PrincipalCurvatures.__dataclass_fields__}
+        )
+        return ChordFit(
+            principal=pc,
+            normals=cat(lambda p: p.normals),
+            sigma=cat(lambda p: p.sigma),
+            mean_variance_factor=cat(lambda p: p.mean_variance_factor),
+        )
+
 
 def segment_lstsq(
     nbhd: Neighbourhood,

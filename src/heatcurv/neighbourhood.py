@@ -64,6 +64,32 @@ class Neighbourhood:
         """Row (centre point) of every stored pair, shape ``(nnz,)``."""
         return np.repeat(np.arange(self.n_points, dtype=self.indices.dtype), self.counts)
 
+    def row_blocks(self, max_pairs: int):
+        """Split the rows into consecutive ranges of at most about ``max_pairs`` pairs.
+
+        Yields
+        ------
+        (lo, hi) : tuple of int
+            Row range; a single row with more pairs than ``max_pairs`` is its own block.
+        """
+        n, lo = self.n_points, 0
+        while lo < n:
+            hi = int(np.searchsorted(self.indptr, self.indptr[lo] + max_pairs, side="right")) - 1
+            hi = min(max(hi, lo + 1), n)
+            yield lo, hi
+            lo = hi
+
+    def rows_slice(self, lo: int, hi: int) -> "Neighbourhood":
+        """The neighbourhood of rows ``lo:hi`` (indices still refer to the whole cloud)."""
+        a, b = self.indptr[lo], self.indptr[hi]
+        return Neighbourhood(
+            indptr=self.indptr[lo : hi + 1] - a,
+            indices=self.indices[a:b],
+            distances=self.distances[a:b],
+            radius=self.radius[lo:hi],
+            augmented=self.augmented[lo:hi],
+        )
+
     def segment_sum(self, values: np.ndarray) -> np.ndarray:
         """Sum per-pair ``values`` (shape ``(nnz,)`` or ``(nnz, k)``) over each row.
 

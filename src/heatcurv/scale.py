@@ -41,7 +41,10 @@ from .chordfit import ChordFit, chord_fit
 from .kernel import ball_taper
 from .neighbourhood import Neighbourhood, ball_neighbourhood
 
-__all__ = ["Scale", "ScaleChoice", "fit_at_scale", "select_scale"]
+__all__ = ["Scale", "ScaleChoice", "fit_at_scale", "select_scale", "FIT_BLOCK_PAIRS"]
+
+#: Neighbour pairs fitted at once; bounds the fit's memory (about 1 KB per pair at the peak).
+FIT_BLOCK_PAIRS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -169,10 +172,18 @@ def fit_at_scale(
     h = nbhd.radius / alpha
     # heat kernel, t = h^2 / 4 (eq 2.8), tapered to 0 at the ball's edge
     kernel = np.exp(-(nbhd.distances**2) / np.repeat(h, nbhd.counts) ** 2) * ball_taper(nbhd)
-    fit = chord_fit(
-        points, nbhd, normals, kernel * areas[nbhd.indices], denoise=scale.denoise, centres=queries, passes=passes
-    )
-    return fit, h, nbhd, fraction
+    weights = kernel * areas[nbhd.indices]
+    # the fit's per-pair temporaries are the memory peak: fit blocks of centres in turn
+    parts = []
+    for lo, hi in nbhd.row_blocks(FIT_BLOCK_PAIRS):
+        a, b = nbhd.indptr[lo], nbhd.indptr[hi]
+        parts.append(
+            chord_fit(
+                points, nbhd.rows_slice(lo, hi), normals[lo:hi], weights[a:b], denoise=scale.denoise,
+                centres=queries[lo:hi], passes=passes,
+            )
+        )
+    return ChordFit.concatenate(parts), h, nbhd, fraction
 
 
 def select_scale(
