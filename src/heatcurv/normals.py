@@ -58,9 +58,11 @@ def pca_normals(points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | N
     mean = (nbhd.segment_sum(w[:, None] * points[nbhd.indices]) + points) / total[:, None]
     d = points[nbhd.indices] - mean[rows]
     d0 = points - mean
-    outer = (w[:, None, None] * d[:, :, None] * d[:, None, :]).reshape(-1, 9)
-    cov = (nbhd.segment_sum(outer) + (d0[:, :, None] * d0[:, None, :]).reshape(-1, 9)).reshape(-1, 3, 3)
-    cov /= total[:, None, None]
+    # the six distinct covariance entries one at a time: no (pairs x 9) temporary
+    cov = np.empty((nbhd.n_points, 3, 3))
+    for a, b in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
+        entry = (nbhd.segment_sum(w * d[:, a] * d[:, b]) + d0[:, a] * d0[:, b]) / total
+        cov[:, a, b] = cov[:, b, a] = entry
     evals, evecs = np.linalg.eigh(cov)
     normals = evecs[:, :, 0]
     with np.errstate(invalid="ignore", divide="ignore"):
