@@ -26,11 +26,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .backend import use_numba
 from .errors import HeatcurvError
 from .kernel import TAPER_START, area_normalisation, ball_taper, flat_top
 from .neighbourhood import Neighbourhood
 
-__all__ = ["area_matrix", "point_areas", "AreaSolve", "density_areas", "ball_area_factor"]
+__all__ = ["area_matrix", "point_areas", "AreaSolve", "density_areas", "taper_sums", "ball_area_factor"]
 
 
 @dataclass(frozen=True)
@@ -207,10 +208,19 @@ def density_areas(nbhd: Neighbourhood, fraction: float = 1.0) -> np.ndarray:
         Positive areas; their sum estimates the surface area.
     """
     radius = nbhd.radius
-    total = nbhd.segment_sum(ball_taper(nbhd)) / fraction
+    total = taper_sums(nbhd) / fraction
     i1, i2 = _taper_moments()
     beta = 0.5 * (1.0 + i2 / i1)
     return i1 * radius**2 / (total + beta)
+
+
+def taper_sums(nbhd: Neighbourhood) -> np.ndarray:
+    """``sum_{j != i} flat_top(|xi - xj| / R_i)`` per point, shape ``(n,)``: the kernel count of each ball."""
+    if use_numba():
+        from ._segment_numba import taper_sums as compiled
+
+        return compiled(nbhd.indptr, nbhd.distances, nbhd.radius, TAPER_START)
+    return nbhd.blockwise(lambda lo, hi, block: block.segment_sum(ball_taper(block)))
 
 
 def ball_area_factor(radius: np.ndarray, k1: np.ndarray, k2: np.ndarray) -> np.ndarray:

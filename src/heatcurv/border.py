@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .backend import use_numba
+from .errors import HeatcurvError
+from .kernel import TAPER_START, ball_taper
 from .neighbourhood import Neighbourhood
 
 __all__ = ["BORDER_OFFSET", "centroid_offset", "border_points"]
@@ -24,41 +27,79 @@ __all__ = ["BORDER_OFFSET", "centroid_offset", "border_points"]
 BORDER_OFFSET = 0.25
 
 
-def centroid_offset(points: np.ndarray, nbhd: Neighbourhood, normals: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+def centroid_offset(
+    points: np.ndarray,
+    nbhd: Neighbourhood,
+    normals: np.ndarray,
+    weights: np.ndarray | None = None,
+    *,
+    taper: bool = False,
+    centres: np.ndarray | None = None,
+) -> np.ndarray:
     """Tangential offset of each ball's centroid from its centre, in ball radii.
 
     Parameters
     ----------
     points : ndarray, shape (n, 3)
-        Distinct points.
+        Distinct points; ``nbhd.indices`` index them.
     nbhd : Neighbourhood
-        Ball neighbourhoods (``nbhd.radius`` is the ball radius).
-    normals : ndarray, shape (n, 3)
-        Unit normals.
+        Ball neighbourhoods (``nbhd.radius`` is the ball radius), one row per centre.
+    normals : ndarray, shape (m, 3)
+        Unit normals of the centres.
     weights : ndarray, shape (nnz,), optional
         Weight of each neighbour in the centroid (default 1).
+    taper : bool, optional
+        Weight each neighbour by :func:`heatcurv.kernel.ball_taper` instead
+        (computed pair by pair, not stored). Not together with ``weights``.
+    centres : ndarray, shape (m, 3), optional
+        The balls' centres (default ``points``).
 
     Returns
     -------
-    ndarray, shape (n,)
+    ndarray, shape (m,)
         ``|P_t (mean_j x_j - x_i)| / R_i`` with ``P_t`` the projection onto the
         tangent plane.
     """
-    w = np.ones(nbhd.n_pairs) if weights is None else np.asarray(weights, dtype=np.float64)
-    total = np.maximum(nbhd.segment_sum(w), np.finfo(float).tiny)
-    centroid = nbhd.segment_sum(w[:, None] * points[nbhd.indices]) / total[:, None] - points
-    centroid -= np.einsum("ij,ij->i", centroid, normals)[:, None] * normals
-    return np.linalg.norm(centroid, axis=1) / nbhd.radius
+    if weights is not None and taper:
+        raise HeatcurvError("give centroid_offset either weights or taper=True, not both")
+    if centres is None:
+        centres = points
+    if weights is None and use_numba():
+        from ._segment_numba import centroid_offsets
+
+        return centroid_offsets(
+            points, centres, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, normals, TAPER_START, taper
+        )
+
+    def block_offsets(lo, hi, block):
+        if weights is not None:
+            w = np.asarray(weights[nbhd.indptr[lo] : nbhd.indptr[hi]], dtype=np.float64)
+        else:
+            w = ball_taper(block) if taper else np.ones(block.n_pairs)
+        total = np.maximum(block.segment_sum(w), np.finfo(float).tiny)
+        centroid = block.segment_sum(w[:, None] * points[block.indices]) / total[:, None] - centres[lo:hi]
+        centroid -= np.einsum("ij,ij->i", centroid, normals[lo:hi])[:, None] * normals[lo:hi]
+        return np.linalg.norm(centroid, axis=1) / block.radius
+
+    return nbhd.blockwise(block_offsets)
 
 
 def border_points(
-    points: np.ndarray, nbhd: Neighbourhood, normals: np.ndarray, threshold: float = BORDER_OFFSET, weights=None
+    points: np.ndarray,
+    nbhd: Neighbourhood,
+    normals: np.ndarray,
+    threshold: float = BORDER_OFFSET,
+    weights=None,
+    *,
+    taper: bool = False,
+    centres: np.ndarray | None = None,
 ) -> np.ndarray:
     """Points whose ball is cut by a border of the surface.
 
     Returns
     -------
-    ndarray, shape (n,), bool
-        ``centroid_offset > threshold`` (see :func:`centroid_offset`).
+    ndarray, shape (m,), bool
+        ``centroid_offset > threshold`` (see :func:`centroid_offset` for the
+        other parameters).
     """
-    return centroid_offset(points, nbhd, normals, weights) > threshold
+    return centroid_offset(points, nbhd, normals, weights, taper=taper, centres=centres) > threshold

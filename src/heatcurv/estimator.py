@@ -19,12 +19,12 @@ import numpy as np
 from .areas import ball_area_factor, density_areas
 from .border import border_points
 from .errors import HeatcurvError
-from .kernel import ball_taper
 from .mean_curvature import mean_curvature, mean_curvature_normal
 from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
 from .pipeline import Options, build_operator, resolve_options
 from .principal import principal_fit
-from .scale import fit_at_scale, select_scale
+from .chordfit import ChordFit
+from .scale import fit_blocks, select_scale
 from .validation import prepare_normals
 
 __all__ = ["CurvatureResult", "estimate"]
@@ -237,24 +237,27 @@ def estimate(
     if normals is not None:
         nrm = prepare_normals(normals, prepared)
     else:
-        taper = ball_taper(nbhd) if opts.taper else None
-        nrm, planarity = pca_normals(X, nbhd, taper)
+        nrm, planarity = pca_normals(X, nbhd, taper=opts.taper)
+        timings["normals"] = time.perf_counter() - tic
+        tic = time.perf_counter()
         if vp is not None:
             nrm = orient_towards_viewpoint(X, nrm, vp - prepared.offset)
         else:
             nrm = orient_normals(X, nrm, nbhd, op.areas)
-    timings["normals"] = time.perf_counter() - tic
+        timings["orientation"] = time.perf_counter() - tic
+    if "normals" not in timings:
+        timings["normals"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
-    K = mean_curvature_normal(X, nbhd, op.weights, op.areas, op.h, opts.m)
+    # the heat kernel is computed pair by pair unless the operator already holds it
+    K = mean_curvature_normal(X, nbhd, op.stored_weights, op.areas, op.h, opts.m)
     mean = mean_curvature(K, nrm, opts.mean_formula)
     timings["mean"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
     info = {"n_distinct": prepared.n_distinct, "area_solve": op.area_solve}
-    areas, fit_nbhd = op.areas, nbhd
     if opts.fit == "chord":
-        fit, areas, fit_nbhd, info["scale"] = _chord_estimate(op, nrm, keep_normals=normals is not None)
+        fit, areas, border, info["scale"] = _chord_estimate(op, nrm, keep_normals=normals is not None)
         pc, nrm = fit.principal, fit.normals
         mean = pc.mean
     else:
@@ -265,10 +268,11 @@ def estimate(
         pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
         if opts.fit == "unconstrained":
             mean = pc.mean
+        areas = op.areas
+        # border of open surfaces, on the neighbourhood the curvature was fitted on
+        border = border_points(X, nbhd, nrm, taper=opts.taper)
     timings["principal"] = time.perf_counter() - tic
 
-    # border of open surfaces, on the neighbourhood the curvature was fitted on
-    border = border_points(X, fit_nbhd, nrm, weights=ball_taper(fit_nbhd) if opts.taper else None)
     reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~border
     reliable &= op.area_solve.converged
     info["timings"] = timings
@@ -293,38 +297,50 @@ def estimate(
 
 
 def _chord_estimate(op, normals, keep_normals: bool):
-    """The chord fit at the kernel ``op.options.scale`` asks for (or chooses).
+    """The chord fit at the kernel ``op.options.scale`` asks for (or chooses), block by block.
 
     Returns the fit, the areas (recomputed on the fit's kernel when it is
-    wider than the base one, so noise does not inflate them), the fit's
-    neighbourhood and the scale record for ``info``.
+    wider than the base one, so noise does not inflate them), the border flags
+    (on the fit's ball) and the scale record for ``info``. Each block's
+    neighbourhood is dropped once its fit, areas and border flags are done.
     """
     opts, X = op.options, op.points
     choice = select_scale(
         X, op.tree, normals, op.areas, base_k=int(opts.neighbors), alpha=opts.alpha,
         fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers,
     )
-    fit, h, nbhd, fraction = fit_at_scale(
-        X, op.tree, normals, op.areas, choice.scale, alpha=opts.alpha, passes=1 if keep_normals else 2,
-        workers=opts.workers,
-    )
-    if opts.area_method == "density":
-        area_nbhd = op.neighbourhood if choice.scale.k <= opts.neighbors else nbhd
-        areas = op.areas if area_nbhd is op.neighbourhood else density_areas(nbhd, fraction=fraction)
+    base = op.neighbourhood
+    reuse_base = opts.spacing == "density" and choice.scale.k == int(opts.neighbors)
+    n = X.shape[0]
+    areas = np.empty(n)
+    border = np.empty(n, dtype=bool)
+    radius = np.empty(n)
+    fits = []
+    for lo, hi, nbhd, fit, fraction in fit_blocks(
+        X, op.tree, normals, op.areas, choice.scale, base=base if reuse_base else None, alpha=opts.alpha,
+        passes=1 if keep_normals else 2, workers=opts.workers,
+    ):
         pc = fit.principal
-        areas = areas * ball_area_factor(area_nbhd.radius, pc.k1, pc.k2)
-    else:
-        areas = op.areas
-    if keep_normals:
-        fit = replace(fit, normals=normals)
+        if opts.area_method == "density":
+            # wider kernels: areas from their own, less noisy, density count
+            own = op.areas[lo:hi] if choice.scale.k <= opts.neighbors else density_areas(nbhd, fraction=fraction)
+            area_radius = base.radius[lo:hi] if choice.scale.k <= opts.neighbors else nbhd.radius
+            areas[lo:hi] = own * ball_area_factor(area_radius, pc.k1, pc.k2)
+        else:
+            areas[lo:hi] = op.areas[lo:hi]
+        fit_normals = normals[lo:hi] if keep_normals else fit.normals
+        border[lo:hi] = border_points(X, nbhd, fit_normals, taper=opts.taper, centres=X[lo:hi])
+        radius[lo:hi] = nbhd.radius
+        fits.append(replace(fit, normals=normals[lo:hi]) if keep_normals else fit)
+    fit = ChordFit.concatenate(fits)
     record = {
         "k": choice.scale.k,
-        "median_h": float(np.median(h)),
-        "radius": float(np.percentile(nbhd.radius, 99)),
+        "median_h": float(np.median(radius / opts.alpha)),
+        "radius": float(np.percentile(radius, 99)),
         "fit": choice.scale.label,
         "sigma": choice.sigma,
         "relative_noise": choice.relative_noise,
         "candidates": [c.label for c in choice.candidates],
         "sd": choice.sd,
     }
-    return fit, areas, nbhd, record
+    return fit, areas, border, record

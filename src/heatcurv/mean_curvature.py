@@ -22,8 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .backend import use_numba
 from .errors import HeatcurvError
-from .kernel import laplacian_normalisation
+from .kernel import diffusion_time, laplacian_normalisation
 from .neighbourhood import Neighbourhood
 
 __all__ = ["mean_curvature_normal", "mean_curvature", "edge_normal_curvatures"]
@@ -32,7 +33,7 @@ __all__ = ["mean_curvature_normal", "mean_curvature", "edge_normal_curvatures"]
 def mean_curvature_normal(
     points: np.ndarray,
     nbhd: Neighbourhood,
-    weights: np.ndarray,
+    weights: np.ndarray | None,
     areas: np.ndarray,
     h: np.ndarray,
     m: float = 0.25,
@@ -45,8 +46,9 @@ def mean_curvature_normal(
         Distinct (centred) points.
     nbhd : Neighbourhood
         Neighbour pairs.
-    weights : ndarray, shape (nnz,)
-        ``W_ij``.
+    weights : ndarray, shape (nnz,) or None
+        ``W_ij``; None computes the heat kernel ``exp(-|xi - xj|^2 / (4 m h_i^2))``
+        pair by pair without storing it.
     areas : ndarray, shape (n,)
         Per-point areas ``A_j``.
     h : ndarray, shape (n,)
@@ -59,9 +61,23 @@ def mean_curvature_normal(
     ndarray, shape (n, 3)
         ``K_i``, approximately ``2 kappa_M n_i``.
     """
-    coupling = weights * areas[nbhd.indices]
-    diff = points[nbhd.rows] - points[nbhd.indices]  # x_i - x_j
-    return laplacian_normalisation(h, m)[:, None] * nbhd.segment_sum(coupling[:, None] * diff)
+    inv_4t = 1.0 / (4.0 * diffusion_time(h, m))
+    if use_numba():
+        from ._segment_numba import kappa_normal_sums
+
+        has_weights = weights is not None
+        w = np.asarray(weights, dtype=np.float64) if has_weights else np.empty(0)
+        sums = kappa_normal_sums(points, nbhd.indptr, nbhd.indices, nbhd.distances, inv_4t, w, areas, has_weights)
+    else:
+        def block_sums(lo, hi, block):
+            a, b = nbhd.indptr[lo], nbhd.indptr[hi]
+            w = weights[a:b] if weights is not None else np.exp(-block.distances**2 * np.repeat(inv_4t[lo:hi], block.counts))
+            coupling = w * areas[block.indices]
+            diff = points[lo:hi][block.rows] - points[block.indices]  # x_i - x_j
+            return block.segment_sum(coupling[:, None] * diff)
+
+        sums = nbhd.blockwise(block_sums)
+    return laplacian_normalisation(h, m)[:, None] * sums
 
 
 def mean_curvature(K: np.ndarray, normals: np.ndarray, formula: str = "projection") -> np.ndarray:

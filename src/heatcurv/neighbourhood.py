@@ -18,7 +18,11 @@ from scipy.spatial import cKDTree
 
 from .errors import HeatcurvError
 
-__all__ = ["Neighbourhood", "ball_neighbourhood"]
+__all__ = ["Neighbourhood", "ball_neighbourhood", "knn_neighbourhood", "QUERY_BLOCK"]
+
+#: Query points per k-d tree call when building large neighbourhoods: bounds the
+#: (block x k) int64/float64 arrays scipy returns before they are narrowed.
+QUERY_BLOCK = 200_000
 
 
 @dataclass(frozen=True)
@@ -30,7 +34,9 @@ class Neighbourhood:
     indptr : ndarray, shape (n + 1,), int64
         Row pointers.
     indices : ndarray, shape (nnz,), int32 or int64
-        Neighbour indices, ascending within each row; the point itself excluded.
+        Neighbour indices (int32 where they fit), ascending within each row
+        for ball neighbourhoods, by distance for :func:`knn_neighbourhood`;
+        the point itself excluded.
     distances : ndarray, shape (nnz,), float64
         ``|x_i - x_j|`` for each stored pair.
     radius : ndarray, shape (n,), float64
@@ -64,6 +70,54 @@ class Neighbourhood:
         """Row (centre point) of every stored pair, shape ``(nnz,)``."""
         return np.repeat(np.arange(self.n_points, dtype=self.indices.dtype), self.counts)
 
+    @staticmethod
+    def concatenate(parts: list) -> "Neighbourhood":
+        """Stack the rows of several neighbourhoods (e.g. consecutive blocks of centres)."""
+        if len(parts) == 1:
+            return parts[0]
+        offsets = np.cumsum([0] + [p.n_pairs for p in parts[:-1]])
+        return Neighbourhood(
+            indptr=np.concatenate([parts[0].indptr[:1]] + [p.indptr[1:] + o for p, o in zip(parts, offsets)]),
+            indices=np.concatenate([p.indices for p in parts]),
+            distances=np.concatenate([p.distances for p in parts]),
+            radius=np.concatenate([p.radius for p in parts]),
+            augmented=np.concatenate([p.augmented for p in parts]),
+        )
+
+    def nearest(self, k: int) -> "Neighbourhood":
+        """Each row's ``k`` nearest stored neighbours (all of a shorter row), nearest first.
+
+        ``radius`` becomes the distance of the farthest one kept.
+        """
+        counts = self.counts
+        if self.n_pairs == 0 or counts.max() <= k and self._sorted_by_distance():
+            return self
+        if counts.min() == counts.max() and self._sorted_by_distance():
+            width = int(counts[0])
+            idx = self.indices.reshape(-1, width)[:, :k]
+            dist = self.distances.reshape(-1, width)[:, :k]
+            new_counts = np.full(self.n_points, idx.shape[1])
+            idx, dist = idx.reshape(-1), dist.reshape(-1)
+        else:
+            rows = self.rows
+            order = np.lexsort((self.distances, rows))
+            rank = np.arange(self.n_pairs) - self.indptr[rows[order]]
+            keep = order[rank < k]
+            idx, dist = self.indices[keep], self.distances[keep]
+            new_counts = np.minimum(counts, k)
+        indptr = np.zeros(self.n_points + 1, dtype=np.int64)
+        np.cumsum(new_counts, out=indptr[1:])
+        last = np.maximum(indptr[1:] - 1, 0)
+        radius = np.where(new_counts > 0, dist[last] if dist.size else 0.0, self.radius)
+        return Neighbourhood(indptr=indptr, indices=idx, distances=dist, radius=radius, augmented=self.augmented)
+
+    def _sorted_by_distance(self) -> bool:
+        """Whether the distances ascend within every row."""
+        step = np.diff(self.distances)
+        within = np.ones(step.shape[0], dtype=bool)
+        within[self.indptr[1:-1][(self.indptr[1:-1] > 0) & (self.indptr[1:-1] < self.n_pairs)] - 1] = False
+        return bool(np.all(step[within] >= 0))
+
     def row_blocks(self, max_pairs: int):
         """Split the rows into consecutive ranges of at most about ``max_pairs`` pairs.
 
@@ -89,6 +143,16 @@ class Neighbourhood:
             radius=self.radius[lo:hi],
             augmented=self.augmented[lo:hi],
         )
+
+    def blockwise(self, compute, max_pairs: int = 1_000_000) -> np.ndarray:
+        """Apply ``compute(lo, hi, block)`` to consecutive row blocks and stack the results.
+
+        ``block`` is ``self.rows_slice(lo, hi)``; ``compute`` returns an array
+        with ``hi - lo`` rows. Bounds the per-pair temporaries of numpy code
+        to about ``max_pairs`` pairs.
+        """
+        parts = [compute(lo, hi, self.rows_slice(lo, hi)) for lo, hi in self.row_blocks(max_pairs)]
+        return np.concatenate(parts) if len(parts) != 1 else parts[0]
 
     def segment_sum(self, values: np.ndarray) -> np.ndarray:
         """Sum per-pair ``values`` (shape ``(nnz,)`` or ``(nnz, k)``) over each row.
@@ -198,4 +262,76 @@ def ball_neighbourhood(
         distances=dist,
         radius=radius,
         augmented=augmented,
+    )
+
+
+def knn_neighbourhood(
+    points: np.ndarray,
+    k: int,
+    tree: cKDTree | None = None,
+    workers: int = -1,
+    queries: np.ndarray | None = None,
+    source_index: np.ndarray | None = None,
+    block: int = QUERY_BLOCK,
+) -> Neighbourhood:
+    """The ``k`` nearest other points of each query, as a ball neighbourhood of radius ``d_k``.
+
+    The ball of radius ``R_i = d_k(i)`` (the distance to the ``k``-th nearest
+    other point) holds exactly these ``k`` points, up to points tied at
+    distance ``R_i``; every kernel of the default estimator is tapered to 0 at
+    the ball's edge (:func:`heatcurv.kernel.ball_taper`), so tied points carry
+    no weight and the two neighbourhoods give the same results. One k-d tree
+    query instead of a kNN query plus a ball query, and a fixed row length.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        Distinct points to search (the tree's points).
+    k : int
+        Neighbours per query.
+    tree : scipy.spatial.cKDTree, optional
+        A tree already built on ``points``.
+    workers : int, optional
+        Threads for the k-d tree queries.
+    queries : ndarray, shape (m, 3), optional
+        Centres (default ``points``). A query that coincides with one of
+        ``points`` does not count itself; other queries keep all ``k``.
+    source_index : ndarray, shape (n,), optional
+        Global index of each of ``points`` (a coarser level of a larger
+        cloud); the returned ``indices`` are mapped through it.
+    block : int, optional
+        Queries per k-d tree call; bounds the temporaries.
+
+    Returns
+    -------
+    Neighbourhood
+        One row per query, ``k`` pairs each, nearest first; ``radius`` is ``d_k``.
+    """
+    if tree is None:
+        tree = cKDTree(points)
+    if queries is None:
+        queries = points
+    n_src, m = points.shape[0], queries.shape[0]
+    k = int(k)
+    if k < 1 or k >= n_src:
+        raise HeatcurvError(f"need more than {k} points for {k} neighbours, got {n_src}")
+    n_global = int(np.max(source_index)) + 1 if source_index is not None else n_src
+    indices = np.empty((m, k), dtype=_index_dtype(n_global))
+    distances = np.empty((m, k))
+    for lo in range(0, m, block):
+        hi = min(m, lo + block)
+        dist, idx = tree.query(queries[lo:hi], k=k + 1, workers=workers)
+        # drop the query itself where it is one of the points (distance 0: the points
+        # are distinct, so nothing else is at 0), else the (k+1)-th neighbour
+        self_hit = dist[:, 0] == 0
+        keep = np.where(self_hit[:, None], np.arange(1, k + 1), np.arange(k))
+        idx = np.take_along_axis(idx, keep, axis=1)
+        distances[lo:hi] = np.take_along_axis(dist, keep, axis=1)
+        indices[lo:hi] = idx if source_index is None else np.asarray(source_index)[idx]
+    return Neighbourhood(
+        indptr=np.arange(0, m * k + 1, k, dtype=np.int64),
+        indices=indices.reshape(-1),
+        distances=distances.reshape(-1),
+        radius=distances[:, -1].copy(),
+        augmented=np.zeros(m, dtype=bool),
     )

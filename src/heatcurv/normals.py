@@ -21,13 +21,20 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from .backend import use_numba
 from .errors import HeatcurvError
+from .kernel import TAPER_START, ball_taper
 from .neighbourhood import Neighbourhood
 
-__all__ = ["pca_normals", "orient_normals", "orient_towards_viewpoint", "tangent_frames"]
+__all__ = ["pca_normals", "orient_normals", "orient_towards_viewpoint", "tangent_frames", "GRAPH_NEIGHBORS"]
+
+#: Nearest neighbours per point in the orientation's spanning-tree graph.
+GRAPH_NEIGHBORS = 10
 
 
-def pca_normals(points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def pca_normals(
+    points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | None = None, *, taper: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """Unoriented PCA normals of the ball neighbourhoods.
 
     Parameters
@@ -39,8 +46,11 @@ def pca_normals(points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | N
         covariance (with weight 1).
     weights : ndarray, shape (nnz,), optional
         Weight of each neighbour in the covariance (default 1: the paper's
-        plain PCA). :func:`heatcurv.kernel.ball_taper` makes the normal a
-        continuous function of the points.
+        plain PCA).
+    taper : bool, optional
+        Weight each neighbour by :func:`heatcurv.kernel.ball_taper` (without
+        storing it), which makes the normal a continuous function of the
+        points. Not together with ``weights``.
 
     Returns
     -------
@@ -51,23 +61,41 @@ def pca_normals(points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | N
         near 1 for a clean surface patch, near 0 where the neighbourhood is
         not a surface (a line, a blob) and the normal is not defined.
     """
-    rows = nbhd.rows
-    w = np.ones(nbhd.n_pairs) if weights is None else np.asarray(weights, dtype=np.float64)
-    total = nbhd.segment_sum(w) + 1.0
-    # weighted neighbourhood mean including the point itself
-    mean = (nbhd.segment_sum(w[:, None] * points[nbhd.indices]) + points) / total[:, None]
-    d = points[nbhd.indices] - mean[rows]
-    d0 = points - mean
-    # the six distinct covariance entries one at a time: no (pairs x 9) temporary
-    cov = np.empty((nbhd.n_points, 3, 3))
-    for a, b in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
-        entry = (nbhd.segment_sum(w * d[:, a] * d[:, b]) + d0[:, a] * d0[:, b]) / total
-        cov[:, a, b] = cov[:, b, a] = entry
+    if weights is not None and taper:
+        raise HeatcurvError("give pca_normals either weights or taper=True, not both")
+    if weights is None and use_numba():
+        from ._segment_numba import weighted_covariances
+
+        cov = weighted_covariances(points, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, TAPER_START, taper)
+    else:
+        def block_covariances(lo, hi, block):
+            w = weights[nbhd.indptr[lo] : nbhd.indptr[hi]] if weights is not None else (
+                ball_taper(block) if taper else np.ones(block.n_pairs)
+            )
+            return _covariances(points, points[lo:hi], block, np.asarray(w, dtype=np.float64))
+
+        cov = nbhd.blockwise(block_covariances)
     evals, evecs = np.linalg.eigh(cov)
     normals = evecs[:, :, 0]
     with np.errstate(invalid="ignore", divide="ignore"):
         planarity = np.where(evals[:, 2] > 0, (evals[:, 1] - evals[:, 0]) / evals[:, 2], 0.0)
     return normals, planarity
+
+
+def _covariances(points, centres, nbhd, w):
+    """Weighted covariance of each neighbourhood and its centre (weight 1), shape (m, 3, 3)."""
+    rows = nbhd.rows
+    total = nbhd.segment_sum(w) + 1.0
+    # weighted neighbourhood mean including the point itself
+    mean = (nbhd.segment_sum(w[:, None] * points[nbhd.indices]) + centres) / total[:, None]
+    d = points[nbhd.indices] - mean[rows]
+    d0 = centres - mean
+    # the six distinct covariance entries one at a time: no (pairs x 9) temporary
+    cov = np.empty((nbhd.n_points, 3, 3))
+    for a, b in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
+        entry = (nbhd.segment_sum(w * d[:, a] * d[:, b]) + d0[:, a] * d0[:, b]) / total
+        cov[:, a, b] = cov[:, b, a] = entry
+    return cov
 
 
 def _flip_parity_along_tree(pred: np.ndarray, flip: np.ndarray) -> np.ndarray:
@@ -93,6 +121,7 @@ def orient_normals(
     normals: np.ndarray,
     nbhd: Neighbourhood,
     areas: np.ndarray | None = None,
+    graph_neighbors: int | None = GRAPH_NEIGHBORS,
 ) -> np.ndarray:
     """Give unoriented normals one consistent orientation.
 
@@ -106,6 +135,11 @@ def orient_normals(
         Neighbour graph the orientation is propagated over.
     areas : ndarray, shape (n,), optional
         Per-point areas for the outward vote (equal weights if omitted).
+    graph_neighbors : int or None, optional
+        Propagate over each point's nearest ``graph_neighbors`` neighbours of
+        ``nbhd`` only (None: all). The spanning tree follows short edges
+        anyway; a sparser graph makes it several times cheaper (measured on a
+        million points: 13 s with 60 neighbours, 1.9 s with 10).
 
     Returns
     -------
@@ -119,6 +153,8 @@ def orient_normals(
         component's least-variance axis (whose largest coordinate is made positive).
     """
     n = points.shape[0]
+    if graph_neighbors is not None:
+        nbhd = nbhd.nearest(int(graph_neighbors))
     rows = nbhd.rows
     cols = nbhd.indices.astype(np.int64)
     align = np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols]))

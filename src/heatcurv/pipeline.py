@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 from .areas import AreaSolve, density_areas, point_areas
 from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import heat_kernel_weights
-from .neighbourhood import Neighbourhood, ball_neighbourhood
+from .neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
 from .spacing import spacing as compute_spacing
 from .validation import PreparedPoints, prepare_points
 
@@ -170,8 +170,6 @@ class HeatKernelOperator:
         Spacing per distinct point.
     neighbourhood : Neighbourhood
         Ball neighbours, radius ``alpha h``.
-    weights : ndarray, shape (nnz,)
-        Heat-kernel weights ``W_ij``.
     areas : ndarray, shape (m,)
         Per-point areas.
     area_solve : AreaSolve
@@ -185,11 +183,23 @@ class HeatKernelOperator:
     tree: cKDTree
     h: np.ndarray
     neighbourhood: Neighbourhood
-    weights: np.ndarray
     areas: np.ndarray
     area_solve: AreaSolve
     options: Options
     timings: dict = field(default_factory=dict)
+    _weights: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def stored_weights(self) -> np.ndarray | None:
+        """``W_ij`` if already computed (the area system needs them), else None."""
+        return self._weights
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Heat-kernel weights ``W_ij`` of every pair, shape ``(nnz,)`` (computed on first use)."""
+        if self._weights is None:
+            self._weights = heat_kernel_weights(self.neighbourhood, self.h, self.options.m)
+        return self._weights
 
     @property
     def m(self) -> float:
@@ -225,28 +235,37 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
     if options.spacing == "density" or options.fit == "chord":
         need = max(need, int(options.neighbors) + 1)
     prepared = prepare_points(points, min_points=need)
+    # k-d tree leaf order: neighbours close in memory, every later gather cache-friendly
+    prepared = prepared.reordered(cKDTree(prepared.points).indices)
     X = prepared.points
     tree = cKDTree(X)
     timings["validate"] = time.perf_counter() - tic
 
-    tic = time.perf_counter()
-    if options.spacing == "local" and options.k_local >= prepared.n_distinct:
-        raise HeatcurvError(f"too few points for the local spacing over {options.k_local} neighbours")
-    k = options.neighbors if options.spacing == "density" else options.k_local
-    h = compute_spacing(X, options.spacing, gamma=options.gamma, k=k, tree=tree, workers=options.workers, alpha=options.alpha)
+    if options.spacing == "density":
+        # the ball of radius d_k = alpha h holds the k nearest neighbours: one query gives both
+        tic = time.perf_counter()
+        nbhd = knn_neighbourhood(X, int(options.neighbors), tree=tree, workers=options.workers)
+        h = nbhd.radius / options.alpha
+        timings["neighbours"] = time.perf_counter() - tic
+        timings["spacing"] = 0.0
+    else:
+        tic = time.perf_counter()
+        if options.spacing == "local" and options.k_local >= prepared.n_distinct:
+            raise HeatcurvError(f"too few points for the local spacing over {options.k_local} neighbours")
+        h = compute_spacing(X, options.spacing, gamma=options.gamma, k=options.k_local, tree=tree, workers=options.workers)
+        timings["spacing"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        nbhd = ball_neighbourhood(X, options.alpha * h, tree=tree, min_neighbors=int(options.min_neighbors), workers=options.workers)
+        timings["neighbours"] = time.perf_counter() - tic
     if not np.all(h > 0):
         raise HeatcurvError("a point's spacing is zero; this should not happen after merging duplicates")
-    timings["spacing"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
-    nbhd = ball_neighbourhood(X, options.alpha * h, tree=tree, min_neighbors=int(options.min_neighbors), workers=options.workers)
-    timings["neighbours"] = time.perf_counter() - tic
-
-    tic = time.perf_counter()
-    weights = heat_kernel_weights(nbhd, h, options.m)
     if options.area_method == "density":
+        weights = None  # computed on first use (HeatKernelOperator.weights), not stored on large clouds
         areas, info = density_areas(nbhd), AreaSolve("density", 0, 0.0, True)
     else:
+        weights = heat_kernel_weights(nbhd, h, options.m)
         areas, info = point_areas(nbhd, weights, h, options.m, solver=options.area_solver, return_info=True)
     if not info.converged:
         warnings.warn(
@@ -257,4 +276,4 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
             stacklevel=3,
         )
     timings["areas"] = time.perf_counter() - tic
-    return HeatKernelOperator(prepared, tree, h, nbhd, weights, areas, info, options, timings)
+    return HeatKernelOperator(prepared, tree, h, nbhd, areas, info, options, timings, weights)

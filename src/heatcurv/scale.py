@@ -39,9 +39,9 @@ from scipy.spatial import cKDTree
 
 from .chordfit import ChordFit, chord_fit
 from .kernel import ball_taper
-from .neighbourhood import Neighbourhood, ball_neighbourhood
+from .neighbourhood import Neighbourhood, knn_neighbourhood
 
-__all__ = ["Scale", "ScaleChoice", "fit_at_scale", "select_scale", "FIT_BLOCK_PAIRS"]
+__all__ = ["Scale", "ScaleChoice", "fit_blocks", "fit_at_scale", "select_scale", "FIT_BLOCK_PAIRS"]
 
 #: Neighbour pairs fitted at once; bounds the fit's memory (about 1 KB per pair at the peak).
 FIT_BLOCK_PAIRS = 1_000_000
@@ -96,7 +96,7 @@ def _coarse_level(n: int, k: int, k_fit: int, seed: int):
     return np.sort(rng.choice(n, size, replace=False))
 
 
-def fit_at_scale(
+def fit_blocks(
     points: np.ndarray,
     tree: cKDTree,
     normals: np.ndarray,
@@ -104,14 +104,19 @@ def fit_at_scale(
     scale: Scale,
     *,
     centres: np.ndarray | None = None,
+    base: Neighbourhood | None = None,
     alpha: float = 2.0,
     k_fit: int = 240,
-    min_neighbors: int = 6,
     passes: int = 2,
     seed: int = 0,
     workers: int = -1,
-) -> tuple[ChordFit, np.ndarray, Neighbourhood, float]:
-    """Run the chord fit at one kernel width.
+    block_pairs: int = FIT_BLOCK_PAIRS,
+):
+    """Run the chord fit at one kernel width, one block of centres at a time.
+
+    The neighbourhood of a block exists only while the block is fitted, so
+    memory stays bounded by ``block_pairs`` pairs however many points and
+    however wide the kernel.
 
     Parameters
     ----------
@@ -126,18 +131,81 @@ def fit_at_scale(
         Neighbour count and fit form.
     centres : ndarray of int, shape (m,), optional
         Indices of the points to fit at (default all).
+    base : Neighbourhood, optional
+        The ``scale.k`` nearest neighbours of every point, already computed
+        (the operator's): used instead of new queries. Only with ``centres=None``.
     alpha : float, optional
         Ball radius in units of ``h`` (``R = d_k = alpha h``).
     k_fit : int, optional
         Widest kernel fitted against every point; wider ones use a coarser level.
-    min_neighbors : int, optional
-        Fewest neighbours per ball.
     passes : int, optional
         Fits, each refining the normal (see :func:`heatcurv.chordfit.chord_fit`).
     seed : int, optional
         Seed of the coarse level.
     workers : int, optional
         Threads for the k-d tree queries.
+    block_pairs : int, optional
+        Neighbour pairs per block.
+
+    Yields
+    ------
+    lo, hi : int
+        The block's centres are ``centres[lo:hi]``.
+    nbhd : Neighbourhood
+        The block's pairs (indices into ``points``), ``hi - lo`` rows.
+    fit : ChordFit
+        The block's fit.
+    fraction : float
+        Share of the cloud the neighbours were drawn from (1, or the coarse level's).
+    """
+    n = points.shape[0]
+    cidx = np.arange(n) if centres is None else np.asarray(centres)
+    m = cidx.shape[0]
+    coarse = _coarse_level(n, scale.k, k_fit, seed)
+    if coarse is None:
+        level_points, level_tree, source, fraction, k_level = points, tree, None, 1.0, min(scale.k, n - 1)
+    else:
+        level_points = points[coarse]
+        level_tree = cKDTree(level_points)
+        source, fraction = coarse, coarse.size / n
+        # the k-th neighbour in the cloud is about the (k * fraction)-th of the coarse level
+        k_level = min(int(round(scale.k * fraction)), coarse.size - 1)
+    if base is not None and (centres is not None or coarse is not None):
+        raise ValueError("base neighbourhoods serve full-level fits at every point only")
+    rows_per_block = max(1, block_pairs // max(k_level, 1))
+    for lo in range(0, m, rows_per_block):
+        hi = min(m, lo + rows_per_block)
+        queries = points[cidx[lo:hi]]
+        if base is not None:
+            nbhd = base.rows_slice(lo, hi)
+        else:
+            nbhd = knn_neighbourhood(level_points, k_level, tree=level_tree, queries=queries, source_index=source, workers=workers)
+        h = nbhd.radius / alpha
+        # heat kernel, t = h^2 / 4 (eq 2.8), tapered to 0 at the ball's edge
+        weights = np.exp(-(nbhd.distances**2) / np.repeat(h, nbhd.counts) ** 2) * ball_taper(nbhd) * areas[nbhd.indices]
+        fit = chord_fit(
+            points, nbhd, normals[lo:hi], weights, denoise=scale.denoise, centres=queries, passes=passes
+        )
+        yield lo, hi, nbhd, fit, fraction
+
+
+def fit_at_scale(
+    points: np.ndarray,
+    tree: cKDTree,
+    normals: np.ndarray,
+    areas: np.ndarray,
+    scale: Scale,
+    *,
+    centres: np.ndarray | None = None,
+    alpha: float = 2.0,
+    k_fit: int = 240,
+    passes: int = 2,
+    seed: int = 0,
+    workers: int = -1,
+) -> tuple[ChordFit, np.ndarray, Neighbourhood, float]:
+    """Run the chord fit at one kernel width (all blocks of :func:`fit_blocks` joined).
+
+    Parameters are those of :func:`fit_blocks`.
 
     Returns
     -------
@@ -145,45 +213,20 @@ def fit_at_scale(
     h : ndarray, shape (m,)
         Kernel spacing ``h_i = R_i / alpha`` of each centre.
     nbhd : Neighbourhood
-        The pairs fitted (indices into ``points``).
+        The pairs fitted (indices into ``points``); for many centres use
+        :func:`fit_blocks`, which does not keep them.
     fraction : float
         Share of the cloud the neighbours were drawn from (1, or the coarse level's).
     """
-    n = points.shape[0]
-    cidx = np.arange(n) if centres is None else np.asarray(centres)
-    queries = points[cidx]
-    coarse = _coarse_level(n, scale.k, k_fit, seed)
-    if coarse is None:
-        dk, _ = tree.query(queries, k=min(scale.k + 1, n), workers=workers)
-        radius = dk[:, -1]
-        nbhd = ball_neighbourhood(points, radius, tree=tree, queries=queries, min_neighbors=min_neighbors, workers=workers)
-        fraction = 1.0
-    else:
-        sub_pts = points[coarse]
-        sub_tree = cKDTree(sub_pts)
-        fraction = coarse.size / n
-        # the k-th neighbour in the cloud is about the (k * fraction)-th of the coarse level
-        kk = min(int(round(scale.k * fraction)), coarse.size - 1)
-        dk, _ = sub_tree.query(queries, k=kk + 1, workers=workers)
-        radius = dk[:, -1]
-        nbhd = ball_neighbourhood(
-            sub_pts, radius, tree=sub_tree, queries=queries, source_index=coarse, min_neighbors=min_neighbors, workers=workers
-        )
-    h = nbhd.radius / alpha
-    # heat kernel, t = h^2 / 4 (eq 2.8), tapered to 0 at the ball's edge
-    kernel = np.exp(-(nbhd.distances**2) / np.repeat(h, nbhd.counts) ** 2) * ball_taper(nbhd)
-    weights = kernel * areas[nbhd.indices]
-    # the fit's per-pair temporaries are the memory peak: fit blocks of centres in turn
-    parts = []
-    for lo, hi in nbhd.row_blocks(FIT_BLOCK_PAIRS):
-        a, b = nbhd.indptr[lo], nbhd.indptr[hi]
-        parts.append(
-            chord_fit(
-                points, nbhd.rows_slice(lo, hi), normals[lo:hi], weights[a:b], denoise=scale.denoise,
-                centres=queries[lo:hi], passes=passes,
-            )
-        )
-    return ChordFit.concatenate(parts), h, nbhd, fraction
+    fits, nbhds, fraction = [], [], 1.0
+    for _, _, nbhd, fit, fraction in fit_blocks(
+        points, tree, normals, areas, scale, centres=centres, alpha=alpha, k_fit=k_fit, passes=passes, seed=seed,
+        workers=workers,
+    ):
+        fits.append(fit)
+        nbhds.append(nbhd)
+    nbhd = Neighbourhood.concatenate(nbhds)
+    return ChordFit.concatenate(fits), nbhd.radius / alpha, nbhd, fraction
 
 
 def select_scale(
