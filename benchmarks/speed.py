@@ -1,0 +1,239 @@
+"""Speed and memory of heatcurv's default pipeline, with peer tools on the same clouds.
+
+For each size n (default 100 000, 1 000 000 and 5 000 000) a random torus
+(:class:`heatcurv.surfaces.Torus`, area-uniform points, input in random
+order) is saved to a temporary ``.npy`` file, and every measurement runs in
+a fresh subprocess, so that its wall time and its peak resident memory
+(``VmHWM``, see ``benchmarks/peers.py``) are its own:
+
+``knn40``       the reference: SciPy ``cKDTree`` build plus a ``k = 40``
+                self-query with ``workers=-1`` (every curvature tool pays at
+                least this);
+``heatcurv``    ``heatcurv.estimate(points)`` with default options: oriented
+                normals, areas, mean, Gaussian and principal curvatures and
+                directions, border and reliability flags; the stage times
+                come from ``res.info["timings"]``;
+``heatcurv-noisy``  the same on the cloud with Gaussian noise of 0.12 % of
+                the bounding-box diagonal (the kernel then widens to hundreds
+                of neighbours; only at the sizes given by ``--noisy-sizes``);
+peers           where the optional extras are installed
+                (``pip install "heatcurv[peers]"``): Open3D normals, PyMeshLab
+                APSS curvature, robust-laplacian, and the project's k = 40
+                quadric baseline (``benchmarks/peers.py``), at the sizes of
+                ``--peer-sizes``.
+
+heatcurv's children first run the pipeline once on 2000 points, so numba's
+compilation (or loading its cache) is not counted; the time of that warm-up
+is reported as ``warmup``. Everything else, including validation, the
+duplicate merge and the map back to input order, is counted.
+
+Run ``python benchmarks/speed.py`` (about 15 minutes on a 2-core machine with
+the peers) or ``--sizes 100000 --peer-sizes 100000 --noisy-sizes 100000``
+for a quick look; ``--out docs/speed.md`` writes the tables as Markdown with
+the machine they came from.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import peers  # noqa: E402  (benchmarks/peers.py)
+
+STAGES = ("validate", "neighbours", "spacing", "areas", "normals", "orientation", "mean", "principal")
+
+
+def _peak_rss_gb() -> float:
+    """Peak resident memory of this process (VmHWM), GB."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024 / 1e9
+    except OSError:
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+
+
+def child(path: str) -> None:
+    """Run the default pipeline on the points in ``path`` and print one JSON line."""
+    import heatcurv
+
+    points = np.load(path)
+    tic = time.perf_counter()
+    heatcurv.estimate(heatcurv.surfaces.Torus().sample(2000, "random", seed=1).points)
+    warmup = time.perf_counter() - tic
+    rss_before = _peak_rss_gb()
+    tic = time.perf_counter()
+    res = heatcurv.estimate(points)
+    seconds = time.perf_counter() - tic
+    from heatcurv.backend import use_numba
+
+    print(
+        json.dumps(
+            {
+                "seconds": seconds,
+                "warmup": warmup,
+                "peak_rss_gb": _peak_rss_gb(),
+                "rss_before_gb": rss_before,
+                "timings": res.info["timings"],
+                "scale": res.info["scale"]["fit"],
+                "backend": "numba" if use_numba() else "numpy",
+                "reliable": float(np.mean(res.reliable)),
+            }
+        )
+    )
+
+
+def run_heatcurv(path: Path, timeout: float) -> dict:
+    """Run :func:`child` in a fresh process; the parsed JSON, or a status."""
+    try:
+        out = subprocess.run(
+            [sys.executable, __file__, "--child", str(path)], capture_output=True, text=True, timeout=timeout, check=False
+        )
+    except subprocess.TimeoutExpired:
+        return {"status": f"timeout after {timeout:.0f} s"}
+    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
+    if out.returncode != 0 or not lines:
+        tail = (out.stderr.strip().splitlines() or ["no output"])[-1]
+        return {"status": f"failed: {tail}"}
+    result = json.loads(lines[-1])
+    result["status"] = "ok"
+    return result
+
+
+def torus_cloud(n: int, noise: float = 0.0, seed: int = 0) -> np.ndarray:
+    """Random torus points in random order; Gaussian noise as a fraction of the diagonal."""
+    import heatcurv
+
+    pts = heatcurv.surfaces.Torus().sample(n, "random", seed=seed).points
+    if noise:
+        diag = np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))
+        pts = pts + np.random.default_rng(seed + 1).normal(scale=noise * diag, size=pts.shape)
+    return pts
+
+
+def machine() -> str:
+    """One line naming this machine and the library versions."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem = ""
+    try:
+        kb = int(Path("/proc/meminfo").read_text().split()[1])
+        mem = f", {kb / 1024**2:.0f} GiB RAM"
+    except (OSError, ValueError, IndexError):
+        pass
+    import scipy
+
+    versions = f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}"
+    try:
+        import numba
+
+        versions += f", numba {numba.__version__}"
+    except ImportError:
+        versions += ", no numba"
+    return f"{cpu}, {os.cpu_count()} cores{mem}; {platform.system()} {platform.release()}; {versions}"
+
+
+def fmt(x, digits=2):
+    return "-" if x is None else f"{x:.{digits}f}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100_000, 1_000_000, 5_000_000])
+    ap.add_argument("--noisy-sizes", type=int, nargs="*", default=[1_000_000], help="sizes of the 0.12 %% noise run")
+    ap.add_argument("--peer-sizes", type=int, nargs="*", default=[100_000, 1_000_000], help="sizes the peers run at")
+    ap.add_argument("--peer-timeout", type=float, default=300.0, help="seconds before a peer is stopped")
+    ap.add_argument("--timeout", type=float, default=3600.0, help="seconds before a heatcurv run is stopped")
+    ap.add_argument("--out", help="write the tables as Markdown to this file")
+    args = ap.parse_args(argv)
+    if args.child:
+        child(args.child)
+        return 0
+
+    main_rows, peer_rows = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sorted(set(args.sizes) | set(args.noisy_sizes) | set(args.peer_sizes)):
+            path = Path(tmp) / f"torus_{n}.npy"
+            np.save(path, torus_cloud(n))
+            ref = peers.run_peer("knn40", str(path), timeout=args.peer_timeout)
+            knn = ref.get("seconds") if ref.get("status") == "ok" else None
+            print(f"n={n}: knn40 {fmt(knn)} s", flush=True)
+            runs = []
+            if n in args.sizes:
+                runs.append(("clean", path))
+            if n in args.noisy_sizes:
+                noisy = Path(tmp) / f"torus_{n}_noisy.npy"
+                np.save(noisy, torus_cloud(n, noise=0.0012))
+                runs.append(("noise 0.12 %", noisy))
+            for label, p in runs:
+                r = run_heatcurv(p, args.timeout)
+                main_rows.append((n, label, knn, r))
+                print(f"  heatcurv {label}: {r.get('status')} {fmt(r.get('seconds'))} s, {fmt(r.get('peak_rss_gb'))} GB", flush=True)
+            if n in args.peer_sizes:
+                for name in peers.PEERS:
+                    if name == "knn40":
+                        peer_rows.append((n, ref, knn))
+                        continue
+                    r = peers.run_peer(name, str(path), timeout=args.peer_timeout)
+                    peer_rows.append((n, r, knn))
+                    print(f"  {name}: {r.get('status')} {fmt(r.get('seconds'))} s", flush=True)
+
+    lines = [f"Machine: {machine()}", ""]
+    lines += [
+        "heatcurv, default options, random torus (times in seconds; ratio = total / knn40 in the same run)",
+        "",
+        "| n | cloud | " + " | ".join(STAGES) + " | total | us/point | knn40 | ratio | peak RSS GB | kernel | backend |",
+        "|" + "---|" * (len(STAGES) + 9),
+    ]
+    for n, label, knn, r in main_rows:
+        if r.get("status") != "ok":
+            lines.append(f"| {n:,} | {label} | " + " | ".join("-" for _ in STAGES) + f" | {r['status']} | | {fmt(knn)} | | | | |")
+            continue
+        t = r["timings"]
+        stages = " | ".join(fmt(t.get(s)) for s in STAGES)
+        ratio = r["seconds"] / knn if knn else None
+        lines.append(
+            f"| {n:,} | {label} | {stages} | {fmt(r['seconds'])} | {fmt(1e6 * r['seconds'] / n, 1)} | {fmt(knn)} | "
+            f"{fmt(ratio)} | {fmt(r['peak_rss_gb'])} | {r['scale']} | {r['backend']} |"
+        )
+    if peer_rows:
+        lines += ["", "Peers on the same clean clouds (each in its own process; ratio = time / knn40)", ""]
+        lines += ["| n | tool | status | seconds | ratio | peak RSS GB | what it computes |", "|---|---|---|---|---|---|---|"]
+        for n, r, knn in peer_rows:
+            sec = r.get("seconds")
+            ratio = sec / knn if (sec is not None and knn) else None
+            lines.append(
+                f"| {n:,} | {r.get('name')} | {r.get('status')} | {fmt(sec)} | {fmt(ratio)} | {fmt(r.get('peak_rss_gb'))} | {r.get('note', '')} |"
+            )
+    text = "\n".join(lines)
+    print()
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
