@@ -40,11 +40,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .backend import use_numba
 from .neighbourhood import Neighbourhood
 from .normals import tangent_frames
 from .principal import PrincipalCurvatures, tensor_to_principal
 
-__all__ = ["ChordFit", "chord_fit", "segment_lstsq"]
+__all__ = ["ChordFit", "chord_fit", "ridge_solve", "segment_lstsq", "solve_normal_equations"]
 
 #: Pairs processed at once; bounds the temporary (pairs x unknowns^2) arrays.
 BLOCK_PAIRS = 400_000
@@ -171,9 +172,70 @@ def segment_lstsq(
                 sp_[local_rows, slot] = noise_scale[a:b]
                 s2 = s2 * sp_ * sp_
             G2[lo:hi] = np.matmul((Xp * s2[:, :, None]).transpose(0, 2, 1), Xp)
+    return solve_normal_equations(G, r, yy, ridge=ridge, contrast=contrast, G2=G2)
+
+
+def ridge_solve(G: np.ndarray, r: np.ndarray, ridge: float = 1e-10):
+    """Solve ``(G + ridge trace(G)/p I) beta = r`` for every point (the coefficients alone).
+
+    Parameters
+    ----------
+    G : ndarray, shape (n, p, p)
+        Normal matrices.
+    r : ndarray, shape (n, p)
+        Right-hand sides.
+    ridge : float, optional
+        Tikhonov term relative to ``trace(G) / p``.
+
+    Returns
+    -------
+    beta : ndarray, shape (n, p)
+    Greg : ndarray, shape (n, p, p)
+        The regularised normal matrices.
+    """
+    p = G.shape[-1]
     scale = np.maximum(np.trace(G, axis1=1, axis2=2) / p, 1e-300)
     Greg = G + (ridge * scale)[:, None, None] * np.eye(p)
     beta = np.linalg.solve(Greg, r[:, :, None])[:, :, 0]
+    return beta, Greg
+
+
+def solve_normal_equations(
+    G: np.ndarray,
+    r: np.ndarray,
+    yy: np.ndarray,
+    ridge: float = 1e-10,
+    contrast: np.ndarray | None = None,
+    G2: np.ndarray | None = None,
+):
+    """Solve accumulated weighted normal equations ``G beta = r`` for every point.
+
+    The second half of :func:`segment_lstsq`, shared with the compiled chord
+    fit (:mod:`heatcurv._chordfit_numba`), which accumulates the same sums
+    without per-pair arrays.
+
+    Parameters
+    ----------
+    G : ndarray, shape (n, p, p)
+        ``X^T W X`` of each point.
+    r : ndarray, shape (n, p)
+        ``X^T W y``.
+    yy : ndarray, shape (n,)
+        ``y^T W y``.
+    ridge : float, optional
+        Tikhonov term relative to ``trace(G) / p``.
+    contrast : ndarray, shape (p,), optional
+        ``c`` of the variance factor ``c^T G^-1 G2 G^-1 c``.
+    G2 : ndarray, shape (n, p, p), optional
+        ``X^T W^2 S^2 X``; required with ``contrast``.
+
+    Returns
+    -------
+    beta, rss, well_posed[, variance]
+        As :func:`segment_lstsq`.
+    """
+    n, p = r.shape
+    beta, Greg = ridge_solve(G, r, ridge)
     rss = np.maximum(yy - 2 * np.einsum("ij,ij->i", beta, r) + np.einsum("ij,ijk,ik->i", beta, G, beta), 0.0)
     evals = np.linalg.eigvalsh(G)
     well_posed = evals[:, 0] > 1e-10 * np.maximum(evals[:, -1], 1e-300)
@@ -205,6 +267,59 @@ def _shape_columns(x, y, tilt: bool, cubic: bool):
     if cubic:
         cols += [r * c**3, r * c * c * s, r * c * s * s, r * s**3]
     return np.stack(cols, 1), r
+
+
+def _mean_contrast(p: int) -> np.ndarray:
+    """``c`` with ``c . beta = H = (a + d) / 2``: the mean curvature in the fit's units."""
+    contrast = np.zeros(p)
+    contrast[[0, 2]] = 0.5
+    return contrast
+
+
+def _principal_and_refined_normal(beta, unit, e1, e2, normals, tilt: bool):
+    """One pass's curvatures and the normal its tilt terms correct.
+
+    Parameters
+    ----------
+    beta : ndarray, shape (n, >= 3)
+        Coefficients in the order of :func:`_shape_columns`, in units of ``unit``.
+    unit : ndarray, shape (n,)
+        Each centre's ball radius (the length unit of the fit).
+    e1, e2, normals : ndarray, shape (n, 3)
+        The frame the fit was done in.
+    tilt : bool
+        Whether ``beta[:, 3:5]`` are the tilt coefficients.
+
+    Returns
+    -------
+    pc : PrincipalCurvatures
+        In the cloud's units (``well_posed`` not yet set).
+    refined : ndarray, shape (n, 3)
+        Unit normals corrected by the fitted tilt (``normals`` without tilt).
+    """
+    a, b, d = beta[:, 0] / unit, beta[:, 1] / unit, beta[:, 2] / unit
+    pc = tensor_to_principal(0.5 * (a + d), 0.5 * (a - d), b, e1, e2, normals)
+    if tilt:
+        # coefficient of cos/r is -2 g_1 (and of sin/r, -2 g_2): the tangent plane is z = g . (x, y)
+        g1, g2 = -0.5 * beta[:, 3], -0.5 * beta[:, 4]
+        refined = normals - g1[:, None] * e1 - g2[:, None] * e2
+        refined /= np.linalg.norm(refined, axis=1)[:, None]
+    else:
+        refined = normals
+    return pc, refined
+
+
+def _chord_fit_result(pc, well_posed, used, sigma2, var_factor, unit) -> ChordFit:
+    """Assemble the :class:`ChordFit` of the last pass, back in the cloud's units."""
+    principal = PrincipalCurvatures(
+        k1=pc.k1, k2=pc.k2, d1=pc.d1, d2=pc.d2, mean=pc.mean, gaussian=pc.gaussian, well_posed=well_posed
+    )
+    # report the normal the last fit was done in, so that d1 x d2 = n holds exactly; the
+    # last tilt correction is below the measured normal error (0.001 deg on clean clouds)
+    # back to the cloud's units: sigma scales with the radius, Var(kappa_M) = sigma^2 factor / R^4
+    return ChordFit(
+        principal=principal, normals=used, sigma=np.sqrt(sigma2) * unit, mean_variance_factor=var_factor / unit**4
+    )
 
 
 def chord_fit(
@@ -248,7 +363,19 @@ def chord_fit(
     Returns
     -------
     ChordFit
+
+    Notes
+    -----
+    With numba (:mod:`heatcurv.backend`) the per-pair sums run as compiled
+    kernels without per-pair arrays (:mod:`heatcurv._chordfit_numba`); the
+    numpy code below is the reference they are tested against.
     """
+    if use_numba():
+        from ._chordfit_numba import chord_fit_compiled
+
+        return chord_fit_compiled(
+            points, nbhd, normals, weights, passes=passes, tilt=tilt, cubic=cubic, denoise=denoise, centres=centres
+        )
     if centres is None:
         centres = points
     # Work in units of each centre's ball radius: every column of the design is then
@@ -265,8 +392,7 @@ def chord_fit(
         if not denoise:
             D2 = r2 + z * z
             kN = np.where(D2 > 0, -2.0 * z / np.where(D2 > 0, D2, 1.0), 0.0)
-            contrast = np.zeros(cols.shape[1])
-            contrast[[0, 2]] = 0.5  # H = (a + d) / 2
+            contrast = _mean_contrast(cols.shape[1])
             # a height error eps moves kN by 2 eps / D^2: response noise scale per unit sigma
             beta, rss, ok, var_factor = segment_lstsq(
                 nbhd, cols, kN, weights, contrast=contrast, noise_scale=2.0 / np.where(D2 > 0, D2, np.inf)
@@ -283,28 +409,11 @@ def chord_fit(
             # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2
             D2 = r2 + (zhat - z0) ** 2
             design = np.concatenate([-0.5 * D2[:, None] * cols, np.ones((len(r2), 1))], 1)
-            contrast = np.zeros(design.shape[1])
-            contrast[[0, 2]] = 0.5  # H = (a + d) / 2
+            contrast = _mean_contrast(design.shape[1])
             beta, rss, ok, var_factor = segment_lstsq(nbhd, design, z, weights, contrast=contrast)
             resid = z - np.einsum("ij,ij->i", design, beta[nbhd.rows])
             sigma2 = nbhd.segment_sum(weights * resid * resid) / np.maximum(nbhd.segment_sum(weights), 1e-300)
             beta = beta[:, :-1]
-        a, b, d = beta[:, 0] / unit, beta[:, 1] / unit, beta[:, 2] / unit
-        pc = tensor_to_principal(0.5 * (a + d), 0.5 * (a - d), b, e1, e2, nrm)
-        if tilt:
-            # coefficient of cos/r is -2 g_1 (and of sin/r, -2 g_2): the tangent plane is z = g . (x, y)
-            g1, g2 = -0.5 * beta[:, 3], -0.5 * beta[:, 4]
-            refined = nrm - g1[:, None] * e1 - g2[:, None] * e2
-            refined /= np.linalg.norm(refined, axis=1)[:, None]
-        else:
-            refined = nrm
+        pc, refined = _principal_and_refined_normal(beta, unit, e1, e2, nrm, tilt)
         used, nrm = nrm, refined
-    principal = PrincipalCurvatures(
-        k1=pc.k1, k2=pc.k2, d1=pc.d1, d2=pc.d2, mean=pc.mean, gaussian=pc.gaussian, well_posed=ok
-    )
-    # report the normal the last fit was done in, so that d1 x d2 = n holds exactly; the
-    # last tilt correction is below the measured normal error (0.001 deg on clean clouds)
-    # back to the cloud's units: sigma scales with the radius, Var(kappa_M) = sigma^2 factor / R^4
-    return ChordFit(
-        principal=principal, normals=used, sigma=np.sqrt(sigma2) * unit, mean_variance_factor=var_factor / unit**4
-    )
+    return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit)

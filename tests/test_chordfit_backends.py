@@ -1,0 +1,168 @@
+"""The chord fit's compiled (numba) path against its numpy reference path."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from heatcurv import surfaces
+from heatcurv.backend import backend
+from heatcurv.chordfit import chord_fit
+from heatcurv.kernel import ball_taper
+from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood
+
+# Both paths sum the same per-pair terms, in another order (blocked matrix products
+# against a loop over the pairs): they differ by rounding, amplified by the
+# condition number of the normal matrices (up to about 1e6 measured for the
+# 9-column fit; measured differences up to 1e-10 relative). 1e-9 leaves a margin,
+# while any real difference (a column, a weight, a pass) shows at 1e-3 or more.
+RTOL = 1e-9
+
+
+def cloud(sample, k=60, queries=None):
+    """Points, the k-neighbour ball neighbourhood of ``queries`` (default all) and heat-kernel weights."""
+    pts = sample.points
+    tree = cKDTree(pts)
+    q = pts if queries is None else queries
+    d, _ = tree.query(q, k=k + 1)
+    nb = ball_neighbourhood(pts, d[:, -1], tree=tree, queries=q)
+    w = np.exp(-(nb.distances**2) / np.repeat(nb.radius / 2, nb.counts) ** 2) * ball_taper(nb)
+    return pts, nb, w
+
+
+def both_backends(*args, **kwargs):
+    """``chord_fit`` run by the numpy path and by the numba path."""
+    with backend("numpy"):
+        ref = chord_fit(*args, **kwargs)
+    with backend("numba"):
+        fit = chord_fit(*args, **kwargs)
+    return ref, fit
+
+
+def assert_same_fit(ref, fit):
+    """Every field of two ChordFits agrees to RTOL (directions up to sign)."""
+    a, b = ref.principal, fit.principal
+    np.testing.assert_array_equal(b.well_posed, a.well_posed)
+    for name in ("k1", "k2", "mean", "gaussian"):
+        x, y = getattr(a, name), getattr(b, name)
+        # values near zero (k2 on the torus' top circles) are compared on the field's scale
+        np.testing.assert_allclose(y, x, rtol=RTOL, atol=RTOL * np.abs(x).max(), err_msg=name)
+    np.testing.assert_allclose(fit.sigma, ref.sigma, rtol=RTOL, atol=RTOL * ref.sigma.max())
+    # unit vectors: absolute differences are relative ones
+    np.testing.assert_allclose(fit.normals, ref.normals, rtol=0, atol=RTOL)
+    # principal directions up to sign, where k1 - k2 leaves them defined
+    sign = np.where(np.einsum("ij,ij->i", a.d1, b.d1) < 0, -1.0, 1.0)[:, None]
+    distinct = (a.k1 - a.k2) > 1e-3 * np.abs(a.mean)
+    assert distinct.mean() > 0.9
+    np.testing.assert_allclose((b.d1 * sign)[distinct], a.d1[distinct], rtol=0, atol=RTOL)
+    np.testing.assert_allclose((b.d2 * sign)[distinct], a.d2[distinct], rtol=0, atol=RTOL)
+    # the variance factor is c^T G^-1 G2 G^-1 c: where a neighbour nearly coincides with
+    # the centre (0.3 % of the ball radius) its (2 / D^2)^2 dominates G2 and the form
+    # cancels up to 1e9-fold (measured), in either path; elsewhere it agrees to RTOL
+    x, y = ref.mean_variance_factor, fit.mean_variance_factor
+    rel = np.abs(y - x) / np.maximum(np.abs(x), 1e-300)
+    assert np.quantile(rel, 0.99) < RTOL
+    assert rel.max() < 1e-4
+
+
+@pytest.fixture(scope="module")
+def torus():
+    sample = surfaces.Torus().sample(2000, "random", seed=3)
+    return (sample.normals,) + cloud(sample)
+
+
+@pytest.fixture(scope="module")
+def noisy_sphere():
+    # noise 0.5 % of the bounding-box diagonal
+    sample = surfaces.Sphere().sample(2000, "random", seed=4, noise=0.005)
+    return (sample.normals,) + cloud(sample)
+
+
+@pytest.mark.parametrize("denoise", [False, True])
+@pytest.mark.parametrize("case", ["torus", "noisy_sphere"])
+def test_numba_matches_numpy(case, denoise, request):
+    pytest.importorskip("numba")
+    normals, pts, nb, w = request.getfixturevalue(case)
+    assert_same_fit(*both_backends(pts, nb, normals, w, denoise=denoise))
+
+
+@pytest.mark.parametrize("denoise", [False, True])
+@pytest.mark.parametrize("tilt, cubic, passes", [(False, False, 1), (True, False, 2), (False, True, 2)])
+def test_numba_matches_numpy_without_terms(torus, tilt, cubic, passes, denoise):
+    pytest.importorskip("numba")
+    normals, pts, nb, w = torus
+    assert_same_fit(*both_backends(pts, nb, normals, w, tilt=tilt, cubic=cubic, passes=passes, denoise=denoise))
+
+
+@pytest.mark.parametrize("denoise", [False, True])
+def test_numba_matches_numpy_on_given_centres(denoise):
+    # a subset of the points as centres, as select_scale fits them
+    pytest.importorskip("numba")
+    sample = surfaces.Torus().sample(3000, "random", seed=5, noise=0.002)
+    sub = np.sort(np.random.default_rng(0).choice(3000, 500, replace=False))
+    pts, nb, w = cloud(sample, queries=sample.points[sub])
+    ref, fit = both_backends(pts, nb, sample.normals[sub], w, denoise=denoise, centres=pts[sub])
+    assert_same_fit(ref, fit)
+
+
+@pytest.mark.parametrize("denoise", [False, True])
+def test_numba_matches_numpy_on_degenerate_rows(denoise):
+    pytest.importorskip("numba")
+    # centres straight above the points of a grid on a saddle, normals (0, 0, 1):
+    # the point below each centre has r = 0 exactly (its direction is a convention)
+    g = np.arange(-10, 11) * 0.05
+    x, y = (a.ravel() for a in np.meshgrid(g, g))
+    pts = np.c_[x, y, 0.3 * (x * x - y * y)]
+    inner = np.flatnonzero((np.abs(x) < 0.3) & (np.abs(y) < 0.3))
+    centres = pts[inner] + [0.0, 0.0, 0.01]
+    normals = np.tile([0.0, 0.0, 1.0], (len(inner), 1))
+    nb = ball_neighbourhood(pts, 0.2, queries=centres)
+    # and one centre without any neighbour
+    empty = 7
+    keep = nb.rows != empty
+    counts = nb.counts.copy()
+    counts[empty] = 0
+    nb = Neighbourhood(
+        np.concatenate([[0], np.cumsum(counts)]), nb.indices[keep], nb.distances[keep], nb.radius, nb.augmented
+    )
+    w = np.exp(-(nb.distances**2) / np.repeat(nb.radius / 2, nb.counts) ** 2)
+    ref, fit = both_backends(pts, nb, normals, w, denoise=denoise, centres=centres)
+    assert not ref.principal.well_posed[empty] and ref.principal.mean[empty] == 0
+    np.testing.assert_array_equal(fit.principal.well_posed, ref.principal.well_posed)
+    for name in ("k1", "k2", "mean", "gaussian"):
+        x_, y_ = getattr(ref.principal, name), getattr(fit.principal, name)
+        np.testing.assert_allclose(y_, x_, rtol=RTOL, atol=RTOL * np.abs(x_).max(), err_msg=name)
+    np.testing.assert_allclose(fit.normals, ref.normals, rtol=0, atol=RTOL)
+    np.testing.assert_allclose(fit.sigma, ref.sigma, rtol=RTOL, atol=RTOL * ref.sigma.max())
+    np.testing.assert_allclose(fit.mean_variance_factor, ref.mean_variance_factor, rtol=1e-6)
+
+
+def test_numba_fit_is_exact_on_a_sphere():
+    pytest.importorskip("numba")
+    sample = surfaces.Sphere(radius=2.0).sample(3000, "random", seed=0)
+    pts, nb, w = cloud(sample)
+    with backend("numba"):
+        fit = chord_fit(pts, nb, pts / 2.0, w)
+    # as the numpy path (test_chordfit_scale): exact up to the solver's ridge
+    np.testing.assert_allclose(fit.principal.mean, 0.5, rtol=1e-5)
+    np.testing.assert_allclose(fit.principal.k1, 0.5, rtol=1e-5)
+    np.testing.assert_allclose(fit.principal.k2, 0.5, rtol=1e-5)
+    assert np.median(fit.sigma) < 1e-9
+
+
+def test_numpy_backend_does_not_load_the_compiled_fit():
+    code = (
+        "import sys, numpy as np\n"
+        "from heatcurv import surfaces\n"
+        "from heatcurv.chordfit import chord_fit\n"
+        "from heatcurv.neighbourhood import ball_neighbourhood\n"
+        "s = surfaces.Sphere().sample(300, 'random', seed=0)\n"
+        "nb = ball_neighbourhood(s.points, 0.4)\n"
+        "chord_fit(s.points, nb, s.normals, np.ones(nb.n_pairs))\n"
+        "assert 'heatcurv._chordfit_numba' not in sys.modules\n"
+    )
+    env = dict(os.environ, HEATCURV_BACKEND="numpy")
+    subprocess.run([sys.executable, "-c", code], env=env, check=True)
