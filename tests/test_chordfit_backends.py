@@ -166,3 +166,34 @@ def test_numpy_backend_does_not_load_the_compiled_fit():
     )
     env = dict(os.environ, HEATCURV_BACKEND="numpy")
     subprocess.run([sys.executable, "-c", code], env=env, check=True)
+
+
+def test_compiled_solve_matches_numpy_and_decides_well_posedness_exactly():
+    """Cholesky solve and the trace bracket of the condition number against LU and eigenvalues."""
+    pytest.importorskip("numba")
+    from heatcurv._chordfit_numba import solve_compiled
+    from heatcurv.chordfit import solve_normal_equations
+
+    rng = np.random.default_rng(0)
+    n, p = 3000, 9
+    X = rng.normal(size=(n, 30, p))
+    # condition numbers across the 1e10 threshold, and exactly singular matrices
+    for i, eps in enumerate(np.logspace(-9, -2, 200)):
+        X[i, :, 8] = X[i, :, 7] + eps * rng.normal(size=30)
+    X[200:210, :, 8] = X[200:210, :, 7]
+    G = np.einsum("nkp,nkq->npq", X, X)
+    r = np.einsum("nkp,nk->np", X, rng.normal(size=(n, 30)))
+    yy = 100 * np.abs(rng.normal(size=n))
+    G2 = np.einsum("nkp,nkq->npq", X, 2 * X)
+    c = np.zeros(p)
+    c[[0, 2]] = 0.5
+    beta, rss, ok, var = solve_normal_equations(G, r, yy, contrast=c, G2=G2)
+    cbeta, crss, cok, cvar = solve_compiled(G, r, yy, contrast=c, G2=G2)
+    assert np.array_equal(ok, cok)
+    assert 0 < ok[:200].sum() < 200  # the threshold really lies inside the tested range
+    good = ok
+    # well-posed rows: kappa <= 1e10, so the two solves agree to ~kappa * eps
+    np.testing.assert_allclose(cbeta[good], beta[good], rtol=1e-5, atol=1e-9 * np.abs(beta[good]).max())
+    np.testing.assert_allclose(cbeta[210:], beta[210:], rtol=1e-9)
+    np.testing.assert_allclose(crss[210:], rss[210:], rtol=1e-8)
+    np.testing.assert_allclose(cvar[210:], var[210:], rtol=1e-8)

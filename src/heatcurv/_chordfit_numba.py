@@ -11,9 +11,12 @@ accumulates the normal equations directly,
 
 recomputing everything a pair needs from the points, the centre's frame and
 the fitted coefficients; nothing proportional to the number of pairs is
-allocated. The solve and everything after it are the numpy path's own
-functions (:func:`heatcurv.chordfit.solve_normal_equations` and the pass
-helpers), so both paths differ only by the order of the floating-point sums.
+allocated. The normal equations are then solved point by point by Cholesky
+(:func:`solve_compiled`, the same ridge and returns as
+:func:`heatcurv.chordfit.solve_normal_equations`; the well-posedness test
+brackets the condition number from the traces of ``G`` and ``G^-1`` and
+computes eigenvalues only where the bracket cannot decide), and the pass
+helpers are the numpy path's own, so both paths differ only by rounding.
 
 Only :func:`heatcurv.chordfit.chord_fit` imports this module, and only when
 :func:`heatcurv.backend.use_numba` is true.
@@ -29,8 +32,6 @@ from .chordfit import (
     _chord_fit_result,
     _mean_contrast,
     _principal_and_refined_normal,
-    ridge_solve,
-    solve_normal_equations,
 )
 from .neighbourhood import Neighbourhood
 from .normals import tangent_frames
@@ -228,15 +229,156 @@ def _weighted_height_residual(
         sigma2[i] = weighted_sq / max(total_weight, 1e-300)
 
 
+@numba.njit(cache=True)
+def _cholesky(A, L):
+    """Lower Cholesky factor of the symmetric ``A`` into ``L``; False if ``A`` is not positive definite."""
+    p = A.shape[0]
+    for j in range(p):
+        s = A[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return False
+        L[j, j] = np.sqrt(s)
+        for i in range(j + 1, p):
+            t = A[i, j]
+            for k in range(j):
+                t -= L[i, k] * L[j, k]
+            L[i, j] = t / L[j, j]
+        for i in range(j):
+            L[i, j] = 0.0
+    return True
+
+
+@numba.njit(cache=True)
+def _cholesky_solve(L, b, x):
+    """Solve ``L L^T x = b``."""
+    p = L.shape[0]
+    for i in range(p):
+        t = b[i]
+        for k in range(i):
+            t -= L[i, k] * x[k]
+        x[i] = t / L[i, i]
+    for i in range(p - 1, -1, -1):
+        t = x[i]
+        for k in range(i + 1, p):
+            t -= L[k, i] * x[k]
+        x[i] = t / L[i, i]
+
+
+@numba.njit(cache=True)
+def _trace_of_inverse(L, work):
+    """``trace((L L^T)^-1) = ||L^-1||_F^2``, column by column of ``L^-1``."""
+    p = L.shape[0]
+    total = 0.0
+    for c in range(p):
+        for i in range(p):
+            t = 1.0 if i == c else 0.0
+            for k in range(c, i):
+                t -= L[i, k] * work[k]
+            work[i] = t / L[i, i] if i >= c else 0.0
+            if i >= c:
+                total += work[i] * work[i]
+    return total
+
+
+#: ``well_posed`` is ``lambda_min(G) > WELL_POSED_RCOND lambda_max(G)`` (as ``segment_lstsq``).
+WELL_POSED_RCOND = 1e-10
+
+
+@numba.njit(parallel=True, cache=True)
+def _solve_normal_equations(G, rhs, yy, ridge, contrast, G2, with_variance, beta, rss, posed, variance):
+    """:func:`heatcurv.chordfit.solve_normal_equations`, point by point, by Cholesky.
+
+    ``posed`` gets 1 (well posed), 0 (ill posed) or -1 (undecided: the caller
+    checks those few points by their eigenvalues). The condition number
+    ``kappa = lambda_max / lambda_min`` is bracketed without eigenvalues:
+    ``kappa <= trace(G) trace(G^-1) <= p^2 kappa``.
+    """
+    n, p = rhs.shape
+    for i in numba.prange(n):
+        A = np.empty((p, p))
+        L = np.empty((p, p))
+        work = np.empty(p)
+        x = np.empty(p)
+        trace = 0.0
+        for a in range(p):
+            trace += G[i, a, a]
+        scale = max(trace / p, 1e-300)
+        for a in range(p):
+            for b in range(p):
+                A[a, b] = G[i, a, b]
+            A[a, a] += ridge * scale
+        if _cholesky(A, L):
+            _cholesky_solve(L, rhs[i], x)
+        else:  # not reached for a positive semi-definite G; keep a finite answer
+            for a in range(p):
+                x[a] = 0.0
+        fitted_sq = 0.0
+        cross = 0.0
+        for a in range(p):
+            beta[i, a] = x[a]
+            cross += x[a] * rhs[i, a]
+            t = 0.0
+            for b in range(p):
+                t += G[i, a, b] * x[b]
+            fitted_sq += x[a] * t
+        rss[i] = max(yy[i] - 2.0 * cross + fitted_sq, 0.0)
+        if with_variance:
+            _cholesky_solve(L, contrast, x)
+            v = 0.0
+            for a in range(p):
+                t = 0.0
+                for b in range(p):
+                    t += G2[i, a, b] * x[b]
+                v += x[a] * t
+            variance[i] = v
+        # well posed? bracket the condition number of the unregularised G
+        for a in range(p):
+            for b in range(p):
+                A[a, b] = G[i, a, b]
+        if trace <= 0.0 or not _cholesky(A, L):
+            posed[i] = 0 if trace <= 0.0 else -1
+            continue
+        bound = trace * _trace_of_inverse(L, work)
+        if bound * WELL_POSED_RCOND < 1.0:
+            posed[i] = 1
+        elif bound * WELL_POSED_RCOND > p * p:
+            posed[i] = 0
+        else:
+            posed[i] = -1
+
+
+def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None):
+    """Compiled :func:`heatcurv.chordfit.solve_normal_equations` (same returns).
+
+    The ridge solve by Cholesky instead of LU agrees to rounding; ``well_posed``
+    is exact (eigenvalues are computed for the points the bracket leaves undecided).
+    """
+    n, p = rhs.shape
+    beta, rss, variance = np.empty((n, p)), np.empty(n), np.empty(n if contrast is not None else 0)
+    posed = np.empty(n, dtype=np.int8)
+    c = np.zeros(p) if contrast is None else np.ascontiguousarray(contrast, dtype=np.float64)
+    g2 = G2 if contrast is not None else np.empty((0, p, p))
+    _solve_normal_equations(G, rhs, yy, float(ridge), c, g2, contrast is not None, beta, rss, posed, variance)
+    well_posed = posed == 1
+    undecided = np.flatnonzero(posed < 0)
+    if undecided.size:
+        evals = np.linalg.eigvalsh(G[undecided])
+        well_posed[undecided] = evals[:, 0] > WELL_POSED_RCOND * np.maximum(evals[:, -1], 1e-300)
+    if contrast is None:
+        return beta, rss, well_posed
+    return beta, rss, well_posed, variance
+
+
 def _fit(kind, p, geometry, height_beta=None, final=False):
     """Assemble one fit with the kernel and solve it.
 
     A ``final`` fit (the last pass's, whose diagnostics the result reports) is
-    solved by :func:`heatcurv.chordfit.solve_normal_equations` exactly as
-    ``segment_lstsq`` solves it, with the mean-curvature contrast, and returns
-    ``beta, rss, well_posed, variance``. The fits before it only pass their
-    coefficients on (the numpy path computes and drops the rest), so they
-    skip ``G2`` and the eigenvalues and return ``beta`` alone.
+    solved by :func:`solve_compiled` with the mean-curvature contrast and
+    returns ``beta, rss, well_posed, variance``. The fits before it only pass
+    their coefficients on (the numpy path computes and drops the rest), so
+    they skip ``G2`` and return ``beta`` alone.
     """
     indptr = geometry[2]
     n = indptr.shape[0] - 1
@@ -248,8 +390,8 @@ def _fit(kind, p, geometry, height_beta=None, final=False):
         height_beta = np.empty((0, p))
     _assemble_normal_equations(*geometry, kind, height_beta, G, rhs, yy, G2)
     if not final:
-        return ridge_solve(G, rhs)[0]
-    return solve_normal_equations(G, rhs, yy, contrast=_mean_contrast(p), G2=G2)
+        return solve_compiled(G, rhs, yy)[0]
+    return solve_compiled(G, rhs, yy, contrast=_mean_contrast(p), G2=G2)
 
 
 def chord_fit_compiled(
