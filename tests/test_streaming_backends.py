@@ -16,7 +16,7 @@ from heatcurv import HeatcurvError, surfaces
 from heatcurv.areas import density_areas, taper_sums
 from heatcurv.backend import backend, get_backend, numba_available, set_backend, use_numba
 from heatcurv.border import centroid_offset
-from heatcurv.kernel import ball_taper, heat_kernel_weights
+from heatcurv.kernel import ball_taper, heat_kernel_weights, tapered_heat_weights
 from heatcurv.mean_curvature import mean_curvature_normal
 from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
 from heatcurv.normals import orient_normals, pca_normals
@@ -119,6 +119,7 @@ def test_compiled_kernels_match_numpy(torus_cloud):
         with backend(name):
             results[name] = dict(
                 taper=taper_sums(nb),
+                fit_weights=tapered_heat_weights(nb, h, areas),
                 pca=pca_normals(pts, nb, taper=True),
                 pca_plain=pca_normals(pts, nb),
                 K=mean_curvature_normal(pts, nb, None, areas, h),
@@ -132,7 +133,10 @@ def test_compiled_kernels_match_numpy(torus_cloud):
         sign = np.sign(np.einsum("ij,ij->i", a[key][0], b[key][0]))
         np.testing.assert_allclose(b[key][0] * sign[:, None], a[key][0], atol=1e-8)
         np.testing.assert_allclose(b[key][1], a[key][1], rtol=1e-8, atol=1e-12)
-    for key in ("K", "K_given", "offset", "offset_centres"):
+    np.testing.assert_allclose(
+        a["fit_weights"], np.exp(-(nb.distances**2) / np.repeat(h, 40) ** 2) * ball_taper(nb) * areas[nb.indices], rtol=1e-13
+    )
+    for key in ("K", "K_given", "offset", "offset_centres", "fit_weights"):
         np.testing.assert_allclose(b[key], a[key], rtol=1e-10, atol=1e-12 * np.abs(a[key]).max())
     # the taper used by the kernels is ball_taper's
     np.testing.assert_allclose(a["taper"], nb.segment_sum(ball_taper(nb)), rtol=1e-12)

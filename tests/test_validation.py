@@ -135,3 +135,15 @@ def test_far_coordinates_give_the_centred_results(offset, small_sphere):
     np.testing.assert_allclose(far.k1, ref.k1, rtol=1e-6, atol=1e-6)
     np.testing.assert_allclose(far.area, ref.area, rtol=1e-6)
     np.testing.assert_allclose(far.normals, ref.normals, atol=1e-6)
+
+
+def test_signed_zeros_are_one_point_and_distinct_clouds_keep_their_order():
+    rng = np.random.default_rng(7)
+    pts = rng.uniform(-1, 1, size=(200, 3))
+    pts[0], pts[1] = -1.0, 1.0  # bounding box centred at 0: the offset is exactly 0
+    prep = prepare_points(pts)
+    assert prep.n_distinct == 200 and np.array_equal(prep.points, pts)  # no duplicates: input order
+    twins = np.vstack([pts, [[-0.0, 0.5, 0.25], [0.0, 0.5, 0.25]]])
+    prep = prepare_points(twins)
+    assert prep.n_distinct == 201
+    assert prep.inverse[200] == prep.inverse[201]

@@ -44,6 +44,9 @@ class Neighbourhood:
     augmented : ndarray, shape (n,), bool
         Points whose ball held fewer than ``min_neighbors`` points and were
         given their nearest neighbours instead (isolated points, sparse edges).
+    by_distance : bool
+        Whether each row is known to be sorted by distance, nearest first
+        (:func:`knn_neighbourhood` rows are).
     """
 
     indptr: np.ndarray
@@ -51,6 +54,7 @@ class Neighbourhood:
     distances: np.ndarray
     radius: np.ndarray
     augmented: np.ndarray
+    by_distance: bool = False
 
     @property
     def n_points(self) -> int:
@@ -82,6 +86,7 @@ class Neighbourhood:
             distances=np.concatenate([p.distances for p in parts]),
             radius=np.concatenate([p.radius for p in parts]),
             augmented=np.concatenate([p.augmented for p in parts]),
+            by_distance=all(p.by_distance for p in parts),
         )
 
     def nearest(self, k: int) -> "Neighbourhood":
@@ -90,9 +95,10 @@ class Neighbourhood:
         ``radius`` becomes the distance of the farthest one kept.
         """
         counts = self.counts
-        if self.n_pairs == 0 or counts.max() <= k and self._sorted_by_distance():
+        by_distance = self.by_distance or self._sorted_by_distance()
+        if self.n_pairs == 0 or counts.max() <= k and by_distance:
             return self
-        if counts.min() == counts.max() and self._sorted_by_distance():
+        if counts.min() == counts.max() and by_distance:
             width = int(counts[0])
             idx = self.indices.reshape(-1, width)[:, :k]
             dist = self.distances.reshape(-1, width)[:, :k]
@@ -109,7 +115,7 @@ class Neighbourhood:
         np.cumsum(new_counts, out=indptr[1:])
         last = np.maximum(indptr[1:] - 1, 0)
         radius = np.where(new_counts > 0, dist[last] if dist.size else 0.0, self.radius)
-        return Neighbourhood(indptr=indptr, indices=idx, distances=dist, radius=radius, augmented=self.augmented)
+        return Neighbourhood(indptr=indptr, indices=idx, distances=dist, radius=radius, augmented=self.augmented, by_distance=True)
 
     def _sorted_by_distance(self) -> bool:
         """Whether the distances ascend within every row."""
@@ -142,6 +148,7 @@ class Neighbourhood:
             distances=self.distances[a:b],
             radius=self.radius[lo:hi],
             augmented=self.augmented[lo:hi],
+            by_distance=self.by_distance,
         )
 
     def blockwise(self, compute, max_pairs: int = 1_000_000) -> np.ndarray:
@@ -324,9 +331,12 @@ def knn_neighbourhood(
         # drop the query itself where it is one of the points (distance 0: the points
         # are distinct, so nothing else is at 0), else the (k+1)-th neighbour
         self_hit = dist[:, 0] == 0
-        keep = np.where(self_hit[:, None], np.arange(1, k + 1), np.arange(k))
-        idx = np.take_along_axis(idx, keep, axis=1)
-        distances[lo:hi] = np.take_along_axis(dist, keep, axis=1)
+        if self_hit.all():
+            idx, dist = idx[:, 1:], dist[:, 1:]
+        else:
+            keep = np.where(self_hit[:, None], np.arange(1, k + 1), np.arange(k))
+            idx, dist = np.take_along_axis(idx, keep, axis=1), np.take_along_axis(dist, keep, axis=1)
+        distances[lo:hi] = dist
         indices[lo:hi] = idx if source_index is None else np.asarray(source_index)[idx]
     return Neighbourhood(
         indptr=np.arange(0, m * k + 1, k, dtype=np.int64),
@@ -334,4 +344,5 @@ def knn_neighbourhood(
         distances=distances.reshape(-1),
         radius=distances[:, -1].copy(),
         augmented=np.zeros(m, dtype=bool),
+        by_distance=True,
     )

