@@ -191,3 +191,15 @@ def test_input_order_changes_nothing_with_spatial_reordering():
     b = heatcurv.estimate(sample.points[perm])
     for name in ("mean", "k1", "k2", "area"):
         np.testing.assert_allclose(getattr(b, name), getattr(a, name)[perm], rtol=1e-9, atol=1e-12)
+
+
+def test_progress_reports_every_stage_and_threads_change_nothing():
+    sample = surfaces.Sphere().sample(3000, "random", seed=2)
+    calls = []
+    res = heatcurv.estimate(sample.points, progress=lambda stage, fraction: calls.append((stage, fraction)))
+    stages = [s for s, f in calls if f == 0.0]
+    assert stages == ["validate", "neighbours", "spacing", "areas", "normals", "orientation", "mean", "principal"]
+    assert all(0.0 <= f <= 1.0 for _, f in calls) and calls[-1] == ("principal", 1.0)
+    assert set(res.info["timings"]) == set(stages)
+    single = heatcurv.estimate(sample.points, workers=1)
+    np.testing.assert_allclose(single.mean, res.mean, rtol=1e-12)

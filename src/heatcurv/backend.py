@@ -18,7 +18,7 @@ from contextlib import contextmanager
 
 from .errors import HeatcurvError
 
-__all__ = ["numba_available", "use_numba", "set_backend", "get_backend", "backend"]
+__all__ = ["numba_available", "use_numba", "set_backend", "get_backend", "backend", "threads"]
 
 _CHOICES = ("auto", "numba", "numpy")
 _state = {"backend": os.environ.get("HEATCURV_BACKEND", "auto").strip().lower() or "auto"}
@@ -74,3 +74,23 @@ def use_numba() -> bool:
     if name == "numba" and not numba_available():
         raise HeatcurvError("HEATCURV_BACKEND=numba but numba is not installed (pip install numba)")
     return numba_available()
+
+
+@contextmanager
+def threads(workers: int | None):
+    """Run a block with ``workers`` compiled-kernel threads (-1 or None: all cores).
+
+    The k-d tree queries take ``workers`` themselves; this sets numba's
+    thread count to match and restores it afterwards.
+    """
+    if workers is None or int(workers) < 0 or not numba_available():
+        yield
+        return
+    import numba
+
+    previous = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)

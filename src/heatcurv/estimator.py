@@ -11,7 +11,6 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -21,7 +20,9 @@ from .border import border_points
 from .errors import HeatcurvError
 from .mean_curvature import mean_curvature, mean_curvature_normal
 from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
+from .backend import threads
 from .pipeline import Options, build_operator, resolve_options
+from .progress import StageClock
 from .principal import principal_fit
 from .chordfit import ChordFit
 from .scale import fit_blocks, select_scale
@@ -137,6 +138,7 @@ def estimate(
     viewpoint=None,
     min_neighbors: int | None = None,
     workers: int | None = None,
+    progress=None,
 ) -> CurvatureResult:
     """Normals, mean, Gaussian and principal curvatures, directions and areas of a point cloud.
 
@@ -189,7 +191,11 @@ def estimate(
     min_neighbors : int, optional
         Fewest neighbours per point (6).
     workers : int, optional
-        Threads for k-d tree queries (-1, all cores).
+        Threads for the k-d tree queries and the compiled kernels (-1: all
+        cores; 1: one thread).
+    progress : callable, optional
+        Called as ``progress(stage, fraction)`` as the stages run
+        (:mod:`heatcurv.progress`); the command line's progress bars use it.
 
     Returns
     -------
@@ -228,50 +234,47 @@ def estimate(
     if normals is not None and viewpoint is not None:
         raise HeatcurvError("give either normals or a viewpoint, not both")
     vp = None if viewpoint is None else as_viewpoint(viewpoint)
-    op = build_operator(points, opts)
-    X, nbhd, prepared = op.points, op.neighbourhood, op.prepared
-    timings = dict(op.timings)
+    with threads(opts.workers):
+        op = build_operator(points, opts, progress=progress)
+        clock = StageClock(progress, dict(op.timings))
+        X, nbhd, prepared = op.points, op.neighbourhood, op.prepared
 
-    tic = time.perf_counter()
-    planarity = np.ones(X.shape[0])
-    if normals is not None:
-        nrm = prepare_normals(normals, prepared)
-    else:
-        nrm, planarity = pca_normals(X, nbhd, taper=opts.taper)
-        timings["normals"] = time.perf_counter() - tic
-        tic = time.perf_counter()
-        if vp is not None:
-            nrm = orient_towards_viewpoint(X, nrm, vp - prepared.offset)
+        planarity = np.ones(X.shape[0])
+        if normals is not None:
+            with clock.stage("normals"):
+                nrm = prepare_normals(normals, prepared)
         else:
-            nrm = orient_normals(X, nrm, nbhd, op.areas)
-        timings["orientation"] = time.perf_counter() - tic
-    if "normals" not in timings:
-        timings["normals"] = time.perf_counter() - tic
+            with clock.stage("normals"):
+                nrm, planarity = pca_normals(X, nbhd, taper=opts.taper)
+            with clock.stage("orientation"):
+                if vp is not None:
+                    nrm = orient_towards_viewpoint(X, nrm, vp - prepared.offset)
+                else:
+                    nrm = orient_normals(X, nrm, nbhd, op.areas)
 
-    tic = time.perf_counter()
-    # the heat kernel is computed pair by pair unless the operator already holds it
-    K = mean_curvature_normal(X, nbhd, op.stored_weights, op.areas, op.h, opts.m)
-    mean = mean_curvature(K, nrm, opts.mean_formula)
-    timings["mean"] = time.perf_counter() - tic
+        with clock.stage("mean"):
+            # the heat kernel is computed pair by pair unless the operator already holds it
+            K = mean_curvature_normal(X, nbhd, op.stored_weights, op.areas, op.h, opts.m)
+            mean = mean_curvature(K, nrm, opts.mean_formula)
 
-    tic = time.perf_counter()
-    info = {"n_distinct": prepared.n_distinct, "area_solve": op.area_solve}
-    if opts.fit == "chord":
-        fit, areas, border, info["scale"] = _chord_estimate(op, nrm, keep_normals=normals is not None)
-        pc, nrm = fit.principal, fit.normals
-        mean = pc.mean
-    else:
-        # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
-        # samples can give negative A_j; a least-squares objective with negative
-        # weights has no minimum, so those neighbours get weight zero.
-        pair_w = op.weights * nbhd.distances**2 * np.maximum(op.areas, 0.0)[nbhd.indices]
-        pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
-        if opts.fit == "unconstrained":
-            mean = pc.mean
-        areas = op.areas
-        # border of open surfaces, on the neighbourhood the curvature was fitted on
-        border = border_points(X, nbhd, nrm, taper=opts.taper)
-    timings["principal"] = time.perf_counter() - tic
+        info = {"n_distinct": prepared.n_distinct, "area_solve": op.area_solve}
+        with clock.stage("principal"):
+            if opts.fit == "chord":
+                fit, areas, border, info["scale"] = _chord_estimate(op, nrm, normals is not None, clock)
+                pc, nrm = fit.principal, fit.normals
+                mean = pc.mean
+            else:
+                # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
+                # samples can give negative A_j; a least-squares objective with negative
+                # weights has no minimum, so those neighbours get weight zero.
+                pair_w = op.weights * nbhd.distances**2 * np.maximum(op.areas, 0.0)[nbhd.indices]
+                pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
+                if opts.fit == "unconstrained":
+                    mean = pc.mean
+                areas = op.areas
+                # border of open surfaces, on the neighbourhood the curvature was fitted on
+                border = border_points(X, nbhd, nrm, taper=opts.taper)
+    timings = clock.timings
 
     reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~border
     reliable &= op.area_solve.converged
@@ -296,7 +299,7 @@ def estimate(
     )
 
 
-def _chord_estimate(op, normals, keep_normals: bool):
+def _chord_estimate(op, normals, keep_normals: bool, clock=None):
     """The chord fit at the kernel ``op.options.scale`` asks for (or chooses), block by block.
 
     Returns the fit, the areas (recomputed on the fit's kernel when it is
@@ -332,6 +335,8 @@ def _chord_estimate(op, normals, keep_normals: bool):
         border[lo:hi] = border_points(X, nbhd, fit_normals, taper=opts.taper, centres=X[lo:hi])
         radius[lo:hi] = nbhd.radius
         fits.append(replace(fit, normals=normals[lo:hi]) if keep_normals else fit)
+        if clock is not None:
+            clock.report("principal", hi / n)
     fit = ChordFit.concatenate(fits)
     record = {
         "k": choice.scale.k,

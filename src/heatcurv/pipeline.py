@@ -9,7 +9,6 @@ from its result.
 
 from __future__ import annotations
 
-import time
 import warnings
 from dataclasses import dataclass, field, replace
 
@@ -17,9 +16,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .areas import AreaSolve, density_areas, point_areas
+from .backend import threads
 from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import heat_kernel_weights
 from .neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
+from .progress import StageClock
 from .spacing import spacing as compute_spacing
 from .validation import PreparedPoints, prepare_points
 
@@ -69,7 +70,8 @@ class Options:
     min_neighbors : int
         Fewest neighbours a point may have; sparser points get their nearest ones.
     workers : int
-        Threads for k-d tree queries (-1: all cores).
+        Threads for the k-d tree queries and the compiled kernels (-1: all
+        cores; 1: one thread, e.g. when the caller parallelises over clouds).
     """
 
     method: str = "default"
@@ -211,7 +213,7 @@ class HeatKernelOperator:
         return self.prepared.points
 
 
-def build_operator(points, options: Options | None = None, **overrides) -> HeatKernelOperator:
+def build_operator(points, options: Options | None = None, progress=None, **overrides) -> HeatKernelOperator:
     """Run validation, spacing, neighbourhood, weights and areas once.
 
     Parameters
@@ -220,6 +222,8 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
         Point coordinates.
     options : Options, optional
         Resolved options; if omitted, ``resolve_options(**overrides)``.
+    progress : callable, optional
+        ``progress(stage, fraction)`` (:mod:`heatcurv.progress`).
     **overrides
         ``method`` and any :class:`Options` field.
 
@@ -229,44 +233,43 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
     """
     if options is None:
         options = resolve_options(**overrides)
-    timings = {}
-    tic = time.perf_counter()
-    need = int(options.min_neighbors) + 1
-    if options.spacing == "density" or options.fit == "chord":
-        need = max(need, int(options.neighbors) + 1)
-    prepared = prepare_points(points, min_points=need)
-    # k-d tree leaf order: neighbours close in memory, every later gather cache-friendly
-    prepared = prepared.reordered(cKDTree(prepared.points).indices)
-    X = prepared.points
-    tree = cKDTree(X)
-    timings["validate"] = time.perf_counter() - tic
+    clock = StageClock(progress)
+    with threads(options.workers):
+        with clock.stage("validate"):
+            need = int(options.min_neighbors) + 1
+            if options.spacing == "density" or options.fit == "chord":
+                need = max(need, int(options.neighbors) + 1)
+            prepared = prepare_points(points, min_points=need)
+            # k-d tree leaf order: neighbours close in memory, every later gather cache-friendly
+            prepared = prepared.reordered(cKDTree(prepared.points).indices)
+            X = prepared.points
+            tree = cKDTree(X)
 
-    if options.spacing == "density":
-        # the ball of radius d_k = alpha h holds the k nearest neighbours: one query gives both
-        tic = time.perf_counter()
-        nbhd = knn_neighbourhood(X, int(options.neighbors), tree=tree, workers=options.workers)
-        h = nbhd.radius / options.alpha
-        timings["neighbours"] = time.perf_counter() - tic
-        timings["spacing"] = 0.0
-    else:
-        tic = time.perf_counter()
-        if options.spacing == "local" and options.k_local >= prepared.n_distinct:
-            raise HeatcurvError(f"too few points for the local spacing over {options.k_local} neighbours")
-        h = compute_spacing(X, options.spacing, gamma=options.gamma, k=options.k_local, tree=tree, workers=options.workers)
-        timings["spacing"] = time.perf_counter() - tic
-        tic = time.perf_counter()
-        nbhd = ball_neighbourhood(X, options.alpha * h, tree=tree, min_neighbors=int(options.min_neighbors), workers=options.workers)
-        timings["neighbours"] = time.perf_counter() - tic
-    if not np.all(h > 0):
-        raise HeatcurvError("a point's spacing is zero; this should not happen after merging duplicates")
+        if options.spacing == "density":
+            # the ball of radius d_k = alpha h holds the k nearest neighbours: one query gives both
+            with clock.stage("neighbours"):
+                nbhd = knn_neighbourhood(X, int(options.neighbors), tree=tree, workers=options.workers)
+            with clock.stage("spacing"):
+                h = nbhd.radius / options.alpha
+        else:
+            with clock.stage("spacing"):
+                if options.spacing == "local" and options.k_local >= prepared.n_distinct:
+                    raise HeatcurvError(f"too few points for the local spacing over {options.k_local} neighbours")
+                h = compute_spacing(X, options.spacing, gamma=options.gamma, k=options.k_local, tree=tree, workers=options.workers)
+            with clock.stage("neighbours"):
+                nbhd = ball_neighbourhood(
+                    X, options.alpha * h, tree=tree, min_neighbors=int(options.min_neighbors), workers=options.workers
+                )
+        if not np.all(h > 0):
+            raise HeatcurvError("a point's spacing is zero; this should not happen after merging duplicates")
 
-    tic = time.perf_counter()
-    if options.area_method == "density":
-        weights = None  # computed on first use (HeatKernelOperator.weights), not stored on large clouds
-        areas, info = density_areas(nbhd), AreaSolve("density", 0, 0.0, True)
-    else:
-        weights = heat_kernel_weights(nbhd, h, options.m)
-        areas, info = point_areas(nbhd, weights, h, options.m, solver=options.area_solver, return_info=True)
+        with clock.stage("areas"):
+            if options.area_method == "density":
+                weights = None  # computed on first use (HeatKernelOperator.weights), not stored on large clouds
+                areas, info = density_areas(nbhd), AreaSolve("density", 0, 0.0, True)
+            else:
+                weights = heat_kernel_weights(nbhd, h, options.m)
+                areas, info = point_areas(nbhd, weights, h, options.m, solver=options.area_solver, return_info=True)
     if not info.converged:
         warnings.warn(
             f"the area system H A = 1 did not converge ({info.solver}: {info.iterations} iterations, "
@@ -275,5 +278,5 @@ def build_operator(points, options: Options | None = None, **overrides) -> HeatK
             HeatcurvWarning,
             stacklevel=3,
         )
-    timings["areas"] = time.perf_counter() - tic
+    timings = clock.timings
     return HeatKernelOperator(prepared, tree, h, nbhd, areas, info, options, timings, weights)
