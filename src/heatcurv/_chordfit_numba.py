@@ -28,6 +28,7 @@ import numba
 import numpy as np
 
 from .chordfit import (
+    MIN_DOF_FRACTION,
     ChordFit,
     _chord_fit_result,
     _mean_contrast,
@@ -188,6 +189,16 @@ def _assemble_normal_equations(
         yy[i] = yyi
 
 
+@numba.njit(cache=True)
+def _unbiased_mean_square(weighted_sq, total_weight, total_sq_weight, p):
+    """:func:`heatcurv.chordfit.residual_variance` for one centre."""
+    mean_sq = weighted_sq / max(total_weight, 1e-300)
+    n_eff = total_weight * total_weight / max(total_sq_weight, 1e-300)
+    if n_eff <= p:  # (also no neighbours at all: n_eff = 0)
+        return mean_sq / MIN_DOF_FRACTION
+    return mean_sq / max(1.0 - p / n_eff, MIN_DOF_FRACTION)
+
+
 @numba.njit(parallel=True, cache=True)
 def _weighted_height_residual(
     points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, beta, sigma2
@@ -205,6 +216,7 @@ def _weighted_height_residual(
         cols = np.empty(n_shape)
         weighted_sq = 0.0
         total_weight = 0.0
+        total_sq_weight = 0.0
         for k in range(indptr[i], indptr[i + 1]):
             x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, unit[i])
             r = _fill_shape_columns(x, y, tilt, cubic, cols)
@@ -226,7 +238,8 @@ def _weighted_height_residual(
             w = weights[k]
             weighted_sq += w * resid * resid
             total_weight += w
-        sigma2[i] = weighted_sq / max(total_weight, 1e-300)
+            total_sq_weight += w * w
+        sigma2[i] = _unbiased_mean_square(weighted_sq, total_weight, total_sq_weight, p)
 
 
 @numba.njit(cache=True)

@@ -1,0 +1,593 @@
+"""Pictures of a point cloud coloured by a per-point field (curvature, area, features, ...).
+
+:func:`render_field` draws the points as an orthographic 3-D scatter, as seen
+by a camera looking along the cloud's thinnest direction, coloured by one
+value per point, with a colour bar, and saves the figure (PNG, PDF, SVG, JPEG,
+... by the file's extension). It is what ``heatcurv render`` and ``heatcurv
+demo`` draw.
+
+Drawing
+-------
+* **Colours.** Signed fields (mean, Gaussian and principal curvatures, normal
+  and direction components) use a diverging map (``"coolwarm"``: blue
+  negative, grey zero, red positive) with limits symmetric about 0, so equal
+  magnitudes get equal strength and zero is always the neutral colour.
+  Non-negative fields (area, feature score, spacing) use a sequential map
+  (``"viridis"``); masks (``feature``, ``reliable``, ``border``) two colours.
+  The limits are robust: the 2nd and 98th percentiles of the values (the
+  larger magnitude of the two for signed fields), so a few wild values at
+  holes and borders do not wash the picture out; the colour bar's arrows
+  say that values beyond them exist. ``value_range`` fixes the limits.
+  Points whose value is NaN are drawn light grey.
+* **View.** The camera looks along the smallest principal axis of the
+  points (a scan is seen face-on, a terrain from above), from the side most
+  normals face, with the cloud's vertical axis (``+y``, or ``+z`` for
+  geographic data) up on the picture, in orthographic projection with
+  equal scale on both screen axes. ``views = N`` draws N views side by side, the
+  camera turned about the up axis by ``360 / N`` degrees each time (2: front
+  and back; 4: every quarter turn); ``elevation`` tilts the camera up. The
+  points are drawn from far to near, so near points cover far ones.
+* **Points** are discs 1.8 times as wide as the side of the surface area
+  per point (from the distance to the 8th nearest neighbour), so the surface
+  looks closed even where a random sample leaves gaps (at most 80 pixels);
+  above ``max_points`` a random (seeded) subset is drawn.
+
+matplotlib is used through its object interface with the Agg canvas, never
+``pyplot``: rendering changes no global state (an interactive session's
+backend stays as it was) and needs no display.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import HeatcurvError
+
+__all__ = [
+    "FIELD_STYLES",
+    "FieldStyle",
+    "Rendering",
+    "camera_frames",
+    "colour_limits",
+    "field_style",
+    "render_field",
+    "supported_picture_formats",
+]
+
+#: Colour map of signed fields (light grey at zero: visible on the white background).
+DIVERGING_CMAP = "coolwarm"
+#: Colour map of non-negative fields.
+SEQUENTIAL_CMAP = "viridis"
+#: Colours of a mask's False and True points.
+MASK_COLOURS = ("#c8c8c8", "#d62728")
+#: Colour of points whose value is NaN.
+MISSING_COLOUR = "#bbbbbb"
+#: Disc diameter in units of the side of the surface area per point: discs of this size cover
+#: 1 - exp(-pi 1.8^2 / 4) = 92 % of a surface sampled at random (more where it is seen obliquely).
+DISC_FACTOR = 1.8
+
+
+@dataclass(frozen=True)
+class FieldStyle:
+    """How a named field is labelled and coloured.
+
+    Attributes
+    ----------
+    label : str
+        What the field is, for the colour bar (``"mean curvature"``).
+    unit : str
+        Its unit, ``{L}`` standing for the length unit (``"1/{L}"``); empty
+        for unitless fields.
+    kind : {"signed", "sequential", "mask"} or None
+        Diverging map centred at 0, sequential map, or two colours; None:
+        decided from the values (signed if the robust range holds both signs).
+    """
+
+    label: str
+    unit: str = ""
+    kind: str | None = None
+
+    def unit_text(self, length_unit: str = "length") -> str:
+        """The unit with the length unit filled in (``"1/m"``), or ``""``."""
+        return self.unit.replace("{L}", length_unit)
+
+
+#: Styles of the fields heatcurv writes (``heatcurv compute``), by name.
+FIELD_STYLES: dict[str, FieldStyle] = {
+    "mean": FieldStyle("mean curvature", "1/{L}", "signed"),
+    "gaussian": FieldStyle("Gaussian curvature", "1/{L}²", "signed"),
+    "k1": FieldStyle("maximal principal curvature k1", "1/{L}", "signed"),
+    "k2": FieldStyle("minimal principal curvature k2", "1/{L}", "signed"),
+    "area": FieldStyle("area per point", "{L}²", "sequential"),
+    "feature": FieldStyle("sharp feature", "", "mask"),
+    "feature_score": FieldStyle("feature score (turning angle)", "degrees", "sequential"),
+    "reliable": FieldStyle("reliable", "", "mask"),
+    "border": FieldStyle("border point", "", "mask"),
+    "spacing": FieldStyle("kernel spacing h", "{L}", "sequential"),
+    "neighbours": FieldStyle("neighbours in the ball", "", "sequential"),
+    **{f"n{a}": FieldStyle(f"normal, {a} component", "", "signed") for a in "xyz"},
+    **{f"d1{a}": FieldStyle(f"principal direction d1, {a} component", "", "signed") for a in "xyz"},
+    **{f"d2{a}": FieldStyle(f"principal direction d2, {a} component", "", "signed") for a in "xyz"},
+    **{a: FieldStyle(f"{a} coordinate", "{L}", "sequential") for a in "xyz"},
+}
+
+
+def field_style(name: str) -> FieldStyle:
+    """The style of field ``name``: from :data:`FIELD_STYLES`, else the name itself, kind from the data."""
+    return FIELD_STYLES.get(name, FieldStyle(name))
+
+
+@dataclass(frozen=True)
+class Rendering:
+    """What :func:`render_field` drew.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The picture written.
+    limits : tuple of float
+        Colour-bar limits ``(low, high)``.
+    kind : str
+        ``"signed"``, ``"sequential"`` or ``"mask"``.
+    drawn : int
+        Points drawn (after dropping non-finite coordinates and subsampling).
+    total : int
+        Points given.
+    size : tuple of int
+        Picture size in pixels ``(width, height)`` (raster formats).
+    """
+
+    path: Path
+    limits: tuple
+    kind: str
+    drawn: int
+    total: int
+    size: tuple
+
+
+def supported_picture_formats() -> tuple:
+    """File extensions matplotlib can save to (``".png"``, ``".pdf"``, ``".svg"``, ...)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return tuple(sorted("." + ext for ext in FigureCanvasBase.get_supported_filetypes()))
+
+
+def _is_mask(values: np.ndarray) -> bool:
+    finite = values[np.isfinite(values)]
+    return values.dtype.kind == "b" or (finite.size > 0 and bool(np.all((finite == 0) | (finite == 1))))
+
+
+def colour_limits(values, kind: str | None = None, *, percentiles=(2.0, 98.0), value_range=None):
+    """Colour limits and kind of a field: robust percentiles, symmetric about 0 when signed.
+
+    Parameters
+    ----------
+    values : array_like, shape (n,)
+        The field (NaN values are ignored).
+    kind : {"signed", "sequential", "mask"}, optional
+        Default: ``"mask"`` for booleans, ``"signed"`` if the percentile
+        range holds both signs, else ``"sequential"``.
+    percentiles : (float, float), optional
+        Lower and upper percentile of the robust range.
+    value_range : (float, float), optional
+        Fixed limits instead of the percentiles.
+
+    Returns
+    -------
+    low, high : float
+        ``low < high``. Signed fields without ``value_range``: ``-v, v`` with
+        ``v`` the larger magnitude of the two percentiles.
+    kind : str
+
+    Raises
+    ------
+    HeatcurvError
+        If no value is finite, or the percentiles or range are unusable.
+    """
+    values = np.asarray(values)
+    numeric = values.astype(np.float64)
+    finite = numeric[np.isfinite(numeric)]
+    if finite.size == 0:
+        raise HeatcurvError("the field has no finite values to colour by")
+    if kind is None and _is_mask(values):
+        kind = "mask"
+    if kind == "mask":
+        return -0.5, 1.5, "mask"
+    if value_range is not None:
+        low, high = (float(v) for v in value_range)
+        if not (np.isfinite(low) and np.isfinite(high) and low < high):
+            raise HeatcurvError(f"the colour range must be two finite numbers LOW < HIGH, got {low:g}, {high:g}")
+        if kind is None:
+            kind = "signed" if low < 0 < high else "sequential"
+        return low, high, kind
+    p_low, p_high = (float(p) for p in percentiles)
+    if not 0 <= p_low < p_high <= 100:
+        raise HeatcurvError(f"percentiles must satisfy 0 <= LOW < HIGH <= 100, got {p_low:g}, {p_high:g}")
+    low, high = (float(v) for v in np.percentile(finite, [p_low, p_high]))
+    if kind is None:
+        kind = "signed" if low < 0 < high else "sequential"
+    if kind == "signed":
+        bound = max(abs(low), abs(high))
+        if not bound > 0:
+            bound = 1.0
+        return -bound, bound, kind
+    if not high > low:  # a constant field
+        pad = abs(low) * 0.01 if low != 0 else 1.0
+        low, high = low - pad, high + pad
+    return low, high, kind
+
+
+def _unit(vector, name: str) -> np.ndarray:
+    try:
+        v = np.asarray(vector, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        v = np.empty(0)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or not np.linalg.norm(v) > 0:
+        raise HeatcurvError(f"{name} must be 3 finite numbers, not all zero, got {vector!r}")
+    return v / np.linalg.norm(v)
+
+
+def _positive_sign(vector: np.ndarray) -> np.ndarray:
+    """The vector or its opposite, whichever has a positive largest-magnitude component."""
+    return vector if vector[np.argmax(np.abs(vector))] >= 0 else -vector
+
+
+def camera_frames(points, views: int = 1, *, view=None, up=None, vertical: str = "y", elevation: float = 0.0, normals=None):
+    """Orthonormal screen frames ``(right, up, towards the camera)`` of the views of a cloud.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        Finite coordinates.
+    views : int, optional
+        Number of views, the camera turned about the up axis by ``360 / views``
+        degrees from one to the next.
+    view : array_like, shape (3,), optional
+        Direction from the cloud towards the camera of the first view.
+        Default: the smallest principal axis, on the side most ``normals``
+        face (or the side of its largest positive coordinate component).
+    up : array_like, shape (3,), optional
+        Screen up (made perpendicular to ``view``). Default: the coordinate
+        axis ``vertical``, or if the camera looks (nearly) along it, the
+        next of ``+y``, ``+z``, ``+x`` that it does not look along.
+    vertical : {"y", "z", "x"}, optional
+        The coordinate axis that points up in the cloud's convention: ``y``
+        for most meshes and lab scans (the Stanford models), ``z`` for
+        geographic data (LAS). A cloud seen from above (a terrain) gets
+        ``+y`` up, north if ``y`` is northing.
+    elevation : float, optional
+        Camera tilt above the first view's horizontal plane, degrees in
+        [-90, 90].
+    normals : ndarray, shape (n, 3), optional
+        Used only to choose the default side of the camera.
+
+    Returns
+    -------
+    ndarray, shape (views, 3, 3)
+        Row 0 screen right, row 1 screen up, row 2 towards the camera; right
+        = up x towards (no mirror image). Screen coordinates of a point are
+        ``frames[k] @ (p - centre)``.
+
+    Raises
+    ------
+    HeatcurvError
+        On a bad ``view``, ``up`` or ``elevation``, or ``up`` parallel to ``view``.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    views = int(views)
+    if views < 1:
+        raise HeatcurvError(f"views must be at least 1, got {views}")
+    if not (np.isfinite(elevation) and -90 <= elevation <= 90):
+        raise HeatcurvError(f"elevation must be an angle in degrees in [-90, 90], got {elevation}")
+    centred = points - points.mean(axis=0)
+    if centred.shape[0] > 100_000:  # the principal axes of a subset are as good
+        centred = centred[np.random.default_rng(0).choice(centred.shape[0], 100_000, replace=False)]
+    _, axes = np.linalg.eigh(centred.T @ centred)  # columns: smallest, middle, largest
+    if view is None:
+        toward = _positive_sign(axes[:, 0])
+        if normals is not None:
+            facing = np.sum(np.sign(np.asarray(normals, dtype=np.float64) @ toward))
+            if facing < 0:
+                toward = -toward
+    else:
+        toward = _unit(view, "view")
+    if up is None:
+        if vertical not in ("x", "y", "z"):
+            raise HeatcurvError(f"vertical must be 'x', 'y' or 'z', got {vertical!r}")
+        order = [vertical] + [a for a in "yzx" if a != vertical]
+        basis = {a: np.eye(3)[k] for k, a in enumerate("xyz")}
+        up_vector = next(basis[a] for a in order if abs(basis[a] @ toward) < 0.9)
+    else:
+        up_vector = _unit(up, "up")
+    up_vector = up_vector - (up_vector @ toward) * toward
+    if not np.linalg.norm(up_vector) > 1e-6:
+        raise HeatcurvError("the up direction must not be parallel to the view direction")
+    up_vector /= np.linalg.norm(up_vector)
+    right = np.cross(up_vector, toward)
+    tilt = np.radians(elevation)
+    frames = np.empty((views, 3, 3))
+    for k in range(views):  # a handful of views: not a per-point loop
+        turn = 2.0 * np.pi * k / views
+        t = np.cos(turn) * toward + np.sin(turn) * right
+        t, u = np.cos(tilt) * t + np.sin(tilt) * up_vector, -np.sin(tilt) * t + np.cos(tilt) * up_vector
+        frames[k] = np.stack([np.cross(u, t), u, t])
+    return frames
+
+
+def _grid(views: int, width: float, height: float, aspect: float = 1.0) -> tuple[int, int]:
+    """Rows and columns of ``views`` panels drawing the cloud largest in a ``width x height`` area.
+
+    ``aspect`` is the width / height of the cloud's picture in one view.
+    """
+    best = None
+    for rows in range(1, views + 1):
+        cols = -(-views // rows)
+        if (rows - 1) * cols >= views:
+            continue
+        scale = min(width / cols / aspect, height / rows)  # height of the cloud in a panel
+        if best is None or scale > best[0] * (1 + 1e-9):
+            best = (scale, rows, cols)
+    return best[1], best[2]
+
+
+def _surface_spacing(points: np.ndarray) -> float:
+    """Side of the surface area per point, ``d_8 sqrt(pi / 8)``; 0 if unknown.
+
+    ``d_8`` is the median distance to the 8th nearest neighbour (over up to
+    20 000 query points): the disc of radius ``d_8`` holds 8 points, so each
+    point has about ``pi d_8^2 / 8`` of surface. Unlike the nearest-neighbour
+    distance it does not shrink on random (clumpy) samples.
+    """
+    from scipy.spatial import cKDTree
+
+    if points.shape[0] < 9:
+        return 0.0
+    tree = cKDTree(points)
+    query = points
+    if points.shape[0] > 20_000:
+        query = points[np.random.default_rng(1).choice(points.shape[0], 20_000, replace=False)]
+    distance, _ = tree.query(query, k=9)
+    return float(np.median(distance[:, 8]) * np.sqrt(np.pi / 8.0))
+
+
+def render_field(
+    points,
+    values,
+    path,
+    *,
+    field: str = "mean",
+    views: int = 1,
+    size=(1600, 1000),
+    dpi: int = 150,
+    value_range=None,
+    percentiles=(2.0, 98.0),
+    cmap=None,
+    max_points: int = 200_000,
+    point_size: float | None = None,
+    title: str | None = None,
+    length_unit: str = "length",
+    normals=None,
+    view=None,
+    up=None,
+    vertical: str = "y",
+    elevation: float = 0.0,
+    seed: int = 0,
+) -> Rendering:
+    """Draw a point cloud coloured by a per-point field and save the picture.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+        Coordinates; rows with NaN or infinite coordinates are not drawn.
+    values : array_like, shape (n,)
+        The field, one value per point (NaN: drawn light grey).
+    path : str or os.PathLike
+        The picture; its extension picks the format (``.png``, ``.pdf``,
+        ``.svg``, ``.jpg``, ... see :func:`supported_picture_formats`). It is
+        written to a temporary file first and then renamed, so a failure
+        leaves no partial picture.
+    field : str, optional
+        The field's name: picks the label, unit and colour map
+        (:data:`FIELD_STYLES`; other names: labelled by the name, a diverging
+        map if the values hold both signs).
+    views : int, optional
+        Views side by side, the camera turned by ``360 / views`` degrees
+        about the up axis each time.
+    size : (int, int), optional
+        Picture width and height in pixels (100-10000).
+    dpi : int, optional
+        Dots per inch: the scale of text and the size in inches of vector
+        formats (``size / dpi``).
+    value_range : (float, float), optional
+        Colour limits; default from ``percentiles``.
+    percentiles : (float, float), optional
+        Robust colour range, see :func:`colour_limits`.
+    cmap : str or matplotlib colormap, optional
+        Overrides the field's colour map.
+    max_points : int, optional
+        Draw a random subset of this many points from larger clouds.
+    point_size : float, optional
+        Disc diameter in pixels; default :data:`DISC_FACTOR` times the side
+        of the surface area per point, so the discs cover the surface.
+    title : str, optional
+        Figure title; default the field's label.
+    length_unit : str, optional
+        Name of the length unit in the colour-bar label (``"m"`` gives ``1/m``).
+    normals : array_like, shape (n, 3), optional
+        Only choose which side of the cloud the default camera is on.
+    view, up, vertical, elevation
+        Camera, see :func:`camera_frames`.
+    seed : int, optional
+        Seed of the subset drawn from large clouds.
+
+    Returns
+    -------
+    Rendering
+
+    Raises
+    ------
+    HeatcurvError
+        On arrays of the wrong shape, no finite point or value, bad options,
+        an unsupported extension, or a file that cannot be written.
+
+    Examples
+    --------
+    >>> import heatcurv, tempfile, os
+    >>> from heatcurv.render import render_field
+    >>> sphere = heatcurv.surfaces.Sphere().sample(500, "fibonacci")
+    >>> out = os.path.join(tempfile.mkdtemp(), "sphere.png")
+    >>> render_field(sphere.points, sphere.points[:, 2], out, field="height", size=(400, 300)).size
+    (400, 300)
+    """
+    from matplotlib import colors as mcolors
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.figure import Figure
+
+    from .io import _atomic_write
+
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in supported_picture_formats():
+        raise HeatcurvError(
+            f"cannot write {path}: unknown picture extension {ext or '(none)'!r}; "
+            f"supported: {' '.join(supported_picture_formats())}"
+        )
+    if not path.parent.is_dir():
+        raise HeatcurvError(f"cannot write {path}: the directory {path.parent} does not exist")
+    points = np.asarray(points, dtype=np.float64)
+    values = np.asarray(values)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise HeatcurvError(f"points must have shape (n, 3), got {points.shape}")
+    if values.shape != (points.shape[0],) or values.dtype.kind not in "biuf":
+        raise HeatcurvError(f"values must be numbers of shape ({points.shape[0]},), got {values.dtype} {values.shape}")
+    width, height = (int(v) for v in size)
+    if not (100 <= width <= 10000 and 100 <= height <= 10000):
+        raise HeatcurvError(f"the picture size must be 100-10000 pixels each way, got {width}x{height}")
+    if not 10 <= int(dpi) <= 2400:
+        raise HeatcurvError(f"dpi must be 10-2400, got {dpi}")
+    if int(max_points) < 1:
+        raise HeatcurvError(f"max_points must be at least 1, got {max_points}")
+    style = field_style(field)
+    low, high, kind = colour_limits(values, style.kind, percentiles=percentiles, value_range=value_range)
+
+    drawable = np.isfinite(points).all(axis=1)
+    if not drawable.any():
+        raise HeatcurvError("no point has finite coordinates: nothing to draw")
+    total = points.shape[0]
+    keep = np.flatnonzero(drawable)
+    if keep.size > max_points:
+        keep = np.sort(np.random.default_rng(seed).choice(keep, int(max_points), replace=False))
+    xyz = points[keep]
+    shown = values[keep].astype(np.float64)
+    if normals is not None:
+        normals = np.asarray(normals, dtype=np.float64)
+        normals = normals[keep] if normals.shape == points.shape else None
+        if normals is not None:
+            normals = normals[np.isfinite(normals).all(axis=1)]
+    frames = camera_frames(xyz, views, view=view, up=up, vertical=vertical, elevation=elevation, normals=normals)
+
+    # colours
+    if kind == "mask":
+        colour_map = mcolors.ListedColormap(list(MASK_COLOURS))
+        norm = mcolors.BoundaryNorm([-0.5, 0.5, 1.5], 2)
+    else:
+        colour_map = cmap if cmap is not None else (DIVERGING_CMAP if kind == "signed" else SEQUENTIAL_CMAP)
+        if isinstance(colour_map, str):
+            import matplotlib
+
+            try:
+                colour_map = matplotlib.colormaps[colour_map]
+            except KeyError:
+                raise HeatcurvError(f"unknown colour map {colour_map!r}; see matplotlib's colormap reference") from None
+        norm = (
+            mcolors.TwoSlopeNorm(0.0, low, high)
+            if kind == "signed" and low < 0 < high and not np.isclose(-low, high)
+            else mcolors.Normalize(low, high)
+        )
+    colour_map = colour_map.with_extremes(bad=MISSING_COLOUR)
+    rgba = colour_map(norm(np.ma.masked_invalid(shown)))
+
+    # layout in inches: title on top, the panels (one scale for all views) centred, the colour
+    # bar just right of them
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor="white")
+    FigureCanvasAgg(fig)
+    centre = 0.5 * (xyz.min(axis=0) + xyz.max(axis=0))
+    screens = [(xyz - centre) @ frame.T for frame in frames]  # columns: right, up, depth to the camera
+    middles = [0.5 * (screen[:, :2].min(axis=0) + screen[:, :2].max(axis=0)) for screen in screens]
+    span = np.max([np.ptp(screen[:, :2], axis=0) for screen in screens], axis=0)
+    span = np.maximum(span, 1e-9 * max(float(span.max()), 1e-300)) * 1.04  # 2 % margin each side
+    fig_w, fig_h = width / dpi, height / dpi
+    margin, gap, bar_strip = 0.12, 0.12, 1.1
+    title_h = 0.45 if title != "" else 0.1
+    label_h = 0.28 if views > 1 else 0.0
+    area_w, area_h = fig_w - 2 * margin - bar_strip, fig_h - margin - title_h
+    rows, cols = _grid(views, area_w, area_h, aspect=float(span[0] / span[1]))
+    scale = min(  # inches per length unit
+        (area_w - (cols - 1) * gap) / (cols * span[0]), (area_h - rows * label_h - (rows - 1) * gap) / (rows * span[1])
+    )
+    scale = max(scale, 1e-6 / max(float(span.max()), 1e-300))
+    panel_w, panel_h = scale * span[0], scale * span[1]
+    block_w = cols * panel_w + (cols - 1) * gap
+    block_h = rows * (panel_h + label_h) + (rows - 1) * gap
+    left = margin + max(0.0, (area_w - block_w) / 2)  # the panels and the colour bar, centred
+    top = fig_h - title_h - max(0.0, (area_h - block_h) / 2)
+    axes = []
+    for k in range(views):
+        row, col = divmod(k, cols)
+        x0 = left + col * (panel_w + gap)
+        y0 = top - row * (panel_h + label_h + gap) - label_h - panel_h
+        ax = fig.add_axes((x0 / fig_w, y0 / fig_h, panel_w / fig_w, panel_h / fig_h))
+        ax.set_xlim(middles[k][0] - span[0] / 2, middles[k][0] + span[0] / 2)
+        ax.set_ylim(middles[k][1] - span[1] / 2, middles[k][1] + span[1] / 2)
+        ax.set_axis_off()
+        if views > 1:
+            ax.set_title(f"turned {360 * k / views:.0f}°", fontsize="small")
+        axes.append(ax)
+    bar_h = min(max(block_h * 0.9, min(2.0, area_h)), area_h)
+    bar_x = left + block_w + 0.2
+    bar_y = top - block_h / 2 - bar_h / 2
+    bar_axes = fig.add_axes((bar_x / fig_w, bar_y / fig_h, 0.16 / fig_w, bar_h / fig_h))
+    finite_values = shown[np.isfinite(shown)]
+    if kind == "mask":
+        extend = "neither"
+    else:
+        below, above = bool(np.any(finite_values < low)), bool(np.any(finite_values > high))
+        extend = {(False, False): "neither", (True, False): "min", (False, True): "max", (True, True): "both"}[(below, above)]
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=colour_map), cax=bar_axes, extend=extend)
+    unit = style.unit_text(length_unit)
+    bar.set_label(f"{style.label} ({unit})" if unit else style.label)
+    if kind == "mask":
+        bar.set_ticks([0, 1], labels=["no", "yes"])
+    elif isinstance(norm, mcolors.TwoSlopeNorm):
+        bar.set_ticks([low, low / 2, 0.0, high / 2, high])
+    heading = title if title is not None else style.label
+    if heading:
+        fig.text(0.5, 1.0 - 0.12 / fig_h, heading, ha="center", va="top", fontsize="large")
+
+    # discs: a fixed share of the surface area per point, in pixels; drawn far to near
+    spacing = _surface_spacing(xyz)
+    if point_size is not None:
+        diameter = float(point_size)
+    elif spacing > 0:
+        diameter = float(np.clip(DISC_FACTOR * spacing * scale * dpi, 1.0, 80.0))
+    else:
+        diameter = 3.0
+    for ax, screen in zip(axes, screens):
+        order = np.argsort(screen[:, 2], kind="stable")
+        ax.scatter(
+            screen[order, 0], screen[order, 1], s=(diameter * 72.0 / dpi) ** 2, c=rgba[order],
+            marker="o", linewidths=0, rasterized=True,
+        )
+
+    def save(stream):
+        fig.savefig(stream, format=ext[1:], dpi=dpi, facecolor="white")
+
+    try:
+        _atomic_write(path, save)
+    except OSError as exc:
+        raise HeatcurvError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return Rendering(path=path, limits=(float(low), float(high)), kind=kind, drawn=int(keep.size), total=int(total), size=(width, height))
