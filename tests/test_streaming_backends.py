@@ -125,6 +125,7 @@ def test_compiled_kernels_match_numpy(torus_cloud):
                 K=mean_curvature_normal(pts, nb, None, areas, h),
                 K_given=mean_curvature_normal(pts, nb, heat_kernel_weights(nb, h), areas, h),
                 offset=centroid_offset(pts, nb, normals, taper=True),
+                oriented=orient_normals(pts, normals * np.where(np.arange(6000) % 3 == 0, -1.0, 1.0)[:, None], nb),
                 offset_centres=centroid_offset(pts, nb.rows_slice(10, 60), normals[10:60], centres=pts[10:60] + 0.01),
             )
     a, b = results["numpy"], results["numba"]
@@ -136,6 +137,7 @@ def test_compiled_kernels_match_numpy(torus_cloud):
     np.testing.assert_allclose(
         a["fit_weights"], np.exp(-(nb.distances**2) / np.repeat(h, 40) ** 2) * ball_taper(nb) * areas[nb.indices], rtol=1e-13
     )
+    assert np.array_equal(a["oriented"], b["oriented"])
     for key in ("K", "K_given", "offset", "offset_centres", "fit_weights"):
         np.testing.assert_allclose(b[key], a[key], rtol=1e-10, atol=1e-12 * np.abs(a[key]).max())
     # the taper used by the kernels is ball_taper's

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["tapered_heat_weights", "taper_sums", "weighted_covariances", "smallest_eigenvectors", "kappa_normal_sums", "centroid_offsets"]
+__all__ = ["orientation_costs", "tapered_heat_weights", "taper_sums", "weighted_covariances", "smallest_eigenvectors", "kappa_normal_sums", "centroid_offsets"]
 
 
 @njit(inline="always", cache=True)
@@ -27,6 +27,20 @@ def _flat_top(u, start):
     if u <= start:
         return 1.0
     return 0.5 * (1.0 + math.cos(math.pi * (u - start) / (1.0 - start)))
+
+
+@njit(parallel=True, cache=True)
+def orientation_costs(normals, indptr, indices, distances, radius):
+    """``1 - |n_i . n_j| + 1e-3 |xi - xj| / R_i + 1e-12`` per pair (heatcurv.normals.orient_normals)."""
+    n = indptr.shape[0] - 1
+    out = np.empty(distances.shape[0])
+    for i in prange(n):
+        inv = 1e-3 / radius[i]
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            dot = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
+            out[p] = (1.0 - abs(dot)) + distances[p] * inv + 1e-12
+    return out
 
 
 @njit(parallel=True, cache=True)
