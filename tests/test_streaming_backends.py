@@ -205,3 +205,23 @@ def test_progress_reports_every_stage_and_threads_change_nothing():
     assert set(res.info["timings"]) == set(stages)
     single = heatcurv.estimate(sample.points, workers=1)
     np.testing.assert_allclose(single.mean, res.mean, rtol=1e-12)
+
+
+def test_without_numba_the_numpy_path_runs():
+    """A machine where numba does not import (e.g. a Python newer than numba's wheels)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.modules['numba'] = None\n"  # makes `import numba` raise ImportError
+        "import numpy as np, heatcurv\n"
+        "from heatcurv.backend import numba_available, use_numba\n"
+        "assert not numba_available() and not use_numba()\n"
+        "s = heatcurv.surfaces.Sphere(radius=2.0).sample(3000, 'random', seed=1)\n"
+        "res = heatcurv.estimate(s.points)\n"
+        "print(float(np.median(res.mean)), 'numba' in sys.modules and sys.modules['numba'] is not None)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    median_mean, loaded = out.stdout.split()
+    assert float(median_mean) == pytest.approx(0.5, rel=1e-3) and loaded == "False"
