@@ -300,7 +300,7 @@ WELL_POSED_RCOND = 1e-10
 
 
 @numba.njit(parallel=True, cache=True)
-def _solve_normal_equations(G, rhs, yy, ridge, contrast, G2, with_variance, beta, rss, posed, variance):
+def _solve_normal_equations(G, rhs, yy, ridge, contrast, G2, with_variance, check, beta, rss, posed, variance):
     """:func:`heatcurv.chordfit.solve_normal_equations`, point by point, by Cholesky.
 
     ``posed`` gets 1 (well posed), 0 (ill posed) or -1 (undecided: the caller
@@ -346,6 +346,9 @@ def _solve_normal_equations(G, rhs, yy, ridge, contrast, G2, with_variance, beta
                     t += G2[i, a, b] * x[b]
                 v += x[a] * t
             variance[i] = v
+        if not check:  # a pass before the last: only its coefficients are used
+            posed[i] = 1
+            continue
         # well posed? bracket the condition number of the unregularised G
         for a in range(p):
             for b in range(p):
@@ -362,18 +365,20 @@ def _solve_normal_equations(G, rhs, yy, ridge, contrast, G2, with_variance, beta
             posed[i] = -1
 
 
-def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None):
+def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True):
     """Compiled :func:`heatcurv.chordfit.solve_normal_equations` (same returns).
 
     The ridge solve by Cholesky instead of LU agrees to rounding; ``well_posed``
-    is exact (eigenvalues are computed for the points the bracket leaves undecided).
+    is exact (eigenvalues are computed for the points the bracket leaves
+    undecided). ``check=False`` skips the well-posedness test (all True) for
+    fits whose coefficients alone are used.
     """
     n, p = rhs.shape
     beta, rss, variance = np.empty((n, p)), np.empty(n), np.empty(n if contrast is not None else 0)
     posed = np.empty(n, dtype=np.int8)
     c = np.zeros(p) if contrast is None else np.ascontiguousarray(contrast, dtype=np.float64)
     g2 = G2 if contrast is not None else np.empty((0, p, p))
-    _solve_normal_equations(G, rhs, yy, float(ridge), c, g2, contrast is not None, beta, rss, posed, variance)
+    _solve_normal_equations(G, rhs, yy, float(ridge), c, g2, contrast is not None, bool(check), beta, rss, posed, variance)
     well_posed = posed == 1
     undecided = np.flatnonzero(posed < 0)
     if undecided.size:
@@ -403,7 +408,7 @@ def _fit(kind, p, geometry, height_beta=None, final=False):
         height_beta = np.empty((0, p))
     _assemble_normal_equations(*geometry, kind, height_beta, G, rhs, yy, G2)
     if not final:
-        return solve_compiled(G, rhs, yy)[0]
+        return solve_compiled(G, rhs, yy, check=False)[0]
     return solve_compiled(G, rhs, yy, contrast=_mean_contrast(p), G2=G2)
 
 

@@ -117,6 +117,35 @@ class Neighbourhood:
         radius = np.where(new_counts > 0, dist[last] if dist.size else 0.0, self.radius)
         return Neighbourhood(indptr=indptr, indices=idx, distances=dist, radius=radius, augmented=self.augmented, by_distance=True)
 
+    def spread(self, k: int) -> "Neighbourhood":
+        """``k`` neighbours per row: the ``k // 2`` nearest and the rest at evenly spaced ranks out to the farthest.
+
+        A sparse graph that still reaches across the whole ball: the ``k``
+        nearest alone can all lie on one scan line when a scanner samples
+        densely along its lines and sparsely across them (measured: a sphere
+        scanned 16x denser along 40 lines than across split into 40
+        components of the 10-nearest graph, one of this one's). Rows with at
+        most ``k`` neighbours are kept whole; the rows come out sorted by distance.
+        """
+        near = self if (self.by_distance or self._sorted_by_distance()) else self.nearest(self.counts.max())
+        counts = near.counts
+        if near.n_pairs == 0 or counts.max() <= k:
+            return near
+        h, m = k // 2, k - k // 2
+        rows = near.rows
+        rank = np.arange(near.n_pairs) - near.indptr[rows]
+        c = counts[rows]
+        far = np.maximum(c - 1 - h, 1)  # ranks h .. c-1 hold m evenly spaced picks
+        pick = np.round(np.round((rank - h) * (m - 1) / far) * far / (m - 1)) + h == rank
+        keep = (rank < h) | ((rank >= h) & pick) | (c <= k)
+        new_counts = np.bincount(rows[keep], minlength=near.n_points)
+        indptr = np.zeros(near.n_points + 1, dtype=np.int64)
+        np.cumsum(new_counts, out=indptr[1:])
+        return Neighbourhood(
+            indptr=indptr, indices=near.indices[keep], distances=near.distances[keep], radius=near.radius,
+            augmented=near.augmented, by_distance=True,
+        )
+
     def _sorted_by_distance(self) -> bool:
         """Whether the distances ascend within every row."""
         step = np.diff(self.distances)
