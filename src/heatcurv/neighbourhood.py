@@ -132,12 +132,25 @@ class Neighbourhood:
         if near.n_pairs == 0 or counts.max() <= k:
             return near
         h, m = k // 2, k - k // 2
+
+        def picked(rank, c):
+            # ranks < h, then m evenly spaced ranks over h .. c-1 (the last is c-1)
+            far = np.maximum(c - 1 - h, 1)
+            spaced = np.round(np.round((rank - h) * (m - 1) / far) * far / (m - 1)) + h == rank
+            return (rank < h) | ((rank >= h) & spaced) | (c <= k)
+
+        if counts.min() == counts.max():
+            # one row length (kNN rows): the same ranks in every row, a column slice
+            width = int(counts[0])
+            ranks = np.flatnonzero(picked(np.arange(width), width))
+            return Neighbourhood(
+                indptr=np.arange(0, near.n_points * k + 1, k, dtype=np.int64),
+                indices=near.indices.reshape(-1, width)[:, ranks].reshape(-1),
+                distances=near.distances.reshape(-1, width)[:, ranks].reshape(-1),
+                radius=near.radius, augmented=near.augmented, by_distance=True,
+            )
         rows = near.rows
-        rank = np.arange(near.n_pairs) - near.indptr[rows]
-        c = counts[rows]
-        far = np.maximum(c - 1 - h, 1)  # ranks h .. c-1 hold m evenly spaced picks
-        pick = np.round(np.round((rank - h) * (m - 1) / far) * far / (m - 1)) + h == rank
-        keep = (rank < h) | ((rank >= h) & pick) | (c <= k)
+        keep = picked(np.arange(near.n_pairs) - near.indptr[rows], counts[rows])
         new_counts = np.bincount(rows[keep], minlength=near.n_points)
         indptr = np.zeros(near.n_points + 1, dtype=np.int64)
         np.cumsum(new_counts, out=indptr[1:])
