@@ -105,6 +105,9 @@ from heatcurv import surfaces as hs
 from heatcurv.baseline import quadric_curvature
 from heatcurv.evaluation import compare
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
+
 ESTIMATORS = {
     "default": lambda p: heatcurv.estimate(p),
     "paper": lambda p: heatcurv.estimate(p, method="paper"),
@@ -299,15 +302,7 @@ def render(title: str, header: list[str], rows: list[list[str]], markdown: bool)
 
 
 def machine_info() -> list[str]:
-    cpu = platform.processor() or "unknown"
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
+    cpu = cpu_model()
     commit = "unknown"
     try:
         here = os.path.dirname(os.path.abspath(__file__))

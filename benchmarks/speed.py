@@ -51,6 +51,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import peers  # noqa: E402  (benchmarks/peers.py)
+from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
 
 STAGES = ("validate", "neighbours", "spacing", "areas", "normals", "orientation", "mean", "principal")
 
@@ -128,14 +129,7 @@ def torus_cloud(n: int, noise: float = 0.0, seed: int = 0) -> np.ndarray:
 
 def machine() -> str:
     """One line naming this machine and the library versions."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu = cpu_model()
     mem = ""
     try:
         kb = int(Path("/proc/meminfo").read_text().split()[1])
