@@ -4,11 +4,13 @@ import doctest
 
 import pytest
 
+import heatcurv.data
 import heatcurv.estimator
 import heatcurv.features
 import heatcurv.laplace_beltrami
+import heatcurv.render
 
-MODULES = [heatcurv.estimator, heatcurv.features, heatcurv.laplace_beltrami]
+MODULES = [heatcurv.estimator, heatcurv.features, heatcurv.laplace_beltrami, heatcurv.render, heatcurv.data]
 
 
 @pytest.mark.parametrize("module", MODULES, ids=lambda m: m.__name__)

@@ -637,14 +637,22 @@ def _input_normals(cloud, use: bool, rows):
     return cloud.normals if rows is None else cloud.normals[rows]
 
 
-def _run_estimate(points, normals, options: dict, log: _Log):
-    """:func:`heatcurv.estimate` with a progress bar on a terminal, and the messages around it."""
+def _run_estimate(points, normals, options: dict, log: _Log, source=None):
+    """:func:`heatcurv.estimate` with a progress bar on a terminal, and the messages around it.
+
+    A :class:`HeatcurvError` (too few points, collinear points, ...) is
+    re-raised with the name of the ``source`` file in front.
+    """
     from .estimator import estimate
 
     progress = StageProgress(enabled=not log.quiet and sys.stderr.isatty())
     tic = time.perf_counter()
     try:
         res = estimate(points, normals, progress=progress, **options)
+    except HeatcurvError as exc:
+        if source is None:
+            raise
+        raise HeatcurvError(f"{source}: {exc}") from exc
     finally:
         progress.close()
     seconds = time.perf_counter() - tic
@@ -748,7 +756,7 @@ def _compute(args, log: _Log) -> int:
     rows = _finite_rows(cloud, args.skip_nonfinite)
     points = cloud.points if rows is None else cloud.points[rows]
     normals = _input_normals(cloud, args.normals_from_input, rows)
-    res = _run_estimate(points, normals, options, log)
+    res = _run_estimate(points, normals, options, log, source=args.input)
     feat = _detect_features(res, args.feature_threshold, 10.0, log) if want_features else None
     fields, out_normals = _result_fields(res, feat, wanted, rows, len(cloud))
     _write(output, cloud, fields, out_normals, log)
@@ -772,7 +780,7 @@ def _features(args, log: _Log) -> int:
     rows = _finite_rows(cloud, args.skip_nonfinite)
     points = cloud.points if rows is None else cloud.points[rows]
     normals = _input_normals(cloud, args.normals_from_input, rows)
-    res = _run_estimate(points, normals, options, log)
+    res = _run_estimate(points, normals, options, log, source=args.input)
     feat = _detect_features(res, args.threshold, args.min_angle, log)
     fields, _ = _result_fields(res, feat, FEATURE_FIELDS, rows, len(cloud))
     _write(output, cloud, fields, None, log)
@@ -834,7 +842,7 @@ def _render(args, log: _Log) -> int:
         rows = _finite_rows(cloud, args.skip_nonfinite)
         points = cloud.points if rows is None else cloud.points[rows]
         normals = _input_normals(cloud, args.normals_from_input, rows)
-        res = _run_estimate(points, normals, options, log)
+        res = _run_estimate(points, normals, options, log, source=args.input)
         feat = _detect_features(res, args.feature_threshold, 10.0, log) if field in FEATURE_FIELDS else None
         values = _full_rows(_computed_values(res, feat, field), rows, len(cloud))
         camera_normals = _full_rows(res.normals, rows, len(cloud))
@@ -856,9 +864,9 @@ def _render(args, log: _Log) -> int:
         normals=camera_normals, view=args.view, up=args.up, vertical=vertical, elevation=args.elevation,
     )
     low, high = drawn.limits
-    subset = f" (a random {drawn.drawn} of {drawn.total})" if drawn.drawn < drawn.total else ""
+    points = f"a random {drawn.drawn} of {drawn.total}" if drawn.drawn < drawn.total else f"{drawn.drawn}"
     colours = "no / yes" if drawn.kind == "mask" else f"{low:.4g} .. {high:.4g}"
-    log.info(f"wrote {output}: {field} of {drawn.drawn} points{subset}, {args.views} view(s), "
+    log.info(f"wrote {output}: {field} of {points} points, {args.views} view(s), "
              f"{drawn.size[0]}x{drawn.size[1]} pixels, colours {colours}")
     log.detail(f"  drawing took {time.perf_counter() - tic:.2f} s")
     return EXIT_OK
@@ -959,13 +967,14 @@ def _info(args, log: _Log) -> int:
         lines.append(("normals", "no"))
     lines.append(("colours", "yes (red green blue, 8-bit)" if cloud.colors is not None else "no"))
     if cloud.fields:
+        width = max(16, max(len(str(name)) for name in cloud.fields) + 1)
         for k, (name, values) in enumerate(cloud.fields.items()):
             values = np.asarray(values)
             numeric = values.astype(np.float64)
             good = numeric[np.isfinite(numeric)]
             span = f"{good.min():.6g} .. {good.max():.6g}" if good.size else "no finite values"
             nan = f", {numeric.size - good.size} NaN" if good.size < numeric.size else ""
-            lines.append(("fields" if k == 0 else "", f"{name:<16s} {str(values.dtype):<8s} {span}{nan}"))
+            lines.append(("fields" if k == 0 else "", f"{name:<{width}s} {str(values.dtype):<8s} {span}{nan}"))
     else:
         lines.append(("fields", "none besides the coordinates"))
     for label, text in lines:

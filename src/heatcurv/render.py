@@ -27,10 +27,11 @@ Drawing
   camera turned about the up axis by ``360 / N`` degrees each time (2: front
   and back; 4: every quarter turn); ``elevation`` tilts the camera up. The
   points are drawn from far to near, so near points cover far ones.
-* **Points** are discs 1.8 times as wide as the side of the surface area
-  per point (from the distance to the 8th nearest neighbour), so the surface
-  looks closed even where a random sample leaves gaps (at most 80 pixels);
-  above ``max_points`` a random (seeded) subset is drawn.
+* **Points** are discs 1.2 (regular samples) to 2 (random samples) times as
+  wide as the side of the surface area per point (from the distance to the
+  8th nearest neighbour), so the surface looks closed even where a random
+  sample leaves gaps (at most 80 pixels); above ``max_points`` a random
+  (seeded) subset is drawn.
 
 matplotlib is used through its object interface with the Agg canvas, never
 ``pyplot``: rendering changes no global state (an interactive session's
@@ -65,9 +66,10 @@ SEQUENTIAL_CMAP = "viridis"
 MASK_COLOURS = ("#c8c8c8", "#d62728")
 #: Colour of points whose value is NaN.
 MISSING_COLOUR = "#bbbbbb"
-#: Disc diameter in units of the side of the surface area per point: discs of this size cover
-#: 1 - exp(-pi 1.8^2 / 4) = 92 % of a surface sampled at random (more where it is seen obliquely).
-DISC_FACTOR = 1.8
+#: Disc diameter on random samples, in units of the side of the surface area per point: discs
+#: of this size cover 1 - exp(-pi 2^2 / 4) = 96 % of a surface sampled at random (more where it
+#: is seen obliquely). Regular samples get smaller discs (:func:`_disc_diameter`).
+DISC_FACTOR = 2.0
 
 
 @dataclass(frozen=True)
@@ -333,13 +335,17 @@ def _grid(views: int, width: float, height: float, aspect: float = 1.0) -> tuple
     return best[1], best[2]
 
 
-def _surface_spacing(points: np.ndarray) -> float:
-    """Side of the surface area per point, ``d_8 sqrt(pi / 8)``; 0 if unknown.
+def _disc_diameter(points: np.ndarray) -> float:
+    """Disc diameter, in length units, that makes the drawn points look like a closed surface.
 
-    ``d_8`` is the median distance to the 8th nearest neighbour (over up to
-    20 000 query points): the disc of radius ``d_8`` holds 8 points, so each
-    point has about ``pi d_8^2 / 8`` of surface. Unlike the nearest-neighbour
-    distance it does not shrink on random (clumpy) samples.
+    The side of the surface area per point is ``d_8 sqrt(pi / 8)``, with
+    ``d_8`` the median distance to the 8th nearest neighbour (over up to
+    20 000 query points): the disc of radius ``d_8`` holds 8 points. Regular
+    samples (lattices, scans: the nearest neighbour is about half as far as
+    the 8th) are covered by discs 1.2 times that side; random samples, which
+    leave gaps (nearest neighbour 3.4 times closer than the 8th), need
+    :data:`DISC_FACTOR` times it. The factor is interpolated between the two
+    by that distance ratio. Returns 0 with fewer than 9 points.
     """
     from scipy.spatial import cKDTree
 
@@ -350,7 +356,11 @@ def _surface_spacing(points: np.ndarray) -> float:
     if points.shape[0] > 20_000:
         query = points[np.random.default_rng(1).choice(points.shape[0], 20_000, replace=False)]
     distance, _ = tree.query(query, k=9)
-    return float(np.median(distance[:, 8]) * np.sqrt(np.pi / 8.0))
+    eighth, nearest = float(np.median(distance[:, 8])), float(np.median(distance[:, 1]))
+    side = eighth * np.sqrt(np.pi / 8.0)
+    ratio = eighth / nearest if nearest > 0 else 3.4
+    factor = float(np.interp(ratio, [2.0, 3.4], [1.2, DISC_FACTOR]))
+    return factor * side
 
 
 def render_field(
@@ -410,8 +420,8 @@ def render_field(
     max_points : int, optional
         Draw a random subset of this many points from larger clouds.
     point_size : float, optional
-        Disc diameter in pixels; default :data:`DISC_FACTOR` times the side
-        of the surface area per point, so the discs cover the surface.
+        Disc diameter in pixels; default 1.2 to 2 times the side of the
+        surface area per point, so the discs cover the surface.
     title : str, optional
         Figure title; default the field's label.
     length_unit : str, optional
@@ -569,13 +579,11 @@ def render_field(
         fig.text(0.5, 1.0 - 0.12 / fig_h, heading, ha="center", va="top", fontsize="large")
 
     # discs: a fixed share of the surface area per point, in pixels; drawn far to near
-    spacing = _surface_spacing(xyz)
     if point_size is not None:
         diameter = float(point_size)
-    elif spacing > 0:
-        diameter = float(np.clip(DISC_FACTOR * spacing * scale * dpi, 1.0, 80.0))
     else:
-        diameter = 3.0
+        disc = _disc_diameter(xyz)
+        diameter = float(np.clip(disc * scale * dpi, 1.0, 80.0)) if disc > 0 else 3.0
     for ax, screen in zip(axes, screens):
         order = np.argsort(screen[:, 2], kind="stable")
         ax.scatter(

@@ -4,9 +4,9 @@
     1839 vertices of a decimated range scan of the Stanford bunny (Stanford 3D
     Scanning Repository, via the npm package ``bunny`` 1.0.1; see
     ``README.md`` in this folder). ASCII PLY, float ``x y z``, no normals,
-    about 10 length units across (y is up), irregular spacing of about 0.5
-    and a few holes: a small real scan, the example of ``heatcurv demo
-    --bunny``.
+    about 10 length units across (y is up), median nearest-neighbour
+    distance 0.28, a few holes and an open base: a small real scan, the
+    example of ``heatcurv demo --bunny``.
 """
 
 from __future__ import annotations

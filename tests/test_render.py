@@ -1,0 +1,207 @@
+"""Pictures: heatcurv.render.render_field and ``heatcurv render``."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import heatcurv
+from heatcurv import io, surfaces
+from heatcurv.data import bunny_path
+from heatcurv.render import camera_frames, colour_limits, render_field
+
+
+def run(*args, cwd=None):
+    return subprocess.run(
+        [sys.executable, "-m", "heatcurv", *map(str, args)], capture_output=True, text=True, timeout=180, cwd=cwd
+    )
+
+
+def read_image(path):
+    from matplotlib.image import imread
+
+    return imread(path)
+
+
+def colours_of(image) -> np.ndarray:
+    """Distinct RGB colours of an image, as uint8 rows."""
+    pixels = np.round(np.asarray(image)[..., :3] * 255).astype(np.uint8).reshape(-1, 3)
+    return np.unique(pixels, axis=0)
+
+
+@pytest.fixture(scope="module")
+def torus():
+    sample = surfaces.Torus().sample(3000, "random", seed=2)
+    return sample, heatcurv.estimate(sample.points)
+
+
+# ----------------------------------------------------------------------------- render_field
+
+
+def test_png_of_the_requested_size_and_not_blank(tmp_path, torus):
+    sample, res = torus
+    out = render_field(sample.points, res.mean, tmp_path / "torus.png", field="mean", size=(640, 480), normals=res.normals)
+    image = read_image(tmp_path / "torus.png")
+    assert image.shape in ((480, 640, 3), (480, 640, 4))
+    assert out.size == (640, 480) and out.drawn == out.total == 3000 and out.kind == "signed"
+    assert len(colours_of(image)) > 200
+    # mean curvature > 0 everywhere on the torus: red points, no blue ones
+    rgb = np.asarray(image)[..., :3].reshape(-1, 3)
+    reddish = (rgb[:, 0] > 0.6) & (rgb[:, 2] < 0.4)
+    assert reddish.mean() > 0.1
+    assert list(tmp_path.iterdir()) == [tmp_path / "torus.png"]  # no temporary file left
+
+
+def test_several_views_and_vector_formats(tmp_path, torus):
+    sample, res = torus
+    for name in ("views.svg", "views.pdf"):
+        render_field(sample.points, res.k2, tmp_path / name, field="k2", views=4, size=(900, 600))
+        assert (tmp_path / name).stat().st_size > 1000
+    assert (tmp_path / "views.svg").read_text().lstrip().startswith("<?xml")
+    assert (tmp_path / "views.pdf").read_bytes().startswith(b"%PDF")
+
+
+def test_large_clouds_are_subsampled(tmp_path):
+    points = surfaces.Sphere().sample(5000, "fibonacci").points
+    out = render_field(points, points[:, 2], tmp_path / "sub.png", field="z", max_points=1000, size=(300, 300))
+    assert out.drawn == 1000 and out.total == 5000
+
+
+def test_nan_values_and_coordinates_are_drawn_grey_or_skipped(tmp_path):
+    points = surfaces.Sphere().sample(2000, "fibonacci").points.copy()
+    values = points[:, 0].copy()
+    values[:500] = np.nan
+    points[-3:] = np.nan
+    out = render_field(points, values, tmp_path / "nan.png", field="x", size=(300, 300))
+    assert out.drawn == 1997
+    assert len(colours_of(read_image(tmp_path / "nan.png"))) > 20
+
+
+def test_errors_leave_no_file(tmp_path):
+    points = surfaces.Sphere().sample(500, "fibonacci").points
+    cases = [
+        (dict(path=tmp_path / "a.bmpx"), "unknown picture extension"),
+        (dict(path=tmp_path / "no" / "a.png"), "does not exist"),
+        (dict(size=(50, 50)), "picture size"),
+        (dict(values=np.full(500, np.nan)), "no finite values"),
+        (dict(values=np.zeros(7)), "shape (500,)"),
+        (dict(cmap="not-a-map"), "unknown colour map"),
+        (dict(value_range=(1, -1)), "LOW < HIGH"),
+        (dict(up=(0, 0, 0)), "up must be 3 finite numbers"),
+    ]
+    for changes, message in cases:
+        arguments = dict(path=tmp_path / "a.png", values=points[:, 2], size=(300, 300))
+        arguments.update(changes)
+        path, values = arguments.pop("path"), arguments.pop("values")
+        with pytest.raises(heatcurv.HeatcurvError, match=message.replace("(", r"\(").replace(")", r"\)")):
+            render_field(points, values, path, **arguments)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_rendering_leaves_pyplot_and_the_backend_alone():
+    # no pyplot, no matplotlib.use(): an interactive session's backend stays as it was
+    code = (
+        "import matplotlib, sys, tempfile, os, numpy as np\n"
+        "backend = dict.__getitem__(matplotlib.rcParams, 'backend')\n"
+        "from heatcurv.render import render_field\n"
+        "p = np.random.default_rng(0).normal(size=(300, 3))\n"
+        "render_field(p, p[:, 0], os.path.join(tempfile.mkdtemp(), 'a.png'), field='x', size=(200, 200))\n"
+        "assert 'matplotlib.pyplot' not in sys.modules\n"
+        "assert dict.__getitem__(matplotlib.rcParams, 'backend') == backend\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+
+
+# ----------------------------------------------------------------------------- colours and camera
+
+
+def test_colour_limits():
+    rng = np.random.default_rng(0)
+    signed = np.concatenate([rng.uniform(-1, 3, 1000), [np.nan, 50.0]])
+    low, high, kind = colour_limits(signed, "signed")
+    assert kind == "signed" and low == -high and high == pytest.approx(np.nanpercentile(signed, 98))
+    low, high, kind = colour_limits(rng.uniform(1, 2, 1000))  # one sign: sequential
+    assert kind == "sequential" and 1.0 < low < 1.05 and 1.95 < high < 2.0
+    assert colour_limits(rng.normal(size=100))[2] == "signed"  # both signs: diverging
+    assert colour_limits(np.array([0, 1, 1, 0], dtype=np.uint8))[2] == "mask"
+    assert colour_limits(rng.normal(size=100), value_range=(-0.5, 2.0)) == (-0.5, 2.0, "signed")
+    assert colour_limits(np.full(10, 3.0), "sequential")[:2] == pytest.approx((2.97, 3.03))
+    with pytest.raises(heatcurv.HeatcurvError, match="no finite values"):
+        colour_limits(np.full(3, np.nan))
+
+
+def test_camera_looks_along_the_thinnest_direction():
+    rng = np.random.default_rng(1)
+    disc = rng.normal(size=(2000, 3)) * [3.0, 0.1, 1.0]  # thin along y
+    frames = camera_frames(disc)
+    right, up, toward = frames[0]
+    assert abs(toward[1]) > 0.99  # camera on the y axis
+    np.testing.assert_allclose(frames[0] @ frames[0].T, np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(np.cross(up, toward), right, atol=1e-12)  # no mirror image
+    assert up[2] > 0.99  # y is the view direction, so z is up
+    # the side most normals face
+    normals = np.tile([0.0, -1.0, 0.0], (2000, 1))
+    assert camera_frames(disc, normals=normals)[0, 2, 1] < -0.99
+    # views turn about the up axis
+    four = camera_frames(disc, 4)
+    np.testing.assert_allclose(four[:, 1], np.tile(four[0, 1], (4, 1)), atol=1e-12)
+    np.testing.assert_allclose(four[2, 2], -four[0, 2], atol=1e-12)
+    np.testing.assert_allclose(four[1, 2] @ four[0, 2], 0.0, atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- the command
+
+
+@pytest.fixture(scope="module")
+def bunny_fields(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("render")
+    path = directory / "bunny_fields.ply"
+    out = run("compute", bunny_path(), "-o", path, "-q")
+    assert out.returncode == 0, out.stderr
+    return path
+
+
+def test_render_reads_a_computed_field_without_recomputing(tmp_path, bunny_fields):
+    out = run("render", bunny_fields, "-o", tmp_path / "bunny.png", "--field", "mean", "--views", "2", "--size", "1200x600")
+    assert out.returncode == 0, out.stderr
+    assert "field 'mean' read from" in out.stdout and "estimated" not in out.stdout
+    image = read_image(tmp_path / "bunny.png")
+    assert image.shape[:2] == (600, 1200)
+    colours = colours_of(image).astype(int)
+    # a diverging map on a signed field: clearly red and clearly blue points
+    assert np.any((colours[:, 0] > 180) & (colours[:, 2] < 90))
+    assert np.any((colours[:, 2] > 180) & (colours[:, 0] < 120))
+    assert len(colours) > 300
+
+
+def test_render_computes_a_field_a_raw_cloud_lacks(tmp_path):
+    sample = surfaces.Sphere().sample(2000, "random", seed=5)
+    io.write_points(tmp_path / "sphere.xyz", sample.points)
+    out = run("render", tmp_path / "sphere.xyz", "-o", tmp_path / "area.png", "--field", "area", "--size", "500x400", "--range", "0,0.02")
+    assert out.returncode == 0, out.stderr
+    assert "estimated curvature" in out.stdout and "colours 0 .. 0.02" in out.stdout
+    assert read_image(tmp_path / "area.png").shape[:2] == (400, 500)
+
+
+def test_render_errors(tmp_path, bunny_fields, capsys):
+    from heatcurv.cli import main
+
+    out = run("render", bunny_fields, "-o", tmp_path / "p.png", "--field", "temperature")
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr
+    assert out.stderr.startswith("heatcurv: error: ")
+    assert "has no field 'temperature' and heatcurv does not compute it" in out.stderr
+    cases = [  # the same in this process
+        (["--size", "20x20"], "argument --size"),
+        (["--views", "0"], "argument --views"),
+        (["--range", "1,1"], "LOW < HIGH"),
+        (["--cmap", "rainbowish"], "unknown colour map 'rainbowish'"),
+        (["-o", str(tmp_path / "picture.docx")], "unknown picture extension '.docx'"),
+    ]
+    for extra, message in cases:
+        args = ["render", str(bunny_fields)] + (extra if "-o" in extra else ["-o", str(tmp_path / "p.png")] + extra)
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("heatcurv: error: ") and message in err
+    assert list(tmp_path.iterdir()) == []
