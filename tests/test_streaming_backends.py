@@ -255,3 +255,16 @@ def test_orientation_graph_spans_scan_lines():
     res = heatcurv.estimate(pts)
     assert np.all(np.einsum("ij,ij->i", res.normals, pts) > 0.99)
     np.testing.assert_allclose(res.mean, 1.0, atol=0.02)
+
+
+def test_concurrent_calls_from_threads_agree():
+    """Dask-style use: several estimates at once in one process (numba's thread pool is shared)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    sample = surfaces.Sphere(radius=2.0).sample(3000, "random", seed=6)
+    alone = heatcurv.estimate(sample.points)
+    with ThreadPoolExecutor(3) as pool:
+        results = list(pool.map(lambda _: heatcurv.estimate(sample.points), range(3)))
+    for res in results:
+        np.testing.assert_array_equal(res.mean, alone.mean)
+        np.testing.assert_array_equal(res.normals, alone.normals)
