@@ -392,7 +392,7 @@ def format_table(rows, reference: str = "knn40") -> str:
 # --------------------------------------------------------------------------
 
 
-def _peak_rss_bytes() -> int:
+def peak_rss_bytes() -> int:
     """Peak RSS of this process, bytes: ``VmHWM`` (Linux), else ``ru_maxrss``.
 
     See the module docstring for why ``ru_maxrss`` is not used on Linux.
@@ -552,7 +552,7 @@ def _child_main(name: str, points_file: str) -> int:
         return 0
 
     stages = _Stages()
-    rss_before = _peak_rss_bytes()
+    rss_before = peak_rss_bytes()
     cpu_start = _cpu_seconds()
     start = time.perf_counter()
     try:
@@ -572,7 +572,7 @@ def _child_main(name: str, points_file: str) -> int:
             name,
             "ok",
             seconds=seconds,
-            peak_rss_gb=_peak_rss_bytes() / _GB,
+            peak_rss_gb=peak_rss_bytes() / _GB,
             note=note,
             cpu_seconds=cpu_seconds,
             rss_before_gb=rss_before / _GB,

@@ -57,16 +57,8 @@ STAGES = ("validate", "neighbours", "spacing", "areas", "normals", "orientation"
 
 
 def _peak_rss_gb() -> float:
-    """Peak resident memory of this process (VmHWM), GB."""
-    try:
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) * 1024 / 1e9
-    except OSError:
-        pass
-    import resource
-
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+    """Peak resident memory of this process (VmHWM), GB: the peers' own measure."""
+    return peers.peak_rss_bytes() / 1e9
 
 
 def child(path: str) -> None:
