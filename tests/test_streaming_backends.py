@@ -268,3 +268,34 @@ def test_concurrent_calls_from_threads_agree():
     for res in results:
         np.testing.assert_array_equal(res.mean, alone.mean)
         np.testing.assert_array_equal(res.normals, alone.normals)
+
+
+@needs_numba
+def test_segment_numba_eigenvectors_against_lapack():
+    """heatcurv._segment_numba.smallest_eigenvectors (3x3 Jacobi) against np.linalg.eigh.
+
+    Random, near-planar (smallest eigenvalue 1e-12 of the largest), diagonal, zero and
+    identity matrices: eigenvalues to 1e-12 of the largest, eigenvectors to 1e-10 wherever
+    the smallest eigenvalue is separated (else any unit vector of its eigenspace is right).
+    """
+    from heatcurv._segment_numba import smallest_eigenvectors
+
+    rng = np.random.default_rng(11)
+    A = rng.normal(size=(2000, 3, 3))
+    cov = A @ A.transpose(0, 2, 1)
+    flat = np.diag([1.0, 0.5, 1e-12])
+    rot = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    cov[:100] = rot @ flat @ rot.T
+    cov[100] = np.diag([3.0, 1.0, 2.0])
+    cov[101] = 0.0
+    cov[102] = np.eye(3)
+    vectors, values = smallest_eigenvectors(cov)
+    ref_values, ref_vectors = np.linalg.eigh(cov)
+    scale = np.maximum(np.abs(ref_values).max(axis=1, keepdims=True), 1e-300)
+    np.testing.assert_allclose(values / scale, ref_values / scale, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(vectors, axis=1), 1.0, rtol=1e-14)
+    separated = (ref_values[:, 1] - ref_values[:, 0]) > 1e-6 * scale[:, 0]
+    assert separated[:101].all() and not separated[101:103].any()
+    alignment = np.abs(np.einsum("ij,ij->i", vectors, ref_vectors[:, :, 0]))
+    np.testing.assert_allclose(alignment[separated], 1.0, atol=1e-10)
+    np.testing.assert_allclose(np.abs(vectors[100]), [0.0, 1.0, 0.0], atol=1e-15)
