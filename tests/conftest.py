@@ -1,6 +1,5 @@
 """Shared fixtures: analytic samples and their estimates, computed once per session."""
 
-import numpy as np
 import pytest
 
 import heatcurv

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 import heatcurv
 from heatcurv import surfaces
 
-from conftest import aligned_exact, angle_deg, rel_l1
+from conftest import aligned_exact, rel_l1
 
 from heatcurv.evaluation import compare
 
