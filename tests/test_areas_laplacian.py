@@ -8,7 +8,7 @@ from heatcurv import HeatcurvError, surfaces
 from heatcurv.areas import area_matrix, point_areas
 from heatcurv.laplace_beltrami import laplace_beltrami_matrix
 from heatcurv.mean_curvature import mean_curvature_normal
-from heatcurv.pipeline import build_operator
+from heatcurv.operator import build_operator
 
 
 @pytest.fixture(scope="module")

@@ -127,7 +127,7 @@ def test_flat_top_and_taper():
     # int over the unit disc: between the cosine-tapered annulus' bounds
     assert np.pi * 0.7**2 < i1 < np.pi and i2 < i1
     pts = np.random.default_rng(0).random((300, 3))
-    nb = ball_neighbourhood(pts, 0.2, min_neighbors=3)
+    nb = ball_neighbourhood(pts, 0.2, min_neighbours=3)
     t = ball_taper(nb)
     assert np.all((t >= 0) & (t <= 1))
 
@@ -165,11 +165,11 @@ def test_border_points_of_an_open_patch():
 
 
 def test_fitting_in_blocks_changes_nothing(monkeypatch):
-    import heatcurv.scale as scale_module
+    import heatcurv.neighbourhood as neighbourhood_module
 
     sample = surfaces.Torus().sample(3000, "random", seed=6)
     whole = heatcurv.estimate(sample.points)
-    monkeypatch.setattr(scale_module, "FIT_BLOCK_PAIRS", 5000)  # about 80 blocks
+    monkeypatch.setattr(neighbourhood_module, "BLOCK_PAIRS", 5000)  # the one block-size policy: about 80 blocks
     blocked = heatcurv.estimate(sample.points)
     for name in whole.FIELDS:
         np.testing.assert_allclose(getattr(blocked, name), getattr(whole, name), rtol=1e-12, atol=1e-12)
@@ -177,7 +177,7 @@ def test_fitting_in_blocks_changes_nothing(monkeypatch):
 
 def test_row_blocks_cover_every_row_once():
     pts = np.random.default_rng(7).random((500, 3))
-    nb = ball_neighbourhood(pts, 0.2, min_neighbors=3)
+    nb = ball_neighbourhood(pts, 0.2, min_neighbours=3)
     blocks = list(nb.row_blocks(300))
     assert blocks[0][0] == 0 and blocks[-1][1] == 500
     assert all(b[1] == c[0] for b, c in zip(blocks, blocks[1:]))

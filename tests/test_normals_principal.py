@@ -112,7 +112,7 @@ def synthetic_neighbourhood(k1, k2, angle, n_nb=40, seed=0):
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(np.abs(kN) > 1e-12, (-1 + np.sqrt(1 - kN**2 * r**2)) / kN, -0.5 * kN * r**2)
     pts = np.vstack([[0.0, 0.0, 0.0], np.c_[r * np.cos(theta), r * np.sin(theta), z]])
-    nb = ball_neighbourhood(pts, 10.0, min_neighbors=3)
+    nb = ball_neighbourhood(pts, 10.0, min_neighbours=3)
     return pts, nb
 
 
@@ -140,7 +140,7 @@ def test_constrained_fit_is_bounded_by_the_smallest_edge_curvature():
     # curvature lies in [k2, k1], so when no edge points along d2 the bound is active and
     # pulls k2 up to min kN: the literal constraint, kept in method="paper".
     pts, nb = synthetic_neighbourhood(2.0, 0.5, 0.7)
-    pts, nb = pts[:-1], ball_neighbourhood(pts[:-1], 10.0, min_neighbors=3)  # drop the d2 edge
+    pts, nb = pts[:-1], ball_neighbourhood(pts[:-1], 10.0, min_neighbours=3)  # drop the d2 edge
     normals = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
     kN = edge_normal_curvatures(pts, nb, normals)[: nb.counts[0]]
     assert kN.min() > 0.5

@@ -51,7 +51,7 @@ def test_spacing_dispatch_and_errors():
 def test_ball_neighbourhood_matches_brute_force():
     pts = np.random.default_rng(2).random((400, 3))
     r = 0.15
-    nb = ball_neighbourhood(pts, r, min_neighbors=3)
+    nb = ball_neighbourhood(pts, r, min_neighbours=3)
     d = cdist(pts, pts)
     for i in (0, 17, 399):
         expect = np.flatnonzero((d[i] <= r) & (np.arange(400) != i))
@@ -69,7 +69,7 @@ def test_ball_neighbourhood_matches_brute_force():
 
 def test_isolated_points_get_their_nearest_neighbours():
     pts = np.vstack([grid(11, 0.1), [[5.0, 5.0, 1.0]]])
-    nb = ball_neighbourhood(pts, 0.15, min_neighbors=6)
+    nb = ball_neighbourhood(pts, 0.15, min_neighbours=6)
     assert nb.augmented[-1] and nb.counts[-1] == 6
     # interior grid points have 8 neighbours within 0.15 and are left alone; corners (3) are augmented
     assert not nb.augmented[12] and nb.counts[12] == 8
@@ -81,7 +81,7 @@ def test_isolated_points_get_their_nearest_neighbours():
 
 def test_segment_sum_and_counts():
     pts = np.random.default_rng(3).random((100, 3))
-    nb = ball_neighbourhood(pts, 0.3, min_neighbors=3)
+    nb = ball_neighbourhood(pts, 0.3, min_neighbours=3)
     ones = nb.segment_sum(np.ones(nb.n_pairs))
     np.testing.assert_array_equal(ones, nb.counts)
     assert nb.n_points == 100 and nb.indptr[-1] == nb.n_pairs
@@ -89,7 +89,7 @@ def test_segment_sum_and_counts():
 
 def test_heat_kernel_weights_and_normalisations():
     pts = np.random.default_rng(4).random((200, 3))
-    nb = ball_neighbourhood(pts, 0.2, min_neighbors=3)
+    nb = ball_neighbourhood(pts, 0.2, min_neighbours=3)
     h = np.full(200, 0.05)
     # m = 1/4: W = exp(-d^2/h^2), 1/(4 pi t) = 1/(pi h^2), 1/(4 pi t^2) = 4/(pi h^4)  (eqs 2.8, 2.9)
     np.testing.assert_allclose(heat_kernel_weights(nb, h, 0.25), np.exp(-nb.distances**2 / 0.05**2), rtol=1e-14)

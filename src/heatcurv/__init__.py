@@ -1,41 +1,54 @@
 """heatcurv: mesh-free differential geometry of point clouds with the heat kernel.
 
 The main entry point is :func:`estimate`; the stages it chains are public
-building blocks (see the module of each):
+building blocks (see the module of each). The numerical core:
 
 =====================  ======================================================
+``options``            every option, declared once; the method presets
 ``validation``         checks, centring, duplicate merging
 ``spacing``            the distance parameter h (eqs 2.6, 2.7)
-``neighbourhood``      ball neighbourhoods as CSR arrays
+``neighbourhood``      ball neighbourhoods as CSR arrays; the block-size policy
 ``kernel``             heat-kernel weights, t = m h^2 (eq 2.8)
-``areas``              per-point areas from H A = 1 (section 2.2)
+``areas``              per-point areas from H A = 1 (section 2.2) or density
 ``laplace_beltrami``   the Laplace-Beltrami matrix (eq 2.9)
+``operator``           the shared heat-kernel operator (the stages above)
 ``mean_curvature``     mean-curvature normal and mean curvature (eqs 2.10-2.12)
 ``normals``            PCA normals and their orientation
 ``principal``          the curvature-tensor fit (section 3, eq 3.1)
 ``chordfit``           the default's fit: chord curvatures with tilt and cubic terms
 ``scale``              the default's kernel width: noise estimate, Lepski's rule
 ``border``             border points of open surfaces
+``estimator``          :func:`estimate`: the stages above as a named list
+``results``            :class:`CurvatureResult`
 ``features``           sharp-feature detection from the mean curvature
-``surfaces``           analytic surfaces with exact values, and samplers
-``evaluation``         error measures against exact values (eqs 4.1, 5.1)
-``baseline``           the classical k-NN quadric fit, for comparison
-``estimator``          :func:`estimate`, chaining the stages
+``progress``           stage names, timing and progress reports
+``backend``            numba threads (numba is required: one implementation per stage)
+=====================  ======================================================
+
+Around the core, which imports none of them:
+
+=====================  ======================================================
+``io``                 scan formats: PLY, LAS/LAZ, text, meshes, NumPy arrays
 ``cli``                the ``heatcurv`` command
+``render``             pictures of a field
+``surfaces``           analytic surfaces with exact values, samplers, simulated scans
+``testing``            error measures (eqs 4.1, 5.1) and the k-NN quadric baseline
 =====================  ======================================================
 """
 
 from . import surfaces
 from .areas import point_areas
 from .errors import HeatcurvError, HeatcurvWarning
-from .estimator import CurvatureResult, estimate
+from .estimator import estimate
 from .features import FeatureResult, sharp_features
-from .laplace_beltrami import laplace_beltrami_matrix, laplacian
+from .laplace_beltrami import laplace_beltrami_matrix
 from .mean_curvature import mean_curvature, mean_curvature_normal
 from .neighbourhood import Neighbourhood, ball_neighbourhood
 from .normals import orient_normals, pca_normals
-from .pipeline import METHODS, HeatKernelOperator, Options, build_operator
+from .operator import HeatKernelOperator, build_operator, laplacian
+from .options import METHODS, Options, ScaleTuning, resolve_options
 from .principal import principal_fit
+from .results import CurvatureResult
 from .spacing import global_spacing, local_spacing
 
 __version__ = "0.1.0"
@@ -48,6 +61,7 @@ __all__ = [
     "METHODS",
     "Neighbourhood",
     "Options",
+    "ScaleTuning",
     "ball_neighbourhood",
     "build_operator",
     "estimate",
@@ -61,6 +75,7 @@ __all__ = [
     "pca_normals",
     "point_areas",
     "principal_fit",
+    "resolve_options",
     "sharp_features",
     "surfaces",
     "__version__",

@@ -1,31 +1,55 @@
-"""``heatcurv.estimate``: every field of the paper's pipeline in one call.
+"""``heatcurv.estimate``: every field of the paper's pipeline in one call, as a list of named stages.
 
-    points -> validate, centre, merge duplicates
-           -> spacing h (eq 2.6/2.7) -> ball neighbourhood (r = alpha h)
-           -> heat-kernel weights (eq 2.8) -> areas (H A = 1, section 2.2)
-           -> normals (PCA + one orientation, or given, or a viewpoint)
-           -> mean-curvature normal K (eq 2.10) -> mean curvature (eq 2.11/2.12)
-           -> tensor fit of the edge curvatures (section 3, eq 3.1)
-           -> k1 >= k2, d1, d2, Gaussian = k1 k2
+Both methods share the operator and the normals::
+
+    validate -> neighbours -> spacing -> areas            (heatcurv.operator)
+    -> normals -> orientation                             (PCA; or given; or a viewpoint)
+    -> mean_curvature_normal                              (K = L x, eq 2.10)
+
+then ``method="paper"`` (section 3)::
+
+    -> mean (eq 2.11 / 2.12) -> principal (tensor fit, eq 3.1) -> border
+
+and ``method="default"`` (the chord fit, :mod:`heatcurv.chordfit`)::
+
+    -> kernel_choice                                      (noise and kernel width, heatcurv.scale)
+    -> per block of points:
+         fit_neighbourhood -> fit_weights -> normal_refinement
+         -> curvature_fit -> area_correction -> border
+
+Each stage is timed under its own name (``result.info["timings"]``; the
+command line's ``--verbose``); :mod:`heatcurv.progress` lists them. The default
+method's fit runs block by block so that its own, wider neighbourhood exists
+only one block at a time; its stages report progress together as ``"fit"``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from .areas import ball_area_factor, density_areas
-from .border import border_points
-from .errors import HeatcurvError
-from .mean_curvature import mean_curvature, mean_curvature_normal
-from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
 from .backend import threads
-from .pipeline import Options, build_operator, resolve_options
+from .border import border_points
+from .chordfit import ChordFit, chord_fit
+
+try:  # TEMPORARY until chordfit exposes it
+    from .chordfit import refine_normals
+except ImportError:
+    def refine_normals(points, nbhd, normals, weights, **kw):
+        return chord_fit(points, nbhd, normals, weights, passes=2, **kw).normals
+from .errors import HeatcurvError
+from .kernel import tapered_heat_weights
+from .mean_curvature import mean_curvature
+from .neighbourhood import block_ranges
+from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
+from .operator import HeatKernelOperator
+from .options import rename_aliases, resolve_options
+from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
-from .principal import principal_fit
-from .chordfit import ChordFit
-from .scale import fit_blocks, select_scale
+from .results import CurvatureResult
+from .scale import FitLevel, ScaleReport, select_scale
 from .validation import prepare_normals
 
 __all__ = ["CurvatureResult", "estimate"]
@@ -35,111 +59,18 @@ PLANARITY_MIN = 0.05
 
 
 @dataclass(frozen=True)
-class CurvatureResult:
-    """Differential geometry of a point cloud, one row per input point, in input order.
-
-    Attributes
-    ----------
-    normals : ndarray, shape (n, 3)
-        Unit normals, consistently oriented (closed surfaces: outward), or the
-        caller's normals normalised.
-    mean : ndarray, shape (n,)
-        Signed mean curvature, 1/length; positive where the surface bends
-        away from its normal (sphere, outward normals: +1/R).
-    gaussian : ndarray, shape (n,)
-        Gaussian curvature ``k1 * k2``, 1/length^2.
-    k1, k2 : ndarray, shape (n,)
-        Principal curvatures, ``k1 >= k2``.
-    d1, d2 : ndarray, shape (n, 3)
-        Unit principal directions, tangent, ``d1 x d2 = normals``. Their sign
-        is arbitrary; at umbilic points (sphere, plane) any tangent pair.
-    area : ndarray, shape (n,)
-        Per-point area, length^2; the sum estimates the surface area.
-    reliable : ndarray, shape (n,), bool
-        False where the values are not to be trusted: the point's ball held
-        too few neighbours (nearest neighbours were used instead), its
-        neighbourhood is not surface-like (PCA planarity < 0.05), the tensor
-        fit was ill-posed, its area came out non-positive, or it is a border
-        point; everywhere if the area system did not converge (a
-        ``HeatcurvWarning`` says so).
-    border : ndarray, shape (n,), bool
-        Points whose fit's ball is cut by the border of an open surface
-        (:mod:`heatcurv.border`): their values come from one-sided
-        neighbourhoods. Noisy clouds are fitted with wider balls, so their
-        border band is wider.
-    spacing : ndarray, shape (n,)
-        The spacing ``h`` of the heat kernel (``t = m h^2``; eq 2.6, 2.7, or
-        ``d_k / alpha``) at each point: the kernel of the Laplace-Beltrami
-        operator and of ``mean_curvature_normal``. The chord fit may use a
-        wider kernel; ``info["scale"]`` says which.
-    neighbours : ndarray, shape (n,), int
-        Points in each heat-kernel ball (the point itself excluded).
-    mean_curvature_normal : ndarray, shape (n, 3)
-        ``K = L x`` of eq 2.10, approximately ``2 mean * normals``.
-    options : Options
-        The resolved options the result was computed with.
-    info : dict
-        ``n_distinct`` (points after merging duplicates), ``area_solve``
-        (solver, iterations, residual), ``timings`` (seconds per stage), and
-        for the chord fit ``scale``: the kernel chosen (``k`` neighbours,
-        ``fit`` label, ``radius``: 99th percentile of its ball radii), the
-        noise estimate ``sigma`` (length units) and ``relative_noise``
-        (``sigma / h``).
-    """
+class _Fitted:
+    """What the method-specific stages produce, over the distinct points (operator order)."""
 
     normals: np.ndarray
     mean: np.ndarray
-    gaussian: np.ndarray
-    k1: np.ndarray
-    k2: np.ndarray
-    d1: np.ndarray
-    d2: np.ndarray
-    area: np.ndarray
-    reliable: np.ndarray
+    principal: PrincipalCurvatures
+    areas: np.ndarray
     border: np.ndarray
-    spacing: np.ndarray
-    neighbours: np.ndarray
-    mean_curvature_normal: np.ndarray
-    options: Options
-    info: dict = field(default_factory=dict)
-
-    FIELDS = ("normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area")
-
-    def __len__(self) -> int:
-        return int(self.mean.shape[0])
-
-    def __repr__(self) -> str:
-        return (
-            f"CurvatureResult(n={len(self)}, method={self.options.method!r}, "
-            f"total_area={self.area.sum():.6g}, reliable={int(self.reliable.sum())}/{len(self)})"
-        )
-
-    def as_dict(self) -> dict:
-        """The per-point arrays by name (``FIELDS`` plus ``reliable``)."""
-        return {name: getattr(self, name) for name in self.FIELDS + ("reliable",)}
+    scale: ScaleReport | None = None
 
 
-def estimate(
-    points,
-    normals=None,
-    *,
-    method: str = "default",
-    alpha: float | None = None,
-    m: float | None = None,
-    spacing: str | None = None,
-    gamma: float | None = None,
-    k_local: int | None = None,
-    neighbors: int | None = None,
-    area_method: str | None = None,
-    mean_formula: str | None = None,
-    fit: str | None = None,
-    scale=None,
-    area_solver: str | None = None,
-    viewpoint=None,
-    min_neighbors: int | None = None,
-    workers: int | None = None,
-    progress=None,
-) -> CurvatureResult:
+def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, **options):
     """Normals, mean, Gaussian and principal curvatures, directions and areas of a point cloud.
 
     Parameters
@@ -158,44 +89,27 @@ def estimate(
         irregular, scanned and noisy clouds: spacing from the density (the
         ball holds 60 neighbours), density areas, and the chord fit with tilt
         and cubic terms at a kernel chosen from the measured noise. Every
-        option below overrides the preset (``heatcurv.METHODS`` lists both).
-    alpha : float, optional
-        Ball radius ``r = alpha h`` (paper: 4; default: 2).
-    m : float, optional
-        ``t = m h^2`` (1/4).
-    spacing : {"global", "local", "density"}, optional
-        ``h`` from eq 2.6, eq 2.7 or the density (``d_k / alpha``).
-    gamma : float, optional
-        Blend of eq 2.7 (0.25).
-    k_local : int, optional
-        Neighbours of eq 2.7's min/max (8).
-    neighbors : int, optional
-        Neighbours in the density ball, and the narrowest kernel of the
-        chord fit (60).
-    area_method : {"system", "density"}, optional
-        Areas from ``H A = 1`` (paper) or the density estimate (default).
-    mean_formula : {"projection", "norm"}, optional
-        Eq 2.12 or eq 2.11, where the mean curvature comes from the quadrature
-        (``fit="constrained"``).
-    fit : {"chord", "constrained", "unconstrained"}, optional
-        The chord fit with tilt and cubic terms (default); the paper's tensor
-        fit with eq 3.1's constraints; or the tensor fit without them.
-    scale : "auto" or int, optional
-        Kernel of the chord fit: chosen from the noise (``"auto"``), or a
-        fixed neighbour count. ``res.info["scale"]`` reports the choice.
-    area_solver : {"auto", "cg", "bicgstab", "direct"}, optional
-        Solver of ``H A = 1`` (``area_method="system"``).
+        option overrides the preset (``heatcurv.METHODS`` lists both).
     viewpoint : array_like, shape (3,), optional
         Sensor position, in the input coordinates: orient every estimated
         normal towards it instead of propagating one orientation.
-    min_neighbors : int, optional
-        Fewest neighbours per point (6).
-    workers : int, optional
-        Threads for the k-d tree queries and the compiled kernels (-1: all
-        cores; 1: one thread).
     progress : callable, optional
         Called as ``progress(stage, fraction)`` as the stages run
         (:mod:`heatcurv.progress`); the command line's progress bars use it.
+    **options
+        Any field of :class:`heatcurv.Options`, where each is documented once:
+        ``alpha`` (ball radius ``r = alpha h``; paper 4, default 2), ``m``
+        (``t = m h^2``, 1/4), ``spacing`` (``"global"`` eq 2.6, ``"local"``
+        eq 2.7, ``"density"``), ``gamma`` and ``k_local`` (eq 2.7),
+        ``neighbours`` (density ball and narrowest fit kernel, 60),
+        ``area_method`` (``"system"`` ``H A = 1`` or ``"density"``),
+        ``mean_formula`` (``"norm"`` eq 2.11 or ``"projection"`` eq 2.12),
+        ``fit`` (``"chord"``, ``"constrained"`` eq 3.1, ``"unconstrained"``),
+        ``scale`` (``"auto"`` or a neighbour count; ``res.info["scale"]``
+        reports the choice), ``scale_tuning`` (:class:`heatcurv.ScaleTuning`),
+        ``area_solver``, ``taper``, ``min_neighbours`` (6) and ``workers``
+        (threads; -1: all cores). ``neighbors`` and ``min_neighbors`` are
+        accepted as deprecated aliases.
 
     Returns
     -------
@@ -215,137 +129,161 @@ def estimate(
     >>> bool(abs(np.median(res.mean) - 0.5) < 0.01)
     True
     """
-    opts = resolve_options(
-        method,
-        alpha=alpha,
-        m=m,
-        spacing=spacing,
-        gamma=gamma,
-        k_local=k_local,
-        neighbors=neighbors,
-        area_method=area_method,
-        mean_formula=mean_formula,
-        fit=fit,
-        scale=scale,
-        area_solver=area_solver,
-        min_neighbors=min_neighbors,
-        workers=workers,
-    )
+    opts = resolve_options(method, **rename_aliases(options, "estimate"))
     if normals is not None and viewpoint is not None:
         raise HeatcurvError("give either normals or a viewpoint, not both")
     vp = None if viewpoint is None else as_viewpoint(viewpoint)
     with threads(opts.workers):
-        op = build_operator(points, opts, progress=progress)
+        op = HeatKernelOperator.from_points(points, opts, progress)  # validate, neighbours, spacing, areas
         clock = StageClock(progress, dict(op.timings))
-        X, nbhd, prepared = op.points, op.neighbourhood, op.prepared
-
-        planarity = np.ones(X.shape[0])
-        if normals is not None:
-            with clock.stage("normals"):
-                nrm = prepare_normals(normals, prepared)
+        nrm, planarity = _normal_stages(op, normals, vp, clock)
+        with clock.stage("mean_curvature_normal"):
+            K = op.mean_curvature_normal()
+        if opts.fit == "chord":
+            fitted = _default_fit_stages(op, nrm, normals is not None, clock)
         else:
-            with clock.stage("normals"):
-                nrm, planarity = pca_normals(X, nbhd, taper=opts.taper)
-            with clock.stage("orientation"):
-                if vp is not None:
-                    nrm = orient_towards_viewpoint(X, nrm, vp - prepared.offset)
-                else:
-                    nrm = orient_normals(X, nrm, nbhd, op.areas)
+            fitted = _paper_fit_stages(op, nrm, K, clock)
+    return _result(op, fitted, planarity, K, clock.timings)
 
-        with clock.stage("mean"):
-            # the heat kernel is computed pair by pair unless the operator already holds it
-            K = mean_curvature_normal(X, nbhd, op.stored_weights, op.areas, op.h, opts.m)
-            mean = mean_curvature(K, nrm, opts.mean_formula)
 
-        info = {"n_distinct": prepared.n_distinct, "area_solve": op.area_solve}
-        with clock.stage("principal"):
-            if opts.fit == "chord":
-                fit, areas, border, info["scale"] = _chord_estimate(op, nrm, normals is not None, clock)
-                pc, nrm = fit.principal, fit.normals
-                mean = pc.mean
-            else:
-                # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
-                # samples can give negative A_j; a least-squares objective with negative
-                # weights has no minimum, so those neighbours get weight zero.
-                pair_w = op.weights * nbhd.distances**2 * np.maximum(op.areas, 0.0)[nbhd.indices]
-                pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
-                if opts.fit == "unconstrained":
-                    mean = pc.mean
-                areas = op.areas
-                # border of open surfaces, on the neighbourhood the curvature was fitted on
-                border = border_points(X, nbhd, nrm, taper=opts.taper)
-    timings = clock.timings
+def _normal_stages(op: HeatKernelOperator, given, viewpoint, clock: StageClock):
+    """Stages ``normals`` and ``orientation``: oriented unit normals and PCA planarity, shape (m, 3), (m,)."""
+    X, nbhd, prepared = op.points, op.neighbourhood, op.prepared
+    planarity = np.ones(X.shape[0])
+    if given is not None:
+        with clock.stage("normals"):
+            return prepare_normals(given, prepared), planarity
+    with clock.stage("normals"):
+        nrm, planarity = pca_normals(X, nbhd, taper=op.options.taper)
+    with clock.stage("orientation"):
+        if viewpoint is not None:
+            nrm = orient_towards_viewpoint(X, nrm, viewpoint - prepared.offset)
+        else:
+            nrm = orient_normals(X, nrm, nbhd, op.areas)
+    return nrm, planarity
 
-    reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~border
+
+def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, clock: StageClock) -> _Fitted:
+    """Stages ``mean``, ``principal`` and ``border`` of the paper's method (section 3)."""
+    opts, X, nbhd = op.options, op.points, op.neighbourhood
+    with clock.stage("mean"):
+        mean = mean_curvature(K, nrm, opts.mean_formula)
+    with clock.stage("principal"):
+        # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
+        # samples can give negative A_j; a least-squares objective with negative
+        # weights has no minimum, so those neighbours get weight zero.
+        pair_w = op.weights * nbhd.distances**2 * np.maximum(op.areas, 0.0)[nbhd.indices]
+        pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
+        if opts.fit == "unconstrained":
+            mean = pc.mean
+    with clock.stage("border"):
+        # border of open surfaces, on the neighbourhood the curvature was fitted on
+        border = border_points(X, nbhd, nrm, taper=opts.taper)
+    return _Fitted(nrm, mean, pc, op.areas, border)
+
+
+def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, clock: StageClock) -> _Fitted:
+    """The default method's chord fit: ``kernel_choice``, then the per-block stages.
+
+    Parameters
+    ----------
+    op : HeatKernelOperator
+    nrm : ndarray, shape (m, 3)
+        Oriented starting normals.
+    keep_normals : bool
+        The caller gave the normals: no refinement, and the result keeps them.
+    clock : StageClock
+
+    Returns
+    -------
+    _Fitted
+        Normals refined by the fit's tilt (unless kept), the fitted curvatures,
+        areas on the fit's kernel corrected by them, and border flags on the
+        fit's ball.
+    """
+    opts, X, base = op.options, op.points, op.neighbourhood
+    tuning = opts.scale_tuning
+    n = X.shape[0]
+    with clock.stage("kernel_choice"):
+        choice = select_scale(
+            X, op.tree, nrm, op.areas, base_k=int(opts.neighbours), alpha=opts.alpha,
+            fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, **asdict(tuning),
+        )
+    scale = choice.scale
+    # the operator's neighbourhood already is the kernel's when the density ball holds k points
+    reuse_base = opts.spacing == "density" and scale.k == int(opts.neighbours)
+    with clock.stage("fit_neighbourhood", report=False):
+        level = FitLevel.for_kernel(X, op.tree, scale.k, tuning.k_fit, tuning.seed)
+
+    areas, border, radius = np.empty(n), np.empty(n, dtype=bool), np.empty(n)
+    fits = []
+    for lo, hi in block_ranges(n, level.rows_per_block()):
+        centres = X[lo:hi]
+        with clock.stage("fit_neighbourhood", report=False):
+            nbhd = base.rows_slice(lo, hi) if reuse_base else level.neighbourhood(centres, opts.workers)
+        with clock.stage("fit_weights", report=False):
+            # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
+            weights = tapered_heat_weights(nbhd, nbhd.radius / opts.alpha, op.areas)
+        start = nrm[lo:hi]
+        if not keep_normals:
+            with clock.stage("normal_refinement", report=False):
+                start = refine_normals(X, nbhd, start, weights, denoise=scale.denoise, centres=centres)
+        with clock.stage("curvature_fit", report=False):
+            fit = chord_fit(X, nbhd, start, weights, denoise=scale.denoise, centres=centres, passes=1)
+        with clock.stage("area_correction", report=False):
+            areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, scale.k, level.fraction)
+        with clock.stage("border", report=False):
+            border[lo:hi] = border_points(X, nbhd, fit.normals, taper=opts.taper, centres=centres)
+        radius[lo:hi] = nbhd.radius
+        fits.append(fit)
+        clock.report("fit", hi / n)
+    fit = ChordFit.concatenate(fits)
+    pc = fit.principal
+    return _Fitted(fit.normals, pc.mean, pc, areas, border, ScaleReport.from_choice(choice, radius, opts.alpha))
+
+
+def _corrected_areas(op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordFit, k: int, fraction: float):
+    """Stage ``area_correction``: areas of points ``lo:hi`` on the fit's kernel, shape (hi - lo,).
+
+    A kernel wider than the operator's counts its own, less noisy, density
+    (:func:`heatcurv.areas.density_areas`); either way the ball's curved area
+    is corrected by the fitted curvatures (:func:`heatcurv.areas.ball_area_factor`).
+    The paper's areas (``H A = 1``) are kept as they are.
+    """
+    opts = op.options
+    if opts.area_method != "density":
+        return op.areas[lo:hi]
+    if k <= opts.neighbours:
+        own, area_radius = op.areas[lo:hi], op.neighbourhood.radius[lo:hi]
+    else:
+        own, area_radius = density_areas(nbhd, fraction=fraction), nbhd.radius
+    return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2)
+
+
+def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, timings) -> CurvatureResult:
+    """The reliability flags, and every field back in the input order."""
+    nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
+    reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (fitted.areas > 0) & ~fitted.border
     reliable &= op.area_solve.converged
+    info = {"n_distinct": prepared.n_distinct, "area_solve": op.area_solve}
+    if fitted.scale is not None:
+        info["scale"] = fitted.scale
     info["timings"] = timings
     back = prepared.to_input_order
     return CurvatureResult(
-        normals=back(nrm),
-        mean=back(mean),
+        normals=back(fitted.normals),
+        mean=back(fitted.mean),
         gaussian=back(pc.gaussian),
         k1=back(pc.k1),
         k2=back(pc.k2),
         d1=back(pc.d1),
         d2=back(pc.d2),
-        area=prepared.share_among_duplicates(areas),
+        area=prepared.share_among_duplicates(fitted.areas),
         reliable=back(reliable),
-        border=back(border),
+        border=back(fitted.border),
         spacing=back(op.h),
         neighbours=back(nbhd.counts),
         mean_curvature_normal=back(K),
-        options=opts,
+        options=op.options,
         info=info,
     )
-
-
-def _chord_estimate(op, normals, keep_normals: bool, clock=None):
-    """The chord fit at the kernel ``op.options.scale`` asks for (or chooses), block by block.
-
-    Returns the fit, the areas (recomputed on the fit's kernel when it is
-    wider than the base one, so noise does not inflate them), the border flags
-    (on the fit's ball) and the scale record for ``info``. Each block's
-    neighbourhood is dropped once its fit, areas and border flags are done.
-    """
-    opts, X = op.options, op.points
-    choice = select_scale(
-        X, op.tree, normals, op.areas, base_k=int(opts.neighbors), alpha=opts.alpha,
-        fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers,
-    )
-    base = op.neighbourhood
-    reuse_base = opts.spacing == "density" and choice.scale.k == int(opts.neighbors)
-    n = X.shape[0]
-    areas = np.empty(n)
-    border = np.empty(n, dtype=bool)
-    radius = np.empty(n)
-    fits = []
-    for lo, hi, nbhd, fit, fraction in fit_blocks(
-        X, op.tree, normals, op.areas, choice.scale, base=base if reuse_base else None, alpha=opts.alpha,
-        passes=1 if keep_normals else 2, workers=opts.workers,
-    ):
-        pc = fit.principal
-        if opts.area_method == "density":
-            # wider kernels: areas from their own, less noisy, density count
-            own = op.areas[lo:hi] if choice.scale.k <= opts.neighbors else density_areas(nbhd, fraction=fraction)
-            area_radius = base.radius[lo:hi] if choice.scale.k <= opts.neighbors else nbhd.radius
-            areas[lo:hi] = own * ball_area_factor(area_radius, pc.k1, pc.k2)
-        else:
-            areas[lo:hi] = op.areas[lo:hi]
-        fit_normals = normals[lo:hi] if keep_normals else fit.normals
-        border[lo:hi] = border_points(X, nbhd, fit_normals, taper=opts.taper, centres=X[lo:hi])
-        radius[lo:hi] = nbhd.radius
-        fits.append(replace(fit, normals=normals[lo:hi]) if keep_normals else fit)
-        if clock is not None:
-            clock.report("principal", hi / n)
-    fit = ChordFit.concatenate(fits)
-    record = {
-        "k": choice.scale.k,
-        "median_h": float(np.median(radius / opts.alpha)),
-        "radius": float(np.percentile(radius, 99)),
-        "fit": choice.scale.label,
-        "sigma": choice.sigma,
-        "relative_noise": choice.relative_noise,
-        "candidates": [c.label for c in choice.candidates],
-        "sd": choice.sd,
-    }
-    return fit, areas, border, record

@@ -34,6 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import HeatcurvError
+from .estimator import estimate
+from .results import CurvatureResult
 
 __all__ = ["FeatureResult", "feature_score", "otsu_threshold", "sharp_features"]
 
@@ -143,8 +145,6 @@ def sharp_features(
     >>> bool(feat.mask.any())
     True
     """
-    from .estimator import CurvatureResult, estimate
-
     if isinstance(points_or_result, CurvatureResult):
         if options:
             raise HeatcurvError("options are for estimate(); they cannot change a result already computed")

@@ -1,11 +1,14 @@
 """Ball neighbourhoods ``B_r(x_i) = {x_j : |xi - xj| <= r_i}`` as flat CSR arrays.
 
 The paper (section 2) sums every operator over the ball of radius
-``r = alpha h`` (``3.5 <= alpha <= 4.5``). The neighbourhood is computed once
-and shared by every later stage (areas, Laplacian, normals, principal fit),
-stored as CSR arrays: the neighbours of point ``i`` are
-``indices[indptr[i]:indptr[i+1]]`` at distances ``distances[...]``. The point
-itself is not stored; stages that need the diagonal (the area system) add it.
+``r = alpha h`` (``3.5 <= alpha <= 4.5``). The operator's neighbourhood
+(:mod:`heatcurv.operator`) is computed once and shared by the areas, the
+Laplacian, the normals and their orientation, and the paper's principal fit;
+the default estimator's chord fit queries its own, noise-adapted one (the
+stage ``fit_neighbourhood``, block by block). Both are stored as CSR arrays:
+the neighbours of point ``i`` are ``indices[indptr[i]:indptr[i+1]]`` at
+distances ``distances[...]``. The point itself is not stored; stages that need
+the diagonal (the area system) add it.
 """
 
 from __future__ import annotations
@@ -17,12 +20,32 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import HeatcurvError
+from .options import rename_aliases
 
-__all__ = ["Neighbourhood", "ball_neighbourhood", "knn_neighbourhood", "QUERY_BLOCK"]
+__all__ = [
+    "Neighbourhood", "ball_neighbourhood", "knn_neighbourhood", "BLOCK_PAIRS", "rows_per_block", "block_ranges",
+]
 
-#: Query points per k-d tree call when building large neighbourhoods: bounds the
-#: (block x k) int64/float64 arrays scipy returns before they are narrowed.
-QUERY_BLOCK = 200_000
+#: The one block-size policy: a stage that streams over neighbour pairs holds at most
+#: about this many at once (k-d tree query results before narrowing, the numpy
+#: temporaries of ``Neighbourhood.blockwise``, a block of the default fit with its own
+#: neighbourhood: about 1 KB per pair at that peak, so ~1 GB).
+BLOCK_PAIRS = 1_000_000
+
+
+def rows_per_block(pairs_per_row: int, block_pairs: int | None = None) -> int:
+    """Rows (points) per block when each row holds ``pairs_per_row`` pairs (at least 1).
+
+    ``block_pairs`` defaults to :data:`BLOCK_PAIRS`, read at call time.
+    """
+    pairs = BLOCK_PAIRS if block_pairs is None else block_pairs
+    return max(1, int(pairs) // max(int(pairs_per_row), 1))
+
+
+def block_ranges(n_rows: int, rows: int):
+    """Consecutive ``(lo, hi)`` ranges of ``rows`` rows covering ``range(n_rows)``."""
+    for lo in range(0, n_rows, rows):
+        yield lo, min(n_rows, lo + rows)
 
 
 @dataclass(frozen=True)
@@ -42,7 +65,7 @@ class Neighbourhood:
     radius : ndarray, shape (n,), float64
         Ball radius used for each point.
     augmented : ndarray, shape (n,), bool
-        Points whose ball held fewer than ``min_neighbors`` points and were
+        Points whose ball held fewer than ``min_neighbours`` points and were
         given their nearest neighbours instead (isolated points, sparse edges).
     by_distance : bool
         Whether each row is known to be sorted by distance, nearest first
@@ -193,13 +216,14 @@ class Neighbourhood:
             by_distance=self.by_distance,
         )
 
-    def blockwise(self, compute, max_pairs: int = 1_000_000) -> np.ndarray:
+    def blockwise(self, compute, max_pairs: int | None = None) -> np.ndarray:
         """Apply ``compute(lo, hi, block)`` to consecutive row blocks and stack the results.
 
         ``block`` is ``self.rows_slice(lo, hi)``; ``compute`` returns an array
         with ``hi - lo`` rows. Bounds the per-pair temporaries of numpy code
-        to about ``max_pairs`` pairs.
+        to about ``max_pairs`` pairs (default :data:`BLOCK_PAIRS`).
         """
+        max_pairs = BLOCK_PAIRS if max_pairs is None else max_pairs
         parts = [compute(lo, hi, self.rows_slice(lo, hi)) for lo, hi in self.row_blocks(max_pairs)]
         return np.concatenate(parts) if len(parts) != 1 else parts[0]
 
@@ -225,10 +249,12 @@ def ball_neighbourhood(
     points: np.ndarray,
     radius,
     tree: cKDTree | None = None,
-    min_neighbors: int = 6,
+    min_neighbours: int = 6,
     workers: int = -1,
     queries: np.ndarray | None = None,
     source_index: np.ndarray | None = None,
+    *,
+    min_neighbors: int | None = None,
 ) -> Neighbourhood:
     """All neighbours within ``radius`` of each query point, in CSR form.
 
@@ -241,8 +267,8 @@ def ball_neighbourhood(
         symmetric neighbourhood of the paper's global spacing.
     tree : scipy.spatial.cKDTree, optional
         A tree already built on ``points``.
-    min_neighbors : int, optional
-        A query whose ball holds fewer neighbours gets its ``min_neighbors``
+    min_neighbours : int, optional
+        A query whose ball holds fewer neighbours gets its ``min_neighbours``
         nearest ones instead and is marked in ``augmented``; without it,
         isolated points would have no normal and no curvature.
     workers : int, optional
@@ -254,12 +280,16 @@ def ball_neighbourhood(
         Global index of each of ``points``: when ``points`` is a subset of a
         larger cloud (a coarser level), the returned ``indices`` are mapped
         through it.
+    min_neighbors : int, optional
+        Deprecated alias of ``min_neighbours``.
 
     Returns
     -------
     Neighbourhood
         One row per query.
     """
+    if min_neighbors is not None:
+        min_neighbours = rename_aliases({"min_neighbors": min_neighbors}, "ball_neighbourhood")["min_neighbours"]
     if tree is None:
         tree = cKDTree(points)
     if queries is None:
@@ -268,8 +298,8 @@ def ball_neighbourhood(
     radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (m,)).copy()
     if not np.all(np.isfinite(radius)) or np.any(radius <= 0):
         raise HeatcurvError("the ball radius must be finite and positive")
-    if min_neighbors >= n_src:
-        raise HeatcurvError(f"need more than {min_neighbors} points for {min_neighbors} neighbours, got {n_src}")
+    if min_neighbours >= n_src:
+        raise HeatcurvError(f"need more than {min_neighbours} points for {min_neighbours} neighbours, got {n_src}")
     lists = tree.query_ball_point(queries, radius, workers=workers, return_sorted=True)
     counts = np.fromiter(map(len, lists), dtype=np.int64, count=m)
     cols = np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
@@ -280,16 +310,16 @@ def ball_neighbourhood(
     rows, cols, dist = rows[keep], cols[keep], dist[keep]
     counts = np.bincount(rows, minlength=m)
 
-    augmented = counts < min_neighbors
+    augmented = counts < min_neighbours
     if augmented.any():
         sparse_ids = np.flatnonzero(augmented)
-        nd, nn = tree.query(queries[sparse_ids], k=min_neighbors + 1, workers=workers)
+        nd, nn = tree.query(queries[sparse_ids], k=min_neighbours + 1, workers=workers)
         # drop the query itself where it is one of the points, else the farthest
         self_hit = nd[:, 0] == 0
         nn = np.where(self_hit[:, None], nn[:, 1:], nn[:, :-1])
         nd = np.where(self_hit[:, None], nd[:, 1:], nd[:, :-1])
         keep_rows = ~augmented[rows]
-        rows = np.concatenate([rows[keep_rows], np.repeat(sparse_ids, min_neighbors)])
+        rows = np.concatenate([rows[keep_rows], np.repeat(sparse_ids, min_neighbours)])
         cols = np.concatenate([cols[keep_rows], nn.reshape(-1)])
         dist = np.concatenate([dist[keep_rows], nd.reshape(-1)])
         order = np.lexsort((cols, rows))
@@ -321,7 +351,7 @@ def knn_neighbourhood(
     workers: int = -1,
     queries: np.ndarray | None = None,
     source_index: np.ndarray | None = None,
-    block: int = QUERY_BLOCK,
+    block: int | None = None,
 ) -> Neighbourhood:
     """The ``k`` nearest other points of each query, as a ball neighbourhood of radius ``d_k``.
 
@@ -349,7 +379,8 @@ def knn_neighbourhood(
         Global index of each of ``points`` (a coarser level of a larger
         cloud); the returned ``indices`` are mapped through it.
     block : int, optional
-        Queries per k-d tree call; bounds the temporaries.
+        Queries per k-d tree call (default: :data:`BLOCK_PAIRS` pairs' worth);
+        bounds the temporaries.
 
     Returns
     -------
@@ -367,8 +398,7 @@ def knn_neighbourhood(
     n_global = int(np.max(source_index)) + 1 if source_index is not None else n_src
     indices = np.empty((m, k), dtype=_index_dtype(n_global))
     distances = np.empty((m, k))
-    for lo in range(0, m, block):
-        hi = min(m, lo + block)
+    for lo, hi in block_ranges(m, block or rows_per_block(k + 1)):
         dist, idx = tree.query(queries[lo:hi], k=k + 1, workers=workers)
         # drop the query itself where it is one of the points (distance 0: the points
         # are distinct, so nothing else is at 0), else the (k+1)-th neighbour

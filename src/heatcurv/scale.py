@@ -39,12 +39,9 @@ from scipy.spatial import cKDTree
 
 from .chordfit import ChordFit, chord_fit
 from .kernel import tapered_heat_weights
-from .neighbourhood import Neighbourhood, knn_neighbourhood
+from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
 
-__all__ = ["Scale", "ScaleChoice", "fit_blocks", "fit_at_scale", "select_scale", "FIT_BLOCK_PAIRS"]
-
-#: Neighbour pairs fitted at once; bounds the fit's memory (about 1 KB per pair at the peak).
-FIT_BLOCK_PAIRS = 1_000_000
+__all__ = ["Scale", "ScaleChoice", "ScaleReport", "FitLevel", "fit_blocks", "fit_at_scale", "select_scale"]
 
 
 @dataclass(frozen=True)
@@ -87,13 +84,124 @@ class ScaleChoice:
     mean_abs: float = float("nan")
 
 
-def _coarse_level(n: int, k: int, k_fit: int, seed: int):
-    """Indices of a random subset holding ``k_fit / k`` of the points (sorted), or None."""
-    if k <= k_fit:
-        return None
-    rng = np.random.default_rng(seed + k)
-    size = max(int(round(n * k_fit / k)), k_fit + 1)
-    return np.sort(rng.choice(n, size, replace=False))
+@dataclass(frozen=True)
+class ScaleReport:
+    """The chord fit's kernel as a result reports it (``result.info["scale"]``).
+
+    Read it by attribute (``report.k``) or, as before it had a type, by key
+    (``report["k"]``, ``report.get("fit")``).
+
+    Attributes
+    ----------
+    k : int
+        Neighbours in the fit's kernel.
+    fit : str
+        ``"chord-<k>"`` (clean cloud) or ``"denoised-<k>"``.
+    radius : float
+        99th percentile of the fit's ball radii, length units.
+    median_h : float
+        Median kernel spacing ``h = R / alpha`` of the fit.
+    sigma : float
+        Estimated noise, length units.
+    relative_noise : float
+        ``sigma`` over the median spacing of the narrowest kernel.
+    candidates : list of str
+        Labels of the kernels compared, narrowest first.
+    sd : list of float
+        Root-mean-square standard deviation of each candidate's mean curvature.
+    """
+
+    k: int
+    fit: str
+    radius: float
+    median_h: float
+    sigma: float
+    relative_noise: float
+    candidates: list = field(default_factory=list)
+    sd: list = field(default_factory=list)
+
+    @classmethod
+    def from_choice(cls, choice: ScaleChoice, radius: np.ndarray, alpha: float) -> ScaleReport:
+        """The report of ``choice`` fitted with ball radii ``radius`` (shape (n,))."""
+        return cls(
+            k=choice.scale.k,
+            fit=choice.scale.label,
+            radius=float(np.percentile(radius, 99)),
+            median_h=float(np.median(radius / alpha)),
+            sigma=choice.sigma,
+            relative_noise=choice.relative_noise,
+            candidates=[c.label for c in choice.candidates],
+            sd=choice.sd,
+        )
+
+    def __getitem__(self, key: str):
+        if key not in self.__dataclass_fields__:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def get(self, key: str, default=None):
+        """Dict-style access, as ``info["scale"]`` had before it had a type."""
+        return getattr(self, key, default) if key in self.__dataclass_fields__ else default
+
+    def keys(self):
+        return self.__dataclass_fields__.keys()
+
+    def as_dict(self) -> dict:
+        return {name: getattr(self, name) for name in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True)
+class FitLevel:
+    """Where a kernel of ``k`` neighbours draws its neighbours from: the cloud, or a coarser level.
+
+    Kernels wider than ``k_fit`` neighbours are fitted against a random subset
+    holding about ``k_fit / k`` of the points (sorted indices ``source``), on
+    which the ``k``-th neighbour of the cloud is about the
+    ``k * fraction``-th: the cost per point stays that of ``k_fit`` neighbours.
+
+    Attributes
+    ----------
+    points : ndarray, shape (n_level, 3)
+        The level's points.
+    tree : scipy.spatial.cKDTree
+        Tree on ``points``.
+    source : ndarray of int, shape (n_level,), or None
+        Index of each level point in the cloud (None: the level is the cloud).
+    fraction : float
+        ``n_level / n``.
+    k : int
+        Neighbours to query on the level.
+    """
+
+    points: np.ndarray
+    tree: cKDTree
+    source: np.ndarray | None
+    fraction: float
+    k: int
+
+    @classmethod
+    def for_kernel(cls, points: np.ndarray, tree: cKDTree, k: int, k_fit: int = 240, seed: int = 0) -> FitLevel:
+        """The level of a kernel of ``k`` neighbours on the cloud ``points`` (tree ``tree``)."""
+        n = points.shape[0]
+        if k <= k_fit:
+            return cls(points, tree, None, 1.0, min(k, n - 1))
+        rng = np.random.default_rng(seed + k)
+        size = max(int(round(n * k_fit / k)), k_fit + 1)
+        coarse = np.sort(rng.choice(n, size, replace=False))
+        fraction = coarse.size / n
+        level_points = points[coarse]
+        # the k-th neighbour in the cloud is about the (k * fraction)-th of the coarse level
+        return cls(level_points, cKDTree(level_points), coarse, fraction, min(int(round(k * fraction)), coarse.size - 1))
+
+    def rows_per_block(self, block_pairs: int | None = None) -> int:
+        """Centres per block so that a block holds at most ``block_pairs`` pairs (default the policy's)."""
+        return rows_per_block(self.k, block_pairs)
+
+    def neighbourhood(self, queries: np.ndarray, workers: int = -1) -> Neighbourhood:
+        """The ``k`` nearest level points of each query, indices into the cloud."""
+        return knn_neighbourhood(
+            self.points, self.k, tree=self.tree, queries=queries, source_index=self.source, workers=workers
+        )
 
 
 def fit_blocks(
@@ -110,13 +218,14 @@ def fit_blocks(
     passes: int = 2,
     seed: int = 0,
     workers: int = -1,
-    block_pairs: int = FIT_BLOCK_PAIRS,
+    block_pairs: int | None = None,
 ):
     """Run the chord fit at one kernel width, one block of centres at a time.
 
     The neighbourhood of a block exists only while the block is fitted, so
     memory stays bounded by ``block_pairs`` pairs however many points and
-    however wide the kernel.
+    however wide the kernel. (:func:`heatcurv.estimate` runs the same steps
+    as named stages of its own.)
 
     Parameters
     ----------
@@ -145,7 +254,7 @@ def fit_blocks(
     workers : int, optional
         Threads for the k-d tree queries.
     block_pairs : int, optional
-        Neighbour pairs per block.
+        Neighbour pairs per block (default :data:`heatcurv.neighbourhood.BLOCK_PAIRS`).
 
     Yields
     ------
@@ -158,35 +267,19 @@ def fit_blocks(
     fraction : float
         Share of the cloud the neighbours were drawn from (1, or the coarse level's).
     """
-    n = points.shape[0]
-    cidx = np.arange(n) if centres is None else np.asarray(centres)
-    m = cidx.shape[0]
-    coarse = _coarse_level(n, scale.k, k_fit, seed)
-    if coarse is None:
-        level_points, level_tree, source, fraction, k_level = points, tree, None, 1.0, min(scale.k, n - 1)
-    else:
-        level_points = points[coarse]
-        level_tree = cKDTree(level_points)
-        source, fraction = coarse, coarse.size / n
-        # the k-th neighbour in the cloud is about the (k * fraction)-th of the coarse level
-        k_level = min(int(round(scale.k * fraction)), coarse.size - 1)
-    if base is not None and (centres is not None or coarse is not None):
+    cidx = np.arange(points.shape[0]) if centres is None else np.asarray(centres)
+    level = FitLevel.for_kernel(points, tree, scale.k, k_fit, seed)
+    if base is not None and (centres is not None or level.source is not None):
         raise ValueError("base neighbourhoods serve full-level fits at every point only")
-    rows_per_block = max(1, block_pairs // max(k_level, 1))
-    for lo in range(0, m, rows_per_block):
-        hi = min(m, lo + rows_per_block)
+    for lo, hi in block_ranges(cidx.shape[0], level.rows_per_block(block_pairs)):
         queries = points[cidx[lo:hi]]
-        if base is not None:
-            nbhd = base.rows_slice(lo, hi)
-        else:
-            nbhd = knn_neighbourhood(level_points, k_level, tree=level_tree, queries=queries, source_index=source, workers=workers)
-        h = nbhd.radius / alpha
+        nbhd = base.rows_slice(lo, hi) if base is not None else level.neighbourhood(queries, workers)
         # heat kernel, t = h^2 / 4 (eq 2.8), tapered to 0 at the ball's edge
-        weights = tapered_heat_weights(nbhd, h, areas)
+        weights = tapered_heat_weights(nbhd, nbhd.radius / alpha, areas)
         fit = chord_fit(
             points, nbhd, normals[lo:hi], weights, denoise=scale.denoise, centres=queries, passes=passes
         )
-        yield lo, hi, nbhd, fit, fraction
+        yield lo, hi, nbhd, fit, level.fraction
 
 
 def fit_at_scale(

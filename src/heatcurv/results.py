@@ -1,0 +1,98 @@
+"""The result of :func:`heatcurv.estimate`: every field, one row per input point."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .options import Options
+
+__all__ = ["CurvatureResult"]
+
+
+@dataclass(frozen=True)
+class CurvatureResult:
+    """Differential geometry of a point cloud, one row per input point, in input order.
+
+    Attributes
+    ----------
+    normals : ndarray, shape (n, 3)
+        Unit normals, consistently oriented (closed surfaces: outward), or the
+        caller's normals normalised.
+    mean : ndarray, shape (n,)
+        Signed mean curvature, 1/length; positive where the surface bends
+        away from its normal (sphere, outward normals: +1/R).
+    gaussian : ndarray, shape (n,)
+        Gaussian curvature ``k1 * k2``, 1/length^2.
+    k1, k2 : ndarray, shape (n,)
+        Principal curvatures, ``k1 >= k2``.
+    d1, d2 : ndarray, shape (n, 3)
+        Unit principal directions, tangent, ``d1 x d2 = normals``. Their sign
+        is arbitrary; at umbilic points (sphere, plane) any tangent pair.
+    area : ndarray, shape (n,)
+        Per-point area, length^2; the sum estimates the surface area.
+    reliable : ndarray, shape (n,), bool
+        False where the values are not to be trusted: the point's ball held
+        too few neighbours (nearest neighbours were used instead), its
+        neighbourhood is not surface-like (PCA planarity < 0.05), the tensor
+        fit was ill-posed, its area came out non-positive, or it is a border
+        point; everywhere if the area system did not converge (a
+        ``HeatcurvWarning`` says so).
+    border : ndarray, shape (n,), bool
+        Points whose fit's ball is cut by the border of an open surface
+        (:mod:`heatcurv.border`): their values come from one-sided
+        neighbourhoods. Noisy clouds are fitted with wider balls, so their
+        border band is wider.
+    spacing : ndarray, shape (n,)
+        The spacing ``h`` of the heat kernel (``t = m h^2``; eq 2.6, 2.7, or
+        ``d_k / alpha``) at each point: the kernel of the Laplace-Beltrami
+        operator and of ``mean_curvature_normal``. The chord fit may use a
+        wider kernel; ``info["scale"]`` (a :class:`heatcurv.scale.ScaleReport`)
+        says which.
+    neighbours : ndarray, shape (n,), int
+        Points in each heat-kernel ball (the point itself excluded).
+    mean_curvature_normal : ndarray, shape (n, 3)
+        ``K = L x`` of eq 2.10, approximately ``2 mean * normals``.
+    options : Options
+        The resolved options the result was computed with.
+    info : dict
+        ``n_distinct`` (points after merging duplicates), ``area_solve``
+        (solver, iterations, residual), ``timings`` (seconds per named stage,
+        :data:`heatcurv.progress.STAGES`), and for the chord fit ``scale``, a
+        :class:`heatcurv.scale.ScaleReport`: the kernel chosen (``k``
+        neighbours, ``fit`` label, ``radius``: 99th percentile of its ball
+        radii), the noise estimate ``sigma`` (length units) and
+        ``relative_noise`` (``sigma / h``).
+    """
+
+    normals: np.ndarray
+    mean: np.ndarray
+    gaussian: np.ndarray
+    k1: np.ndarray
+    k2: np.ndarray
+    d1: np.ndarray
+    d2: np.ndarray
+    area: np.ndarray
+    reliable: np.ndarray
+    border: np.ndarray
+    spacing: np.ndarray
+    neighbours: np.ndarray
+    mean_curvature_normal: np.ndarray
+    options: Options
+    info: dict = field(default_factory=dict)
+
+    FIELDS = ("normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area")
+
+    def __len__(self) -> int:
+        return int(self.mean.shape[0])
+
+    def __repr__(self) -> str:
+        return (
+            f"CurvatureResult(n={len(self)}, method={self.options.method!r}, "
+            f"total_area={self.area.sum():.6g}, reliable={int(self.reliable.sum())}/{len(self)})"
+        )
+
+    def as_dict(self) -> dict:
+        """The per-point arrays by name (``FIELDS`` plus ``reliable``)."""
+        return {name: getattr(self, name) for name in self.FIELDS + ("reliable",)}

@@ -1,0 +1,67 @@
+"""The shared heat-kernel operator object and the laplacian() front end."""
+
+import numpy as np
+import pytest
+
+import heatcurv
+from heatcurv import HeatcurvError, surfaces
+from heatcurv.laplace_beltrami import laplace_beltrami_matrix
+from heatcurv.mean_curvature import mean_curvature_normal
+from heatcurv.operator import HeatKernelOperator, build_operator
+
+
+@pytest.fixture(scope="module")
+def sphere_op():
+    return HeatKernelOperator.from_points(surfaces.Sphere().sample(3000, "fibonacci").points, method="paper")
+
+
+def test_matrix_and_apply_are_eq_2_9(sphere_op):
+    op = sphere_op
+    L = op.matrix()
+    expect = laplace_beltrami_matrix(op.neighbourhood, op.weights, op.areas, op.h, op.m)
+    assert abs(L - expect).max() == 0
+    np.testing.assert_allclose(op.apply(np.ones(len(op.points))), 0.0, atol=1e-9)
+    # coordinate functions of the unit sphere: L z = 2 z / R^2 (the paper's positive operator)
+    z = op.points[:, 2]
+    np.testing.assert_allclose(np.median(op.apply(z)[np.abs(z) > 0.5] / z[np.abs(z) > 0.5]), 2.0, rtol=0.02)
+    with pytest.raises(HeatcurvError, match="the field has 5 rows, the operator 3000 points"):
+        op.apply(np.ones(5))
+
+
+def test_mean_curvature_normal_is_L_applied_to_the_coordinates(sphere_op):
+    op = sphere_op
+    K = op.mean_curvature_normal()
+    np.testing.assert_allclose(K, op.matrix() @ op.points, rtol=1e-9, atol=1e-9)
+    pairwise = mean_curvature_normal(op.points, op.neighbourhood, None, op.areas, op.h, op.m)  # weights not stored
+    np.testing.assert_allclose(K, pairwise, rtol=1e-9, atol=1e-12)
+    # 2 kappa_M n = 2 n on the unit sphere
+    np.testing.assert_allclose(np.median(np.linalg.norm(K, axis=1)), 2.0, rtol=0.01)
+
+
+def test_build_operator_times_its_stages_and_keeps_weights_lazy():
+    pts = surfaces.Torus().sample(4000, "random", seed=1).points
+    op = build_operator(pts)  # default: density spacing and areas, no stored weights
+    assert list(op.timings) == ["validate", "neighbours", "spacing", "areas"]
+    assert op.stored_weights is None and op.weights.shape == (op.neighbourhood.n_pairs,)
+    assert op.stored_weights is op.weights
+
+
+def test_laplacian_front_end_in_input_order():
+    pts = surfaces.Sphere().sample(1500, "fibonacci").points
+    perm = np.random.default_rng(0).permutation(len(pts))
+    L, area = heatcurv.laplacian(pts)
+    Lp, area_p = heatcurv.laplacian(pts[perm])
+    np.testing.assert_allclose(area_p, area[perm], rtol=1e-12)
+    np.testing.assert_allclose(Lp.toarray(), L.toarray()[np.ix_(perm, perm)], atol=1e-9)
+    with pytest.raises(HeatcurvError, match="exact duplicate"):
+        heatcurv.laplacian(np.vstack([pts, pts[:1]]))
+
+
+def test_pipeline_module_is_a_deprecated_alias():
+    import importlib
+    import sys
+
+    sys.modules.pop("heatcurv.pipeline", None)
+    with pytest.warns(DeprecationWarning, match="heatcurv.pipeline is deprecated"):
+        pipeline = importlib.import_module("heatcurv.pipeline")
+    assert pipeline.build_operator is build_operator and pipeline.Options is heatcurv.Options
