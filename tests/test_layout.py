@@ -1,0 +1,99 @@
+"""The package's shape: one-way imports, a core free of io/cli/render/surfaces/testing, short modules."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import heatcurv
+
+PACKAGE = Path(heatcurv.__file__).parent
+#: Packages and modules around the numerical core; the core imports none of them.
+OUTER = ("io", "cli", "render", "surfaces", "testing", "data")
+#: Modules that are the package's facades or deprecated aliases, not the core.
+FACADES = ("__init__", "__main__", "pipeline", "evaluation", "baseline")
+MAX_LINES = 900
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path) -> set:
+    """Every heatcurv module ``path`` imports, at the top or inside a function."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.split(".")[0] == "heatcurv"}
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.split(".")[0] != "heatcurv":
+                continue
+            for alias in node.names:  # `from . import surfaces` imports a module
+                candidate = f"{target}.{alias.name}"
+                found.add(candidate if candidate in MODULES else target)
+    return {m for m in found if m in MODULES and m != name}
+
+
+FILES = sorted(PACKAGE.rglob("*.py"))
+MODULES = {_module_name(p): p for p in FILES}
+GRAPH = {name: _imports(path) for name, path in MODULES.items()}
+
+
+def _is_outer(module: str) -> bool:
+    rest = module.split(".")[1:]
+    return bool(rest) and rest[0] in OUTER
+
+
+def _is_core(module: str) -> bool:
+    rest = module.split(".")[1:]
+    return bool(rest) and not _is_outer(module) and rest[-1] not in FACADES
+
+
+def test_the_core_imports_nothing_from_outside_it():
+    core = [m for m in MODULES if _is_core(m)]
+    assert "heatcurv.estimator" in core and "heatcurv._kernels.chordfit" in core
+    offenders = {m: sorted(i for i in GRAPH[m] if _is_outer(i)) for m in core}
+    assert {m: v for m, v in offenders.items() if v} == {}
+
+
+def test_no_import_circles():
+    # depth-first search for a back edge in the module graph (lazy imports included)
+    state, cycles = {}, []
+
+    def visit(m, stack):
+        state[m] = "open"
+        for dep in sorted(GRAPH[m]):
+            if dep.startswith(m + "."):
+                continue  # a package importing its own submodules is not a circle
+            if state.get(dep) == "open":
+                cycles.append(stack[stack.index(dep):] + [dep] if dep in stack else [m, dep])
+            elif dep not in state:
+                visit(dep, stack + [dep])
+        state[m] = "done"
+
+    for m in sorted(GRAPH):
+        if m not in state:
+            visit(m, [m])
+    # the package facade imports its modules; modules importing the facade back are the circles
+    real = [c for c in cycles if not any(x == "heatcurv" for x in c)]
+    assert real == []
+
+
+def test_compiled_kernels_never_import_their_callers():
+    for name, deps in GRAPH.items():
+        if name.startswith("heatcurv._kernels"):
+            assert all(d.startswith("heatcurv._kernels") or d == "heatcurv.errors" for d in deps), (name, deps)
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_modules_are_short(path):
+    assert len(path.read_text().splitlines()) <= MAX_LINES
