@@ -1,0 +1,257 @@
+"""Point-cloud files in and out: PLY, LAS/LAZ, XYZ/TXT/CSV/PTS, OBJ, OFF, NPY/NPZ.
+
+:func:`read_points` turns a scanner's or a photogrammetry tool's file into a
+:class:`PointCloud` (float64 coordinates, optional normals and 8-bit colours,
+and every other per-point property in ``fields`` so it can be written back out);
+:func:`write_points` writes coordinates plus per-point results as named scalar
+properties that CloudCompare and MeshLab show as scalar fields. The binary
+formats go through the field's libraries (plyfile, laspy with lazrs, numpy);
+every failure is a :class:`~heatcurv.errors.HeatcurvError` whose one-line
+message names the file and the problem.
+
+=============================  ========================  =======================
+extension                      read                      write
+=============================  ========================  =======================
+``.ply``                       ascii, binary le/be       binary little endian
+``.las`` ``.laz``              laspy (lazrs for LAZ)     laspy, extra dimensions
+``.xyz`` ``.txt`` ``.pts``     header and delimiter      space-delimited, ``#``
+                               detected                  header (not ``.pts``)
+``.csv``                       as above                  comma, header line
+``.obj``                       ``v`` lines               --
+``.off``                       vertices (C/N/ST OFF)     --
+``.npy``                       ``(n, >=3)`` array        --
+``.npz``                       ``points`` or ``xyz``     ``points`` + arrays
+=============================  ========================  =======================
+
+Conventions
+-----------
+Property names are matched case-insensitively with ``_``, spaces and other
+punctuation ignored: ``x y z``; normals ``nx ny nz`` (also ``normal_x`` ...);
+colours ``red green blue`` (also ``r g b``, ``diffuse_red`` ...). Normals and
+colours need all three components, otherwise the components stay in
+``fields``; so do colours that cannot be read as 8-bit values.
+
+Colours are stored as ``uint8``. Integer 16-bit colours (LAS, PLY ``ushort``)
+are scaled by ``1/257`` unless all values are at most 255 (files that store
+8-bit values in 16-bit fields, the CloudCompare rule); float colours in
+``[0, 1]`` (PLY, OBJ, NPZ, Geomview OFF) are scaled by 255. Text columns are
+plain numbers: integer values 0-255 are 8-bit colours, other values in
+``[0, 1]`` are fractions.
+
+Text files: the delimiter is ``;`` if the first data line holds one (decimal
+commas are then accepted), else ``,``, else runs of spaces and tabs. Lines
+starting with ``#`` or ``//`` are comments. The header is an uncommented line
+before the data holding a non-number, or else the comment line just before the
+data if it names ``x``, ``y`` and ``z`` (``# x y z ...`` as written here,
+CloudCompare's ``//X,Y,Z,...``). A first line holding only an integer (the PTS
+point count) is skipped; in ``.pts`` files every such line is (one per scan).
+Files without a header are read by their column count:
+
+=======  ================================================================
+columns  meaning
+=======  ================================================================
+3        ``x y z``
+6        ``x y z red green blue`` if columns 4-6 are integers 0-255 and not
+         all rows are unit vectors, else ``x y z nx ny nz``
+7        ``x y z intensity red green blue`` (PTS) when columns 5-7 are
+         integers 0-255
+9        ``x y z`` + normals and colours, in whichever order the integer
+         0-255 columns say
+10       ``x y z intensity red green blue nx ny nz`` (PTS with normals)
+other    ``x y z`` and ``column_4``, ``column_5``, ... (1-based column number)
+=======  ================================================================
+
+A ``.pts`` column 4 of a 4-column file is ``intensity``. Text fields are read
+as float64.
+
+Writing is atomic: the file is written to a temporary file in the target
+directory and moved over the target with :func:`os.replace`; on a failure the
+temporary file is removed, so there is never a partial output, and an existing
+file of the same name stays as it was.
+
+The readers and writers live in one module per format family: :mod:`.ply`,
+:mod:`.las` (LAS/LAZ), :mod:`.text` (XYZ/TXT/CSV/PTS), :mod:`.meshes` (OBJ,
+OFF), :mod:`.arrays` (NPY/NPZ); :mod:`.atomic` holds the atomic write. This
+module holds the public API and the dispatch by extension.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import HeatcurvError
+from ._common import PointCloud, _one_line, _output, _read_error, _write_error
+from .arrays import _read_npy, _read_npz, _write_npz
+from .atomic import atomic_write
+from .las import _read_las, _write_las
+from .meshes import _read_obj, _read_off
+from .ply import _read_ply, _write_ply
+from .text import _read_text, _write_csv, _write_xyz
+
+__all__ = ["PointCloud", "SUPPORTED_READ", "SUPPORTED_WRITE", "read_points", "write_points"]
+
+
+#: Extensions :func:`read_points` understands (compared case-insensitively).
+SUPPORTED_READ = (
+    ".ply",
+    ".las",
+    ".laz",
+    ".xyz",
+    ".txt",
+    ".csv",
+    ".pts",
+    ".obj",
+    ".off",
+    ".npy",
+    ".npz",
+)
+#: Extensions :func:`write_points` can write (compared case-insensitively).
+SUPPORTED_WRITE = (".ply", ".las", ".laz", ".csv", ".xyz", ".txt", ".npz")
+
+
+def read_points(path) -> PointCloud:
+    """Read a point cloud file, choosing the reader by its extension.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file with one of the extensions in :data:`SUPPORTED_READ`
+        (case-insensitive).
+
+    Returns
+    -------
+    PointCloud
+        ``points`` of shape (n, 3) float64, optional ``normals`` (n, 3) and
+        ``colors`` (n, 3) uint8, every other per-point property in ``fields``.
+        Rows holding NaN are kept as they are (``heatcurv.estimate`` reports
+        them). PLY: only the ``vertex`` element is read, list properties are
+        skipped. OBJ: ``v`` lines only. OFF: vertices only.
+
+    Raises
+    ------
+    HeatcurvError
+        If the file is missing or unreadable, its extension is not supported,
+        it holds no points, it is truncated or not of the format its extension
+        says, a text row has the wrong number of values or a non-number (the
+        message gives the line), or it has no x, y, z coordinates.
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if not path.exists():
+        raise _read_error(path, "no such file")
+    if path.is_dir():
+        raise _read_error(path, "it is a directory, not a file")
+    reader = _READERS.get(ext)
+    if reader is None:
+        raise _read_error(
+            path, f"unknown extension {ext or '(none)'!r}; supported: {' '.join(SUPPORTED_READ)}"
+        )
+    try:
+        if path.stat().st_size == 0:
+            raise _read_error(path, "the file is empty")
+        return reader(path, ext[1:])
+    except HeatcurvError:
+        raise
+    except OSError as exc:
+        raise _read_error(path, exc.strerror or _one_line(exc)) from exc
+
+
+_READERS = {
+    ".ply": _read_ply,
+    ".las": _read_las,
+    ".laz": _read_las,
+    ".xyz": _read_text,
+    ".txt": _read_text,
+    ".csv": _read_text,
+    ".pts": _read_text,
+    ".obj": _read_obj,
+    ".off": _read_off,
+    ".npy": _read_npy,
+    ".npz": _read_npz,
+}
+
+
+def write_points(path, points, fields=None, *, normals=None, colors=None, source=None) -> None:
+    """Write points and per-point fields to a file, atomically, choosing the format by extension.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; its extension (case-insensitive) picks the format, one of
+        :data:`SUPPORTED_WRITE`. An existing file is replaced only once the
+        new one is complete.
+    points : array_like, shape (n, 3)
+        Coordinates (NaN allowed except in LAS/LAZ).
+    fields : dict of str to array_like, shape (n,) or (n, 3), optional
+        Per-point values written as scalar properties with exactly these
+        names, after those of ``source``; an (n, 3) field ``d1`` becomes
+        ``d1x d1y d1z``. Booleans are written as 0/1 (``uint8``). A given
+        field replaces a source property of the same name.
+    normals : array_like, shape (n, 3), optional
+        Written as ``nx ny nz``; default: ``source.normals``.
+    colors : array_like, shape (n, 3), integers 0-255, optional
+        Written as ``red green blue`` (uint8; LAS 16-bit, ``value * 257``);
+        default: ``source.colors``.
+    source : PointCloud, optional
+        The cloud the points came from: its ``fields`` are written back (and
+        its normals and colours unless given). For LAS/LAZ output from a LAS
+        source the header's point format, version, scales, offsets and
+        records (CRS) are kept and 16-bit colours written unchanged.
+
+    Notes
+    -----
+    Property order: ``x y z``, ``nx ny nz``, ``red green blue``, the source's
+    fields, the given fields.
+
+    ``.ply``: binary little endian, ``x y z`` as double; other properties keep
+    their dtype (int64 values become int32/uint32 where they fit, else
+    double; float16 becomes float).
+    ``.las``/``.laz``: LAS 1.4 point format 6 (7 with colours) unless the
+    source is LAS; fields named like a standard dimension of the point format
+    (``intensity``, ``classification``, ...) fill it when their values fit
+    exactly, the others become extra-bytes dimensions (names of at most 32
+    characters). Scales are a power of ten at most 1e-6 of the largest
+    bounding-box side.
+    ``.csv``: comma-separated with a header line; ``.xyz``/``.txt``:
+    space-separated with a ``# x y z ...`` header line. Floats are written
+    with 17 significant digits (``%.17g``), so they read back exactly.
+    ``.npz``: arrays ``points``, ``normals``, ``colors`` and each field
+    ((n, 3) fields as one array).
+
+    Raises
+    ------
+    HeatcurvError
+        On an unsupported extension, arrays that do not have one row per
+        point, unusable or repeated field names, values the format cannot
+        hold (NaN coordinates in LAS, fields that do not fit a standard LAS
+        dimension), or an OS error (missing directory, permissions).
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    writer = _WRITERS.get(ext)
+    if writer is None:
+        raise _write_error(
+            path, f"unknown extension {ext or '(none)'!r}; supported: {' '.join(SUPPORTED_WRITE)}"
+        )
+    output = _output(path, points, fields, normals, colors, source)
+    directory = path.parent
+    if not directory.is_dir():
+        raise _write_error(path, f"the directory {directory} does not exist")
+    try:
+        atomic_write(path, lambda stream: writer(stream, output, path))
+    except OSError as exc:
+        raise _write_error(path, exc.strerror or _one_line(exc)) from exc
+
+
+_WRITERS = {
+    ".ply": _write_ply,
+    ".las": _write_las,
+    ".laz": _write_las,
+    ".csv": _write_csv,
+    ".xyz": _write_xyz,
+    ".txt": _write_xyz,
+    ".npz": _write_npz,
+}
+
+# the old private name, used by heatcurv.render until it imports heatcurv.io.atomic.atomic_write
+_atomic_write = atomic_write

@@ -1,0 +1,354 @@
+"""Shared by the format modules: the :class:`PointCloud` record, property-name roles, errors.
+
+Holds the name aliases that give a column its role (coordinate, normal, colour),
+the one-line error helpers, the colour conversion, the assembly of a
+:class:`PointCloud` from named columns, and the validated record of what
+:func:`heatcurv.io.write_points` writes (``_Output``).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import HeatcurvError
+
+# canonical name (lower case, alphanumerics only) -> role
+_ALIASES = {
+    "x": ("x",),
+    "y": ("y",),
+    "z": ("z",),
+    "nx": ("nx", "normalx", "normx"),
+    "ny": ("ny", "normaly", "normy"),
+    "nz": ("nz", "normalz", "normz"),
+    "red": ("red", "r", "diffusered"),
+    "green": ("green", "g", "diffusegreen"),
+    "blue": ("blue", "b", "diffuseblue"),
+}
+_ROLE_OF = {alias: role for role, aliases in _ALIASES.items() for alias in aliases}
+_NORMAL_NAMES = ("nx", "ny", "nz")
+_COLOR_NAMES = ("red", "green", "blue")
+# characters a written property name cannot hold: PLY headers are ASCII and split on
+# whitespace, text headers split on commas and semicolons
+_BAD_NAME = re.compile(r"[^\x21-\x7e]|[,;#\"']")
+
+
+@dataclass(repr=False, eq=False)
+class PointCloud:
+    """A point cloud read from a file, with every per-point property it carried.
+
+    Attributes
+    ----------
+    points : ndarray, shape (n, 3), float64
+        Coordinates as stored in the file (LAS: scaled and offset).
+    normals : ndarray, shape (n, 3), float64, or None
+        Normals from the file (not normalised), if it has all three components.
+    colors : ndarray, shape (n, 3), uint8, or None
+        RGB colours, scaled to 8 bits (see the notes of :mod:`heatcurv.io`).
+    fields : dict of str to ndarray, shape (n,)
+        Every other per-point property by its name in the file, with its
+        stored dtype (text files: float64). :func:`~heatcurv.io.write_points` writes them
+        back when the cloud is passed as ``source``.
+    path : pathlib.Path or None
+        The file read.
+    format : str or None
+        The format read: ``"ply"``, ``"las"``, ``"laz"``, ``"xyz"``, ``"txt"``,
+        ``"csv"``, ``"pts"``, ``"obj"``, ``"off"``, ``"npy"`` or ``"npz"``.
+    meta : dict
+        Format details needed to write the cloud back faithfully: for LAS/LAZ
+        ``"las_header"`` (the :class:`laspy.LasHeader`: point format, scales,
+        offsets, CRS records) and ``"las_rgb16"`` (the 16-bit colours, shape
+        ``(n, 3)``, when the file has RGB).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    fields: dict = field(default_factory=dict)
+    path: Path | None = None
+    format: str | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.points.shape[0])
+
+    def __repr__(self) -> str:
+        return (
+            f"PointCloud(n={len(self)}, format={self.format!r}, "
+            f"normals={self.normals is not None}, colors={self.colors is not None}, "
+            f"fields={list(self.fields)}, path={str(self.path) if self.path else None!r})"
+        )
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _one_line(exc: BaseException) -> str:
+    """First line of an exception's message, or its type name if it has none."""
+    lines = str(exc).strip().splitlines()
+    return lines[0].strip() if lines else type(exc).__name__
+
+
+def _read_error(path, problem: str) -> HeatcurvError:
+    return HeatcurvError(f"cannot read {path}: {problem}")
+
+
+def _write_error(path, problem: str) -> HeatcurvError:
+    return HeatcurvError(f"cannot write {path}: {problem}")
+
+
+def _canonical(name: str) -> str:
+    """``'Normal_X'`` -> ``'normalx'``: lower case, letters and digits only."""
+    return re.sub(r"[^a-z0-9]", "", str(name).lower())
+
+
+def _native(values: np.ndarray) -> np.ndarray:
+    """A contiguous copy in native byte order (PLY big endian, memory maps)."""
+    values = np.asarray(values)
+    return np.array(values, dtype=values.dtype.newbyteorder("="), copy=True, order="C")
+
+
+def _is_integral(values: np.ndarray) -> bool:
+    """Whether every value is a finite whole number."""
+    if values.dtype.kind in "biu":
+        return True
+    return bool(np.all(np.isfinite(values)) and np.all(values == np.round(values)))
+
+
+def _colors_to_uint8(rgb: np.ndarray, *, text: bool) -> np.ndarray | None:
+    """RGB values of shape (n, 3) as uint8, or None if they do not read as colours.
+
+    ``text=True``: integer values 0-255 are 8-bit, other values in [0, 1] are
+    fractions. ``text=False`` (typed files): float values in [0, 1] are
+    fractions first. Integers up to 65535 are 16-bit unless all are <= 255.
+    """
+    rgb = np.asarray(rgb)
+    if rgb.dtype == np.uint8:
+        return rgb.copy()
+    if rgb.dtype.kind not in "iuf" or rgb.size == 0:
+        return None
+    if rgb.dtype.kind == "f" and not np.all(np.isfinite(rgb)):
+        return None
+    low, high = rgb.min(), rgb.max()
+    if low < 0:
+        return None
+    integral = _is_integral(rgb)
+    fraction = rgb.dtype.kind == "f" and high <= 1.0
+    if fraction and (not text or not integral):
+        return np.round(rgb * 255.0).astype(np.uint8)
+    if integral and high <= 255:
+        return rgb.astype(np.uint8)
+    if integral and high <= 65535:
+        return np.round(rgb / 257.0).astype(np.uint8)
+    return None
+
+
+def _cloud_from_columns(
+    columns: dict, path: Path, fmt: str, *, text_colors: bool, meta=None
+) -> PointCloud:
+    """Assemble a :class:`PointCloud` from named per-point columns.
+
+    Parameters
+    ----------
+    columns : dict of str to ndarray, shape (n,)
+        Every property of the file, in file order.
+    path : Path
+        The file (for messages).
+    fmt : str
+        The format label.
+    text_colors : bool
+        How to read colours (see :func:`_colors_to_uint8`).
+    meta : dict, optional
+        Stored as :attr:`PointCloud.meta`.
+    """
+    role_of = {}
+    for name in columns:
+        role = _ROLE_OF.get(_canonical(name))
+        if role is not None and role not in role_of:
+            role_of[role] = name
+    missing = [axis for axis in "xyz" if axis not in role_of]
+    if missing:
+        names = ", ".join(columns) or "none"
+        raise _read_error(path, f"no {'/'.join(missing)} coordinate column (columns: {names})")
+    used = []
+    points = np.column_stack(
+        [np.asarray(columns[role_of[axis]], dtype=np.float64) for axis in "xyz"]
+    )
+    used += [role_of[axis] for axis in "xyz"]
+    n = points.shape[0]
+    if n == 0:
+        raise _read_error(path, "the file holds no points")
+
+    normals = None
+    if all(role in role_of for role in _NORMAL_NAMES):
+        names = [role_of[role] for role in _NORMAL_NAMES]
+        normals = np.column_stack([np.asarray(columns[name], dtype=np.float64) for name in names])
+        used += names
+
+    colors = None
+    if all(role in role_of for role in _COLOR_NAMES):
+        names = [role_of[role] for role in _COLOR_NAMES]
+        stacked = np.column_stack([np.asarray(columns[name]) for name in names])
+        colors = _colors_to_uint8(stacked, text=text_colors)
+        if colors is not None:
+            used += names
+
+    fields = {name: values for name, values in columns.items() if name not in used}
+    return PointCloud(
+        points=np.ascontiguousarray(points),
+        normals=normals,
+        colors=colors,
+        fields=fields,
+        path=path,
+        format=fmt,
+        meta=dict(meta or {}),
+    )
+
+
+def _magic(path: Path, size: int) -> bytes:
+    with open(path, "rb") as stream:
+        return stream.read(size)
+
+
+# ----------------------------------------------------------------------------- output records
+
+
+@dataclass
+class _Output:
+    """What :func:`~heatcurv.io.write_points` writes, validated: one row per point in every array."""
+
+    points: np.ndarray  # (n, 3) float64
+    normals: np.ndarray | None  # (n, 3) float
+    colors: np.ndarray | None  # (n, 3) uint8
+    columns: dict  # name -> (n,): source properties then the given fields, expanded
+    arrays: dict  # name -> (n,) or (n, 3): the same, (n, 3) fields unexpanded (NPZ)
+    source: PointCloud | None
+    colors_from_source: bool
+
+
+def _check_name(path, name) -> str:
+    if not isinstance(name, str) or not name or _BAD_NAME.search(name) or name.startswith("//"):
+        raise _write_error(
+            path,
+            f"field name {name!r} is not usable as a property name "
+            "(printable ASCII without spaces, commas, semicolons, quotes or '#')",
+        )
+    return name
+
+
+def _as_rows(path, name: str, values, n: int, *, width=None) -> np.ndarray:
+    """``values`` as an array of ``n`` rows (of ``width`` columns), numeric or bool."""
+    array = np.asarray(values)
+    if array.dtype.kind not in "biuf":
+        raise _write_error(path, f"{name} must hold numbers or booleans, got dtype {array.dtype}")
+    if width is None:
+        ok = array.ndim == 1 and array.shape[0] == n or array.shape == (n, 3)
+        expected = f"({n},) or ({n}, 3)"
+    else:
+        ok = array.shape == (n, width)
+        expected = f"({n}, {width})"
+    if not ok:
+        raise _write_error(
+            path, f"{name} has shape {array.shape}, expected {expected} (one row per point)"
+        )
+    return array
+
+
+def _output(path, points, fields, normals, colors, source) -> _Output:
+    """Validate and arrange the arrays to write (see :func:`~heatcurv.io.write_points`)."""
+    points_array = np.asarray(points)
+    if (
+        points_array.dtype.kind not in "biuf"
+        or points_array.ndim != 2
+        or points_array.shape[1] != 3
+    ):
+        raise _write_error(
+            path, f"points must be numbers of shape (n, 3), got shape {points_array.shape}"
+        )
+    points_array = np.ascontiguousarray(points_array, dtype=np.float64)
+    n = points_array.shape[0]
+
+    if source is not None:
+        if not isinstance(source, PointCloud):
+            raise _write_error(path, f"source must be a PointCloud, got {type(source).__name__}")
+        if len(source) != n:
+            raise _write_error(path, f"source has {len(source)} points, points has {n}")
+    colors_from_source = False
+    if normals is None and source is not None:
+        normals = source.normals
+    if colors is None and source is not None and source.colors is not None:
+        colors, colors_from_source = source.colors, True
+    elif colors is not None and source is not None and colors is source.colors:
+        colors_from_source = True
+    if normals is not None:
+        normals = _as_rows(path, "normals", normals, n, width=3)
+        normals = normals.astype(normals.dtype if normals.dtype.kind == "f" else np.float64)
+    if colors is not None:
+        colors = _as_rows(path, "colors", colors, n, width=3)
+        if colors.size and (not _is_integral(colors) or colors.min() < 0 or colors.max() > 255):
+            raise _write_error(path, "colors must be integers 0-255")
+        colors = colors.astype(np.uint8)
+
+    reserved = (
+        {"x", "y", "z"}
+        | (set(_NORMAL_NAMES) if normals is not None else set())
+        | (set(_COLOR_NAMES) if colors is not None else set())
+    )
+    if fields is not None and not isinstance(fields, Mapping):
+        raise _write_error(
+            path, f"fields must be a dict of name -> array, got {type(fields).__name__}"
+        )
+    given_columns, given_arrays = {}, {}
+    for name, values in (fields or {}).items():
+        _check_name(path, name)
+        array = _as_rows(path, f"field {name!r}", values, n)
+        given_arrays[name] = array
+        expanded = (
+            {name: array}
+            if array.ndim == 1
+            else {name + axis: array[:, k] for k, axis in enumerate("xyz")}
+        )
+        for column, column_values in expanded.items():
+            if column.lower() in reserved:
+                raise _write_error(
+                    path,
+                    f"field {name!r} would write the property {column!r}, "
+                    "already taken by the points, normals or colors",
+                )
+            if column in given_columns:
+                raise _write_error(path, f"field {name!r} gives the property {column!r} twice")
+            given_columns[column] = column_values
+
+    columns, arrays = {}, {}
+    if source is not None:
+        for name, values in source.fields.items():
+            clean = _BAD_NAME.sub("_", str(name)).lstrip("/") or "field"
+            if (
+                clean.lower() in reserved
+                or clean in given_columns
+                or clean in given_arrays
+                or clean in columns
+            ):
+                continue  # replaced by the given values
+            array = _as_rows(path, f"source field {name!r}", values, n)
+            if array.ndim != 1:
+                continue
+            columns[clean] = arrays[clean] = array
+    columns.update(given_columns)
+    arrays.update(given_arrays)
+    return _Output(points_array, normals, colors, columns, arrays, source, colors_from_source)
+
+
+def _ordered_columns(output: _Output) -> dict:
+    """All output properties by name, in the written order: x y z, normals, colours, fields."""
+    columns = {axis: output.points[:, k] for k, axis in enumerate("xyz")}
+    if output.normals is not None:
+        columns.update({name: output.normals[:, k] for k, name in enumerate(_NORMAL_NAMES)})
+    if output.colors is not None:
+        columns.update({name: output.colors[:, k] for k, name in enumerate(_COLOR_NAMES)})
+    columns.update(output.columns)
+    return columns

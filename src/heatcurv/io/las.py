@@ -1,0 +1,216 @@
+"""LAS and LAZ: reading and writing with laspy (lazrs for LAZ), headers and extra dimensions kept."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ._common import (
+    _NORMAL_NAMES,
+    _ROLE_OF,
+    PointCloud,
+    _canonical,
+    _is_integral,
+    _one_line,
+    _Output,
+    _read_error,
+    _write_error,
+)
+
+# LAS point formats without RGB -> the same format with RGB
+_LAS_WITH_RGB = {0: 2, 1: 3, 2: 2, 3: 3, 4: 5, 5: 5, 6: 7, 7: 7, 8: 8, 9: 10, 10: 10}
+
+
+def _read_las(path: Path, fmt: str) -> PointCloud:
+    import laspy
+
+    try:
+        las = laspy.read(path)
+        points = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)]).astype(
+            np.float64
+        )
+        dimension_names = list(las.point_format.dimension_names)
+        extra_names = set(las.point_format.extra_dimension_names)
+        columns = {}
+        for name in dimension_names:
+            if name in ("X", "Y", "Z", "red", "green", "blue"):
+                continue
+            values = np.array(las[name])
+            if values.ndim == 2:  # array extra bytes ("3f8"): one field per element
+                for k in range(values.shape[1]):
+                    columns[f"{name}_{k}"] = values[:, k].copy()
+            else:
+                columns[name] = values
+        rgb16 = None
+        if "red" in dimension_names:
+            rgb16 = np.column_stack(
+                [np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)]
+            ).astype(np.uint16)
+        header = las.header
+    except OSError:
+        raise
+    except Exception as exc:  # laspy / lazrs errors on garbage or truncated data
+        raise _read_error(path, f"not a valid LAS/LAZ file ({_one_line(exc)})") from None
+
+    if points.shape[0] < header.point_count:
+        raise _read_error(
+            path,
+            f"truncated: the header announces {header.point_count} points, "
+            f"the file holds {points.shape[0]}",
+        )
+    if points.shape[0] == 0:
+        raise _read_error(path, "the file holds no points")
+    normals = None
+    role_of = {}
+    for name in columns:
+        role = _ROLE_OF.get(_canonical(name))
+        if name in extra_names and role in _NORMAL_NAMES and role not in role_of:
+            role_of[role] = name
+    if all(role in role_of for role in _NORMAL_NAMES):
+        normals = np.column_stack(
+            [columns.pop(role_of[role]).astype(np.float64) for role in _NORMAL_NAMES]
+        )
+    colors = None
+    meta = {"las_header": header}
+    if rgb16 is not None:
+        colors = (
+            rgb16.astype(np.uint8)
+            if rgb16.max(initial=0) <= 255
+            else np.round(rgb16 / 257.0).astype(np.uint8)
+        )
+        meta["las_rgb16"] = rgb16
+    return PointCloud(
+        points=np.ascontiguousarray(points),
+        normals=normals,
+        colors=colors,
+        fields=columns,
+        path=path,
+        format=fmt,
+        meta=meta,
+    )
+
+
+def _las_scales_offsets(points: np.ndarray):
+    """Power-of-ten scale at most 1e-6 of the largest bounding-box side, round offsets.
+
+    Returns
+    -------
+    scales, offsets : ndarray, shape (3,)
+    """
+    if points.shape[0] == 0:
+        return np.full(3, 1e-3), np.zeros(3)
+    low, high = points.min(axis=0), points.max(axis=0)
+    extent = float(np.max(high - low))
+    if not extent > 0:
+        extent = max(1.0, float(np.abs(low).max()) * 1e-3)
+    exponent = int(np.floor(np.log10(extent * 1e-6)))
+    scale = 10.0**exponent
+    unit = 10.0 ** (exponent + 6)  # a round number no larger than the extent
+    offsets = np.floor(low / unit) * unit
+    return np.full(3, scale), offsets
+
+
+def _fits_exactly(values: np.ndarray, dtype: np.dtype) -> bool:
+    """Whether ``values`` converts to ``dtype`` without changing any value."""
+    if dtype.kind == "f":
+        return True
+    if values.dtype.kind == "f" and not _is_integral(values):
+        return False
+    if values.size == 0:
+        return True
+    info = np.iinfo(dtype)
+    return info.min <= values.min() and values.max() <= info.max
+
+
+def _write_las(stream, output: _Output, path: Path) -> None:
+    import datetime
+
+    import laspy
+
+    points = output.points
+    finite = np.isfinite(points).all(axis=1)
+    if not finite.all():
+        rows = np.flatnonzero(~finite)
+        raise _write_error(
+            path,
+            "LAS cannot store NaN or infinite coordinates "
+            f"({rows.size} row(s), first row {rows[0]})",
+        )
+    n = points.shape[0]
+    source_header = output.source.meta.get("las_header") if output.source is not None else None
+    if source_header is not None:
+        header = source_header.copy()
+        header.remove_extra_dims(list(header.point_format.extra_dimension_names))
+        if output.colors is not None and "red" not in header.point_format.dimension_names:
+            target = _LAS_WITH_RGB[header.point_format.id]
+            version = str(header.version)
+            if target == 5 and version < "1.3" or target in (7, 8, 10) and version < "1.4":
+                version = "1.4"
+            header.set_version_and_point_format(
+                laspy.header.Version.from_str(version), laspy.PointFormat(target)
+            )
+        header.partial_reset()
+        header.creation_date = datetime.date.today()
+    else:
+        header = laspy.LasHeader(point_format=7 if output.colors is not None else 6, version="1.4")
+        header.scales, header.offsets = _las_scales_offsets(points)
+    header.generating_software = "heatcurv"
+
+    standard = set(header.point_format.dimension_names)
+    extra = dict(output.columns)
+    if output.normals is not None:
+        extra = {**{name: output.normals[:, k] for k, name in enumerate(_NORMAL_NAMES)}, **extra}
+    fill_standard = {}
+    for name in list(extra):
+        if name in standard:
+            fill_standard[name] = extra.pop(name)
+        elif len(name.encode("utf-8")) > 32:
+            raise _write_error(path, f"field name {name!r} is longer than the 32 bytes LAS allows")
+    params = []
+    for name, values in extra.items():
+        dtype = values.dtype
+        if dtype.kind == "b":
+            dtype = np.dtype(np.uint8)
+        elif dtype.kind == "f" and dtype.itemsize < 4:
+            dtype = np.dtype(np.float32)
+        params.append(laspy.ExtraBytesParams(name=name, type=dtype))
+    try:
+        if params:
+            header.add_extra_dims(params)
+        las = laspy.LasData(
+            header=header, points=laspy.ScaleAwarePointRecord.zeros(n, header=header)
+        )
+        las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
+    except OverflowError:
+        raise _write_error(
+            path,
+            f"the coordinates do not fit the LAS scales {header.scales} "
+            f"and offsets {header.offsets}",
+        ) from None
+    except Exception as exc:
+        raise _write_error(path, f"laspy: {_one_line(exc)}") from None
+
+    if output.colors is not None:
+        rgb16 = output.source.meta.get("las_rgb16") if output.colors_from_source else None
+        if rgb16 is None:
+            rgb16 = output.colors.astype(np.uint16) * np.uint16(257)
+        las.red, las.green, las.blue = rgb16[:, 0], rgb16[:, 1], rgb16[:, 2]
+    for name, values in fill_standard.items():
+        target = np.asarray(las[name]).dtype
+        if not _fits_exactly(values, target):
+            raise _write_error(
+                path, f"field {name!r} does not fit the LAS dimension {name} ({target})"
+            )
+        try:
+            las[name] = values.astype(target)
+        except (OverflowError, ValueError) as exc:
+            raise _write_error(
+                path, f"field {name!r} does not fit the LAS dimension {name} ({_one_line(exc)})"
+            ) from None
+    for name, values in extra.items():
+        las[name] = values.astype(np.uint8) if values.dtype.kind == "b" else values
+    try:
+        las.write(stream, do_compress=path.suffix.lower() == ".laz")
+    except Exception as exc:
+        raise _write_error(path, f"laspy: {_one_line(exc)}") from None

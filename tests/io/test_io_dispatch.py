@@ -1,0 +1,152 @@
+"""read_points/write_points dispatch: round trips through every writable format, shared errors."""
+
+import numpy as np
+import pytest
+from io_helpers import N, expanded, leftovers, make_cloud
+
+from heatcurv import HeatcurvError
+from heatcurv.io import SUPPORTED_READ, SUPPORTED_WRITE, PointCloud, read_points, write_points
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    """Torus points far from the origin (UTM-like), with normals, colours and result-like fields."""
+    return make_cloud()
+
+
+@pytest.mark.parametrize("ext", [".ply", ".csv", ".xyz", ".txt", ".npz"])
+def test_round_trip_exact(tmp_path, cloud, ext):
+    points, normals, colors, fields = cloud
+    points = points.copy()
+    points[5] = np.nan  # NaN rows are read faithfully, not rejected
+    path = tmp_path / f"out{ext}"
+    write_points(path, points, fields, normals=normals, colors=colors)
+    back = read_points(path)
+    assert back.format == ext[1:] and len(back) == N
+    np.testing.assert_array_equal(back.points, points)
+    assert back.points.dtype == np.float64
+    np.testing.assert_array_equal(back.normals, normals)
+    np.testing.assert_array_equal(back.colors, colors)
+    assert back.colors.dtype == np.uint8
+    assert list(back.fields) == list(expanded(fields))
+    for name, values in expanded(fields).items():
+        np.testing.assert_array_equal(back.fields[name], values, err_msg=name)
+    assert leftovers(tmp_path) == [path.name]
+
+
+@pytest.mark.parametrize("ext", SUPPORTED_WRITE)
+def test_source_fields_are_written_back(tmp_path, ext):
+    points = np.random.default_rng(2).random((50, 3))
+    source = PointCloud(
+        points=points, fields={"intensity": np.arange(50.0), "ring": np.arange(50) % 4}
+    )
+    path = tmp_path / f"out{ext}"
+    write_points(path, points, {"mean": np.ones(50), "ring": np.zeros(50)}, source=source)
+    back = read_points(path)
+    np.testing.assert_array_equal(back.fields["intensity"], np.arange(50.0))
+    np.testing.assert_array_equal(back.fields["ring"], 0.0)  # the given field replaces the source's
+    if ext in (".ply", ".csv", ".xyz", ".txt", ".npz"):
+        assert list(back.fields) == ["intensity", "mean", "ring"]
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(HeatcurvError, match=r"nothere\.ply: no such file"):
+        read_points(tmp_path / "nothere.ply")
+
+
+def test_unknown_extensions(tmp_path):
+    (tmp_path / "cloud.e57").write_bytes(b"x")
+    with pytest.raises(
+        HeatcurvError, match=r"cloud\.e57: unknown extension '\.e57'; supported: \.ply \.las"
+    ):
+        read_points(tmp_path / "cloud.e57")
+    with pytest.raises(
+        HeatcurvError, match=r"out\.obj: unknown extension .*\.ply \.las \.laz \.csv"
+    ):
+        write_points(tmp_path / "out.obj", np.zeros((3, 3)))
+    assert set(SUPPORTED_WRITE) <= set(SUPPORTED_READ)
+
+
+@pytest.mark.parametrize("ext", SUPPORTED_READ)
+def test_empty_file(tmp_path, ext):
+    path = tmp_path / f"empty{ext}"
+    path.write_bytes(b"")
+    with pytest.raises(HeatcurvError, match=rf"empty\{ext}: the file is empty"):
+        read_points(path)
+
+
+@pytest.mark.parametrize(
+    "name,content,message",
+    [
+        ("header_only.csv", "x,y,z\n", "holds no points"),
+        ("comments.xyz", "# nothing\n\n", "holds no points"),
+        (
+            "zero.ply",
+            "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+            "property float z\nend_header\n",
+            "holds no points",
+        ),
+        ("zero.off", "OFF\n0 0 0\n", "holds no points"),
+        ("nov.obj", "f 1 2 3\n", r"no vertices \('v' lines\)"),
+    ],
+)
+def test_no_points(tmp_path, name, content, message):
+    (tmp_path / name).write_text(content)
+    with pytest.raises(HeatcurvError, match=message):
+        read_points(tmp_path / name)
+
+
+@pytest.mark.parametrize(
+    "name,message",
+    [
+        ("junk.ply", r"junk\.ply: not a valid PLY file \(it does not start with 'ply'\)"),
+        ("junk.las", r"junk\.las: not a valid LAS/LAZ file"),
+        ("junk.laz", r"junk\.laz: not a valid LAS/LAZ file"),
+        ("junk.npz", r"junk\.npz: not a valid NPZ file"),
+        ("junk.npy", r"junk\.npy: not a valid NPY file"),
+        ("junk.xyz", r"junk\.xyz: binary data, not a text file"),
+        ("junk.off", r"junk\.off: .*not an OFF file|binary data"),
+    ],
+)
+def test_garbage_files(tmp_path, name, message):
+    (tmp_path / name).write_bytes(
+        bytes(np.random.default_rng(6).integers(0, 256, 4000, dtype=np.uint8))
+    )
+    with pytest.raises(HeatcurvError, match=message) as info:
+        read_points(tmp_path / name)
+    assert "\n" not in str(info.value)
+
+
+def test_write_validation_errors(tmp_path):
+    points = np.zeros((4, 3))
+    cases = [
+        (
+            dict(fields={"mean": np.zeros(3)}),
+            r"field 'mean' has shape \(3,\), expected \(4,\) or \(4, 3\)",
+        ),
+        (dict(fields={"bad name": np.zeros(4)}), r"field name 'bad name' is not usable"),
+        (
+            dict(fields={"nx": np.zeros(4)}, normals=np.ones((4, 3))),
+            r"property 'nx', already taken",
+        ),
+        (dict(fields={"X": np.zeros(4)}), r"property 'X', already taken"),
+        (dict(fields={"déviation": np.zeros(4)}), r"field name 'déviation' is not usable"),
+        (
+            dict(fields={"d1": np.zeros((4, 3)), "d1x": np.zeros(4)}),
+            r"gives the property 'd1x' twice",
+        ),
+        (dict(fields={"label": np.array(list("abcd"))}), r"field 'label' must hold numbers"),
+        (dict(normals=np.zeros((4, 2))), r"normals has shape \(4, 2\), expected \(4, 3\)"),
+        (dict(colors=np.full((4, 3), 300)), r"colors must be integers 0-255"),
+        (dict(source=PointCloud(points=np.zeros((5, 3)))), r"source has 5 points, points has 4"),
+    ]
+    for kwargs, message in cases:
+        with pytest.raises(HeatcurvError, match=message):
+            write_points(tmp_path / "out.ply", points, **kwargs)
+    with pytest.raises(HeatcurvError, match=r"points must be numbers of shape \(n, 3\)"):
+        write_points(tmp_path / "out.ply", np.zeros((4, 2)))
+    with pytest.raises(HeatcurvError, match=r"LAS cannot store NaN"):
+        write_points(tmp_path / "out.las", np.full((4, 3), np.nan))
+    with pytest.raises(HeatcurvError, match=r"does not exist"):
+        write_points(tmp_path / "missing_dir" / "out.ply", points)
+    assert leftovers(tmp_path) == []

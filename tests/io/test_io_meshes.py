@@ -1,0 +1,62 @@
+"""OBJ and OFF read as point clouds: vertices, colours, normals, errors naming the line."""
+
+import numpy as np
+import pytest
+
+from heatcurv import HeatcurvError
+from heatcurv.io import read_points
+
+
+def test_obj_vertices_only(tmp_path):
+    content = (
+        "# mesh\nmtllib a.mtl\nv 1 2 3 1 0.5 0\nvn 0 0 1\nvt 0.5 0.5\nv 4 5 6 0 0 1\nf 1 2 1\n"
+    )
+    (tmp_path / "m.obj").write_text(content)
+    got = read_points(tmp_path / "m.obj")
+    np.testing.assert_array_equal(got.points, [[1, 2, 3], [4, 5, 6]])
+    np.testing.assert_array_equal(got.colors, [[255, 128, 0], [0, 0, 255]])
+    (tmp_path / "p.obj").write_text("v 1 2 3\nv 4 5 6\n")
+    assert read_points(tmp_path / "p.obj").colors is None
+
+
+@pytest.mark.parametrize(
+    "content,colors,normals",
+    [
+        ("OFF\n# cube corner\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", None, None),
+        (
+            "COFF 3 0 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n",
+            [255, 0, 0],
+            None,
+        ),
+        ("COFF\n3 0 0\n0 0 0 1 0 0 1\n1 0 0 0 1 0 1\n0 1 0 0 0 1 1\n", [255, 0, 0], None),
+        ("NOFF\n3 0 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n", None, [0, 0, 1]),
+    ],
+    ids=["off", "coff-bytes", "coff-floats", "noff"],
+)
+def test_off(tmp_path, content, colors, normals):
+    (tmp_path / "m.off").write_text(content)
+    got = read_points(tmp_path / "m.off")
+    np.testing.assert_array_equal(got.points, [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    assert (got.colors is None) == (colors is None) and (got.normals is None) == (normals is None)
+    if colors:
+        np.testing.assert_array_equal(got.colors[0], colors)
+    if normals:
+        np.testing.assert_array_equal(got.normals[2], normals)
+
+
+@pytest.mark.parametrize(
+    "name,content,message",
+    [
+        ("bad.obj", "v 1 2 3\nvn 0 0 1\nv 4 5\n", r"bad\.obj: line 3: expected 3 values, found 2"),
+        (
+            "bad.off",
+            "OFF\n3 0 0\n0 0 0\n1 0 0\n",
+            r"bad\.off: truncated: the header announces 3 vertices",
+        ),
+        ("word.off", "OFF\n2 0 0\n0 0 0\n1 x 0\n", r"word\.off: line 4: column 2 holds 'x'"),
+    ],
+)
+def test_mesh_errors_name_the_line(tmp_path, name, content, message):
+    (tmp_path / name).write_text(content)
+    with pytest.raises(HeatcurvError, match=message):
+        read_points(tmp_path / name)

@@ -1,0 +1,138 @@
+"""PLY: property names written, foreign files (byte orders, ascii, faces, quads), PLY errors."""
+
+import numpy as np
+import plyfile
+import pytest
+from io_helpers import make_cloud
+
+from heatcurv import HeatcurvError
+from heatcurv.io import read_points, write_points
+
+RESULT_NAMES = "x y z nx ny nz mean gaussian k1 k2 d1x d1y d1z d2x d2y d2z area".split()
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    """Torus points far from the origin (UTM-like), with normals, colours and result-like fields."""
+    return make_cloud()
+
+
+def test_ply_property_names_for_results(tmp_path, cloud):
+    points, normals, _, fields = cloud
+    results = {name: fields[name] for name in ("mean", "gaussian", "k1", "k2", "d1", "d2", "area")}
+    path = tmp_path / "result.ply"
+    write_points(path, points, results, normals=normals)
+    ply = plyfile.PlyData.read(str(path))
+    assert [p.name for p in ply["vertex"].properties] == RESULT_NAMES
+    assert ply.byte_order == "<" and not ply.text
+    assert ply["vertex"].data.dtype["x"] == np.dtype("<f8")
+
+
+def _vertex_face_ply(byte_order, text, n=40):
+    rng = np.random.default_rng(3)
+    vertex = np.zeros(
+        n,
+        dtype=[
+            ("x", "f4"),
+            ("y", "f4"),
+            ("z", "f4"),
+            ("normal_x", "f4"),
+            ("normal_y", "f4"),
+            ("normal_z", "f4"),
+            ("diffuse_red", "u1"),
+            ("diffuse_green", "u1"),
+            ("diffuse_blue", "u1"),
+            ("quality", "f4"),
+            ("label", "i4"),
+        ],
+    )
+    for name in vertex.dtype.names:
+        vertex[name] = rng.integers(0, 200, n)
+    faces = np.zeros(n, dtype=[("vertex_indices", "i4", (3,))])
+    faces["vertex_indices"] = rng.integers(0, n, (n, 3))
+    data = plyfile.PlyData(
+        [plyfile.PlyElement.describe(vertex, "vertex"), plyfile.PlyElement.describe(faces, "face")],
+        text=text,
+        byte_order=byte_order,
+    )
+    return data, vertex
+
+
+@pytest.mark.parametrize(
+    "byte_order,text", [(">", False), ("<", False), ("=", True)], ids=["big", "little", "ascii"]
+)
+def test_foreign_ply_read(tmp_path, byte_order, text):
+    data, vertex = _vertex_face_ply(byte_order, text)
+    path = tmp_path / "mesh.PLY"  # extension case-insensitive
+    data.write(str(path))
+    got = read_points(path)
+    np.testing.assert_array_equal(
+        got.points, np.column_stack([vertex["x"], vertex["y"], vertex["z"]])
+    )
+    np.testing.assert_array_equal(got.normals[:, 2], vertex["normal_z"])
+    np.testing.assert_array_equal(got.colors[:, 0], vertex["diffuse_red"])
+    assert list(got.fields) == ["quality", "label"]  # faces ignored
+    assert got.fields["quality"].dtype == np.float32 and got.fields["quality"].dtype.isnative
+    np.testing.assert_array_equal(got.fields["label"], vertex["label"])
+
+
+def test_ply_with_quads_and_vertex_after_faces(tmp_path):
+    vertex = np.zeros(
+        5,
+        dtype=[
+            ("x", "f8"),
+            ("y", "f8"),
+            ("z", "f8"),
+            ("red", "u1"),
+            ("green", "u1"),
+            ("blue", "u1"),
+        ],
+    )
+    vertex["x"] = np.arange(5)
+    faces = np.empty(2, dtype=[("vertex_indices", "O")])
+    faces["vertex_indices"] = [np.array([0, 1, 2, 3], "i4"), np.array([1, 2, 4], "i4")]
+    plyfile.PlyData(
+        [plyfile.PlyElement.describe(faces, "face"), plyfile.PlyElement.describe(vertex, "vertex")]
+    ).write(str(tmp_path / "q.ply"))
+    got = read_points(tmp_path / "q.ply")
+    np.testing.assert_array_equal(got.points[:, 0], np.arange(5))
+    assert got.colors is not None and got.fields == {}
+
+
+def test_ply_float_colours_are_scaled(tmp_path):
+    vertex = np.zeros(
+        2, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"), ("r", "f4"), ("g", "f4"), ("b", "f4")]
+    )
+    vertex["r"] = [1.0, 0.5]
+    plyfile.PlyData([plyfile.PlyElement.describe(vertex, "vertex")], text=True).write(
+        str(tmp_path / "f.ply")
+    )
+    np.testing.assert_array_equal(read_points(tmp_path / "f.ply").colors[:, 0], [255, 128])
+
+
+def test_truncated_binary_ply(tmp_path, cloud):
+    points, normals, colors, fields = cloud
+    write_points(tmp_path / "full.ply", points, fields, normals=normals, colors=colors)
+    data = (tmp_path / "full.ply").read_bytes()
+    (tmp_path / "half.ply").write_bytes(data[: len(data) // 2])
+    with pytest.raises(HeatcurvError, match=r"half\.ply: not a valid PLY file \(.*end-of-file"):
+        read_points(tmp_path / "half.ply")
+    data, _ = _vertex_face_ply("<", False)  # faces cut, vertices complete: still an error
+    data.write(str(tmp_path / "mesh.ply"))
+    raw = (tmp_path / "mesh.ply").read_bytes()
+    (tmp_path / "cut.ply").write_bytes(raw[:-20])
+    with pytest.raises(HeatcurvError, match=r"cut\.ply: not a valid PLY file"):
+        read_points(tmp_path / "cut.ply")
+
+
+def test_garbage_ply_header(tmp_path):
+    (tmp_path / "h.ply").write_bytes(
+        b"ply\nformat binary_little_endian 1.0\nelement vertex lots\nend_header\n"
+    )
+    with pytest.raises(HeatcurvError, match=r"h\.ply: not a valid PLY file \(line 3"):
+        read_points(tmp_path / "h.ply")
+    (tmp_path / "nov.ply").write_text(
+        "ply\nformat ascii 1.0\nelement point 1\nproperty float x\nend_header\n1\n"
+    )
+    with pytest.raises(HeatcurvError, match=r"no 'vertex' element .*elements: point"):
+        read_points(tmp_path / "nov.ply")
