@@ -4,7 +4,7 @@ Three estimators
 
 * ``default`` -- ``heatcurv.estimate(points)``;
 * ``paper``   -- ``heatcurv.estimate(points, method="paper")``;
-* ``quadric`` -- :func:`heatcurv.baseline.quadric_curvature` with ``k = 40``
+* ``quadric`` -- :func:`heatcurv.testing.quadric_curvature` with ``k = 40``
   (PCA normal, least-squares quadric, exact curvature of the quadric)
 
 run on point clouds with exact ground truth (:mod:`heatcurv.surfaces`):
@@ -28,7 +28,7 @@ run on point clouds with exact ground truth (:mod:`heatcurv.surfaces`):
 * noise: Gaussian, standard deviation 0, 0.12 % and 0.6 % of the bounding-box
   diagonal, n = 20000, random sampler (noise 0 is the row of the main table).
 
-Error measures (:func:`heatcurv.evaluation.compare`, on interior points)
+Error measures (:func:`heatcurv.testing.compare`, on interior points)
 
 ``mean k1 k2 K``  relative L1 error ``mean|k - k*| / mean|k*|`` in %, after
                   aligning the exact values with the estimated orientation
@@ -102,8 +102,7 @@ from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import surfaces as hs
-from heatcurv.baseline import quadric_curvature
-from heatcurv.evaluation import compare
+from heatcurv.testing import compare, quadric_curvature
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)

@@ -502,7 +502,7 @@ def _prepare_robust_laplacian():
 
 
 def _prepare_heatcurv_quadric():
-    from heatcurv.baseline import quadric_curvature
+    from heatcurv.testing import quadric_curvature
 
     def compute(points, stages):
         return quadric_curvature(points, k=K)

@@ -28,4 +28,4 @@ def torus_default(torus_sample):
     return heatcurv.estimate(torus_sample.points)
 
 
-from heatcurv.evaluation import aligned_exact, direction_error_deg as angle_deg, relative_l1 as rel_l1  # noqa: E402,F401
+from heatcurv.testing import aligned_exact, direction_error_deg as angle_deg, relative_l1 as rel_l1  # noqa: E402,F401

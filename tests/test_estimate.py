@@ -14,7 +14,7 @@ from heatcurv import surfaces
 
 from conftest import aligned_exact, rel_l1
 
-from heatcurv.evaluation import compare
+from heatcurv.testing import compare
 
 
 def test_result_shapes_and_invariants(torus_sample, torus_default):

@@ -1,4 +1,4 @@
-"""Error measures (heatcurv.evaluation): zero on exact values, orientation-aware."""
+"""Error measures (heatcurv.testing.errors): zero on exact values, orientation-aware."""
 
 from types import SimpleNamespace
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from heatcurv import surfaces
-from heatcurv.evaluation import aligned_exact, compare, direction_error_deg, paper_error, relative_l1
+from heatcurv.testing import aligned_exact, compare, default_margin, direction_error_deg, paper_error, relative_l1
 
 
 def exact_result(sample, flip=False):
@@ -44,3 +44,16 @@ def test_measures():
     a = np.array([[1.0, 0, 0], [0, 1.0, 0]])
     b = np.array([[-1.0, 0, 0], [np.sqrt(0.5), np.sqrt(0.5), 0]])
     assert direction_error_deg(a, b) == pytest.approx(22.5)
+
+
+def test_default_margin_without_the_alpha_coupling():
+    sample = surfaces.Saddle().sample(900, "grid")
+    result = exact_result(sample)  # a CurvatureResult-like: options.alpha = 4, spacing 0.01
+    assert default_margin(result) == pytest.approx(4.0 * 0.01, rel=1e-15)
+    assert np.array_equal(compare(sample, result)["interior"], sample.interior(4.0 * 0.01))
+    # a result that states its own neighbourhood radius needs no options.alpha
+    own = SimpleNamespace(**{k: v for k, v in vars(result).items() if k != "options"}, support_radius=0.3)
+    assert default_margin(own) == 0.3
+    assert np.array_equal(compare(sample, own)["interior"], sample.interior(0.3))
+    # an explicit margin wins
+    assert np.array_equal(compare(sample, own, margin=0.1)["interior"], sample.interior(0.1))

@@ -1,4 +1,4 @@
-"""Tests of heatcurv.baseline: the k-NN quadric-fit baseline.
+"""Tests of heatcurv.testing.baseline: the k-NN quadric-fit baseline.
 
 Measured numbers (k = 40, area-uniform random samples, 20000 points, seed 0):
 
@@ -22,11 +22,10 @@ import math
 import numpy as np
 import pytest
 
-import heatcurv.baseline
+import heatcurv.testing.baseline
 from heatcurv import surfaces as hs
-from heatcurv.baseline import QuadricResult, quadric_curvature
 from heatcurv.errors import HeatcurvError
-from heatcurv.evaluation import compare
+from heatcurv.testing import QuadricResult, compare, default_margin, quadric_curvature
 
 
 @pytest.fixture(scope="module")
@@ -180,9 +179,19 @@ def test_any_size_and_position(torus):
 def test_scan_sample_runs(torus):
     smp = hs.Torus().scan(5000, seed=0)
     res = quadric_curvature(smp.points)
-    err = compare(smp, res)  # default margin: alpha * max(spacing), alpha = 1
+    err = compare(smp, res)  # default margin: res.support_radius = max(spacing)
     assert err["orientation"] == 1.0
     assert err["rel_mean"] < 0.05
+
+
+def test_support_radius_is_the_default_margin(torus):
+    # the quadric result states its neighbourhood radius; no fake options.alpha
+    smp, res = torus
+    assert res.support_radius == float(np.max(res.spacing))
+    assert not hasattr(res.options, "alpha")
+    assert default_margin(res) == res.support_radius
+    a, b = compare(smp, res), compare(smp, res, margin=float(np.max(res.spacing)))
+    assert np.array_equal(a["interior"], b["interior"]) and a["rel_mean"] == b["rel_mean"]
 
 
 def test_errors():
@@ -223,5 +232,5 @@ def test_duplicates_share_values_and_area():
 
 
 def test_docstring_example():
-    result = doctest.testmod(heatcurv.baseline, optionflags=doctest.ELLIPSIS)
+    result = doctest.testmod(heatcurv.testing.baseline, optionflags=doctest.ELLIPSIS)
     assert result.attempted > 0 and result.failed == 0

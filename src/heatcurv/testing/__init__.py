@@ -1,0 +1,30 @@
+"""Test support: error measures against exact values, and the quadric-fit baseline.
+
+Not part of the estimator: what the tests, the benchmarks and the demo use to
+judge an estimate against the exact values of :mod:`heatcurv.surfaces`.
+
+=====================  ======================================================
+``errors``             error measures (eqs 4.1, 5.1, relative L1) and
+                       :func:`compare` (formerly ``heatcurv.evaluation``)
+``baseline``           the classical k-NN quadric fit, for comparison
+                       (formerly ``heatcurv.baseline``)
+=====================  ======================================================
+"""
+
+from __future__ import annotations
+
+from .baseline import RCOND_MIN, QuadricOptions, QuadricResult, quadric_curvature
+from .errors import aligned_exact, compare, default_margin, direction_error_deg, paper_error, relative_l1
+
+__all__ = [
+    "QuadricOptions",
+    "QuadricResult",
+    "RCOND_MIN",
+    "aligned_exact",
+    "compare",
+    "default_margin",
+    "direction_error_deg",
+    "paper_error",
+    "quadric_curvature",
+    "relative_l1",
+]
