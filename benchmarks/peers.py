@@ -28,7 +28,7 @@ Peers (:data:`PEERS`, in this order)
     ``robust_laplacian.point_cloud_laplacian(points)`` (package defaults,
     ``n_neighbors=30``): the sparse Laplacian ``L`` and mass matrix ``M``.
 ``heatcurv-quadric``
-    :func:`heatcurv.baseline.quadric_curvature` with ``k = 40``: oriented
+    :func:`heatcurv.testing.quadric_curvature` with ``k = 40``: oriented
     normals, principal curvatures and directions from k-NN quadric fits.
 
 Every computation is one cold call in a fresh process (no warm-up run), as a

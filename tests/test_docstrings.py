@@ -7,10 +7,10 @@ import pytest
 import heatcurv.data
 import heatcurv.estimator
 import heatcurv.features
-import heatcurv.laplace_beltrami
+import heatcurv.operator
 import heatcurv.render
 
-MODULES = [heatcurv.estimator, heatcurv.features, heatcurv.laplace_beltrami, heatcurv.render, heatcurv.data]
+MODULES = [heatcurv.estimator, heatcurv.features, heatcurv.operator, heatcurv.render, heatcurv.data]
 
 
 @pytest.mark.parametrize("module", MODULES, ids=lambda m: m.__name__)
