@@ -1,0 +1,95 @@
+""":func:`main`: parse the command line, run the command, turn every failure into one line and an exit status."""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+
+from ..errors import HeatcurvError, HeatcurvWarning
+from .console import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, EXIT_OK, Log
+from .parser import UsageError, build_parser, join_negative_values
+
+__all__ = ["main", "EXIT_OK", "EXIT_BUG", "EXIT_BAD_INPUT", "EXIT_INTERRUPTED"]
+
+
+def _warning_printer(show_all: bool, stream):
+    """``warnings.showwarning`` printing one line ``heatcurv: warning: ...``."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, HeatcurvWarning) or show_all:
+            text = " ".join(str(message).split())
+            print(f"heatcurv: warning: {text}", file=stream, flush=True)
+
+    return show
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's message on one line (its type's name if it has none)."""
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
+
+
+def main(argv=None) -> int:
+    """Run the ``heatcurv`` command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        Exit status: 0 success, 2 bad input or options, 1 unexpected error
+        (a bug), 130 interrupted.
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    try:
+        args = build_parser().parse_args(join_negative_values(argv))
+    except UsageError as exc:
+        print(f"heatcurv: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except SystemExit as exc:  # --help, --version
+        return exc.code if isinstance(exc.code, int) else EXIT_OK
+    debug = args.debug
+    if args.quiet and args.verbose:
+        print("heatcurv: error: --quiet and --verbose exclude each other", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    log = Log(quiet=args.quiet, verbose=args.verbose)
+    try:
+        with warnings.catch_warnings():
+            if not debug:
+                warnings.showwarning = _warning_printer(args.verbose, sys.stderr)
+            return args.run(args, log)
+    except HeatcurvError as exc:
+        if debug:
+            raise
+        print(f"heatcurv: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        print("heatcurv: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # e.g. 'heatcurv info big.ply | head'
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return EXIT_OK
+    except MemoryError:
+        if debug:
+            raise
+        print("heatcurv: error: out of memory; try a smaller cloud, or fewer --workers", file=sys.stderr)
+        return EXIT_BUG
+    except Exception as exc:
+        if debug:
+            raise
+        print(
+            f"heatcurv: error: unexpected {type(exc).__name__}: {_one_line(exc)} "
+            "(this is a bug in heatcurv; rerun with --debug to see the traceback, and please report it)",
+            file=sys.stderr,
+        )
+        return EXIT_BUG

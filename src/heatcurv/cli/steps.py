@@ -1,0 +1,215 @@
+"""The steps the commands share: check the output, read, estimate (with the progress bar), detect features, write.
+
+Each step prints what it did through the command's :class:`~.console.Log`
+and raises :class:`~heatcurv.errors.HeatcurvError` with a one-line message.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import HeatcurvError
+from .console import Log
+from .fields import COMPUTED_FIELDS, FEATURE_FIELDS
+from .progressbar import StageProgress
+
+__all__ = [
+    "check_output_path", "supported_write", "read_cloud", "finite_rows", "input_normals", "run_estimate",
+    "detect_features", "full_rows", "computed_values", "result_fields", "write_cloud",
+]
+
+
+def check_output_path(path, extensions, what: str) -> Path:
+    """Fail early (before any computation) on an output the writer would refuse."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in extensions:
+        raise HeatcurvError(
+            f"cannot write {path}: unknown {what} extension {ext or '(none)'!r}; supported: {' '.join(extensions)}"
+        )
+    if not path.parent.is_dir():
+        raise HeatcurvError(f"cannot write {path}: the directory {path.parent} does not exist")
+    if path.is_dir():
+        raise HeatcurvError(f"cannot write {path}: it is a directory")
+    return path
+
+
+def supported_write():
+    """The extensions :func:`heatcurv.io.write_points` writes."""
+    from ..io import SUPPORTED_WRITE
+
+    return SUPPORTED_WRITE
+
+
+def read_cloud(path, log: Log):
+    """:func:`heatcurv.io.read_points`, saying what was read."""
+    from ..io import read_points
+
+    tic = time.perf_counter()
+    cloud = read_points(path)
+    extras = []
+    if cloud.normals is not None:
+        extras.append("normals")
+    if cloud.colors is not None:
+        extras.append("colours")
+    if cloud.fields:
+        extras.append(f"{len(cloud.fields)} other field(s)")
+    log.info(f"read {path}: {len(cloud)} points ({(cloud.format or '?').upper()}"
+             f"{', ' + ', '.join(extras) if extras else ''})")
+    log.detail(f"  reading took {time.perf_counter() - tic:.2f} s")
+    return cloud
+
+
+def finite_rows(cloud, skip_nonfinite: bool) -> np.ndarray | None:
+    """Row numbers with finite coordinates, or None if all are; an error unless skipping."""
+    finite = np.isfinite(cloud.points).all(axis=1)
+    if finite.all():
+        return None
+    bad = np.flatnonzero(~finite)
+    if not skip_nonfinite:
+        shown = ", ".join(str(r) for r in bad[:5]) + (", ..." if bad.size > 5 else "")
+        raise HeatcurvError(
+            f"{cloud.path}: {bad.size} of {len(cloud)} points have NaN or infinite coordinates "
+            f"(rows {shown}, counted from 0); remove them or pass --skip-nonfinite"
+        )
+    return np.flatnonzero(finite)
+
+
+def input_normals(cloud, use: bool, rows):
+    """The file's normals of ``rows`` (``--normals-from-input``), or None if not ``use``."""
+    if not use:
+        return None
+    if cloud.normals is None:
+        raise HeatcurvError(
+            f"{cloud.path} has no normals (nx ny nz); drop --normals-from-input to estimate them"
+        )
+    return cloud.normals if rows is None else cloud.normals[rows]
+
+
+def run_estimate(points, normals, options: dict, log: Log, source=None):
+    """:func:`heatcurv.estimate` with a progress bar on a terminal, and the messages around it.
+
+    A :class:`HeatcurvError` (too few points, collinear points, ...) is
+    re-raised with the name of the ``source`` file in front.
+    """
+    from ..estimator import estimate
+
+    progress = StageProgress(enabled=not log.quiet and sys.stderr.isatty())
+    tic = time.perf_counter()
+    try:
+        res = estimate(points, normals, progress=progress, **options)
+    except HeatcurvError as exc:
+        if source is None:
+            raise
+        raise HeatcurvError(f"{source}: {exc}") from exc
+    finally:
+        progress.close()
+    seconds = time.perf_counter() - tic
+    scale = res.info.get("scale")
+    kernel = f", kernel {scale['fit']}" if scale else ""
+    log.info(
+        f"estimated curvature in {seconds:.2f} s (method {res.options.method}{kernel}): "
+        f"{int(res.reliable.sum())} of {len(res)} points reliable"
+    )
+    if log.verbose:
+        _report_details(res, log)
+    return res
+
+
+def _report_details(res, log: Log) -> None:
+    """``--verbose``: stage timings, the chord-fit kernel, the area solve and duplicates."""
+    scale = res.info.get("scale")
+    timings = res.info.get("timings", {})
+    log.detail("  stage timings:")
+    for stage, value in timings.items():
+        log.detail(f"    {stage:<12s} {value:8.3f} s")
+    log.detail(f"    {'total':<12s} {sum(timings.values()):8.3f} s")
+    if scale:
+        log.detail(
+            f"  chord-fit kernel: {scale['fit']} ({scale['k']} neighbours, ball radius "
+            f"{scale['radius']:.4g} (99th percentile), median spacing h {scale['median_h']:.4g}); "
+            f"noise sigma {scale['sigma']:.3g} ({scale['relative_noise']:.3g} h)"
+        )
+    solve = res.info.get("area_solve")
+    if res.options.area_method == "system" and solve is not None:
+        log.detail(f"  area system H A = 1: {solve.solver}, {solve.iterations} iterations, "
+                   f"residual {solve.residual:.2e}")
+    n_distinct = res.info.get("n_distinct")
+    if n_distinct is not None and n_distinct != len(res):
+        log.detail(f"  {len(res) - n_distinct} duplicate point(s) share their twin's values")
+
+
+def detect_features(res, threshold, min_angle, log: Log):
+    """:func:`heatcurv.sharp_features` of a result, saying how many points are features."""
+    from ..features import sharp_features
+
+    feat = sharp_features(res, threshold=threshold, min_angle=min_angle)
+    count = int(feat.mask.sum())
+    log.info(f"sharp features: {count} of {len(res)} points ({100.0 * count / max(len(res), 1):.1f} %) "
+             f"turn by more than {feat.threshold:.1f} degrees")
+    return feat
+
+
+def full_rows(values: np.ndarray, rows, n: int) -> np.ndarray:
+    """``values`` of the computed rows spread to all ``n`` rows (NaN, or False, elsewhere)."""
+    values = np.asarray(values)
+    if rows is None:
+        return values
+    fill = False if values.dtype.kind == "b" else np.nan
+    dtype = values.dtype if values.dtype.kind in "bf" else np.float64
+    full = np.full((n,) + values.shape[1:], fill, dtype=dtype)
+    full[rows] = values
+    return full
+
+
+def computed_values(res, feat, name: str) -> np.ndarray:
+    """Field ``name`` (one of :data:`~.fields.COMPUTED_FIELDS`) of a result, on the computed rows."""
+    if name in FEATURE_FIELDS:
+        return feat.mask if name == "feature" else feat.score
+    if name in ("nx", "ny", "nz"):
+        return res.normals[:, "xyz".index(name[1])]
+    if name[:2] in ("d1", "d2"):
+        return getattr(res, name[:2])[:, "xyz".index(name[2])]
+    return getattr(res, name)
+
+
+def result_fields(res, feat, wanted, rows, n: int) -> tuple[dict, np.ndarray | None]:
+    """The arrays to write, ``(fields, normals)``, for :func:`heatcurv.io.write_points`.
+
+    Fields come in the order of :data:`~.fields.COMPUTED_FIELDS`; a complete triple
+    ``d1x d1y d1z`` is passed as one (n, 3) field ``d1`` (NPZ keeps it as one
+    array, the other formats expand it to the same three names). Rows not
+    computed (``rows``) get NaN, or 0 in masks.
+    """
+    wanted = set(wanted)
+    normals = full_rows(res.normals, rows, n) if "nx" in wanted else None
+    fields = {}
+    for name in COMPUTED_FIELDS:
+        if name not in wanted or name in ("nx", "ny", "nz"):
+            continue
+        vector = name[:2] if name[:2] in ("d1", "d2") else None
+        if vector is not None and {vector + a for a in "xyz"} <= wanted:
+            if vector not in fields:
+                fields[vector] = full_rows(getattr(res, vector), rows, n)
+            continue
+        fields[name] = full_rows(computed_values(res, feat, name), rows, n)
+    return fields, normals
+
+
+def write_cloud(path, cloud, fields: dict, normals, log: Log) -> None:
+    """:func:`heatcurv.io.write_points` of the input's points and properties plus ``fields``, saying what."""
+    from ..io import write_points
+
+    tic = time.perf_counter()
+    write_points(path, cloud.points, fields, normals=normals, source=cloud)
+    names = []
+    for name, values in fields.items():
+        names += [name + a for a in "xyz"] if np.ndim(values) == 2 else [name]
+    if normals is not None:
+        names = ["nx", "ny", "nz"] + names
+    log.info(f"wrote {path}: {len(cloud)} points, fields {' '.join(names)}")
+    log.detail(f"  writing took {time.perf_counter() - tic:.2f} s")

@@ -1,0 +1,72 @@
+"""heatcurv.cli.picture: ``heatcurv render`` reads a field from the file or computes it."""
+
+import numpy as np
+import pytest
+from cli_helpers import read_image, run
+
+from heatcurv import io, surfaces
+from heatcurv.data import bunny_path
+
+
+def colours_of(image) -> np.ndarray:
+    """Distinct RGB colours of an image, as uint8 rows."""
+    pixels = np.round(np.asarray(image)[..., :3] * 255).astype(np.uint8).reshape(-1, 3)
+    return np.unique(pixels, axis=0)
+
+
+@pytest.fixture(scope="module")
+def bunny_fields(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("render")
+    path = directory / "bunny_fields.ply"
+    out = run("compute", bunny_path(), "-o", path, "-q")
+    assert out.returncode == 0, out.stderr
+    return path
+
+
+def test_render_reads_a_computed_field_without_recomputing(tmp_path, bunny_fields):
+    out = run(
+        "render", bunny_fields, "-o", tmp_path / "bunny.png", "--field", "mean", "--views", "2", "--size", "1200x600"
+    )
+    assert out.returncode == 0, out.stderr
+    assert "field 'mean' read from" in out.stdout and "estimated" not in out.stdout
+    image = read_image(tmp_path / "bunny.png")
+    assert image.shape[:2] == (600, 1200)
+    colours = colours_of(image).astype(int)
+    # a diverging map on a signed field: clearly red and clearly blue points
+    assert np.any((colours[:, 0] > 180) & (colours[:, 2] < 90))
+    assert np.any((colours[:, 2] > 180) & (colours[:, 0] < 120))
+    assert len(colours) > 300
+
+
+def test_render_computes_a_field_a_raw_cloud_lacks(tmp_path):
+    sample = surfaces.Sphere().sample(2000, "random", seed=5)
+    io.write_points(tmp_path / "sphere.xyz", sample.points)
+    out = run(
+        "render", tmp_path / "sphere.xyz", "-o", tmp_path / "area.png", "--field", "area", "--size", "500x400",
+        "--range", "0,0.02",
+    )
+    assert out.returncode == 0, out.stderr
+    assert "estimated curvature" in out.stdout and "colours 0 .. 0.02" in out.stdout
+    assert read_image(tmp_path / "area.png").shape[:2] == (400, 500)
+
+
+def test_render_errors(tmp_path, bunny_fields, capsys):
+    from heatcurv.cli import main
+
+    out = run("render", bunny_fields, "-o", tmp_path / "p.png", "--field", "temperature")
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr
+    assert out.stderr.startswith("heatcurv: error: ")
+    assert "has no field 'temperature' and heatcurv does not compute it" in out.stderr
+    cases = [  # the same in this process
+        (["--size", "20x20"], "argument --size"),
+        (["--views", "0"], "argument --views"),
+        (["--range", "1,1"], "LOW < HIGH"),
+        (["--cmap", "rainbowish"], "unknown colour map 'rainbowish'"),
+        (["-o", str(tmp_path / "picture.docx")], "unknown picture extension '.docx'"),
+    ]
+    for extra, message in cases:
+        args = ["render", str(bunny_fields)] + (extra if "-o" in extra else ["-o", str(tmp_path / "p.png")] + extra)
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("heatcurv: error: ") and message in err
+    assert list(tmp_path.iterdir()) == []
