@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import heatcurv
-from heatcurv import surfaces
+from heatcurv import render, surfaces
 from heatcurv.render import camera_frames, colour_limits, render_field
 
 
@@ -145,3 +145,68 @@ def test_camera_looks_along_the_thinnest_direction():
     np.testing.assert_allclose(four[2, 2], -four[0, 2], atol=1e-12)
     np.testing.assert_allclose(four[1, 2] @ four[0, 2], 0.0, atol=1e-12)
 
+
+# ----------------------------------------------------------------------------- the steps of render_field
+
+
+def test_drawn_subset_drops_nonfinite_points_and_subsamples():
+    points = np.arange(30.0).reshape(10, 3)
+    points[[2, 7]] = np.nan
+    values = np.arange(10)
+    normals = np.tile([0.0, 0.0, 1.0], (10, 1))
+    normals[4] = np.nan
+    keep, xyz, shown, kept_normals = render._drawn_subset(points, values, normals, 100, 0)
+    np.testing.assert_array_equal(keep, [0, 1, 3, 4, 5, 6, 8, 9])
+    np.testing.assert_array_equal(xyz, points[keep])
+    assert shown.dtype == np.float64 and np.array_equal(shown, keep)
+    assert kept_normals.shape == (7, 3)  # the NaN normal of row 4 is dropped
+    keep, _, _, none = render._drawn_subset(points, values, normals[:5], 3, 0)  # wrong shape: no normals
+    assert keep.size == 3 and np.all(np.diff(keep) > 0) and none is None
+    np.testing.assert_array_equal(keep, render._drawn_subset(points, values, None, 3, 0)[0])  # seeded
+    with pytest.raises(heatcurv.HeatcurvError, match="nothing to draw"):
+        render._drawn_subset(np.full((3, 3), np.nan), np.zeros(3), None, 10, 0)
+
+
+def test_colour_mapping_by_kind():
+    from matplotlib import colors as mcolors
+
+    colour_map, norm = render._colour_mapping("mask", -0.5, 1.5)
+    assert isinstance(norm, mcolors.BoundaryNorm)
+    assert mcolors.to_hex(colour_map(norm(1))) == render.MASK_COLOURS[1]
+    assert isinstance(render._colour_mapping("signed", -1.0, 2.0)[1], mcolors.TwoSlopeNorm)
+    colour_map, norm = render._colour_mapping("signed", -1.0, 1.0)
+    assert type(norm) is mcolors.Normalize and colour_map.name.startswith(render.DIVERGING_CMAP)
+    colour_map, _ = render._colour_mapping("sequential", 0.0, 1.0)
+    assert colour_map.name.startswith(render.SEQUENTIAL_CMAP)
+    assert mcolors.to_hex(colour_map(np.ma.masked_invalid([np.nan]))[0]) == render.MISSING_COLOUR
+    with pytest.raises(heatcurv.HeatcurvError, match="unknown colour map"):
+        render._colour_mapping("sequential", 0.0, 1.0, "not-a-map")
+
+
+def test_projection_and_layout_fit_the_picture():
+    xyz = np.random.default_rng(0).normal(size=(500, 3)) * [4.0, 1.0, 0.1]  # wide, flat
+    frames = camera_frames(xyz, 2)
+    screens, middles, span = render._project(xyz, frames)
+    assert len(screens) == len(middles) == 2 and screens[0].shape == (500, 3)
+    assert np.all(span >= np.ptp(screens[0][:, :2], axis=0) * 1.04 - 1e-12)
+    layout = render._layout(2, span, 1600, 1000, 100, None)
+    assert layout.rows * layout.cols >= 2
+    assert (layout.panel_w, layout.panel_h) == pytest.approx((layout.scale * span[0], layout.scale * span[1]))
+    assert 0 < layout.left and layout.left + layout.block_w + 0.2 + 0.16 < layout.fig_w  # panels and colour bar fit
+    assert layout.top <= layout.fig_h and layout.top - layout.block_h >= 0
+    assert render._layout(2, span, 1600, 1000, 100, "").area_h > layout.area_h  # no title: more room
+
+
+def test_disc_pixels():
+    points = surfaces.Sphere().sample(2000, "fibonacci").points
+    assert render._disc_pixels(points, 7, 1.0, 100) == 7.0
+    assert render._disc_pixels(points, None, 1e-9, 100) == 1.0  # clipped to 1..80 pixels
+    assert render._disc_pixels(points, None, 1e9, 100) == 80.0
+    assert render._disc_pixels(points[:5], None, 1.0, 100) == 3.0  # too few points to measure
+
+
+def test_check_picture_path(tmp_path):
+    path, ext = render._check_picture_path(str(tmp_path / "a.PNG"))
+    assert path == tmp_path / "a.PNG" and ext == ".png"
+    with pytest.raises(heatcurv.HeatcurvError, match="unknown picture extension"):
+        render._check_picture_path(tmp_path / "a.bmpx")

@@ -237,7 +237,9 @@ def _positive_sign(vector: np.ndarray) -> np.ndarray:
     return vector if vector[np.argmax(np.abs(vector))] >= 0 else -vector
 
 
-def camera_frames(points, views: int = 1, *, view=None, up=None, vertical: str = "y", elevation: float = 0.0, normals=None):
+def camera_frames(
+    points, views: int = 1, *, view=None, up=None, vertical: str = "y", elevation: float = 0.0, normals=None
+):
     """Orthonormal screen frames ``(right, up, towards the camera)`` of the views of a cloud.
 
     Parameters
@@ -363,6 +365,235 @@ def _disc_diameter(points: np.ndarray) -> float:
     return factor * side
 
 
+# ----------------------------------------------------------------------------- the steps of render_field
+
+
+def _check_picture_path(path) -> tuple[Path, str]:
+    """The picture's path and lower-case extension; an error on an unknown format or a missing directory."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in supported_picture_formats():
+        raise HeatcurvError(
+            f"cannot write {path}: unknown picture extension {ext or '(none)'!r}; "
+            f"supported: {' '.join(supported_picture_formats())}"
+        )
+    if not path.parent.is_dir():
+        raise HeatcurvError(f"cannot write {path}: the directory {path.parent} does not exist")
+    return path, ext
+
+
+def _check_inputs(points, values, size, dpi, max_points) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """``(points, values, width, height)``: the arrays and the picture size, checked."""
+    points = np.asarray(points, dtype=np.float64)
+    values = np.asarray(values)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise HeatcurvError(f"points must have shape (n, 3), got {points.shape}")
+    if values.shape != (points.shape[0],) or values.dtype.kind not in "biuf":
+        raise HeatcurvError(f"values must be numbers of shape ({points.shape[0]},), got {values.dtype} {values.shape}")
+    width, height = (int(v) for v in size)
+    if not (100 <= width <= 10000 and 100 <= height <= 10000):
+        raise HeatcurvError(f"the picture size must be 100-10000 pixels each way, got {width}x{height}")
+    if not 10 <= int(dpi) <= 2400:
+        raise HeatcurvError(f"dpi must be 10-2400, got {dpi}")
+    if int(max_points) < 1:
+        raise HeatcurvError(f"max_points must be at least 1, got {max_points}")
+    return points, values, width, height
+
+
+def _drawn_subset(points: np.ndarray, values: np.ndarray, normals, max_points: int, seed: int):
+    """The points to draw: those with finite coordinates, a seeded random ``max_points`` of them if more.
+
+    Returns ``(keep, xyz, shown, normals)``: the row numbers drawn (sorted),
+    their coordinates, their values as float64, and the finite ones of their
+    ``normals`` (None if not given, or not of the points' shape).
+    """
+    drawable = np.isfinite(points).all(axis=1)
+    if not drawable.any():
+        raise HeatcurvError("no point has finite coordinates: nothing to draw")
+    keep = np.flatnonzero(drawable)
+    if keep.size > max_points:
+        keep = np.sort(np.random.default_rng(seed).choice(keep, int(max_points), replace=False))
+    xyz = points[keep]
+    shown = values[keep].astype(np.float64)
+    if normals is not None:
+        normals = np.asarray(normals, dtype=np.float64)
+        normals = normals[keep] if normals.shape == points.shape else None
+        if normals is not None:
+            normals = normals[np.isfinite(normals).all(axis=1)]
+    return keep, xyz, shown, normals
+
+
+def _colour_mapping(kind: str, low: float, high: float, cmap=None):
+    """``(colour_map, norm)`` of a field of this kind and limits; NaN values get :data:`MISSING_COLOUR`.
+
+    Masks get :data:`MASK_COLOURS`; signed fields ``cmap`` or :data:`DIVERGING_CMAP`
+    (with 0 at the centre when the limits are not symmetric), others ``cmap``
+    or :data:`SEQUENTIAL_CMAP`.
+    """
+    from matplotlib import colors as mcolors
+
+    if kind == "mask":
+        colour_map = mcolors.ListedColormap(list(MASK_COLOURS))
+        norm = mcolors.BoundaryNorm([-0.5, 0.5, 1.5], 2)
+    else:
+        colour_map = cmap if cmap is not None else (DIVERGING_CMAP if kind == "signed" else SEQUENTIAL_CMAP)
+        if isinstance(colour_map, str):
+            import matplotlib
+
+            try:
+                colour_map = matplotlib.colormaps[colour_map]
+            except KeyError:
+                raise HeatcurvError(f"unknown colour map {colour_map!r}; see matplotlib's colormap reference") from None
+        norm = (
+            mcolors.TwoSlopeNorm(0.0, low, high)
+            if kind == "signed" and low < 0 < high and not np.isclose(-low, high)
+            else mcolors.Normalize(low, high)
+        )
+    return colour_map.with_extremes(bad=MISSING_COLOUR), norm
+
+
+def _project(xyz: np.ndarray, frames: np.ndarray) -> tuple[list, list, np.ndarray]:
+    """Screen coordinates of the views: ``(screens, middles, span)``.
+
+    ``screens[k]`` holds, per point, right, up and depth towards the camera of
+    view ``k`` (about the bounding box's centre); ``middles[k]`` is the centre
+    of its picture; ``span`` the width and height every panel shows (the
+    largest over the views, with a 2 % margin each side).
+    """
+    centre = 0.5 * (xyz.min(axis=0) + xyz.max(axis=0))
+    screens = [(xyz - centre) @ frame.T for frame in frames]  # columns: right, up, depth to the camera
+    middles = [0.5 * (screen[:, :2].min(axis=0) + screen[:, :2].max(axis=0)) for screen in screens]
+    span = np.max([np.ptp(screen[:, :2], axis=0) for screen in screens], axis=0)
+    span = np.maximum(span, 1e-9 * max(float(span.max()), 1e-300)) * 1.04  # 2 % margin each side
+    return screens, middles, span
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where :func:`render_field` puts things, in inches from the figure's lower left corner.
+
+    The title is on top, the panels (one scale for all views) centred below
+    it in ``rows x cols``, the colour bar just right of them.
+    """
+
+    fig_w: float
+    fig_h: float
+    scale: float  # inches per length unit
+    rows: int
+    cols: int
+    left: float  # left edge of the block of panels
+    top: float  # top edge of the block of panels
+    panel_w: float
+    panel_h: float
+    label_h: float  # space above each panel for its label (several views)
+    gap: float
+    block_w: float
+    block_h: float
+    area_h: float  # height available to the panels
+
+
+def _layout(views: int, span: np.ndarray, width: int, height: int, dpi: int, title) -> _Layout:
+    """The :class:`_Layout` of ``views`` panels showing ``span`` each, in a ``width x height`` pixel picture."""
+    fig_w, fig_h = width / dpi, height / dpi
+    margin, gap, bar_strip = 0.12, 0.12, 1.1
+    title_h = 0.45 if title != "" else 0.1
+    label_h = 0.28 if views > 1 else 0.0
+    area_w, area_h = fig_w - 2 * margin - bar_strip, fig_h - margin - title_h
+    rows, cols = _grid(views, area_w, area_h, aspect=float(span[0] / span[1]))
+    scale = min(  # inches per length unit
+        (area_w - (cols - 1) * gap) / (cols * span[0]), (area_h - rows * label_h - (rows - 1) * gap) / (rows * span[1])
+    )
+    scale = max(scale, 1e-6 / max(float(span.max()), 1e-300))
+    panel_w, panel_h = scale * span[0], scale * span[1]
+    block_w = cols * panel_w + (cols - 1) * gap
+    block_h = rows * (panel_h + label_h) + (rows - 1) * gap
+    left = margin + max(0.0, (area_w - block_w) / 2)  # the panels and the colour bar, centred
+    top = fig_h - title_h - max(0.0, (area_h - block_h) / 2)
+    return _Layout(
+        fig_w=fig_w, fig_h=fig_h, scale=scale, rows=rows, cols=cols, left=left, top=top, panel_w=panel_w,
+        panel_h=panel_h, label_h=label_h, gap=gap, block_w=block_w, block_h=block_h, area_h=area_h,
+    )
+
+
+def _add_panels(fig, layout: _Layout, views: int, middles: list, span: np.ndarray) -> list:
+    """One axes per view, without axes lines, each showing ``span`` about its ``middles[k]``; labelled if several."""
+    fig_w, fig_h = layout.fig_w, layout.fig_h
+    axes = []
+    for k in range(views):
+        row, col = divmod(k, layout.cols)
+        x0 = layout.left + col * (layout.panel_w + layout.gap)
+        y0 = layout.top - row * (layout.panel_h + layout.label_h + layout.gap) - layout.label_h - layout.panel_h
+        ax = fig.add_axes((x0 / fig_w, y0 / fig_h, layout.panel_w / fig_w, layout.panel_h / fig_h))
+        ax.set_xlim(middles[k][0] - span[0] / 2, middles[k][0] + span[0] / 2)
+        ax.set_ylim(middles[k][1] - span[1] / 2, middles[k][1] + span[1] / 2)
+        ax.set_axis_off()
+        if views > 1:
+            ax.set_title(f"turned {360 * k / views:.0f}°", fontsize="small")
+        axes.append(ax)
+    return axes
+
+
+def _add_colour_bar(fig, layout: _Layout, colour_map, norm, shown, low, high, kind: str, label: str) -> None:
+    """The colour bar right of the panels, labelled; arrows where values lie beyond the limits."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import TwoSlopeNorm
+
+    bar_h = min(max(layout.block_h * 0.9, min(2.0, layout.area_h)), layout.area_h)
+    bar_x = layout.left + layout.block_w + 0.2
+    bar_y = layout.top - layout.block_h / 2 - bar_h / 2
+    bar_axes = fig.add_axes((bar_x / layout.fig_w, bar_y / layout.fig_h, 0.16 / layout.fig_w, bar_h / layout.fig_h))
+    finite_values = shown[np.isfinite(shown)]
+    if kind == "mask":
+        extend = "neither"
+    else:
+        below, above = bool(np.any(finite_values < low)), bool(np.any(finite_values > high))
+        extends = {(False, False): "neither", (True, False): "min", (False, True): "max", (True, True): "both"}
+        extend = extends[(below, above)]
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=colour_map), cax=bar_axes, extend=extend)
+    bar.set_label(label)
+    if kind == "mask":
+        bar.set_ticks([0, 1], labels=["no", "yes"])
+    elif isinstance(norm, TwoSlopeNorm):
+        bar.set_ticks([low, low / 2, 0.0, high / 2, high])
+
+
+def _add_title(fig, layout: _Layout, heading: str) -> None:
+    """The figure's title, centred at the top (none if ``heading`` is empty)."""
+    if heading:
+        fig.text(0.5, 1.0 - 0.12 / layout.fig_h, heading, ha="center", va="top", fontsize="large")
+
+
+def _disc_pixels(xyz: np.ndarray, point_size, scale: float, dpi: int) -> float:
+    """Disc diameter in pixels: ``point_size``, else :func:`_disc_diameter` at the drawing scale (1-80)."""
+    if point_size is not None:
+        return float(point_size)
+    disc = _disc_diameter(xyz)
+    return float(np.clip(disc * scale * dpi, 1.0, 80.0)) if disc > 0 else 3.0
+
+
+def _paint(axes: list, screens: list, rgba: np.ndarray, diameter: float, dpi: int) -> None:
+    """The points as discs of ``diameter`` pixels in each view's axes, drawn far to near (rasterised)."""
+    for ax, screen in zip(axes, screens):
+        order = np.argsort(screen[:, 2], kind="stable")
+        ax.scatter(
+            screen[order, 0], screen[order, 1], s=(diameter * 72.0 / dpi) ** 2, c=rgba[order],
+            marker="o", linewidths=0, rasterized=True,
+        )
+
+
+def _save(fig, path: Path, ext: str, dpi: int) -> None:
+    """Save the figure in the format of ``ext`` through a temporary file (no partial picture on failure)."""
+    from .io.atomic import atomic_write
+
+    def save(stream):
+        fig.savefig(stream, format=ext[1:], dpi=dpi, facecolor="white")
+
+    try:
+        atomic_write(path, save)
+    except OSError as exc:
+        raise HeatcurvError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
 def render_field(
     points,
     values,
@@ -452,150 +683,31 @@ def render_field(
     >>> render_field(sphere.points, sphere.points[:, 2], out, field="height", size=(400, 300)).size
     (400, 300)
     """
-    from matplotlib import colors as mcolors
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.cm import ScalarMappable
     from matplotlib.figure import Figure
 
-    from .io import _atomic_write
-
-    path = Path(path)
-    ext = path.suffix.lower()
-    if ext not in supported_picture_formats():
-        raise HeatcurvError(
-            f"cannot write {path}: unknown picture extension {ext or '(none)'!r}; "
-            f"supported: {' '.join(supported_picture_formats())}"
-        )
-    if not path.parent.is_dir():
-        raise HeatcurvError(f"cannot write {path}: the directory {path.parent} does not exist")
-    points = np.asarray(points, dtype=np.float64)
-    values = np.asarray(values)
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise HeatcurvError(f"points must have shape (n, 3), got {points.shape}")
-    if values.shape != (points.shape[0],) or values.dtype.kind not in "biuf":
-        raise HeatcurvError(f"values must be numbers of shape ({points.shape[0]},), got {values.dtype} {values.shape}")
-    width, height = (int(v) for v in size)
-    if not (100 <= width <= 10000 and 100 <= height <= 10000):
-        raise HeatcurvError(f"the picture size must be 100-10000 pixels each way, got {width}x{height}")
-    if not 10 <= int(dpi) <= 2400:
-        raise HeatcurvError(f"dpi must be 10-2400, got {dpi}")
-    if int(max_points) < 1:
-        raise HeatcurvError(f"max_points must be at least 1, got {max_points}")
+    path, ext = _check_picture_path(path)
+    points, values, width, height = _check_inputs(points, values, size, dpi, max_points)
     style = field_style(field)
     low, high, kind = colour_limits(values, style.kind, percentiles=percentiles, value_range=value_range)
-
-    drawable = np.isfinite(points).all(axis=1)
-    if not drawable.any():
-        raise HeatcurvError("no point has finite coordinates: nothing to draw")
-    total = points.shape[0]
-    keep = np.flatnonzero(drawable)
-    if keep.size > max_points:
-        keep = np.sort(np.random.default_rng(seed).choice(keep, int(max_points), replace=False))
-    xyz = points[keep]
-    shown = values[keep].astype(np.float64)
-    if normals is not None:
-        normals = np.asarray(normals, dtype=np.float64)
-        normals = normals[keep] if normals.shape == points.shape else None
-        if normals is not None:
-            normals = normals[np.isfinite(normals).all(axis=1)]
+    keep, xyz, shown, normals = _drawn_subset(points, values, normals, max_points, seed)
     frames = camera_frames(xyz, views, view=view, up=up, vertical=vertical, elevation=elevation, normals=normals)
-
-    # colours
-    if kind == "mask":
-        colour_map = mcolors.ListedColormap(list(MASK_COLOURS))
-        norm = mcolors.BoundaryNorm([-0.5, 0.5, 1.5], 2)
-    else:
-        colour_map = cmap if cmap is not None else (DIVERGING_CMAP if kind == "signed" else SEQUENTIAL_CMAP)
-        if isinstance(colour_map, str):
-            import matplotlib
-
-            try:
-                colour_map = matplotlib.colormaps[colour_map]
-            except KeyError:
-                raise HeatcurvError(f"unknown colour map {colour_map!r}; see matplotlib's colormap reference") from None
-        norm = (
-            mcolors.TwoSlopeNorm(0.0, low, high)
-            if kind == "signed" and low < 0 < high and not np.isclose(-low, high)
-            else mcolors.Normalize(low, high)
-        )
-    colour_map = colour_map.with_extremes(bad=MISSING_COLOUR)
+    colour_map, norm = _colour_mapping(kind, low, high, cmap)
     rgba = colour_map(norm(np.ma.masked_invalid(shown)))
 
-    # layout in inches: title on top, the panels (one scale for all views) centred, the colour
-    # bar just right of them
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor="white")
     FigureCanvasAgg(fig)
-    centre = 0.5 * (xyz.min(axis=0) + xyz.max(axis=0))
-    screens = [(xyz - centre) @ frame.T for frame in frames]  # columns: right, up, depth to the camera
-    middles = [0.5 * (screen[:, :2].min(axis=0) + screen[:, :2].max(axis=0)) for screen in screens]
-    span = np.max([np.ptp(screen[:, :2], axis=0) for screen in screens], axis=0)
-    span = np.maximum(span, 1e-9 * max(float(span.max()), 1e-300)) * 1.04  # 2 % margin each side
-    fig_w, fig_h = width / dpi, height / dpi
-    margin, gap, bar_strip = 0.12, 0.12, 1.1
-    title_h = 0.45 if title != "" else 0.1
-    label_h = 0.28 if views > 1 else 0.0
-    area_w, area_h = fig_w - 2 * margin - bar_strip, fig_h - margin - title_h
-    rows, cols = _grid(views, area_w, area_h, aspect=float(span[0] / span[1]))
-    scale = min(  # inches per length unit
-        (area_w - (cols - 1) * gap) / (cols * span[0]), (area_h - rows * label_h - (rows - 1) * gap) / (rows * span[1])
-    )
-    scale = max(scale, 1e-6 / max(float(span.max()), 1e-300))
-    panel_w, panel_h = scale * span[0], scale * span[1]
-    block_w = cols * panel_w + (cols - 1) * gap
-    block_h = rows * (panel_h + label_h) + (rows - 1) * gap
-    left = margin + max(0.0, (area_w - block_w) / 2)  # the panels and the colour bar, centred
-    top = fig_h - title_h - max(0.0, (area_h - block_h) / 2)
-    axes = []
-    for k in range(views):
-        row, col = divmod(k, cols)
-        x0 = left + col * (panel_w + gap)
-        y0 = top - row * (panel_h + label_h + gap) - label_h - panel_h
-        ax = fig.add_axes((x0 / fig_w, y0 / fig_h, panel_w / fig_w, panel_h / fig_h))
-        ax.set_xlim(middles[k][0] - span[0] / 2, middles[k][0] + span[0] / 2)
-        ax.set_ylim(middles[k][1] - span[1] / 2, middles[k][1] + span[1] / 2)
-        ax.set_axis_off()
-        if views > 1:
-            ax.set_title(f"turned {360 * k / views:.0f}°", fontsize="small")
-        axes.append(ax)
-    bar_h = min(max(block_h * 0.9, min(2.0, area_h)), area_h)
-    bar_x = left + block_w + 0.2
-    bar_y = top - block_h / 2 - bar_h / 2
-    bar_axes = fig.add_axes((bar_x / fig_w, bar_y / fig_h, 0.16 / fig_w, bar_h / fig_h))
-    finite_values = shown[np.isfinite(shown)]
-    if kind == "mask":
-        extend = "neither"
-    else:
-        below, above = bool(np.any(finite_values < low)), bool(np.any(finite_values > high))
-        extend = {(False, False): "neither", (True, False): "min", (False, True): "max", (True, True): "both"}[(below, above)]
-    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=colour_map), cax=bar_axes, extend=extend)
+    screens, middles, span = _project(xyz, frames)
+    layout = _layout(views, span, width, height, dpi, title)
+    axes = _add_panels(fig, layout, views, middles, span)
     unit = style.unit_text(length_unit)
-    bar.set_label(f"{style.label} ({unit})" if unit else style.label)
-    if kind == "mask":
-        bar.set_ticks([0, 1], labels=["no", "yes"])
-    elif isinstance(norm, mcolors.TwoSlopeNorm):
-        bar.set_ticks([low, low / 2, 0.0, high / 2, high])
-    heading = title if title is not None else style.label
-    if heading:
-        fig.text(0.5, 1.0 - 0.12 / fig_h, heading, ha="center", va="top", fontsize="large")
-
-    # discs: a fixed share of the surface area per point, in pixels; drawn far to near
-    if point_size is not None:
-        diameter = float(point_size)
-    else:
-        disc = _disc_diameter(xyz)
-        diameter = float(np.clip(disc * scale * dpi, 1.0, 80.0)) if disc > 0 else 3.0
-    for ax, screen in zip(axes, screens):
-        order = np.argsort(screen[:, 2], kind="stable")
-        ax.scatter(
-            screen[order, 0], screen[order, 1], s=(diameter * 72.0 / dpi) ** 2, c=rgba[order],
-            marker="o", linewidths=0, rasterized=True,
-        )
-
-    def save(stream):
-        fig.savefig(stream, format=ext[1:], dpi=dpi, facecolor="white")
-
-    try:
-        _atomic_write(path, save)
-    except OSError as exc:
-        raise HeatcurvError(f"cannot write {path}: {exc.strerror or exc}") from None
-    return Rendering(path=path, limits=(float(low), float(high)), kind=kind, drawn=int(keep.size), total=int(total), size=(width, height))
+    label = f"{style.label} ({unit})" if unit else style.label
+    _add_colour_bar(fig, layout, colour_map, norm, shown, low, high, kind, label)
+    _add_title(fig, layout, title if title is not None else style.label)
+    # discs: a fixed share of the surface area per point, in pixels
+    _paint(axes, screens, rgba, _disc_pixels(xyz, point_size, layout.scale, dpi), dpi)
+    _save(fig, path, ext, dpi)
+    return Rendering(
+        path=path, limits=(float(low), float(high)), kind=kind, drawn=int(keep.size), total=int(points.shape[0]),
+        size=(width, height),
+    )
