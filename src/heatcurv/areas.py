@@ -26,9 +26,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .backend import use_numba
+from ._kernels import segment as kernels
 from .errors import HeatcurvError
-from .kernel import TAPER_START, area_normalisation, ball_taper, flat_top
+from .kernel import TAPER_START, area_normalisation, flat_top
 from .neighbourhood import Neighbourhood
 
 __all__ = ["area_matrix", "point_areas", "AreaSolve", "density_areas", "taper_sums", "ball_area_factor"]
@@ -152,7 +152,8 @@ def point_areas(
     residual = float(np.linalg.norm(H @ areas - b) / np.sqrt(n))
     if not np.all(np.isfinite(areas)):
         raise HeatcurvError(f"the area system H A = 1 could not be solved ({solver} gave non-finite areas)")
-    info = AreaSolve(solver=solver, iterations=iterations, residual=residual, converged=residual <= max(rtol, 1e-12) * 10)
+    converged = residual <= max(rtol, 1e-12) * 10
+    info = AreaSolve(solver=solver, iterations=iterations, residual=residual, converged=converged)
     return (areas, info) if return_info else areas
 
 
@@ -216,11 +217,7 @@ def density_areas(nbhd: Neighbourhood, fraction: float = 1.0) -> np.ndarray:
 
 def taper_sums(nbhd: Neighbourhood) -> np.ndarray:
     """``sum_{j != i} flat_top(|xi - xj| / R_i)`` per point, shape ``(n,)``: the kernel count of each ball."""
-    if use_numba():
-        from ._segment_numba import taper_sums as compiled
-
-        return compiled(nbhd.indptr, nbhd.distances, nbhd.radius, TAPER_START)
-    return nbhd.blockwise(lambda lo, hi, block: block.segment_sum(ball_taper(block)))
+    return kernels.taper_sums(nbhd.indptr, nbhd.distances, nbhd.radius, TAPER_START)
 
 
 def ball_area_factor(radius: np.ndarray, k1: np.ndarray, k2: np.ndarray) -> np.ndarray:

@@ -1,79 +1,27 @@
-"""Which implementation of the per-pair loops runs: compiled (numba) or numpy.
+"""The compiled kernels' thread count.
 
-The hot stages (PCA, areas, the mean-curvature normal, the chord fit, border
-flags) loop over every neighbour pair. With numba installed they run as
-compiled kernels over the CSR arrays, in parallel over points; without it the
-same arithmetic runs as vectorised numpy on blocks of pairs. Both give the
-same numbers (tests compare them to 1e-9).
+Decision (recorded here because this module used to hold the switch it replaces):
 
-Choose with the environment variable ``HEATCURV_BACKEND`` (``auto``,
-``numba`` or ``numpy``) or :func:`set_backend`; ``auto`` (the default) uses
-numba when it imports.
+* numba is required. Every hot stage (PCA covariances and eigenvectors,
+  orientation costs, areas, fit weights, the mean-curvature normal, the chord
+  fit, border flags) loops over every neighbour pair, and runs as one numba
+  kernel over the CSR arrays, parallel over points (:mod:`heatcurv._kernels`).
+  Without numba, importing heatcurv fails with an ImportError naming it.
+* One implementation per hot stage. There is no numpy twin to select and no
+  process-global backend switch (formerly ``set_backend``, ``backend()`` and
+  ``HEATCURV_BACKEND``), which changed the code other threads ran.
+* The numpy reference implementations live in the tests (``tests/reference/``)
+  as oracles: the tests run every kernel and its reference on the same inputs.
+
+What remains is :func:`threads`, which matches numba's thread count to a call's
+``workers``.
 """
 
 from __future__ import annotations
 
-import os
 from contextlib import contextmanager
 
-from .errors import HeatcurvError
-
-__all__ = ["numba_available", "use_numba", "set_backend", "get_backend", "backend", "threads"]
-
-_CHOICES = ("auto", "numba", "numpy")
-_state = {"backend": os.environ.get("HEATCURV_BACKEND", "auto").strip().lower() or "auto"}
-_numba = {}
-
-
-def numba_available() -> bool:
-    """Whether numba imports (checked once)."""
-    if "ok" not in _numba:
-        try:
-            import numba  # noqa: F401
-
-            _numba["ok"] = True
-        except Exception:  # ImportError, or a numba too old/new for this numpy
-            _numba["ok"] = False
-    return _numba["ok"]
-
-
-def get_backend() -> str:
-    """The requested backend: ``"auto"``, ``"numba"`` or ``"numpy"``."""
-    name = _state["backend"]
-    if name not in _CHOICES:
-        raise HeatcurvError(f"HEATCURV_BACKEND must be one of {', '.join(_CHOICES)}, got {name!r}")
-    return name
-
-
-def set_backend(name: str) -> None:
-    """Select ``"auto"``, ``"numba"`` or ``"numpy"`` for later calls."""
-    name = str(name).strip().lower()
-    if name not in _CHOICES:
-        raise HeatcurvError(f"backend must be one of {', '.join(_CHOICES)}, got {name!r}")
-    if name == "numba" and not numba_available():
-        raise HeatcurvError("backend 'numba' requested but numba is not installed (pip install numba)")
-    _state["backend"] = name
-
-
-@contextmanager
-def backend(name: str):
-    """Context manager: run a block with another backend, then restore the previous one."""
-    previous = _state["backend"]
-    set_backend(name)
-    try:
-        yield
-    finally:
-        _state["backend"] = previous
-
-
-def use_numba() -> bool:
-    """Whether the compiled kernels run now."""
-    name = get_backend()
-    if name == "numpy":
-        return False
-    if name == "numba" and not numba_available():
-        raise HeatcurvError("HEATCURV_BACKEND=numba but numba is not installed (pip install numba)")
-    return numba_available()
+__all__ = ["threads"]
 
 
 @contextmanager
@@ -82,11 +30,17 @@ def threads(workers: int | None):
 
     The k-d tree queries take ``workers`` themselves; this sets numba's
     thread count to match and restores it afterwards.
+
+    numba's thread count is thread-local (numba masks its pool per calling
+    thread): setting it here limits only the kernels this thread launches,
+    so concurrent calls from other threads keep their own count, and a thread
+    started inside the block begins with numba's default
+    (``NUMBA_NUM_THREADS``), not with ``workers``.
     """
-    if workers is None or int(workers) < 0 or not numba_available():
+    if workers is None or int(workers) < 0:
         yield
         return
-    import numba
+    import numba  # required; imported here so that a missing numba is reported by heatcurv._kernels
 
     previous = numba.get_num_threads()
     numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))

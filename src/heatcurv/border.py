@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .backend import use_numba
+from ._kernels import segment as kernels
 from .errors import HeatcurvError
-from .kernel import TAPER_START, ball_taper
+from .kernel import TAPER_START
 from .neighbourhood import Neighbourhood
 
 __all__ = ["BORDER_OFFSET", "centroid_offset", "border_points"]
@@ -64,18 +64,14 @@ def centroid_offset(
         raise HeatcurvError("give centroid_offset either weights or taper=True, not both")
     if centres is None:
         centres = points
-    if weights is None and use_numba():
-        from ._segment_numba import centroid_offsets
-
-        return centroid_offsets(
+    if weights is None:
+        return kernels.centroid_offsets(
             points, centres, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, normals, TAPER_START, taper
         )
 
+    # given weights (no compiled kernel takes them): numpy blocks of pairs
     def block_offsets(lo, hi, block):
-        if weights is not None:
-            w = np.asarray(weights[nbhd.indptr[lo] : nbhd.indptr[hi]], dtype=np.float64)
-        else:
-            w = ball_taper(block) if taper else np.ones(block.n_pairs)
+        w = np.asarray(weights[nbhd.indptr[lo] : nbhd.indptr[hi]], dtype=np.float64)
         total = np.maximum(block.segment_sum(w), np.finfo(float).tiny)
         centroid = block.segment_sum(w[:, None] * points[block.indices]) / total[:, None] - centres[lo:hi]
         centroid -= np.einsum("ij,ij->i", centroid, normals[lo:hi])[:, None] * normals[lo:hi]

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .backend import use_numba
+from ._kernels import chordfit as kernels
 from .neighbourhood import Neighbourhood
 from .normals import tangent_frames
 from .principal import PrincipalCurvatures, tensor_to_principal
@@ -77,14 +77,13 @@ class ChordFit:
     mean_variance_factor: np.ndarray
 
     @staticmethod
-    def concatenate(parts: list) -> "ChordFit":
+    def concatenate(parts: list) -> ChordFit:
         """Join the fits of consecutive blocks of centres into one."""
         if len(parts) == 1:
             return parts[0]
         cat = lambda get: np.concatenate([get(p) for p in parts])  # noqa: E731
-        pc = PrincipalCurvatures(
-            **{name: cat(lambda p, name=name: getattr(p.principal, name)) for name in PrincipalCurvatures.__dataclass_fields__}
-        )
+        fields = PrincipalCurvatures.__dataclass_fields__
+        pc = PrincipalCurvatures(**{name: cat(lambda p, name=name: getattr(p.principal, name)) for name in fields})
         return ChordFit(
             principal=pc,
             normals=cat(lambda p: p.normals),
@@ -210,9 +209,10 @@ def solve_normal_equations(
 ):
     """Solve accumulated weighted normal equations ``G beta = r`` for every point.
 
-    The second half of :func:`segment_lstsq`, shared with the compiled chord
-    fit (:mod:`heatcurv._chordfit_numba`), which accumulates the same sums
-    without per-pair arrays.
+    The second half of :func:`segment_lstsq`. (:func:`chord_fit` accumulates its
+    sums without per-pair arrays and solves them by Cholesky,
+    :func:`heatcurv._kernels.chordfit.solve_compiled`, which the tests check
+    against this function.)
 
     Parameters
     ----------
@@ -246,29 +246,6 @@ def solve_normal_equations(
     return beta, rss, well_posed, variance
 
 
-def _local_coordinates(centres, points, nbhd, normals):
-    rows = nbhd.rows
-    d = points[nbhd.indices] - centres[rows]
-    e1, e2 = tangent_frames(normals)
-    x = np.einsum("ij,ij->i", d, e1[rows])
-    y = np.einsum("ij,ij->i", d, e2[rows])
-    z = np.einsum("ij,ij->i", d, normals[rows])
-    return x, y, z, e1, e2
-
-
-def _shape_columns(x, y, tilt: bool, cubic: bool):
-    """Columns of the kN model: tensor (3), tilt (2), cubic (4); shape (nnz, p)."""
-    r = np.sqrt(x * x + y * y)
-    safe = np.where(r > 0, r, 1.0)
-    c, s = np.where(r > 0, x / safe, 1.0), np.where(r > 0, y / safe, 0.0)
-    cols = [c * c, 2 * c * s, s * s]
-    if tilt:
-        cols += [c / safe, s / safe]
-    if cubic:
-        cols += [r * c**3, r * c * c * s, r * c * s * s, r * s**3]
-    return np.stack(cols, 1), r
-
-
 def _mean_contrast(p: int) -> np.ndarray:
     """``c`` with ``c . beta = H = (a + d) / 2``: the mean curvature in the fit's units."""
     contrast = np.zeros(p)
@@ -282,7 +259,7 @@ def _principal_and_refined_normal(beta, unit, e1, e2, normals, tilt: bool):
     Parameters
     ----------
     beta : ndarray, shape (n, >= 3)
-        Coefficients in the order of :func:`_shape_columns`, in units of ``unit``.
+        Coefficients (tensor, tilt, cubic: see :mod:`heatcurv._kernels.chordfit`), in units of ``unit``.
     unit : ndarray, shape (n,)
         Each centre's ball radius (the length unit of the fit).
     e1, e2, normals : ndarray, shape (n, 3)
@@ -307,39 +284,6 @@ def _principal_and_refined_normal(beta, unit, e1, e2, normals, tilt: bool):
     else:
         refined = normals
     return pc, refined
-
-
-#: Floor of ``1 - p / n_eff`` in :func:`residual_variance` (balls barely larger than the model).
-MIN_DOF_FRACTION = 0.1
-
-
-def residual_variance(nbhd: Neighbourhood, weights: np.ndarray, resid: np.ndarray, p: int) -> np.ndarray:
-    """Noise variance from weighted residuals, corrected for the degrees of freedom the fit used.
-
-    ``sum_j w_j r_j^2 / sum_j w_j`` underestimates the noise variance: a fit
-    with ``p`` coefficients absorbs part of the noise. With leverages about
-    proportional to the weights its expectation is ``sigma^2 (1 - p / n_eff)``,
-    ``n_eff = (sum w)^2 / sum w^2`` the effective number of neighbours, so
-    that factor is divided out (floored at :data:`MIN_DOF_FRACTION`). With
-    60 neighbours under the tapered heat kernel ``n_eff`` is about 25, and
-    the uncorrected estimate was low by about 1.3x: enough to make the
-    kernel choice stop early on dense noisy clouds.
-
-    Parameters
-    ----------
-    nbhd : Neighbourhood
-    weights, resid : ndarray, shape (nnz,)
-    p : int
-        Coefficients of the fit.
-
-    Returns
-    -------
-    ndarray, shape (n,)
-    """
-    total = nbhd.segment_sum(weights)
-    mean_sq = nbhd.segment_sum(weights * resid * resid) / np.maximum(total, 1e-300)
-    n_eff = np.maximum(total * total / np.maximum(nbhd.segment_sum(weights * weights), 1e-300), 1e-300)
-    return mean_sq / np.maximum(1.0 - p / n_eff, MIN_DOF_FRACTION)
 
 
 def _chord_fit_result(pc, well_posed, used, sigma2, var_factor, unit) -> ChordFit:
@@ -399,54 +343,49 @@ def chord_fit(
 
     Notes
     -----
-    With numba (:mod:`heatcurv.backend`) the per-pair sums run as compiled
-    kernels without per-pair arrays (:mod:`heatcurv._chordfit_numba`); the
-    numpy code below is the reference they are tested against.
+    The per-pair sums run as compiled kernels without per-pair arrays
+    (:mod:`heatcurv._kernels.chordfit`); this function runs the passes around
+    them. Its numpy reference is ``tests/reference/chordfit.py``.
     """
-    if use_numba():
-        from ._chordfit_numba import chord_fit_compiled
-
-        return chord_fit_compiled(
-            points, nbhd, normals, weights, passes=passes, tilt=tilt, cubic=cubic, denoise=denoise, centres=centres
-        )
     if centres is None:
         centres = points
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    centres = np.ascontiguousarray(centres, dtype=np.float64)
+    indptr = np.ascontiguousarray(nbhd.indptr, dtype=np.int64)
+    indices = np.ascontiguousarray(nbhd.indices)  # int32 or int64: one compilation each
+    weights = np.ascontiguousarray(weights, dtype=np.float64)
     # Work in units of each centre's ball radius: every column of the design is then
     # of order one whatever the cloud's unit, so the solve (and its ridge) is
     # scale-free; curvatures are converted back at the end.
-    unit = nbhd.radius
-    unit_pair = np.repeat(unit, nbhd.counts)
-    nrm = normals
-    for _ in range(max(1, passes)):
-        x, y, z, e1, e2 = _local_coordinates(centres, points, nbhd, nrm)
-        x, y, z = x / unit_pair, y / unit_pair, z / unit_pair
-        cols, r = _shape_columns(x, y, tilt, cubic)
-        r2 = r * r
+    unit = np.ascontiguousarray(nbhd.radius, dtype=np.float64)
+    tilt, cubic = bool(tilt), bool(cubic)
+    n_shape = 3 + 2 * tilt + 4 * cubic
+    nrm = np.ascontiguousarray(normals, dtype=np.float64)
+    n_passes = max(1, passes)
+    for k in range(n_passes):
+        # only the last pass's diagnostics are reported: the earlier fits return their coefficients alone
+        final = k == n_passes - 1
+        e1, e2 = tangent_frames(nrm)
+        geometry = (points, centres, indptr, indices, weights, unit, nrm, e1, e2, tilt, cubic)
         if not denoise:
-            D2 = r2 + z * z
-            kN = np.where(D2 > 0, -2.0 * z / np.where(D2 > 0, D2, 1.0), 0.0)
-            contrast = _mean_contrast(cols.shape[1])
-            # a height error eps moves kN by 2 eps / D^2: response noise scale per unit sigma
-            beta, rss, ok, var_factor = segment_lstsq(
-                nbhd, cols, kN, weights, contrast=contrast, noise_scale=2.0 / np.where(D2 > 0, D2, np.inf)
-            )
-            # height residual: kN residual times D^2 / 2
-            resid = (kN - np.einsum("ij,ij->i", cols, beta[nbhd.rows])) * D2 / 2
-            sigma2 = residual_variance(nbhd, weights, resid, cols.shape[1])
+            contrast = _mean_contrast(n_shape) if final else None
+            fitted = kernels.fit(kernels.CHORD, n_shape, geometry, contrast=contrast)
+            height_beta = np.empty((0, n_shape))
         else:
-            # 1) plain height fit: z = z0 - r^2/2 * model
-            design = np.concatenate([-0.5 * r2[:, None] * cols, np.ones((len(r2), 1))], 1)
-            beta, rss, ok = segment_lstsq(nbhd, design, z, weights)
-            zhat = np.einsum("ij,ij->i", design, beta[nbhd.rows])
-            z0 = beta[nbhd.rows, -1]
-            # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2
-            D2 = r2 + (zhat - z0) ** 2
-            design = np.concatenate([-0.5 * D2[:, None] * cols, np.ones((len(r2), 1))], 1)
-            contrast = _mean_contrast(design.shape[1])
-            beta, rss, ok, var_factor = segment_lstsq(nbhd, design, z, weights, contrast=contrast)
-            resid = z - np.einsum("ij,ij->i", design, beta[nbhd.rows])
-            sigma2 = residual_variance(nbhd, weights, resid, design.shape[1])
-            beta = beta[:, :-1]
-        pc, refined = _principal_and_refined_normal(beta, unit, e1, e2, nrm, tilt)
+            # 1) plain height fit: z = z0 - r^2/2 * model;
+            # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2 of its heights
+            height_beta = kernels.fit(kernels.HEIGHT, n_shape + 1, geometry)
+            contrast = _mean_contrast(n_shape + 1) if final else None
+            fitted = kernels.fit(
+                kernels.DENOISED_HEIGHT, n_shape + 1, geometry, height_beta=height_beta, contrast=contrast
+            )
+        if final:
+            beta, _, ok, var_factor = fitted
+            sigma2 = np.empty(nbhd.n_points)
+            kind = kernels.DENOISED_HEIGHT if denoise else kernels.CHORD
+            kernels.weighted_height_residual(*geometry, kind, height_beta, beta, sigma2)
+        else:
+            beta = fitted
+        pc, refined = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
         used, nrm = nrm, refined
     return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit)

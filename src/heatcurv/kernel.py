@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._kernels import segment as kernels
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood
 
@@ -125,11 +126,7 @@ def tapered_heat_weights(nbhd: Neighbourhood, h: np.ndarray, areas: np.ndarray) 
     -------
     ndarray, shape (nnz,)
     """
-    from .backend import use_numba
-
     inv_h2 = 1.0 / np.asarray(h, dtype=np.float64) ** 2
-    if use_numba():
-        from ._segment_numba import tapered_heat_weights as compiled
-
-        return compiled(nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, inv_h2, areas, TAPER_START)
-    return np.exp(-(nbhd.distances**2) * np.repeat(inv_h2, nbhd.counts)) * ball_taper(nbhd) * areas[nbhd.indices]
+    return kernels.tapered_heat_weights(
+        nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, inv_h2, areas, TAPER_START
+    )

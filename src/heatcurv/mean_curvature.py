@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .backend import use_numba
+from ._kernels import segment as kernels
 from .errors import HeatcurvError
 from .kernel import diffusion_time, laplacian_normalisation
 from .neighbourhood import Neighbourhood
@@ -62,21 +62,9 @@ def mean_curvature_normal(
         ``K_i``, approximately ``2 kappa_M n_i``.
     """
     inv_4t = 1.0 / (4.0 * diffusion_time(h, m))
-    if use_numba():
-        from ._segment_numba import kappa_normal_sums
-
-        has_weights = weights is not None
-        w = np.asarray(weights, dtype=np.float64) if has_weights else np.empty(0)
-        sums = kappa_normal_sums(points, nbhd.indptr, nbhd.indices, nbhd.distances, inv_4t, w, areas, has_weights)
-    else:
-        def block_sums(lo, hi, block):
-            a, b = nbhd.indptr[lo], nbhd.indptr[hi]
-            w = weights[a:b] if weights is not None else np.exp(-block.distances**2 * np.repeat(inv_4t[lo:hi], block.counts))
-            coupling = w * areas[block.indices]
-            diff = points[lo:hi][block.rows] - points[block.indices]  # x_i - x_j
-            return block.segment_sum(coupling[:, None] * diff)
-
-        sums = nbhd.blockwise(block_sums)
+    has_weights = weights is not None
+    w = np.asarray(weights, dtype=np.float64) if has_weights else np.empty(0)
+    sums = kernels.kappa_normal_sums(points, nbhd.indptr, nbhd.indices, nbhd.distances, inv_4t, w, areas, has_weights)
     return laplacian_normalisation(h, m)[:, None] * sums
 
 

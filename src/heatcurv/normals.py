@@ -21,9 +21,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from .backend import use_numba
+from ._kernels import segment as kernels
 from .errors import HeatcurvError
-from .kernel import TAPER_START, ball_taper
+from .kernel import TAPER_START
 from .neighbourhood import Neighbourhood
 
 __all__ = ["pca_normals", "orient_normals", "orient_towards_viewpoint", "tangent_frames", "GRAPH_NEIGHBORS"]
@@ -63,20 +63,19 @@ def pca_normals(
     """
     if weights is not None and taper:
         raise HeatcurvError("give pca_normals either weights or taper=True, not both")
-    if weights is None and use_numba():
-        from ._segment_numba import smallest_eigenvectors, weighted_covariances
-
-        cov = weighted_covariances(points, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, TAPER_START, taper)
-        normals, evals = smallest_eigenvectors(cov)
+    if weights is None:
+        cov = kernels.weighted_covariances(
+            points, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, TAPER_START, taper
+        )
+        normals, evals = kernels.smallest_eigenvectors(cov)
         return normals, _planarity(evals)
-    else:
-        def block_covariances(lo, hi, block):
-            w = weights[nbhd.indptr[lo] : nbhd.indptr[hi]] if weights is not None else (
-                ball_taper(block) if taper else np.ones(block.n_pairs)
-            )
-            return _covariances(points, points[lo:hi], block, np.asarray(w, dtype=np.float64))
 
-        cov = nbhd.blockwise(block_covariances)
+    # given weights (no compiled kernel takes them): numpy blocks of pairs, LAPACK's eigh
+    def block_covariances(lo, hi, block):
+        w = np.asarray(weights[nbhd.indptr[lo] : nbhd.indptr[hi]], dtype=np.float64)
+        return _covariances(points, points[lo:hi], block, w)
+
+    cov = nbhd.blockwise(block_covariances)
     evals, evecs = np.linalg.eigh(cov)
     return evecs[:, :, 0], _planarity(evals)
 
@@ -165,17 +164,7 @@ def orient_normals(
         nbhd = nbhd.spread(int(graph_neighbors))
     # cost: misalignment first, distance (relative to the ball) as tie-breaker;
     # strictly positive because csgraph treats zero entries as missing edges
-    if use_numba():
-        from ._segment_numba import orientation_costs
-
-        cost = orientation_costs(normals, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius)
-    else:
-        def block_costs(lo, hi, block):
-            rows = block.rows
-            align = np.abs(np.einsum("ij,ij->i", normals[lo:hi][rows], normals[block.indices]))
-            return (1.0 - align) + 1e-3 * block.distances / block.radius[rows] + 1e-12
-
-        cost = nbhd.blockwise(block_costs)
+    cost = kernels.orientation_costs(normals, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius)
     graph = sp.csr_matrix((cost, nbhd.indices, nbhd.indptr), shape=(n, n))
     # csgraph takes every stored entry as an undirected edge: the directed neighbour
     # graph needs no symmetrising (which doubled the edges Kruskal sorts: 5.6 s -> 2.3 s

@@ -1,6 +1,5 @@
-"""The chord fit's compiled (numba) path against its numpy reference path."""
+"""heatcurv._kernels.chordfit: the compiled chord fit against its numpy reference (tests/reference/chordfit.py)."""
 
-import os
 import subprocess
 import sys
 
@@ -9,12 +8,13 @@ import pytest
 from scipy.spatial import cKDTree
 
 from heatcurv import surfaces
-from heatcurv.backend import backend
-from heatcurv.chordfit import chord_fit
+from heatcurv._kernels.chordfit import solve_compiled
+from heatcurv.chordfit import chord_fit, solve_normal_equations
 from heatcurv.kernel import ball_taper
 from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood
+from reference import chordfit as reference
 
-# Both paths sum the same per-pair terms, in another order (blocked matrix products
+# Both sum the same per-pair terms, in another order (blocked matrix products
 # against a loop over the pairs): they differ by rounding, amplified by the
 # condition number of the normal matrices (up to about 1e6 measured for the
 # 9-column fit; measured differences up to 1e-10 relative). 1e-9 leaves a margin,
@@ -33,13 +33,9 @@ def cloud(sample, k=60, queries=None):
     return pts, nb, w
 
 
-def both_backends(*args, **kwargs):
-    """``chord_fit`` run by the numpy path and by the numba path."""
-    with backend("numpy"):
-        ref = chord_fit(*args, **kwargs)
-    with backend("numba"):
-        fit = chord_fit(*args, **kwargs)
-    return ref, fit
+def both(*args, **kwargs):
+    """The numpy reference's fit and the compiled one."""
+    return reference.chord_fit(*args, **kwargs), chord_fit(*args, **kwargs)
 
 
 def assert_same_fit(ref, fit):
@@ -83,34 +79,30 @@ def noisy_sphere():
 
 @pytest.mark.parametrize("denoise", [False, True])
 @pytest.mark.parametrize("case", ["torus", "noisy_sphere"])
-def test_numba_matches_numpy(case, denoise, request):
-    pytest.importorskip("numba")
+def test_compiled_fit_matches_reference(case, denoise, request):
     normals, pts, nb, w = request.getfixturevalue(case)
-    assert_same_fit(*both_backends(pts, nb, normals, w, denoise=denoise))
+    assert_same_fit(*both(pts, nb, normals, w, denoise=denoise))
 
 
 @pytest.mark.parametrize("denoise", [False, True])
 @pytest.mark.parametrize("tilt, cubic, passes", [(False, False, 1), (True, False, 2), (False, True, 2)])
-def test_numba_matches_numpy_without_terms(torus, tilt, cubic, passes, denoise):
-    pytest.importorskip("numba")
+def test_compiled_fit_matches_reference_without_terms(torus, tilt, cubic, passes, denoise):
     normals, pts, nb, w = torus
-    assert_same_fit(*both_backends(pts, nb, normals, w, tilt=tilt, cubic=cubic, passes=passes, denoise=denoise))
+    assert_same_fit(*both(pts, nb, normals, w, tilt=tilt, cubic=cubic, passes=passes, denoise=denoise))
 
 
 @pytest.mark.parametrize("denoise", [False, True])
-def test_numba_matches_numpy_on_given_centres(denoise):
+def test_compiled_fit_matches_reference_on_given_centres(denoise):
     # a subset of the points as centres, as select_scale fits them
-    pytest.importorskip("numba")
     sample = surfaces.Torus().sample(3000, "random", seed=5, noise=0.002)
     sub = np.sort(np.random.default_rng(0).choice(3000, 500, replace=False))
     pts, nb, w = cloud(sample, queries=sample.points[sub])
-    ref, fit = both_backends(pts, nb, sample.normals[sub], w, denoise=denoise, centres=pts[sub])
+    ref, fit = both(pts, nb, sample.normals[sub], w, denoise=denoise, centres=pts[sub])
     assert_same_fit(ref, fit)
 
 
 @pytest.mark.parametrize("denoise", [False, True])
-def test_numba_matches_numpy_on_degenerate_rows(denoise):
-    pytest.importorskip("numba")
+def test_compiled_fit_matches_reference_on_degenerate_rows(denoise):
     # centres straight above the points of a grid on a saddle, normals (0, 0, 1):
     # the point below each centre has r = 0 exactly (its direction is a convention)
     g = np.arange(-10, 11) * 0.05
@@ -129,7 +121,7 @@ def test_numba_matches_numpy_on_degenerate_rows(denoise):
         np.concatenate([[0], np.cumsum(counts)]), nb.indices[keep], nb.distances[keep], nb.radius, nb.augmented
     )
     w = np.exp(-(nb.distances**2) / np.repeat(nb.radius / 2, nb.counts) ** 2)
-    ref, fit = both_backends(pts, nb, normals, w, denoise=denoise, centres=centres)
+    ref, fit = both(pts, nb, normals, w, denoise=denoise, centres=centres)
     assert not ref.principal.well_posed[empty] and ref.principal.mean[empty] == 0
     np.testing.assert_array_equal(fit.principal.well_posed, ref.principal.well_posed)
     for name in ("k1", "k2", "mean", "gaussian"):
@@ -140,40 +132,44 @@ def test_numba_matches_numpy_on_degenerate_rows(denoise):
     np.testing.assert_allclose(fit.mean_variance_factor, ref.mean_variance_factor, rtol=1e-6)
 
 
-def test_numba_fit_is_exact_on_a_sphere():
-    pytest.importorskip("numba")
+def test_compiled_fit_is_exact_on_a_sphere():
     sample = surfaces.Sphere(radius=2.0).sample(3000, "random", seed=0)
     pts, nb, w = cloud(sample)
-    with backend("numba"):
-        fit = chord_fit(pts, nb, pts / 2.0, w)
-    # as the numpy path (test_chordfit_scale): exact up to the solver's ridge
+    fit = chord_fit(pts, nb, pts / 2.0, w)
+    # exact up to the solver's ridge
     np.testing.assert_allclose(fit.principal.mean, 0.5, rtol=1e-5)
     np.testing.assert_allclose(fit.principal.k1, 0.5, rtol=1e-5)
     np.testing.assert_allclose(fit.principal.k2, 0.5, rtol=1e-5)
     assert np.median(fit.sigma) < 1e-9
 
 
-def test_numpy_backend_does_not_load_the_compiled_fit():
+def test_kernels_import_nothing_from_the_stages():
+    """Imports go one way, stage -> _kernels: the kernels load (and run) without the rest of heatcurv.
+
+    ``import heatcurv._kernels.chordfit`` runs heatcurv/__init__, which imports every
+    stage; a bare package module stands in for it here, so whatever else gets loaded
+    was imported by the kernels themselves.
+    """
     code = (
-        "import sys, numpy as np\n"
-        "from heatcurv import surfaces\n"
-        "from heatcurv.chordfit import chord_fit\n"
-        "from heatcurv.neighbourhood import ball_neighbourhood\n"
-        "s = surfaces.Sphere().sample(300, 'random', seed=0)\n"
-        "nb = ball_neighbourhood(s.points, 0.4)\n"
-        "chord_fit(s.points, nb, s.normals, np.ones(nb.n_pairs))\n"
-        "assert 'heatcurv._chordfit_numba' not in sys.modules\n"
+        "import importlib.util, sys, types\n"
+        "import numpy as np\n"
+        "package = types.ModuleType('heatcurv')\n"
+        "package.__path__ = list(importlib.util.find_spec('heatcurv').submodule_search_locations)\n"
+        "sys.modules['heatcurv'] = package\n"
+        "import heatcurv._kernels.chordfit as c, heatcurv._kernels.segment as s\n"
+        "G = np.eye(3)[None].repeat(2, 0)\n"
+        "beta = c.solve_compiled(G, np.ones((2, 3)), np.ones(2))[0]\n"
+        "assert np.allclose(beta, 1.0) and s.taper_sums(np.array([0, 1]), np.array([0.5]), np.ones(1), 0.7)[0] == 1.0\n"
+        "print(' '.join(sorted(m for m in sys.modules if m.startswith('heatcurv'))))\n"
     )
-    env = dict(os.environ, HEATCURV_BACKEND="numpy")
-    subprocess.run([sys.executable, "-c", code], env=env, check=True)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    loaded = out.stdout.split()
+    assert loaded == ["heatcurv", "heatcurv._kernels", "heatcurv._kernels.chordfit", "heatcurv._kernels.segment"]
 
 
 def test_compiled_solve_matches_numpy_and_decides_well_posedness_exactly():
     """Cholesky solve and the trace bracket of the condition number against LU and eigenvalues."""
-    pytest.importorskip("numba")
-    from heatcurv._chordfit_numba import solve_compiled
-    from heatcurv.chordfit import solve_normal_equations
-
     rng = np.random.default_rng(0)
     n, p = 3000, 9
     X = rng.normal(size=(n, 30, p))

@@ -1,25 +1,26 @@
-"""Compiled per-pair work of :func:`heatcurv.chordfit.chord_fit` (numba).
+"""Compiled per-pair work of :func:`heatcurv.chordfit.chord_fit`.
 
-The numpy path of :func:`heatcurv.chordfit.chord_fit` builds per-pair arrays
-(local coordinates, model columns, responses, then padded blocks for the
-batched products): about 1 KB per pair at its peak. Here one kernel per fit
-loops, in parallel over the centres, over each centre's CSR neighbours and
-accumulates the normal equations directly,
+One kernel per fit loops, in parallel over the centres, over each centre's CSR
+neighbours and accumulates the normal equations directly,
 
     G_i = sum_j w_ij X_ij X_ij^T,   r_i = sum_j w_ij y_ij X_ij,   (y^T W y)_i,
     G2_i = sum_j w_ij^2 S_ij^2 X_ij X_ij^T   (for the variance of the mean),
 
 recomputing everything a pair needs from the points, the centre's frame and
 the fitted coefficients; nothing proportional to the number of pairs is
-allocated. The normal equations are then solved point by point by Cholesky
+allocated (a numpy formulation with per-pair arrays peaks at about 1 KB per
+pair). The normal equations are then solved point by point by Cholesky
 (:func:`solve_compiled`, the same ridge and returns as
 :func:`heatcurv.chordfit.solve_normal_equations`; the well-posedness test
 brackets the condition number from the traces of ``G`` and ``G^-1`` and
-computes eigenvalues only where the bracket cannot decide), and the pass
-helpers are the numpy path's own, so both paths differ only by rounding.
+computes eigenvalues only where the bracket cannot decide).
 
-Only :func:`heatcurv.chordfit.chord_fit` imports this module, and only when
-:func:`heatcurv.backend.use_numba` is true.
+:func:`heatcurv.chordfit.chord_fit` runs the passes (frames, curvatures, the
+tilt-corrected normal) around :func:`fit` and :func:`weighted_height_residual`.
+The numpy reference of the whole fit is ``tests/reference/chordfit.py``; the
+tests compare the two to 1e-9.
+
+Arrays in, arrays out: this module imports nothing from heatcurv.
 """
 
 from __future__ import annotations
@@ -27,25 +28,29 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .chordfit import (
-    MIN_DOF_FRACTION,
-    ChordFit,
-    _chord_fit_result,
-    _mean_contrast,
-    _principal_and_refined_normal,
-)
-from .neighbourhood import Neighbourhood
-from .normals import tangent_frames
+__all__ = [
+    "CHORD",
+    "HEIGHT",
+    "DENOISED_HEIGHT",
+    "MIN_DOF_FRACTION",
+    "WELL_POSED_RCOND",
+    "assemble_normal_equations",
+    "weighted_height_residual",
+    "solve_compiled",
+    "fit",
+]
 
-__all__ = ["chord_fit_compiled"]
-
-# What a fit's response and design are (the numpy path's three calls of segment_lstsq):
+# What a fit's response and design are:
 #: chord curvatures ``kN = -2 z / (r^2 + z^2)`` against the shape columns;
-_CHORD = 0
+CHORD = 0
 #: heights ``z`` against ``[-r^2 / 2 * columns, 1]`` (the plain height fit);
-_HEIGHT = 1
+HEIGHT = 1
 #: heights ``z`` against ``[-D^2 / 2 * columns, 1]``, ``D^2 = r^2 + (zhat - z0)^2`` from a height fit.
-_DENOISED_HEIGHT = 2
+DENOISED_HEIGHT = 2
+
+#: Floor of ``1 - p / n_eff`` in the residual variance (balls barely larger than the model);
+#: see :func:`_unbiased_mean_square`.
+MIN_DOF_FRACTION = 0.1
 
 
 @numba.njit(cache=True)
@@ -62,7 +67,11 @@ def _local_coordinates(points, centres, i, j, e1, e2, normals, unit):
 
 @numba.njit(cache=True)
 def _fill_shape_columns(x, y, tilt, cubic, cols):
-    """One pair's kN model columns (as ``_shape_columns``) into ``cols``; returns ``r``."""
+    """One pair's kN model columns into ``cols``; returns ``r``.
+
+    The order :func:`heatcurv.chordfit.chord_fit`'s coefficients follow: tensor
+    ``c^2, 2 c s, s^2``, tilt ``c / r, s / r``, cubic ``r c^3, r c^2 s, r c s^2, r s^3``.
+    """
     r = np.sqrt(x * x + y * y)
     if r > 0:
         safe, c, s = r, x / r, y / r
@@ -87,7 +96,7 @@ def _fill_shape_columns(x, y, tilt, cubic, cols):
 @numba.njit(cache=True)
 def _denoised_denominator(cols, n_shape, r2, height_beta, i):
     """``D^2 = r^2 + (zhat - z0)^2`` with ``zhat`` the plain height fit ``height_beta[i]`` at the pair."""
-    # zhat = [-r^2/2 * cols, 1] . beta, the constant column last (as the numpy path sums it)
+    # zhat = [-r^2/2 * cols, 1] . beta, the constant column last (as the numpy reference sums it)
     zhat = 0.0
     for a in range(n_shape):
         zhat += -0.5 * r2 * cols[a] * height_beta[i, a]
@@ -98,7 +107,7 @@ def _denoised_denominator(cols, n_shape, r2, height_beta, i):
 
 
 @numba.njit(parallel=True, cache=True)
-def _assemble_normal_equations(
+def assemble_normal_equations(
     points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, G, rhs, yy, G2
 ):
     """Accumulate every centre's weighted normal equations over its neighbours.
@@ -115,9 +124,9 @@ def _assemble_normal_equations(
         Each centre's frame.
     tilt, cubic : bool
     kind : int
-        ``_CHORD``, ``_HEIGHT`` or ``_DENOISED_HEIGHT``.
+        ``CHORD``, ``HEIGHT`` or ``DENOISED_HEIGHT``.
     height_beta : ndarray, shape (n, p) or (0, p)
-        The plain height fit (for ``_DENOISED_HEIGHT`` only).
+        The plain height fit (for ``DENOISED_HEIGHT`` only).
     G, rhs, yy : ndarray, shape (n, p, p), (n, p), (n,)
         Output: ``X^T W X``, ``X^T W y``, ``y^T W y``.
     G2 : ndarray, shape (n, p, p) or (0, p, p)
@@ -144,7 +153,7 @@ def _assemble_normal_equations(
             x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, unit[i])
             r = _fill_shape_columns(x, y, tilt, cubic, cols)
             r2 = r * r
-            if kind == _CHORD:
+            if kind == CHORD:
                 D2 = r2 + z * z
                 if D2 > 0:
                     response = -2.0 * z / D2
@@ -156,7 +165,7 @@ def _assemble_normal_equations(
                 for a in range(p):
                     X[a] = cols[a]
             else:
-                if kind == _HEIGHT:
+                if kind == HEIGHT:
                     D2 = r2
                 else:
                     D2 = _denoised_denominator(cols, n_shape, r2, height_beta, i)
@@ -191,7 +200,17 @@ def _assemble_normal_equations(
 
 @numba.njit(cache=True)
 def _unbiased_mean_square(weighted_sq, total_weight, total_sq_weight, p):
-    """:func:`heatcurv.chordfit.residual_variance` for one centre."""
+    """Noise variance from one centre's weighted residuals, corrected for the degrees of freedom the fit used.
+
+    ``sum_j w_j r_j^2 / sum_j w_j`` underestimates the noise variance: a fit
+    with ``p`` coefficients absorbs part of the noise. With leverages about
+    proportional to the weights its expectation is ``sigma^2 (1 - p / n_eff)``,
+    ``n_eff = (sum w)^2 / sum w^2`` the effective number of neighbours, so
+    that factor is divided out (floored at :data:`MIN_DOF_FRACTION`). With
+    60 neighbours under the tapered heat kernel ``n_eff`` is about 25, and
+    the uncorrected estimate was low by about 1.3x: enough to make the
+    kernel choice stop early on dense noisy clouds.
+    """
     mean_sq = weighted_sq / max(total_weight, 1e-300)
     n_eff = total_weight * total_weight / max(total_sq_weight, 1e-300)
     if n_eff <= p:  # (also no neighbours at all: n_eff = 0)
@@ -200,14 +219,14 @@ def _unbiased_mean_square(weighted_sq, total_weight, total_sq_weight, p):
 
 
 @numba.njit(parallel=True, cache=True)
-def _weighted_height_residual(
+def weighted_height_residual(
     points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, beta, sigma2
 ):
     """Weighted mean square height residual of each centre's final fit, into ``sigma2``.
 
-    ``kind`` is ``_CHORD`` (a kN residual, times ``D^2 / 2`` to make it a height) or
-    ``_DENOISED_HEIGHT`` (``beta`` the refit of ``height_beta``); other
-    arguments as :func:`_assemble_normal_equations`. Units of ``unit``.
+    ``kind`` is ``CHORD`` (a kN residual, times ``D^2 / 2`` to make it a height) or
+    ``DENOISED_HEIGHT`` (``beta`` the refit of ``height_beta``); other
+    arguments as :func:`assemble_normal_equations`. Units of ``unit``.
     """
     n = indptr.shape[0] - 1
     p = beta.shape[1]
@@ -221,7 +240,7 @@ def _weighted_height_residual(
             x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, unit[i])
             r = _fill_shape_columns(x, y, tilt, cubic, cols)
             r2 = r * r
-            if kind == _CHORD:
+            if kind == CHORD:
                 D2 = r2 + z * z
                 kN = -2.0 * z / D2 if D2 > 0 else 0.0
                 fitted = 0.0
@@ -378,7 +397,9 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True):
     posed = np.empty(n, dtype=np.int8)
     c = np.zeros(p) if contrast is None else np.ascontiguousarray(contrast, dtype=np.float64)
     g2 = G2 if contrast is not None else np.empty((0, p, p))
-    _solve_normal_equations(G, rhs, yy, float(ridge), c, g2, contrast is not None, bool(check), beta, rss, posed, variance)
+    _solve_normal_equations(
+        G, rhs, yy, float(ridge), c, g2, contrast is not None, bool(check), beta, rss, posed, variance
+    )
     well_posed = posed == 1
     undecided = np.flatnonzero(posed < 0)
     if undecided.size:
@@ -389,15 +410,28 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True):
     return beta, rss, well_posed, variance
 
 
-def _fit(kind, p, geometry, height_beta=None, final=False):
-    """Assemble one fit with the kernel and solve it.
+def fit(kind, p, geometry, height_beta=None, contrast=None):
+    """Assemble one fit with :func:`assemble_normal_equations` and solve it.
 
-    A ``final`` fit (the last pass's, whose diagnostics the result reports) is
-    solved by :func:`solve_compiled` with the mean-curvature contrast and
-    returns ``beta, rss, well_posed, variance``. The fits before it only pass
-    their coefficients on (the numpy path computes and drops the rest), so
-    they skip ``G2`` and return ``beta`` alone.
+    Parameters
+    ----------
+    kind : int
+        ``CHORD``, ``HEIGHT`` or ``DENOISED_HEIGHT``.
+    p : int
+        Unknowns of the fit.
+    geometry : tuple
+        ``(points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic)``
+        as :func:`assemble_normal_equations` takes them.
+    height_beta : ndarray, shape (n, p), optional
+        The plain height fit (``DENOISED_HEIGHT`` only).
+    contrast : ndarray, shape (p,), optional
+        Given for the final fit (the last pass's, whose diagnostics are
+        reported): it is solved by :func:`solve_compiled` with this contrast
+        and returns ``beta, rss, well_posed, variance``. Without it the fit
+        only passes its coefficients on, skips ``G2`` and the
+        well-posedness test, and returns ``beta`` alone.
     """
+    final = contrast is not None
     indptr = geometry[2]
     n = indptr.shape[0] - 1
     G = np.empty((n, p, p))
@@ -406,59 +440,7 @@ def _fit(kind, p, geometry, height_beta=None, final=False):
     G2 = np.empty((n if final else 0, p, p))
     if height_beta is None:
         height_beta = np.empty((0, p))
-    _assemble_normal_equations(*geometry, kind, height_beta, G, rhs, yy, G2)
+    assemble_normal_equations(*geometry, kind, height_beta, G, rhs, yy, G2)
     if not final:
         return solve_compiled(G, rhs, yy, check=False)[0]
-    return solve_compiled(G, rhs, yy, contrast=_mean_contrast(p), G2=G2)
-
-
-def chord_fit_compiled(
-    points: np.ndarray,
-    nbhd: Neighbourhood,
-    normals: np.ndarray,
-    weights: np.ndarray,
-    *,
-    passes: int = 2,
-    tilt: bool = True,
-    cubic: bool = True,
-    denoise: bool = False,
-    centres: np.ndarray | None = None,
-) -> ChordFit:
-    """:func:`heatcurv.chordfit.chord_fit` with compiled per-pair sums.
-
-    Same parameters and result as :func:`heatcurv.chordfit.chord_fit`; the
-    results agree with its numpy path to rounding (the sums run in another order).
-    """
-    if centres is None:
-        centres = points
-    points = np.ascontiguousarray(points, dtype=np.float64)
-    centres = np.ascontiguousarray(centres, dtype=np.float64)
-    indptr = np.ascontiguousarray(nbhd.indptr, dtype=np.int64)
-    indices = np.ascontiguousarray(nbhd.indices)  # int32 or int64: one compilation each
-    weights = np.ascontiguousarray(weights, dtype=np.float64)
-    # the fit works in units of each centre's ball radius, as the numpy path
-    unit = np.ascontiguousarray(nbhd.radius, dtype=np.float64)
-    tilt, cubic = bool(tilt), bool(cubic)
-    n_shape = 3 + 2 * tilt + 4 * cubic
-    nrm = np.ascontiguousarray(normals, dtype=np.float64)
-    n_passes = max(1, passes)
-    for k in range(n_passes):
-        final = k == n_passes - 1
-        e1, e2 = tangent_frames(nrm)
-        geometry = (points, centres, indptr, indices, weights, unit, nrm, e1, e2, tilt, cubic)
-        if not denoise:
-            fitted = _fit(_CHORD, n_shape, geometry, final=final)
-            height_beta = np.empty((0, n_shape))
-        else:
-            # 1) plain height fit; 2) refit with the chord denominator of its heights
-            height_beta = _fit(_HEIGHT, n_shape + 1, geometry)
-            fitted = _fit(_DENOISED_HEIGHT, n_shape + 1, geometry, height_beta=height_beta, final=final)
-        if final:
-            beta, _, ok, var_factor = fitted
-            sigma2 = np.empty(nbhd.n_points)
-            _weighted_height_residual(*geometry, _DENOISED_HEIGHT if denoise else _CHORD, height_beta, beta, sigma2)
-        else:
-            beta = fitted
-        pc, refined = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
-        used, nrm = nrm, refined
-    return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit)
+    return solve_compiled(G, rhs, yy, contrast=contrast, G2=G2)

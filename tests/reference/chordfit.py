@@ -1,0 +1,106 @@
+"""numpy reference of :func:`heatcurv.chordfit.chord_fit` (the former numpy backend).
+
+Builds the per-pair arrays (local coordinates, model columns, responses) and
+solves every centre's weighted least squares with
+:func:`heatcurv.chordfit.segment_lstsq` (batched products, LU solve, LAPACK
+eigenvalues); the compiled fit accumulates the same normal equations pair by
+pair and solves them by Cholesky, so the two agree to rounding, amplified by
+the normal matrices' condition numbers.
+"""
+
+import numpy as np
+
+from heatcurv._kernels.chordfit import MIN_DOF_FRACTION
+from heatcurv.chordfit import ChordFit, _chord_fit_result, _mean_contrast, _principal_and_refined_normal, segment_lstsq
+from heatcurv.neighbourhood import Neighbourhood
+from heatcurv.normals import tangent_frames
+
+__all__ = ["chord_fit", "residual_variance"]
+
+
+def _local_coordinates(centres, points, nbhd, normals):
+    rows = nbhd.rows
+    d = points[nbhd.indices] - centres[rows]
+    e1, e2 = tangent_frames(normals)
+    x = np.einsum("ij,ij->i", d, e1[rows])
+    y = np.einsum("ij,ij->i", d, e2[rows])
+    z = np.einsum("ij,ij->i", d, normals[rows])
+    return x, y, z, e1, e2
+
+
+def _shape_columns(x, y, tilt: bool, cubic: bool):
+    """Columns of the kN model: tensor (3), tilt (2), cubic (4); shape (nnz, p)."""
+    r = np.sqrt(x * x + y * y)
+    safe = np.where(r > 0, r, 1.0)
+    c, s = np.where(r > 0, x / safe, 1.0), np.where(r > 0, y / safe, 0.0)
+    cols = [c * c, 2 * c * s, s * s]
+    if tilt:
+        cols += [c / safe, s / safe]
+    if cubic:
+        cols += [r * c**3, r * c * c * s, r * c * s * s, r * s**3]
+    return np.stack(cols, 1), r
+
+
+def residual_variance(nbhd: Neighbourhood, weights: np.ndarray, resid: np.ndarray, p: int) -> np.ndarray:
+    """Noise variance from weighted residuals, corrected for the ``p`` degrees of freedom the fit used.
+
+    See ``_unbiased_mean_square`` in :mod:`heatcurv._kernels.chordfit`.
+    """
+    total = nbhd.segment_sum(weights)
+    mean_sq = nbhd.segment_sum(weights * resid * resid) / np.maximum(total, 1e-300)
+    n_eff = np.maximum(total * total / np.maximum(nbhd.segment_sum(weights * weights), 1e-300), 1e-300)
+    return mean_sq / np.maximum(1.0 - p / n_eff, MIN_DOF_FRACTION)
+
+
+def chord_fit(
+    points: np.ndarray,
+    nbhd: Neighbourhood,
+    normals: np.ndarray,
+    weights: np.ndarray,
+    *,
+    passes: int = 2,
+    tilt: bool = True,
+    cubic: bool = True,
+    denoise: bool = False,
+    centres: np.ndarray | None = None,
+) -> ChordFit:
+    """:func:`heatcurv.chordfit.chord_fit` in numpy: same parameters, same result to rounding."""
+    if centres is None:
+        centres = points
+    # in units of each centre's ball radius, as the compiled fit
+    unit = nbhd.radius
+    unit_pair = np.repeat(unit, nbhd.counts)
+    nrm = normals
+    for _ in range(max(1, passes)):
+        x, y, z, e1, e2 = _local_coordinates(centres, points, nbhd, nrm)
+        x, y, z = x / unit_pair, y / unit_pair, z / unit_pair
+        cols, r = _shape_columns(x, y, tilt, cubic)
+        r2 = r * r
+        if not denoise:
+            D2 = r2 + z * z
+            kN = np.where(D2 > 0, -2.0 * z / np.where(D2 > 0, D2, 1.0), 0.0)
+            contrast = _mean_contrast(cols.shape[1])
+            # a height error eps moves kN by 2 eps / D^2: response noise scale per unit sigma
+            beta, rss, ok, var_factor = segment_lstsq(
+                nbhd, cols, kN, weights, contrast=contrast, noise_scale=2.0 / np.where(D2 > 0, D2, np.inf)
+            )
+            # height residual: kN residual times D^2 / 2
+            resid = (kN - np.einsum("ij,ij->i", cols, beta[nbhd.rows])) * D2 / 2
+            sigma2 = residual_variance(nbhd, weights, resid, cols.shape[1])
+        else:
+            # 1) plain height fit: z = z0 - r^2/2 * model
+            design = np.concatenate([-0.5 * r2[:, None] * cols, np.ones((len(r2), 1))], 1)
+            beta, rss, ok = segment_lstsq(nbhd, design, z, weights)
+            zhat = np.einsum("ij,ij->i", design, beta[nbhd.rows])
+            z0 = beta[nbhd.rows, -1]
+            # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2
+            D2 = r2 + (zhat - z0) ** 2
+            design = np.concatenate([-0.5 * D2[:, None] * cols, np.ones((len(r2), 1))], 1)
+            contrast = _mean_contrast(design.shape[1])
+            beta, rss, ok, var_factor = segment_lstsq(nbhd, design, z, weights, contrast=contrast)
+            resid = z - np.einsum("ij,ij->i", design, beta[nbhd.rows])
+            sigma2 = residual_variance(nbhd, weights, resid, design.shape[1])
+            beta = beta[:, :-1]
+        pc, refined = _principal_and_refined_normal(beta, unit, e1, e2, nrm, tilt)
+        used, nrm = nrm, refined
+    return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit)

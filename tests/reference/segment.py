@@ -1,0 +1,100 @@
+"""numpy references of :mod:`heatcurv._kernels.segment`, function by function.
+
+Same arguments, same returns, vectorised over all pairs at once (the former
+numpy backend, which ran these formulas on blocks of rows; a row's sum does not
+depend on the blocking). They differ from the kernels only in the order the
+floating-point terms are summed, and in the eigensolver (LAPACK's ``eigh``
+here, a 3 x 3 Jacobi iteration there).
+"""
+
+import numpy as np
+
+from heatcurv.kernel import flat_top
+
+__all__ = [
+    "orientation_costs",
+    "tapered_heat_weights",
+    "taper_sums",
+    "weighted_covariances",
+    "smallest_eigenvectors",
+    "kappa_normal_sums",
+    "centroid_offsets",
+]
+
+
+def _rows(indptr):
+    """The row (centre) of every pair."""
+    return np.repeat(np.arange(indptr.shape[0] - 1), np.diff(indptr))
+
+
+def _segment_sum(indptr, values):
+    """Per-row sums of per-pair ``values`` (shape ``(nnz,)`` or ``(nnz, k)``), 0 for empty rows."""
+    out = np.zeros((indptr.shape[0] - 1,) + values.shape[1:])
+    nonempty = np.diff(indptr) > 0
+    if values.shape[0]:
+        out[nonempty] = np.add.reduceat(values, indptr[:-1][nonempty], axis=0)
+    return out
+
+
+def _taper(indptr, distances, radius, start):
+    """``flat_top(|xi - xj| / R_i)`` of every pair."""
+    return flat_top(distances / radius[_rows(indptr)], start)
+
+
+def orientation_costs(normals, indptr, indices, distances, radius):
+    """``1 - |n_i . n_j| + 1e-3 |xi - xj| / R_i + 1e-12`` per pair."""
+    rows = _rows(indptr)
+    align = np.abs(np.einsum("ij,ij->i", normals[rows], normals[indices]))
+    return (1.0 - align) + 1e-3 * distances / radius[rows] + 1e-12
+
+
+def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):
+    """``exp(-|xi - xj|^2 inv_h2[i]) flat_top(|xi - xj| / R_i) A_j`` per pair."""
+    rows = _rows(indptr)
+    return np.exp(-(distances**2) * inv_h2[rows]) * _taper(indptr, distances, radius, start) * areas[indices]
+
+
+def taper_sums(indptr, distances, radius, start):
+    """``sum_j flat_top(|xi - xj| / R_i)`` per point."""
+    return _segment_sum(indptr, _taper(indptr, distances, radius, start))
+
+
+def weighted_covariances(points, indptr, indices, distances, radius, start, use_taper):
+    """Covariance of each neighbourhood and its centre (weight 1), shape (n, 3, 3)."""
+    w = _taper(indptr, distances, radius, start) if use_taper else np.ones(indices.shape[0])
+    n = indptr.shape[0] - 1
+    centres = points[:n]
+    rows = _rows(indptr)
+    total = _segment_sum(indptr, w) + 1.0
+    # weighted neighbourhood mean including the point itself
+    mean = (_segment_sum(indptr, w[:, None] * points[indices]) + centres) / total[:, None]
+    d = points[indices] - mean[rows]
+    d0 = centres - mean
+    cov = np.empty((n, 3, 3))
+    for a, b in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
+        entry = (_segment_sum(indptr, w * d[:, a] * d[:, b]) + d0[:, a] * d0[:, b]) / total
+        cov[:, a, b] = cov[:, b, a] = entry
+    return cov
+
+
+def smallest_eigenvectors(cov):
+    """Unit eigenvector of the smallest eigenvalue and the ascending eigenvalues (LAPACK)."""
+    values, vectors = np.linalg.eigh(cov)
+    return np.ascontiguousarray(vectors[:, :, 0]), values
+
+
+def kappa_normal_sums(points, indptr, indices, distances, inv_4t, weights, areas, has_weights):
+    """``sum_j W_ij A_j (x_i - x_j)`` per point, ``W`` given or the heat kernel."""
+    rows = _rows(indptr)
+    w = weights if has_weights else np.exp(-(distances**2) * inv_4t[rows])
+    coupling = w * areas[indices]
+    return _segment_sum(indptr, coupling[:, None] * (points[rows] - points[indices]))
+
+
+def centroid_offsets(points, centres, indptr, indices, distances, radius, normals, start, use_taper):
+    """``|P_t (mean_j x_j - x_i)| / R_i`` per point."""
+    w = _taper(indptr, distances, radius, start) if use_taper else np.ones(indices.shape[0])
+    total = np.maximum(_segment_sum(indptr, w), np.finfo(float).tiny)
+    centroid = _segment_sum(indptr, w[:, None] * points[indices]) / total[:, None] - centres
+    centroid -= np.einsum("ij,ij->i", centroid, normals)[:, None] * normals
+    return np.linalg.norm(centroid, axis=1) / radius
