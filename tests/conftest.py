@@ -28,4 +28,7 @@ def torus_default(torus_sample):
     return heatcurv.estimate(torus_sample.points)
 
 
-from heatcurv.testing import aligned_exact, direction_error_deg as angle_deg, relative_l1 as rel_l1  # noqa: E402,F401
+@pytest.fixture(scope="module")
+def plane_grid():
+    """The unit square (x, y in [-1, 1], z = 0) on a 61 x 61 grid: step 1/30."""
+    return surfaces.Plane().sample(61 * 61, "grid")

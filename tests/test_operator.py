@@ -65,3 +65,50 @@ def test_pipeline_module_is_a_deprecated_alias():
     with pytest.warns(DeprecationWarning, match="heatcurv.pipeline is deprecated"):
         pipeline = importlib.import_module("heatcurv.pipeline")
     assert pipeline.build_operator is build_operator and pipeline.Options is heatcurv.Options
+
+
+def test_laplacian_annihilates_constants_and_is_symmetric_with_areas(sphere_sample):
+    pts = sphere_sample.points[:2000]
+    L, area = heatcurv.laplacian(pts)
+    assert L.shape == (2000, 2000)
+    np.testing.assert_allclose(L @ np.ones(2000), 0.0, atol=1e-9 * abs(L).max())
+    S = (L.multiply(area[:, None])).toarray()
+    np.testing.assert_allclose(S, S.T, atol=1e-12 * np.abs(S).max())
+    assert np.all(L.diagonal() > 0) and L.nnz > 0
+
+
+def test_laplacian_rows_follow_the_input_order(sphere_sample):
+    pts = sphere_sample.points[:1500]
+    perm = np.random.default_rng(0).permutation(1500)
+    L, area = heatcurv.laplacian(pts)
+    Lp, areap = heatcurv.laplacian(pts[perm])
+    np.testing.assert_allclose(areap, area[perm], rtol=1e-9)
+    f = pts[:, 0] ** 2
+    np.testing.assert_allclose(Lp @ f[perm], (L @ f)[perm], rtol=1e-8, atol=1e-8)
+
+
+def test_laplacian_eigenfunctions_of_the_sphere():
+    # spherical harmonics of degree l: Delta Y = l (l + 1) / R^2 Y (positive operator, eq 2.1)
+    R = 2.0
+    pts = surfaces.Sphere(radius=R).sample(8000, "fibonacci").points
+    L, _ = heatcurv.laplacian(pts)
+    x, y, z = pts.T
+    # measured relative residuals: 0.67 % (l = 1), 0.89 % (l = 2) at n = 8000
+    for f, lam, tol in [(z, 2 / R**2, 0.01), (x * y, 6 / R**2, 0.015)]:
+        assert np.linalg.norm(L @ f - lam * f) / np.linalg.norm(lam * f) < tol
+
+
+def test_laplacian_of_polynomials_on_a_plane(plane_grid):
+    # Delta(x^2 + y^2) = -4 and Delta(linear) = 0 in the positive convention; measured in the
+    # deep interior (12 h from the border): 0.8e-2 and 2e-4 absolute
+    L, _ = heatcurv.laplacian(plane_grid.points)
+    x, y, _ = plane_grid.points.T
+    deep = plane_grid.interior(12 * 2 / 60 + 1e-9)
+    assert np.abs(L @ (x * x + y * y) + 4.0)[deep].max() < 0.02
+    assert np.abs(L @ (2 * x - 3 * y + 1))[deep].max() < 1e-3
+
+
+def test_laplacian_rejects_duplicates(sphere_sample):
+    pts = np.vstack([sphere_sample.points[:500], sphere_sample.points[:3]])
+    with pytest.raises(HeatcurvError, match="3 exact duplicate"):
+        heatcurv.laplacian(pts)

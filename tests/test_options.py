@@ -23,7 +23,8 @@ def test_every_option_is_documented_once_in_its_declaration():
 def test_presets():
     assert METHODS["default"] == Options()
     paper = METHODS["paper"]
-    assert (paper.alpha, paper.m, paper.spacing, paper.area_method, paper.fit) == (4.0, 0.25, "global", "system", "constrained")
+    expect = (4.0, 0.25, "global", "system", "constrained")
+    assert (paper.alpha, paper.m, paper.spacing, paper.area_method, paper.fit) == expect
     assert resolve_options("paper", alpha=3.5).alpha == 3.5
     assert resolve_options("default", alpha=None) == Options()  # None leaves the preset's value
     assert resolve_options(fit="chord", scale=None).scale == "auto"
@@ -41,7 +42,7 @@ def test_presets():
         ({"area_solver": "lu"}, "area_solver must be one of"),
         ({"neighbours": 10}, "neighbours must be at least 20"),
         ({"min_neighbours": 2}, "min_neighbours must be at least 3"),
-        ({"scale": 10}, "scale must be 'auto' or a neighbour count >= 20, got 10"),
+        ({"scale": 10}, "scale must be 'auto' or a neighbour count of at least 20, got 10"),
         ({"scale": "wide"}, "scale must be 'auto' or a neighbour count"),
         ({"scale_tuning": {"tau": 2}}, "scale_tuning must be a heatcurv.options.ScaleTuning"),
         ({"scale_tuning": ScaleTuning(tau=-1.0)}, "scale_tuning.tau must be a positive number"),
@@ -88,3 +89,19 @@ def test_scale_tuning_reaches_the_kernel_choice():
     narrow = heatcurv.estimate(noisy, scale_tuning=ScaleTuning(tau=1e-6))
     assert wide.info["scale"].k > 60
     assert narrow.info["scale"].k == 60 and narrow.info["scale"].fit == "denoised-60"
+
+
+def test_bad_options():
+    pts = surfaces.Sphere().sample(500, "fibonacci").points
+    with pytest.raises(HeatcurvError, match="unknown method"):
+        heatcurv.estimate(pts, method="magic")
+    with pytest.raises(HeatcurvError, match="alpha must be a positive"):
+        heatcurv.estimate(pts, alpha=-1)
+    with pytest.raises(HeatcurvError, match="m must be a positive"):
+        heatcurv.estimate(pts, m=0)
+    with pytest.raises(HeatcurvError, match="gamma must lie in"):
+        heatcurv.estimate(pts, spacing="local", gamma=2)
+    with pytest.raises(HeatcurvError, match="spacing must be one of"):
+        heatcurv.estimate(pts, spacing="adaptive")
+    with pytest.raises(HeatcurvError, match="fit must be one of"):
+        heatcurv.estimate(pts, fit="cubic")

@@ -1,4 +1,4 @@
-"""Bad input raises HeatcurvError naming the problem; duplicates and far coordinates are handled."""
+"""heatcurv.validation: bad input raises HeatcurvError naming it; duplicates and far coordinates are handled."""
 
 import numpy as np
 import pytest
@@ -62,26 +62,6 @@ def test_collinear_points():
     pts = 4e6 + t * np.array([[1.0, -2.0, 0.5]])
     with pytest.raises(HeatcurvError, match="lie on one line"):
         heatcurv.estimate(pts)
-
-
-def test_bad_options():
-    pts = surfaces.Sphere().sample(500, "fibonacci").points
-    with pytest.raises(HeatcurvError, match="unknown method"):
-        heatcurv.estimate(pts, method="magic")
-    with pytest.raises(HeatcurvError, match="alpha must be a positive"):
-        heatcurv.estimate(pts, alpha=-1)
-    with pytest.raises(HeatcurvError, match="m must be a positive"):
-        heatcurv.estimate(pts, m=0)
-    with pytest.raises(HeatcurvError, match="gamma must lie in"):
-        heatcurv.estimate(pts, spacing="local", gamma=2)
-    with pytest.raises(HeatcurvError, match="spacing must be one of"):
-        heatcurv.estimate(pts, spacing="adaptive")
-    with pytest.raises(HeatcurvError, match="fit must be one of"):
-        heatcurv.estimate(pts, fit="cubic")
-    with pytest.raises(HeatcurvError, match="either normals or a viewpoint"):
-        heatcurv.estimate(pts, normals=pts, viewpoint=(0, 0, 5))
-    with pytest.raises(HeatcurvError, match="viewpoint must be 3 finite"):
-        heatcurv.estimate(pts, viewpoint=(0, 0))
 
 
 def test_bad_normals(small_sphere):

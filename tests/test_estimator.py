@@ -1,4 +1,4 @@
-"""heatcurv.estimate against exact values, and its invariances.
+"""heatcurv.estimator: estimate() against exact values, and its invariances.
 
 Tolerances are the measured errors (noted beside each bound) times about 2-3,
 so a regression of the method fails while run-to-run noise does not (the
@@ -10,11 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import heatcurv
-from heatcurv import surfaces
-
-from conftest import aligned_exact, rel_l1
-
-from heatcurv.testing import compare
+from heatcurv import HeatcurvError, surfaces
+from heatcurv.testing import aligned_exact, compare, relative_l1
 
 
 def test_result_shapes_and_invariants(torus_sample, torus_default):
@@ -217,8 +214,8 @@ def test_open_surface_border_eq_2_11_vs_eq_2_12():
     proj = heatcurv.estimate(sample.points, method="paper", mean_formula="projection")
     border = ~sample.interior(2 * norm.spacing.max())
     ex = aligned_exact(sample, norm)["mean"][border]
-    e_norm = rel_l1(norm.mean[border], ex)
-    e_proj = rel_l1(proj.mean[border], ex)
+    e_norm = relative_l1(norm.mean[border], ex)
+    e_proj = relative_l1(proj.mean[border], ex)
     assert e_proj < 0.2 * e_norm
 
 
@@ -247,3 +244,11 @@ def test_strong_noise_is_never_taken_for_clean():
     res = heatcurv.estimate(sample.points)
     assert res.info["scale"]["fit"].startswith("denoised") and res.info["scale"]["k"] >= 960
     assert compare(sample, res)["rel_mean"] < 0.10
+
+
+def test_normals_and_viewpoint_errors():
+    pts = surfaces.Sphere().sample(500, "fibonacci").points
+    with pytest.raises(HeatcurvError, match="either normals or a viewpoint"):
+        heatcurv.estimate(pts, normals=pts, viewpoint=(0, 0, 5))
+    with pytest.raises(HeatcurvError, match="viewpoint must be 3 finite"):
+        heatcurv.estimate(pts, viewpoint=(0, 0))

@@ -1,51 +1,17 @@
-"""Spacing h (eqs 2.6, 2.7), ball neighbourhoods in CSR form, heat-kernel weights (eq 2.8)."""
+"""heatcurv.neighbourhood: ball neighbourhoods in CSR form, their segment sums and row blocks."""
 
 import numpy as np
 import pytest
 from scipy.spatial.distance import cdist
 
-from heatcurv import HeatcurvError, surfaces
-from heatcurv.kernel import area_normalisation, heat_kernel_weights, laplacian_normalisation
+import heatcurv
+from heatcurv import surfaces
 from heatcurv.neighbourhood import ball_neighbourhood
-from heatcurv.spacing import global_spacing, local_spacing, spacing
 
 
 def grid(m=21, step=0.1):
     x, y = np.meshgrid(np.arange(m) * step, np.arange(m) * step)
     return np.c_[x.ravel(), y.ravel(), np.zeros(m * m)]
-
-
-def test_global_spacing_of_a_grid_is_its_step():
-    # every grid point's nearest neighbour is one step away: eq 2.6 is exact
-    assert global_spacing(grid(step=0.1)) == pytest.approx(0.1, rel=1e-12)
-
-
-def test_global_spacing_is_the_mean_nearest_distance():
-    pts = np.random.default_rng(0).random((300, 3))
-    d = cdist(pts, pts)
-    np.fill_diagonal(d, np.inf)
-    assert global_spacing(pts) == pytest.approx(d.min(axis=1).mean(), rel=1e-12)
-
-
-def test_local_spacing_eq_2_7():
-    pts = np.random.default_rng(1).random((300, 3))
-    d = np.sort(cdist(pts, pts), axis=1)[:, 1:]
-    for gamma, k in [(0.0, 8), (0.3, 8), (1.0, 5)]:
-        expect = (1 - gamma) * d[:, 0] + gamma * d[:, k - 1]
-        np.testing.assert_allclose(local_spacing(pts, gamma=gamma, k=k), expect, rtol=1e-12)
-    # interior grid point: nearest 1 step, 8th nearest sqrt(2) steps
-    h = local_spacing(grid(step=0.1), gamma=0.25, k=8)
-    centre = 10 * 21 + 10
-    assert h[centre] == pytest.approx(0.1 * (0.75 + 0.25 * np.sqrt(2)), rel=1e-12)
-
-
-def test_spacing_dispatch_and_errors():
-    pts = grid()
-    assert np.all(spacing(pts, "global") == global_spacing(pts))
-    with pytest.raises(HeatcurvError, match="spacing must be"):
-        spacing(pts, "median")
-    with pytest.raises(HeatcurvError, match="gamma"):
-        local_spacing(pts, gamma=1.5)
 
 
 def test_ball_neighbourhood_matches_brute_force():
@@ -87,20 +53,6 @@ def test_segment_sum_and_counts():
     assert nb.n_points == 100 and nb.indptr[-1] == nb.n_pairs
 
 
-def test_heat_kernel_weights_and_normalisations():
-    pts = np.random.default_rng(4).random((200, 3))
-    nb = ball_neighbourhood(pts, 0.2, min_neighbours=3)
-    h = np.full(200, 0.05)
-    # m = 1/4: W = exp(-d^2/h^2), 1/(4 pi t) = 1/(pi h^2), 1/(4 pi t^2) = 4/(pi h^4)  (eqs 2.8, 2.9)
-    np.testing.assert_allclose(heat_kernel_weights(nb, h, 0.25), np.exp(-nb.distances**2 / 0.05**2), rtol=1e-14)
-    np.testing.assert_allclose(area_normalisation(h, 0.25), 1 / (np.pi * 0.05**2), rtol=1e-14)
-    np.testing.assert_allclose(laplacian_normalisation(h, 0.25), 4 / (np.pi * 0.05**4), rtol=1e-14)
-    # general m: t = m h^2
-    np.testing.assert_allclose(heat_kernel_weights(nb, h, 0.5), np.exp(-nb.distances**2 / (2 * 0.05**2)), rtol=1e-14)
-    with pytest.raises(HeatcurvError, match="m must be positive"):
-        heat_kernel_weights(nb, h, 0.0)
-
-
 def test_ball_holds_the_expected_number_of_points_on_a_sphere():
     # a ball of chord radius r cuts a cap of area exactly pi r^2 from a unit sphere, so
     # each of the n - 1 other points of an area-uniform random sample lies in it with
@@ -111,3 +63,24 @@ def test_ball_holds_the_expected_number_of_points_on_a_sphere():
     nb = ball_neighbourhood(pts, r)
     # the mean of 4000 correlated counts of ~40: relative std well below 1 %
     assert nb.counts.mean() == pytest.approx((n - 1) * r**2 / 4, rel=0.01)
+
+
+def test_fitting_in_blocks_changes_nothing(monkeypatch):
+    import heatcurv.neighbourhood as neighbourhood_module
+
+    sample = surfaces.Torus().sample(3000, "random", seed=6)
+    whole = heatcurv.estimate(sample.points)
+    monkeypatch.setattr(neighbourhood_module, "BLOCK_PAIRS", 5000)  # the one block-size policy: about 80 blocks
+    blocked = heatcurv.estimate(sample.points)
+    for name in whole.FIELDS:
+        np.testing.assert_allclose(getattr(blocked, name), getattr(whole, name), rtol=1e-12, atol=1e-12)
+
+
+def test_row_blocks_cover_every_row_once():
+    pts = np.random.default_rng(7).random((500, 3))
+    nb = ball_neighbourhood(pts, 0.2, min_neighbours=3)
+    blocks = list(nb.row_blocks(300))
+    assert blocks[0][0] == 0 and blocks[-1][1] == 500
+    assert all(b[1] == c[0] for b, c in zip(blocks, blocks[1:]))
+    sub = nb.rows_slice(*blocks[1])
+    np.testing.assert_array_equal(sub.counts, nb.counts[blocks[1][0] : blocks[1][1]])

@@ -1,19 +1,14 @@
-"""Areas from H A = 1 (section 2.2) and the Laplace-Beltrami matrix (eq 2.9)."""
+"""heatcurv.areas: point areas from H A = 1 (section 2.2), the density areas and the ball factor."""
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
-from heatcurv.areas import area_matrix, point_areas
-from heatcurv.laplace_beltrami import laplace_beltrami_matrix
-from heatcurv.mean_curvature import mean_curvature_normal
+from heatcurv.areas import area_matrix, ball_area_factor, density_areas, point_areas
+from heatcurv.neighbourhood import ball_neighbourhood
 from heatcurv.operator import build_operator
-
-
-@pytest.fixture(scope="module")
-def plane_grid():
-    return surfaces.Plane().sample(61 * 61, "grid")
 
 
 def test_plane_grid_areas_are_the_cell_area_up_to_the_theta_sum(plane_grid):
@@ -80,60 +75,6 @@ def test_local_spacing_is_non_symmetric_and_still_accurate(sphere_sample):
         point_areas(op.neighbourhood, op.weights, op.h, solver="cg")
 
 
-def test_laplacian_annihilates_constants_and_is_symmetric_with_areas(sphere_sample):
-    pts = sphere_sample.points[:2000]
-    L, area = heatcurv.laplacian(pts)
-    assert L.shape == (2000, 2000)
-    np.testing.assert_allclose(L @ np.ones(2000), 0.0, atol=1e-9 * abs(L).max())
-    S = (L.multiply(area[:, None])).toarray()
-    np.testing.assert_allclose(S, S.T, atol=1e-12 * np.abs(S).max())
-    assert np.all(L.diagonal() > 0) and L.nnz > 0
-
-
-def test_laplacian_rows_follow_the_input_order(sphere_sample):
-    pts = sphere_sample.points[:1500]
-    perm = np.random.default_rng(0).permutation(1500)
-    L, area = heatcurv.laplacian(pts)
-    Lp, areap = heatcurv.laplacian(pts[perm])
-    np.testing.assert_allclose(areap, area[perm], rtol=1e-9)
-    f = pts[:, 0] ** 2
-    np.testing.assert_allclose(Lp @ f[perm], (L @ f)[perm], rtol=1e-8, atol=1e-8)
-
-
-def test_laplacian_eigenfunctions_of_the_sphere():
-    # spherical harmonics of degree l: Delta Y = l (l + 1) / R^2 Y (positive operator, eq 2.1)
-    R = 2.0
-    pts = surfaces.Sphere(radius=R).sample(8000, "fibonacci").points
-    L, _ = heatcurv.laplacian(pts)
-    x, y, z = pts.T
-    # measured relative residuals: 0.67 % (l = 1), 0.89 % (l = 2) at n = 8000
-    for f, lam, tol in [(z, 2 / R**2, 0.01), (x * y, 6 / R**2, 0.015)]:
-        assert np.linalg.norm(L @ f - lam * f) / np.linalg.norm(lam * f) < tol
-
-
-def test_laplacian_of_polynomials_on_a_plane(plane_grid):
-    # Delta(x^2 + y^2) = -4 and Delta(linear) = 0 in the positive convention; measured in the
-    # deep interior (12 h from the border): 0.8e-2 and 2e-4 absolute
-    L, _ = heatcurv.laplacian(plane_grid.points)
-    x, y, _ = plane_grid.points.T
-    deep = plane_grid.interior(12 * 2 / 60 + 1e-9)
-    assert np.abs(L @ (x * x + y * y) + 4.0)[deep].max() < 0.02
-    assert np.abs(L @ (2 * x - 3 * y + 1))[deep].max() < 1e-3
-
-
-def test_laplacian_of_coordinates_is_the_mean_curvature_normal(sphere_sample):
-    op = build_operator(sphere_sample.points)
-    L = laplace_beltrami_matrix(op.neighbourhood, op.weights, op.areas, op.h, op.m)
-    K = mean_curvature_normal(op.points, op.neighbourhood, op.weights, op.areas, op.h, op.m)
-    np.testing.assert_allclose(L @ op.points, K, rtol=1e-9, atol=1e-9)
-
-
-def test_laplacian_rejects_duplicates(sphere_sample):
-    pts = np.vstack([sphere_sample.points[:500], sphere_sample.points[:3]])
-    with pytest.raises(HeatcurvError, match="3 exact duplicate"):
-        heatcurv.laplacian(pts)
-
-
 def test_unconverged_area_solve_warns_and_flags():
     # m = 1 makes H A = 1 ill-posed on this sample: CG stops at its cap (measured: 1000
     # iterations, residual 5e-3, 388 negative areas); the result must say so
@@ -142,3 +83,18 @@ def test_unconverged_area_solve_warns_and_flags():
         res = heatcurv.estimate(pts, method="paper", m=1.0)
     assert not res.info["area_solve"].converged
     assert not res.reliable.any()
+
+
+def test_density_areas_on_a_lattice_and_the_ball_factor():
+    # a square grid with step s: areas s^2 in the interior (measured 0.2 % off)
+    m, s = 41, 0.05
+    x, y = np.meshgrid(np.arange(m) * s, np.arange(m) * s)
+    pts = np.c_[x.ravel(), y.ravel(), np.zeros(m * m)]
+    tree = cKDTree(pts)
+    d, _ = tree.query(pts, k=61)
+    nb = ball_neighbourhood(pts, d[:, -1], tree=tree)
+    A = density_areas(nb).reshape(m, m)
+    np.testing.assert_allclose(A[10:-10, 10:-10], s * s, rtol=0.01)
+    # sphere: the ball cuts exactly pi R^2; cylinder radius 1: 1 + R^2 / 32
+    assert ball_area_factor(np.array([0.5]), np.array([1.0]), np.array([1.0]))[0] == 1.0
+    assert ball_area_factor(np.array([0.5]), np.array([1.0]), np.array([0.0]))[0] == pytest.approx(1 + 0.25 / 32)

@@ -1,0 +1,91 @@
+"""heatcurv.chordfit: the per-row weighted least squares and the chord fit of the default method."""
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from heatcurv import surfaces
+from heatcurv.chordfit import chord_fit, segment_lstsq
+from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood
+
+
+def test_segment_lstsq_matches_numpy_per_row():
+    rng = np.random.default_rng(0)
+    counts = rng.integers(8, 30, size=40)
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    nnz = indptr[-1]
+    nb = Neighbourhood(indptr, np.zeros(nnz, np.int32), np.ones(nnz), np.ones(40), np.zeros(40, bool))
+    X, y, w = rng.normal(size=(nnz, 5)), rng.normal(size=nnz), rng.uniform(0.1, 2, nnz)
+    beta, rss, ok, var = segment_lstsq(nb, X, y, w, contrast=np.array([1.0, 0, 0, 0, 1.0]))
+    for i in (0, 17, 39):
+        sl = slice(indptr[i], indptr[i + 1])
+        sw = np.sqrt(w[sl])
+        ref, *_ = np.linalg.lstsq(X[sl] * sw[:, None], y[sl] * sw, rcond=None)
+        np.testing.assert_allclose(beta[i], ref, rtol=1e-7, atol=1e-9)
+        assert rss[i] == pytest.approx(np.sum(w[sl] * (y[sl] - X[sl] @ ref) ** 2), rel=1e-6)
+        # sandwich variance of c.beta for unit noise: c^T G^-1 X^T W^2 X G^-1 c
+        G = X[sl].T @ (w[sl, None] * X[sl])
+        u = np.linalg.solve(G, [1.0, 0, 0, 0, 1.0])
+        assert var[i] == pytest.approx(u @ (X[sl].T @ (w[sl, None] ** 2 * X[sl])) @ u, rel=1e-6)
+    assert ok.all()
+
+
+def sphere_setup(n=3000, R=2.0, tilt_deg=0.0, seed=0):
+    pts = surfaces.Sphere(radius=R).sample(n, "random", seed=seed).points
+    tree = cKDTree(pts)
+    d, _ = tree.query(pts, k=61)
+    nb = ball_neighbourhood(pts, d[:, -1], tree=tree)
+    normals = pts / R
+    if tilt_deg:
+        # tilt every normal by the same angle about a tangent axis
+        axis = np.cross(normals, [0.3, 0.5, 0.81])
+        axis /= np.linalg.norm(axis, axis=1)[:, None]
+        t = np.radians(tilt_deg)
+        normals = normals * np.cos(t) + np.cross(axis, normals) * np.sin(t)
+    h = nb.radius / 2
+    w = np.exp(-(nb.distances**2) / np.repeat(h, nb.counts) ** 2)
+    return pts, nb, normals, w
+
+
+def test_chord_fit_is_exact_on_a_sphere():
+    pts, nb, normals, w = sphere_setup()
+    fit = chord_fit(pts, nb, normals, w)
+    # exact up to the solver's ridge (1e-10 of the normal matrix): measured 1e-6 relative
+    np.testing.assert_allclose(fit.principal.mean, 0.5, rtol=1e-5)
+    np.testing.assert_allclose(fit.principal.k1, 0.5, rtol=1e-5)
+    np.testing.assert_allclose(fit.principal.k2, 0.5, rtol=1e-5)
+    assert np.median(fit.sigma) < 1e-9
+
+
+def test_tilt_terms_correct_a_wrong_normal():
+    # normals tilted by 3 degrees: the first fit measures the tilt, the second works in the
+    # corrected frame. Measured: 3 deg -> 0.0013 deg after two passes, mean error 4e-6
+    pts, nb, normals, w = sphere_setup(tilt_deg=3.0)
+    one = chord_fit(pts, nb, normals, w, passes=1)
+    two = chord_fit(pts, nb, normals, w, passes=2)
+    exact = pts / 2.0
+
+    def angle(a):
+        return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", a, exact), -1, 1)))
+
+    assert np.median(angle(one.normals)) == pytest.approx(3.0, rel=1e-6)  # pass 1 reports its input
+    assert np.median(angle(two.normals)) < 0.01
+    assert np.abs(two.principal.mean - 0.5).max() < 1e-3
+    without_tilt = chord_fit(pts, nb, normals, w, passes=1, tilt=False)
+    # without the odd terms the tilt corrupts the curvature
+    assert np.mean(np.abs(without_tilt.principal.mean - 0.5)) > 10 * np.mean(np.abs(two.principal.mean - 0.5))
+
+
+def test_denoised_fit_estimates_the_noise():
+    sample = surfaces.Sphere().sample(6000, "random", seed=1, noise=0.003)
+    pts = sample.points
+    tree = cKDTree(pts)
+    d, _ = tree.query(pts, k=241)
+    nb = ball_neighbourhood(pts, d[:, -1], tree=tree)
+    w = np.exp(-(nb.distances**2) / np.repeat(nb.radius / 2, nb.counts) ** 2)
+    fit = chord_fit(pts, nb, sample.normals, w, denoise=True, passes=1)
+    # measured: sigma estimate 0.98 of the true noise, mean curvature error 1.9 %
+    assert np.median(fit.sigma) == pytest.approx(sample.sigma, rel=0.15)
+    assert np.mean(np.abs(fit.principal.mean - 1.0)) < 0.05
+    chord = chord_fit(pts, nb, sample.normals, w, passes=1)
+    assert np.mean(np.abs(chord.principal.mean - 1.0)) > 5 * np.mean(np.abs(fit.principal.mean - 1.0))

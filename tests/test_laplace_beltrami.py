@@ -1,0 +1,14 @@
+"""heatcurv.laplace_beltrami: the Laplace-Beltrami matrix (eq 2.9) applied to the coordinates is K (eq 2.10)."""
+
+import numpy as np
+
+from heatcurv.laplace_beltrami import laplace_beltrami_matrix
+from heatcurv.mean_curvature import mean_curvature_normal
+from heatcurv.operator import build_operator
+
+
+def test_laplacian_of_coordinates_is_the_mean_curvature_normal(sphere_sample):
+    op = build_operator(sphere_sample.points)
+    L = laplace_beltrami_matrix(op.neighbourhood, op.weights, op.areas, op.h, op.m)
+    K = mean_curvature_normal(op.points, op.neighbourhood, op.weights, op.areas, op.h, op.m)
+    np.testing.assert_allclose(L @ op.points, K, rtol=1e-9, atol=1e-9)
