@@ -330,7 +330,12 @@ def parse_args(argv=None):
         "noise), with PASS/FAIL against the accuracy targets.",
         epilog="See the module docstring for the definitions of the error columns and targets.",
     )
-    p.add_argument("--quick", action="store_true", help="small subset: sphere, torus, saddle; random, scan; n = 5000; noise on sphere and saddle, n = 4000 (< 1 minute)")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="small subset: sphere, torus, saddle; random, scan; n = 5000; "
+        "noise on sphere and saddle, n = 4000 (< 1 minute)",
+    )
     p.add_argument("--only", action="append", choices=sorted(ESTIMATORS), help="run only this estimator (repeatable)")
     p.add_argument("--markdown", metavar="PATH", help="also write the tables as markdown to PATH")
     p.add_argument("--png", metavar="PATH", help="plot mean-curvature error vs n to PATH (needs matplotlib)")
@@ -338,7 +343,11 @@ def parse_args(argv=None):
     p.add_argument("--samplers", nargs="+", choices=SAMPLERS, help="restrict the samplers")
     p.add_argument("--sizes", nargs="+", type=int, help="point counts (default 10000 20000 30000; --quick: 5000)")
     p.add_argument("--no-transform", action="store_true", help="skip the rigidly moved and scaled copies")
-    p.add_argument("--transform-all", action="store_true", help="moved copies of every size, not only the smallest (full run: ~1.7x the time)")
+    p.add_argument(
+        "--transform-all",
+        action="store_true",
+        help="moved copies of every size, not only the smallest (full run: ~1.7x the time)",
+    )
     p.add_argument("--no-noise", action="store_true", help="skip the noise table")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return p.parse_args(argv)
@@ -365,7 +374,10 @@ def main(argv=None) -> int:
     info = machine_info()
     print("heatcurv accuracy benchmark" + (" (--quick)" if args.quick else ""))
     print("\n".join(info))
-    print(f"estimators   {', '.join(estimators)}; surfaces {', '.join(surfaces)}; samplers {', '.join(samplers)}; n {', '.join(map(str, sizes))}")
+    print(
+        f"estimators   {', '.join(estimators)}; surfaces {', '.join(surfaces)}; "
+        f"samplers {', '.join(samplers)}; n {', '.join(map(str, sizes))}"
+    )
     print()
 
     header = ["surface", "sampler", "n", "est", "mean%", "k1%", "k2%", "K%", "d1deg", "nrmdeg", "area%",
@@ -384,7 +396,10 @@ def main(argv=None) -> int:
                 sample, seed = make_sample(surface, sampler, n)
                 margin = case_margin(sample.points)
                 area_judged = surface in CLOSED and sampler != "scan"
-                log(f"{surface} {sampler} n={n}: {len(sample)} points, sample {time.perf_counter() - tic:.1f} s, margin {margin:.3g}")
+                log(
+                    f"{surface} {sampler} n={n}: {len(sample)} points, "
+                    f"sample {time.perf_counter() - tic:.1f} s, margin {margin:.3g}"
+                )
                 moved = None
                 if not args.no_transform and (args.transform_all or n == min(sizes)):
                     scale, rot, shift = rigid_motion(seed + 1, SCALES[case_index % len(SCALES)])
@@ -415,8 +430,16 @@ def main(argv=None) -> int:
                         row += ["-", "-", "-"]
                     else:
                         t = runs[1].metrics
-                        diffs = [abs(t[k] - m[k]) for k in ERROR_KEYS + ("orientation",) if np.isfinite(t[k]) and np.isfinite(m[k])]
-                        row += [f"{scale:g}", fmt(max(diffs) if diffs else float("nan"), 2), f"{runs[1].seconds:.2f}" + ("*" if runs[1].warned else "")]
+                        diffs = [
+                            abs(t[k] - m[k])
+                            for k in ERROR_KEYS + ("orientation",)
+                            if np.isfinite(t[k]) and np.isfinite(m[k])
+                        ]
+                        row += [
+                            f"{scale:g}",
+                            fmt(max(diffs) if diffs else float("nan"), 2),
+                            f"{runs[1].seconds:.2f}" + ("*" if runs[1].warned else ""),
+                        ]
                     fails = verdict([r.metrics for r in runs])
                     row += ["PASS" if not fails else "FAIL " + ",".join(fails)]
                     passes[est][0 if not fails else 1] += 1
@@ -432,7 +455,7 @@ def main(argv=None) -> int:
             for noise in NOISES:
                 sample, _ = make_sample(surface, "random", noise_n, noise)
                 # interior: outside the widest ball the default fitted with (noise widens it)
-                widest = heatcurv.estimate(sample.points).info["scale"]["radius"]
+                widest = heatcurv.estimate(sample.points).info["scale"].radius
                 margin = max(case_margin(sample.clean_points), widest)
                 log(f"{surface} random n={noise_n} noise {100 * noise:g} %: sigma {sample.sigma:.3g}")
                 for est in estimators:
@@ -451,7 +474,13 @@ def main(argv=None) -> int:
                         row += ["PASS" if not fails else "FAIL " + ",".join(fails)]
                         passes[est][0 if not fails else 1] += 1
                     noise_rows.append(row)
-        tables.append((f"Noise (random sampler, n = {noise_n}; noise = std / bounding-box diagonal; noise 0: see above)", nheader, noise_rows))
+        tables.append(
+            (
+                f"Noise (random sampler, n = {noise_n}; noise = std / bounding-box diagonal; noise 0: see above)",
+                nheader,
+                noise_rows,
+            )
+        )
 
     elapsed = time.perf_counter() - wall
     summary = [
@@ -502,7 +531,9 @@ def write_png(path: str, plot: list, samplers) -> None:
                 series.setdefault((est, surface), []).append((n, m["mean"]))
         for (est, surface), pts in sorted(series.items()):
             pts.sort()
-            ax.plot(*zip(*pts), styles.get(est, "-"), marker="o", ms=3, color=colours.get(surface), label=f"{est} {surface}")
+            ax.plot(
+                *zip(*pts), styles.get(est, "-"), marker="o", ms=3, color=colours.get(surface), label=f"{est} {surface}"
+            )
         ax.axhline(0.5, color="k", lw=0.8, alpha=0.5)
         ax.set_yscale("log")
         ax.set_xlabel("n")

@@ -323,8 +323,9 @@ def mark(value: float, run: dict, digits: int = 3) -> str:
     return fmt(value, digits) + ("" if run["converged"] else "*")
 
 
-NOT_CONVERGED = ("cells marked *: the area system H A = 1 did not converge (CG stopped at its iteration cap): at large m the Gaussian "
-                 "is wide relative to the spacing and H is ill-conditioned (many negative areas).")
+NOT_CONVERGED = ("cells marked *: the area system H A = 1 did not converge (CG stopped at its iteration cap): "
+                 "at large m the Gaussian is wide relative to the spacing and H is ill-conditioned "
+                 "(many negative areas).")
 
 
 def argmin_label(values) -> str:
@@ -348,7 +349,8 @@ def table_fig3(sizes) -> Table:
 
 def table_fig5(sizes) -> tuple[Table, Table, Table]:
     names = ("sphere", "paraboloid", "saddle", "arch")
-    label = {"sphere": "sphere (fibonacci)", "paraboloid": "paraboloid (grid)", "saddle": "saddle (grid)", "arch": "arch (grid)"}
+    label = {"sphere": "sphere (fibonacci)", "paraboloid": "paraboloid (grid)", "saddle": "saddle (grid)",
+             "arch": "arch (grid)"}
     head = ["surface", "n"] + [f"m={m}" for m in M_LABELS] + ["best m"]
     a = Table("2a. Fig 5: kappa_M error, eq 5.1 (x100), vs m, method='paper' (eq 2.11), interior points", head)
     b = Table("2b. Fig 5: kappa_M relative L1 error (%) vs m, method='paper' (eq 2.11), interior points", list(head))
@@ -364,7 +366,8 @@ def table_fig5(sizes) -> tuple[Table, Table, Table]:
             b.add(label[name], n, *[mark(v, r) for v, r in zip(rel, runs)], argmin_label(rel))
             rn = evaluate(name, n, m=0.25)
             rp = evaluate(name, n, m=0.25, mean_formula="projection")
-            c.add(label[name], n, f"{rn['n_int']}/{rn['n']}", rn["mean_eq51"], rp["mean_eq51"], rn["mean_rel"], rp["mean_rel"],
+            c.add(label[name], n, f"{rn['n_int']}/{rn['n']}", rn["mean_eq51"], rp["mean_eq51"],
+                  rn["mean_rel"], rp["mean_rel"],
                   rn["mean_eq51_all"], rp["mean_eq51_all"], rn["mean_rel_all"], rp["mean_rel_all"])
     any_nc = any(not evaluate(nm, n, m=m)["converged"] for nm in names for n in sizes for m in M_VALUES)
     for t in (a, b):
@@ -385,10 +388,11 @@ def table_directions(sizes) -> Table:
             ru = evaluate(name, n, fit="unconstrained")
             rc = evaluate(name, n)
             paper = PAPER_TABLE1[name].get(n, (float("nan"), float("nan")))
-            t.add(f"{name} (grid)", n, f"{rc['n_dir']}/{rc['n']}", paper[0], paper[1], ru["dir"], math.degrees(ru["dir"]),
+            t.add(f"{name} (grid)", n, f"{rc['n_dir']}/{rc['n']}", paper[0], paper[1],
+                  ru["dir"], math.degrees(ru["dir"]),
                   rc["dir"], math.degrees(rc["dir"]), rc["dir_all"], digits=4)
-    t.notes.append("'paper' columns are the paper's Table 1 as printed (labelled '%', most likely radians: pi/4 = 0.7854 is the "
-                   "mean angle between unrelated directions).")
+    t.notes.append("'paper' columns are the paper's Table 1 as printed (labelled '%', most likely radians: "
+                   "pi/4 = 0.7854 is the mean angle between unrelated directions).")
     t.notes.append("free fit = fit='unconstrained' (paper refs [31,32]); "
                    "eq 3.1 fit = method='paper' (constrained, trace = 2 kappa_M).")
     t.notes.append("'points' = interior non-umbilic points used; "
@@ -423,14 +427,16 @@ def table_curvatures(sizes) -> tuple[Table, Table, Table]:
     a = Table("4a. Table 2: kappa_M error by eq 5.1 (x100), interior and all points",
               ["surface", "n", "interior"] + [f"kM {v}" for v in labels] + [f"kM {v} all" for v in labels])
     b = Table("4b. Table 2: kappa_1 and kappa_G errors by eq 5.1 (x100), interior points",
-              ["surface", "n"] + [f"k1 {v}" for v in labels] + [f"kG {v}" for v in labels] + ["area err % (border-biased)"])
+              ["surface", "n"] + [f"k1 {v}" for v in labels] + [f"kG {v}" for v in labels]
+              + ["area err % (border-biased)"])
     c = Table("4c. Table 2 as relative L1 errors (%), interior points",
               ["surface", "n"] + [f"{f} {v}" for f in ("kM", "k1", "kG") for v in labels])
     for name in OPEN:
         for n in sizes:
             r = [evaluate(name, n, method=meth, **over) for meth, over in TABLE2_VARIANTS.values()]
             label = f"{name} (grid)"
-            a.add(label, n, f"{r[0]['n_int']}/{r[0]['n']}", *[x["mean_eq51"] for x in r], *[x["mean_eq51_all"] for x in r])
+            a.add(label, n, f"{r[0]['n_int']}/{r[0]['n']}",
+                  *[x["mean_eq51"] for x in r], *[x["mean_eq51_all"] for x in r])
             b.add(label, n, *[x["k1_eq51"] for x in r], *[x["gaussian_eq51"] for x in r], r[0]["area"])
             c.add(label, n, *[x[f + "_rel"] for f in ("mean", "k1", "gaussian") for x in r])
     notes = [
@@ -447,7 +453,8 @@ def table_curvatures(sizes) -> tuple[Table, Table, Table]:
     b.notes.append("area err = |sum(A_i) - A*| / A* x 100 over the whole open patch (method='paper'): "
                    "border points lack kernel mass "
                    "on one side and get too large areas, so this total is biased by construction.")
-    a.notes.append("The body of the paper's Table 2 is missing from the paper text available here, so its numbers are not shown.")
+    a.notes.append("The body of the paper's Table 2 is missing from the paper text available here, "
+                   "so its numbers are not shown.")
     c.notes.append("n/a: the exact field is zero (the arch is developable, kG = 0), so a relative error is undefined.")
     return a, b, c
 
@@ -455,7 +462,8 @@ def table_curvatures(sizes) -> tuple[Table, Table, Table]:
 def table_summary(sizes) -> Table:
     t = Table("5. Summary: closed surfaces at m = 1/4, method='paper' (claim: area and kappa_M errors < 1 %)",
               ["surface", "n", "area err %", "kM eq5.1", "kM rel %", "area < 1%", "kM eq5.1 < 1", "kM rel < 1%",
-               "kM median", "worst 5% share", "defect pts", "kM eq5.1 w/o defects", "kM eq5.1 eq 2.12", "kM rel% eq 2.12"])
+               "kM median", "worst 5% share", "defect pts", "kM eq5.1 w/o defects", "kM eq5.1 eq 2.12",
+               "kM rel% eq 2.12"])
     for name in ("sphere", "torus"):
         for n in sizes:
             r = evaluate(name, n)
@@ -490,7 +498,8 @@ def plot_sweeps(path: str, sizes) -> str:
     except ImportError:
         return "matplotlib is not importable: --plot skipped (pip install matplotlib)"
     panels = [("sphere", "area", "sphere: area error (%)"), ("torus", "area", "torus: area error (%)"),
-              ("sphere", "mean_eq51", "sphere: kappa_M eq 5.1"), ("paraboloid", "mean_eq51", "paraboloid: kappa_M eq 5.1"),
+              ("sphere", "mean_eq51", "sphere: kappa_M eq 5.1"),
+              ("paraboloid", "mean_eq51", "paraboloid: kappa_M eq 5.1"),
               ("saddle", "mean_eq51", "saddle: kappa_M eq 5.1"), ("arch", "mean_eq51", "arch: kappa_M eq 5.1")]
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
     for ax, (name, key, title) in zip(axes.ravel(), panels):
@@ -562,14 +571,15 @@ def main(argv=None) -> int:
     est_seconds = sum(r["seconds"] for r in _RESULTS.values())
     nc_seconds = sum(r["seconds"] for r in _RESULTS.values() if not r["converged"])
     n_nc = sum(not r["converged"] for r in _RESULTS.values())
-    timing = (f"{wall:.1f} s ({n_runs} heatcurv.estimate runs, {est_seconds:.1f} s inside them, of which {nc_seconds:.1f} s "
-              f"in the {n_nc} runs whose area solve hit the CG iteration cap)")
+    timing = (f"{wall:.1f} s ({n_runs} heatcurv.estimate runs, {est_seconds:.1f} s inside them, "
+              f"of which {nc_seconds:.1f} s in the {n_nc} runs whose area solve hit the CG iteration cap)")
     print(f"wall time: {timing}; {mode} mode")
     print(f"machine: {machine()}")
 
     if args.markdown:
         lines = [f"## heatcurv paper reproduction ({mode} mode)", "",
-                 f"- command: `python benchmarks/paper_reproduction.py {' '.join(argv if argv is not None else sys.argv[1:])}`",
+                 f"- command: `python benchmarks/paper_reproduction.py "
+                 f"{' '.join(argv if argv is not None else sys.argv[1:])}`",
                  f"- machine: {machine()}",
                  f"- preset `paper`: {preset('paper')}",
                  f"- wall time: {timing}", ""]

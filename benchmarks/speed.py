@@ -12,7 +12,8 @@ a fresh subprocess, so that its wall time and its peak resident memory
 ``heatcurv``    ``heatcurv.estimate(points)`` with default options: oriented
                 normals, areas, mean, Gaussian and principal curvatures and
                 directions, border and reliability flags; the stage times
-                come from ``res.info["timings"]``;
+                come from ``res.info["timings"]`` (see ``COLUMNS``: the
+                per-block stages of the chord fit are summed as ``fit``);
 ``heatcurv-noisy``  the same on the cloud with Gaussian noise of 0.12 % of
                 the bounding-box diagonal (the kernel then widens to hundreds
                 of neighbours; only at the sizes given by ``--noisy-sizes``);
@@ -29,8 +30,9 @@ duplicate merge and the map back to input order, is counted.
 
 Run ``python benchmarks/speed.py`` (about 15 minutes on a 2-core machine with
 the peers) or ``--sizes 100000 --peer-sizes 100000 --noisy-sizes 100000``
-for a quick look; ``--out docs/speed.md`` writes the tables as Markdown with
-the machine they came from.
+for a quick look (``--noisy-sizes`` or ``--peer-sizes`` with no value skips
+those runs); ``--out docs/speed.md`` writes the tables as Markdown with the
+machine they came from.
 """
 
 from __future__ import annotations
@@ -53,7 +55,32 @@ sys.path.insert(0, str(HERE))
 import peers  # noqa: E402  (benchmarks/peers.py)
 from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
 
-STAGES = ("validate", "neighbours", "spacing", "areas", "normals", "orientation", "mean", "principal")
+#: Table column -> the default estimator's stages (``res.info["timings"]``) it sums.
+#: ``fit`` is the chord fit's per-block work; before the stages were named one
+#: by one, ``kernel_choice`` + ``fit`` + ``border`` were reported as
+#: ``principal`` and ``mean_curvature_normal`` as ``mean``.
+COLUMNS = {
+    "validate": ("validate",),
+    "neighbours": ("neighbours",),
+    "spacing": ("spacing",),
+    "areas": ("areas",),
+    "normals": ("normals",),
+    "orientation": ("orientation",),
+    "mean_curvature_normal": ("mean_curvature_normal",),
+    "kernel_choice": ("kernel_choice",),
+    "fit": ("fit_neighbourhood", "fit_weights", "normal_refinement", "curvature_fit", "area_correction"),
+    "border": ("border",),
+}
+STAGES = tuple(s for stages in COLUMNS.values() for s in stages)
+
+
+def column_times(timings: dict) -> dict:
+    """Seconds per table column: the sum of its stages (None if none of them ran)."""
+    out = {}
+    for column, stages in COLUMNS.items():
+        present = [timings[s] for s in stages if s in timings]
+        out[column] = sum(present) if present else None
+    return out
 
 
 def _peak_rss_gb() -> float:
@@ -73,7 +100,6 @@ def child(path: str) -> None:
     tic = time.perf_counter()
     res = heatcurv.estimate(points)
     seconds = time.perf_counter() - tic
-    from heatcurv.backend import use_numba
 
     print(
         json.dumps(
@@ -83,8 +109,8 @@ def child(path: str) -> None:
                 "peak_rss_gb": _peak_rss_gb(),
                 "rss_before_gb": rss_before,
                 "timings": res.info["timings"],
-                "scale": res.info["scale"]["fit"],
-                "backend": "numba" if use_numba() else "numpy",
+                "scale": res.info["scale"].fit,
+                "backend": "numba",
                 "reliable": float(np.mean(res.reliable)),
             }
         )
@@ -95,7 +121,11 @@ def run_heatcurv(path: Path, timeout: float) -> dict:
     """Run :func:`child` in a fresh process; the parsed JSON, or a status."""
     try:
         out = subprocess.run(
-            [sys.executable, __file__, "--child", str(path)], capture_output=True, text=True, timeout=timeout, check=False
+            [sys.executable, __file__, "--child", str(path)],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            check=False,
         )
     except subprocess.TimeoutExpired:
         return {"status": f"timeout after {timeout:.0f} s"}
@@ -128,15 +158,13 @@ def machine() -> str:
         mem = f", {kb / 1024**2:.0f} GiB RAM"
     except (OSError, ValueError, IndexError):
         pass
+    import numba
     import scipy
 
-    versions = f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}"
-    try:
-        import numba
-
-        versions += f", numba {numba.__version__}"
-    except ImportError:
-        versions += ", no numba"
+    versions = (
+        f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
+        f"numba {numba.__version__}"
+    )
     return f"{cpu}, {os.cpu_count()} cores{mem}; {platform.system()} {platform.release()}; {versions}"
 
 
@@ -176,7 +204,11 @@ def main(argv=None) -> int:
             for label, p in runs:
                 r = run_heatcurv(p, args.timeout)
                 main_rows.append((n, label, knn, r))
-                print(f"  heatcurv {label}: {r.get('status')} {fmt(r.get('seconds'))} s, {fmt(r.get('peak_rss_gb'))} GB", flush=True)
+                print(
+                    f"  heatcurv {label}: {r.get('status')} {fmt(r.get('seconds'))} s, "
+                    f"{fmt(r.get('peak_rss_gb'))} GB",
+                    flush=True,
+                )
             if n in args.peer_sizes:
                 for name in peers.PEERS:
                     if name == "knn40":
@@ -190,28 +222,40 @@ def main(argv=None) -> int:
     lines += [
         "heatcurv, default options, random torus (times in seconds; ratio = total / knn40 in the same run)",
         "",
-        "| n | cloud | " + " | ".join(STAGES) + " | total | us/point | knn40 | ratio | peak RSS GB | kernel | backend |",
-        "|" + "---|" * (len(STAGES) + 9),
+        "| n | cloud | "
+        + " | ".join(COLUMNS)
+        + " | total | us/point | knn40 | ratio | peak RSS GB | kernel | backend |",
+        "|" + "---|" * (len(COLUMNS) + 9),
     ]
+    unknown = set()
     for n, label, knn, r in main_rows:
         if r.get("status") != "ok":
-            lines.append(f"| {n:,} | {label} | " + " | ".join("-" for _ in STAGES) + f" | {r['status']} | | {fmt(knn)} | | | | |")
+            dashes = " | ".join("-" for _ in COLUMNS)
+            lines.append(f"| {n:,} | {label} | {dashes} | {r['status']} | | {fmt(knn)} | | | | |")
             continue
         t = r["timings"]
-        stages = " | ".join(fmt(t.get(s)) for s in STAGES)
+        unknown |= set(t) - set(STAGES)
+        stages = " | ".join(fmt(v) for v in column_times(t).values())
         ratio = r["seconds"] / knn if knn else None
         lines.append(
             f"| {n:,} | {label} | {stages} | {fmt(r['seconds'])} | {fmt(1e6 * r['seconds'] / n, 1)} | {fmt(knn)} | "
             f"{fmt(ratio)} | {fmt(r['peak_rss_gb'])} | {r['scale']} | {r['backend']} |"
         )
+    lines += ["", "fit = " + " + ".join(COLUMNS["fit"]) + " (the chord fit's per-block stages)"]
+    if unknown:
+        lines.append("stages in no column (counted in total only): " + ", ".join(sorted(unknown)))
     if peer_rows:
         lines += ["", "Peers on the same clean clouds (each in its own process; ratio = time / knn40)", ""]
-        lines += ["| n | tool | status | seconds | ratio | peak RSS GB | what it computes |", "|---|---|---|---|---|---|---|"]
+        lines += [
+            "| n | tool | status | seconds | ratio | peak RSS GB | what it computes |",
+            "|---|---|---|---|---|---|---|",
+        ]
         for n, r, knn in peer_rows:
             sec = r.get("seconds")
             ratio = sec / knn if (sec is not None and knn) else None
             lines.append(
-                f"| {n:,} | {r.get('name')} | {r.get('status')} | {fmt(sec)} | {fmt(ratio)} | {fmt(r.get('peak_rss_gb'))} | {r.get('note', '')} |"
+                f"| {n:,} | {r.get('name')} | {r.get('status')} | {fmt(sec)} | {fmt(ratio)} | "
+                f"{fmt(r.get('peak_rss_gb'))} | {r.get('note', '')} |"
             )
     text = "\n".join(lines)
     print()
