@@ -5,8 +5,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from heatcurv import surfaces
-from heatcurv.chordfit import chord_fit, segment_lstsq
-from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood
+from heatcurv.chordfit import chord_fit, refine_normals, segment_lstsq
+from heatcurv.kernel import tapered_heat_weights
+from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
 
 
 def test_segment_lstsq_matches_numpy_per_row():
@@ -89,3 +90,24 @@ def test_denoised_fit_estimates_the_noise():
     assert np.mean(np.abs(fit.principal.mean - 1.0)) < 0.05
     chord = chord_fit(pts, nb, sample.normals, w, passes=1)
     assert np.mean(np.abs(chord.principal.mean - 1.0)) > 5 * np.mean(np.abs(fit.principal.mean - 1.0))
+
+
+@pytest.mark.parametrize("denoise", [False, True])
+def test_normal_refinement_is_the_first_of_two_passes(denoise):
+    # the estimator's stages normal_refinement + curvature_fit are chord_fit(passes=2), to the bit
+    sample = surfaces.Torus().sample(3000, "random", seed=8)
+    pts = sample.points + np.random.default_rng(1).normal(scale=0.002, size=sample.points.shape) * denoise
+    nb = knn_neighbourhood(pts, 60)
+    tilted = sample.normals + 0.05 * np.random.default_rng(2).normal(size=sample.normals.shape)
+    tilted /= np.linalg.norm(tilted, axis=1)[:, None]
+    w = tapered_heat_weights(nb, nb.radius / 2.0, np.ones(len(pts)))
+    two = chord_fit(pts, nb, tilted, w, passes=2, denoise=denoise)
+    refined = refine_normals(pts, nb, tilted, w, denoise=denoise)
+    one = chord_fit(pts, nb, refined, w, passes=1, denoise=denoise)
+    for name in ("k1", "k2", "d1", "d2", "mean", "gaussian", "well_posed"):
+        np.testing.assert_array_equal(getattr(one.principal, name), getattr(two.principal, name))
+    np.testing.assert_array_equal(one.normals, two.normals)
+    np.testing.assert_array_equal(one.sigma, two.sigma)
+    # the refinement removes most of the tilt: 0.05 rad of noise -> well under a degree
+    angle = np.degrees(np.arccos(np.clip(np.abs(np.sum(refined * sample.normals, axis=1)), 0, 1)))
+    assert np.median(angle) < 0.3 < np.median(np.degrees(np.arccos(np.abs(np.sum(tilted * sample.normals, 1)))))

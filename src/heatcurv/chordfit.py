@@ -45,7 +45,7 @@ from .neighbourhood import Neighbourhood
 from .normals import tangent_frames
 from .principal import PrincipalCurvatures, tensor_to_principal
 
-__all__ = ["ChordFit", "chord_fit", "ridge_solve", "segment_lstsq", "solve_normal_equations"]
+__all__ = ["ChordFit", "chord_fit", "refine_normals", "ridge_solve", "segment_lstsq", "solve_normal_equations"]
 
 #: Pairs processed at once; bounds the temporary (pairs x unknowns^2) arrays.
 BLOCK_PAIRS = 400_000
@@ -276,14 +276,18 @@ def _principal_and_refined_normal(beta, unit, e1, e2, normals, tilt: bool):
     """
     a, b, d = beta[:, 0] / unit, beta[:, 1] / unit, beta[:, 2] / unit
     pc = tensor_to_principal(0.5 * (a + d), 0.5 * (a - d), b, e1, e2, normals)
-    if tilt:
-        # coefficient of cos/r is -2 g_1 (and of sin/r, -2 g_2): the tangent plane is z = g . (x, y)
-        g1, g2 = -0.5 * beta[:, 3], -0.5 * beta[:, 4]
-        refined = normals - g1[:, None] * e1 - g2[:, None] * e2
-        refined /= np.linalg.norm(refined, axis=1)[:, None]
-    else:
-        refined = normals
-    return pc, refined
+    return pc, _refined_normal(beta, e1, e2, normals, tilt)
+
+
+def _refined_normal(beta, e1, e2, normals, tilt: bool):
+    """Unit normals corrected by the fitted tilt, shape (n, 3) (``normals`` without tilt)."""
+    if not tilt:
+        return normals
+    # coefficient of cos/r is -2 g_1 (and of sin/r, -2 g_2): the tangent plane is z = g . (x, y)
+    g1, g2 = -0.5 * beta[:, 3], -0.5 * beta[:, 4]
+    refined = normals - g1[:, None] * e1 - g2[:, None] * e2
+    refined /= np.linalg.norm(refined, axis=1)[:, None]
+    return refined
 
 
 def _chord_fit_result(pc, well_posed, used, sigma2, var_factor, unit) -> ChordFit:
@@ -347,6 +351,47 @@ def chord_fit(
     (:mod:`heatcurv._kernels.chordfit`); this function runs the passes around
     them. Its numpy reference is ``tests/reference/chordfit.py``.
     """
+    geometry = _fit_geometry(points, nbhd, weights, centres)
+    nrm = np.ascontiguousarray(normals, dtype=np.float64)
+    for _ in range(max(1, passes) - 1):
+        nrm = _fit_pass(geometry, nrm, tilt, cubic, denoise, final=False)
+    return _fit_pass(geometry, nrm, tilt, cubic, denoise, final=True)
+
+
+def refine_normals(
+    points: np.ndarray,
+    nbhd: Neighbourhood,
+    normals: np.ndarray,
+    weights: np.ndarray,
+    *,
+    tilt: bool = True,
+    cubic: bool = True,
+    denoise: bool = False,
+    centres: np.ndarray | None = None,
+) -> np.ndarray:
+    """The normals corrected by the tilt of one chord fit (the stage ``normal_refinement``).
+
+    ``chord_fit(..., passes=2)`` is ``chord_fit(refine_normals(...), passes=1)``
+    with the same arguments: the default estimator runs the two as named stages.
+
+    Parameters
+    ----------
+    points, nbhd, normals, weights, tilt, cubic, denoise, centres
+        As :func:`chord_fit`.
+
+    Returns
+    -------
+    ndarray, shape (m, 3)
+        Unit normals ``n - g_1 e_1 - g_2 e_2`` normalised, with the fitted tilt ``g``
+        (the starting normals where ``tilt`` is False).
+    """
+    geometry = _fit_geometry(points, nbhd, weights, centres)
+    nrm = np.ascontiguousarray(normals, dtype=np.float64)
+    return _fit_pass(geometry, nrm, tilt, cubic, denoise, final=False)
+
+
+def _fit_geometry(points, nbhd: Neighbourhood, weights, centres) -> tuple:
+    """The contiguous arrays every pass of the fit reads, and the unit of each centre."""
     if centres is None:
         centres = points
     points = np.ascontiguousarray(points, dtype=np.float64)
@@ -358,34 +403,38 @@ def chord_fit(
     # of order one whatever the cloud's unit, so the solve (and its ridge) is
     # scale-free; curvatures are converted back at the end.
     unit = np.ascontiguousarray(nbhd.radius, dtype=np.float64)
+    return points, centres, indptr, indices, weights, unit
+
+
+def _fit_pass(base: tuple, nrm: np.ndarray, tilt: bool, cubic: bool, denoise: bool, final: bool):
+    """One fit at the normals ``nrm``: the refined normals, or (``final``) the :class:`ChordFit`.
+
+    Only the final pass's diagnostics are reported: earlier fits return their
+    coefficients alone (no variance, no residual).
+    """
     tilt, cubic = bool(tilt), bool(cubic)
     n_shape = 3 + 2 * tilt + 4 * cubic
-    nrm = np.ascontiguousarray(normals, dtype=np.float64)
-    n_passes = max(1, passes)
-    for k in range(n_passes):
-        # only the last pass's diagnostics are reported: the earlier fits return their coefficients alone
-        final = k == n_passes - 1
-        e1, e2 = tangent_frames(nrm)
-        geometry = (points, centres, indptr, indices, weights, unit, nrm, e1, e2, tilt, cubic)
-        if not denoise:
-            contrast = _mean_contrast(n_shape) if final else None
-            fitted = kernels.fit(kernels.CHORD, n_shape, geometry, contrast=contrast)
-            height_beta = np.empty((0, n_shape))
-        else:
-            # 1) plain height fit: z = z0 - r^2/2 * model;
-            # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2 of its heights
-            height_beta = kernels.fit(kernels.HEIGHT, n_shape + 1, geometry)
-            contrast = _mean_contrast(n_shape + 1) if final else None
-            fitted = kernels.fit(
-                kernels.DENOISED_HEIGHT, n_shape + 1, geometry, height_beta=height_beta, contrast=contrast
-            )
-        if final:
-            beta, _, ok, var_factor = fitted
-            sigma2 = np.empty(nbhd.n_points)
-            kind = kernels.DENOISED_HEIGHT if denoise else kernels.CHORD
-            kernels.weighted_height_residual(*geometry, kind, height_beta, beta, sigma2)
-        else:
-            beta = fitted
-        pc, refined = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
-        used, nrm = nrm, refined
-    return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit)
+    unit = base[-1]
+    e1, e2 = tangent_frames(nrm)
+    geometry = (*base, nrm, e1, e2, tilt, cubic)
+    if not denoise:
+        contrast = _mean_contrast(n_shape) if final else None
+        fitted = kernels.fit(kernels.CHORD, n_shape, geometry, contrast=contrast)
+        height_beta = np.empty((0, n_shape))
+    else:
+        # 1) plain height fit: z = z0 - r^2/2 * model;
+        # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2 of its heights
+        height_beta = kernels.fit(kernels.HEIGHT, n_shape + 1, geometry)
+        contrast = _mean_contrast(n_shape + 1) if final else None
+        fitted = kernels.fit(
+            kernels.DENOISED_HEIGHT, n_shape + 1, geometry, height_beta=height_beta, contrast=contrast
+        )
+    if not final:
+        return _refined_normal(fitted[:, :n_shape], e1, e2, nrm, tilt)
+    beta, _, ok, var_factor = fitted
+    sigma2 = np.empty(nrm.shape[0])
+    kind = kernels.DENOISED_HEIGHT if denoise else kernels.CHORD
+    kernels.weighted_height_residual(*geometry, kind, height_beta, beta, sigma2)
+    pc, _ = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
+    # the normal this fit was done in, so that d1 x d2 = n holds exactly
+    return _chord_fit_result(pc, ok, nrm, sigma2, var_factor, unit)

@@ -32,13 +32,7 @@ import numpy as np
 from .areas import ball_area_factor, density_areas
 from .backend import threads
 from .border import border_points
-from .chordfit import ChordFit, chord_fit
-
-try:  # TEMPORARY until chordfit exposes it
-    from .chordfit import refine_normals
-except ImportError:
-    def refine_normals(points, nbhd, normals, weights, **kw):
-        return chord_fit(points, nbhd, normals, weights, passes=2, **kw).normals
+from .chordfit import ChordFit, chord_fit, refine_normals
 from .errors import HeatcurvError
 from .kernel import tapered_heat_weights
 from .mean_curvature import mean_curvature
