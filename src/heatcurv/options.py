@@ -28,7 +28,9 @@ import numpy as np
 
 from .errors import HeatcurvError
 
-__all__ = ["Options", "ScaleTuning", "METHODS", "DEPRECATED_ALIASES", "resolve_options", "option_help", "rename_aliases"]
+__all__ = [
+    "Options", "ScaleTuning", "METHODS", "DEPRECATED_ALIASES", "resolve_options", "option_help", "rename_aliases",
+]
 
 
 def _positive(name: str, paper: str):
@@ -41,6 +43,26 @@ def _positive(name: str, paper: str):
         return None
 
     return check
+
+
+def _int_at_least(name: str, minimum: int, why: str = ""):
+    """A check that ``value`` is a whole number ``>= minimum`` (``why`` says where the bound comes from)."""
+
+    def check(value):
+        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+        if not (number and math.isfinite(value) and float(value).is_integer()):
+            return f"{name} must be a whole number, got {value!r}"
+        if value < minimum:
+            return f"{name} must be at least {minimum}{why}, got {value}"
+        return None
+
+    return check
+
+
+def _workers(value):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (value == -1 or value >= 1):
+        return f"workers must be -1 (all cores) or a thread count >= 1, got {value!r}"
+    return None
 
 
 def _option(default, help: str, *, choices=None, check=None, paper: str = "", cli: bool = True):
@@ -114,7 +136,7 @@ class ScaleTuning:
 def _check_scale(value):
     if value == "auto" or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 20):
         return None
-    return f"scale must be 'auto' or a neighbour count >= 20, got {value!r}"
+    return f"scale must be 'auto' or a neighbour count of at least 20, got {value!r}"
 
 
 def _check_tuning(value):
@@ -178,11 +200,11 @@ class Options:
 
     method: str = _option("default", "preset the other options start from", cli=False)
     alpha: float = _option(
-        2.0, "ball radius r = alpha h in units of the spacing (paper: 4)", check=_positive("alpha", "3.5-4.5"),
-        paper="section 2, alpha 3.5-4.5",
+        2.0, "ball radius r = alpha h in units of the spacing (paper's range 3.5-4.5)",
+        check=_positive("alpha", "3.5-4.5"), paper="section 2, alpha 3.5-4.5",
     )
     m: float = _option(
-        0.25, "diffusion time t = m h^2 (paper: 1/4)", check=_positive("m", "1/4"), paper="eq 2.8"
+        0.25, "diffusion time t = m h^2 (eq 2.8)", check=_positive("m", "1/4"), paper="eq 2.8"
     )
     spacing: str = _option(
         "density", "spacing h: global mean NN distance (eq 2.6), local blend (eq 2.7), or density (d_k / alpha)",
@@ -193,10 +215,12 @@ class Options:
         check=lambda v: None if 0 <= v <= 1 else f"gamma must lie in [0, 1] (paper: 0.1-0.5), got {v}",
         paper="eq 2.7",
     )
-    k_local: int = _option(8, "neighbours of the local spacing's min/max (eq 2.7)", paper="eq 2.7")
+    k_local: int = _option(
+        8, "neighbours of the local spacing's min/max (eq 2.7)", check=_int_at_least("k_local", 2), paper="eq 2.7"
+    )
     neighbours: int = _option(
         60, "neighbours in the density ball, and the narrowest kernel of the chord fit",
-        check=lambda v: None if int(v) >= 20 else f"neighbours must be at least 20 (the chord fit has 9 unknowns), got {v}",
+        check=_int_at_least("neighbours", 20, " (the chord fit has 9 unknowns)"),
     )
     area_method: str = _option(
         "density", "per-point areas: paper's H A = 1 (system) or density estimate", choices=("system", "density"),
@@ -222,9 +246,11 @@ class Options:
     taper: bool = _option(True, "taper the PCA and border weights to 0 at the ball's edge", cli=False)
     min_neighbours: int = _option(
         6, "fewest neighbours per point; sparser points get their nearest ones",
-        check=lambda v: None if int(v) >= 3 else f"min_neighbours must be at least 3 (the tensor fit has 3 unknowns), got {v}",
+        check=_int_at_least("min_neighbours", 3, " (the tensor fit has 3 unknowns)"),
     )
-    workers: int = _option(-1, "threads for the k-d tree and the compiled kernels (-1: all cores)", cli=False)
+    workers: int = _option(
+        -1, "threads for the k-d tree and the compiled kernels (-1: all cores)", check=_workers, cli=False
+    )
 
 
 #: The presets of ``method=``.

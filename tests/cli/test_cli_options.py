@@ -1,12 +1,12 @@
 """heatcurv.cli.options: the estimator's flags and the estimate() keywords they give."""
 
 import argparse
+import dataclasses
 
 import pytest
 
-import heatcurv
-from heatcurv.cli.options import add_estimator_options, estimator_kwargs
-from heatcurv.options import resolve_options
+from heatcurv.cli.options import add_estimator_options, estimator_kwargs, option_flags
+from heatcurv.options import Options, resolve_options
 
 
 def parse(*argv):
@@ -32,9 +32,29 @@ def test_flags_become_estimate_keywords():
     assert kwargs["viewpoint"] == (-1.0, 0.0, 2.0) and kwargs["workers"] == 2
 
 
-def test_values_are_checked_before_any_file_is_read():
-    with pytest.raises(heatcurv.HeatcurvError, match=r"gamma must lie in \[0, 1\]"):
-        estimator_kwargs(parse("--gamma", "2"))
+def test_values_are_checked_as_the_command_line_is_parsed(capsys):
+    # each flag runs its option's own check (heatcurv.options), before any file is read
+    for argv, message in [
+        (("--gamma", "2"), "argument --gamma: gamma must lie in [0, 1]"),
+        (("--alpha", "-1"), "argument --alpha: alpha must be a positive number (paper: 3.5-4.5), got -1.0"),
+        (("--neighbours", "10"), "argument --neighbours/--neighbors: neighbours must be at least 20"),
+        (("--scale", "wide"), "argument --scale: expected 'auto' or a neighbour count, got 'wide'"),
+        (("--k-local", "two"), "argument --k-local: expected an integer, got 'two'"),
+    ]:
+        with pytest.raises(SystemExit):
+            parse(*argv)
+        assert message in capsys.readouterr().err
+
+
+def test_every_cli_option_is_an_option_field():
+    flags = option_flags()
+    assert flags["neighbours"] == ["--neighbours", "--neighbors"]
+    assert flags["min_neighbours"] == ["--min-neighbours", "--min-neighbors"]
+    assert set(flags) == {f.name for f in dataclasses.fields(Options) if f.metadata["cli"]}
+    assert {"method", "workers", "taper", "scale_tuning"}.isdisjoint(flags)
+    british = estimator_kwargs(parse("--neighbours", "40", "--min-neighbours", "5"))
+    american = estimator_kwargs(parse("--neighbors", "40", "--min-neighbors", "5"))
+    assert british == american
 
 
 def test_help_names_both_presets():

@@ -4,19 +4,36 @@ import io as stdio
 
 import pytest
 
+from heatcurv import surfaces
 from heatcurv.cli.progressbar import StageProgress
+from heatcurv.estimator import estimate
+from heatcurv.progress import PROGRESS_STAGES
 
 
-def test_progress_bar_runs_over_the_stages():
-    from heatcurv.progress import STAGES
-
+@pytest.mark.parametrize("method", ["default", "paper"])
+def test_progress_bar_runs_over_the_stages(method):
     stream = stdio.StringIO()
-    bar = StageProgress(enabled=True, stream=stream)
-    for stage in STAGES:
+    bar = StageProgress(enabled=True, stream=stream, method=method)
+    for stage in PROGRESS_STAGES[method]:
         bar(stage, 0.0)
         bar(stage, 0.5)
+        assert 0 < bar.done < 100 or stage == PROGRESS_STAGES[method][0]
         bar(stage, 1.0)
     assert bar.done == pytest.approx(100.0)
     bar.close()
-    assert "principal" in stream.getvalue()
+    assert PROGRESS_STAGES[method][-1] in stream.getvalue()
     StageProgress(enabled=False)("mean", 0.5)  # does nothing
+
+
+@pytest.mark.parametrize("method", ["default", "paper"])
+def test_a_real_run_fills_the_bar_and_never_moves_it_back(method):
+    bar = StageProgress(enabled=True, stream=stdio.StringIO(), method=method)
+    seen = []
+
+    def progress(stage, fraction):
+        bar(stage, fraction)
+        seen.append(bar.done)
+
+    estimate(surfaces.Sphere().sample(1500, "fibonacci").points, method=method, progress=progress)
+    assert seen == sorted(seen) and seen[-1] == pytest.approx(100.0)
+    bar.close()

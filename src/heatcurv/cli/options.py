@@ -1,23 +1,26 @@
-"""The estimator's flags (``--method``, ``--alpha``, ...) and the :func:`heatcurv.estimate` keywords they give.
+"""The estimator's flags, generated from the one declaration of the options.
 
 :func:`add_estimator_options` adds the group "curvature estimation" to a
-command's parser; :func:`estimator_kwargs` turns the parsed arguments into the
+command's parser: one flag per field of :class:`heatcurv.options.Options`
+whose metadata says ``cli`` (``--alpha``, ``--spacing``, ``--neighbours`` ...),
+with the field's help, choices and range check, and both presets' values in
+the help. :func:`estimator_kwargs` turns the parsed arguments into the
 keywords of :func:`heatcurv.estimate`, validated before any file is read. Each
 flag's default is None: the ``--method`` preset's value (:data:`heatcurv.options.METHODS`).
 
-The flags keep their American spelling (``--neighbors``, ``--min-neighbors``);
-they give the :class:`heatcurv.options.Options` fields ``neighbours`` and
-``min_neighbours``.
+The American spellings ``--neighbors`` and ``--min-neighbors`` are accepted
+as aliases of ``--neighbours`` and ``--min-neighbours``.
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import fields
 
-from ..options import METHODS, resolve_options
-from .argtypes import finite_float, int_at_least, point3, positive_float
+from ..options import DEPRECATED_ALIASES, METHODS, Options, resolve_options
+from .argtypes import finite_float, point3
 
-__all__ = ["add_estimator_options", "estimator_kwargs"]
+__all__ = ["add_estimator_options", "estimator_kwargs", "option_flags"]
 
 
 def _workers(text: str) -> int:
@@ -31,17 +34,40 @@ def _workers(text: str) -> int:
     return value
 
 
-def _kernel_scale(text: str):
-    """``--scale``: ``auto`` or a neighbour count >= 20."""
-    if text == "auto":
-        return "auto"
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a neighbour count, got {text!r}") from None
-    if value < 20:
-        raise argparse.ArgumentTypeError(f"a neighbour count must be at least 20, got {value}")
-    return value
+def _parser_of(name: str, meta: dict):
+    """The argparse type of option ``name``: its Python type, then the option's own check."""
+    default = getattr(METHODS["default"], name)
+
+    def parse(text: str):
+        if name == "scale" and text == "auto":
+            value = "auto"
+        elif isinstance(default, float):
+            value = finite_float(text)
+        else:  # int options, and scale's neighbour count
+            try:
+                value = int(text)
+            except ValueError:
+                what = "'auto' or a neighbour count" if name == "scale" else "an integer"
+                raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        problem = meta["check"](value) if meta.get("check") is not None else None
+        if problem is not None:
+            raise argparse.ArgumentTypeError(problem)
+        return value
+
+    parse.__name__ = name  # argparse names the type in its messages
+    return parse
+
+
+def option_flags() -> dict[str, list[str]]:
+    """The command-line flags of each option exposed there, by option name (aliases last)."""
+    aliases = {name: alias for alias, name in DEPRECATED_ALIASES.items()}
+    flags = {}
+    for f in fields(Options):
+        if f.metadata.get("cli"):
+            flags[f.name] = [f"--{f.name.replace('_', '-')}"]
+            if f.name in aliases:
+                flags[f.name].append(f"--{aliases[f.name].replace('_', '-')}")
+    return flags
 
 
 def add_estimator_options(parser, *, viewpoint: bool = True) -> None:
@@ -68,32 +94,18 @@ def add_estimator_options(parser, *, viewpoint: bool = True) -> None:
                        help="preset: 'default' is built for irregular, scanned and noisy clouds; "
                        "'paper' follows the paper literally (accurate on regular samples only) "
                        "(default: %(default)s)")
-    group.add_argument("--alpha", type=positive_float, metavar="A",
-                       help=f"ball radius in units of the spacing, r = alpha h {presets('alpha')}")
-    group.add_argument("--m", type=positive_float, metavar="M",
-                       help=f"diffusion time t = m h^2 {presets('m')}")
-    group.add_argument("--spacing", choices=("global", "local", "density"),
-                       help=f"spacing h: eq 2.6, eq 2.7 or from the density {presets('spacing')}")
-    group.add_argument("--gamma", type=finite_float, metavar="G",
-                       help=f"blend of eq 2.7, in [0, 1] {presets('gamma')}")
-    group.add_argument("--k-local", type=int_at_least(2), metavar="K",
-                       help=f"neighbours of eq 2.7's min/max {presets('k_local')}")
-    group.add_argument("--neighbors", type=int_at_least(20), metavar="K",
-                       help="neighbours in the density ball, and the narrowest chord-fit kernel "
-                       f"{presets('neighbours')}")
-    group.add_argument("--scale", type=_kernel_scale, metavar="auto|K",
-                       help="chord-fit kernel: 'auto' (chosen from the measured noise) or a fixed "
-                       f"neighbour count >= 20 {presets('scale')}")
-    group.add_argument("--area-method", choices=("system", "density"),
-                       help=f"per-point areas from H A = 1 or a density estimate {presets('area_method')}")
-    group.add_argument("--area-solver", choices=("auto", "cg", "bicgstab", "direct"),
-                       help=f"solver of H A = 1 {presets('area_solver')}")
-    group.add_argument("--mean-formula", choices=("projection", "norm"),
-                       help=f"mean curvature 1/2 K.n (eq 2.12) or 1/2 |K| (eq 2.11) {presets('mean_formula')}")
-    group.add_argument("--fit", choices=("chord", "constrained", "unconstrained"),
-                       help=f"principal-curvature fit {presets('fit')}")
-    group.add_argument("--min-neighbors", type=int_at_least(3), metavar="K",
-                       help=f"fewest neighbours per point {presets('min_neighbours')}")
+    for f in fields(Options):
+        if not f.metadata.get("cli"):
+            continue
+        meta = f.metadata
+        kwargs = {"dest": f.name, "help": f"{meta['help']} {presets(f.name)}"}
+        if meta.get("choices") is not None:
+            kwargs["choices"] = meta["choices"]
+        else:
+            kwargs["type"] = _parser_of(f.name, meta)
+            float_option = isinstance(getattr(METHODS["default"], f.name), float)
+            kwargs["metavar"] = "auto|K" if f.name == "scale" else "X" if float_option else "K"
+        group.add_argument(*option_flags()[f.name], **kwargs)
     if viewpoint:
         normals = group.add_mutually_exclusive_group()
         normals.add_argument("--viewpoint", type=point3, metavar="X,Y,Z",
@@ -117,13 +129,8 @@ def estimator_kwargs(args) -> dict:
     HeatcurvError
         On a bad combination of values (e.g. ``--gamma 2``): before a big file is read.
     """
-    options = {
-        "method": args.method, "alpha": args.alpha, "m": args.m, "spacing": args.spacing,
-        "gamma": args.gamma, "k_local": args.k_local, "neighbours": args.neighbors,
-        "area_method": args.area_method, "mean_formula": args.mean_formula, "fit": args.fit,
-        "scale": args.scale, "area_solver": args.area_solver, "min_neighbours": args.min_neighbors,
-        "workers": args.workers,
-    }
+    options = {"method": args.method, "workers": args.workers}
+    options.update({name: getattr(args, name) for name in option_flags()})
     resolve_options(**options)  # bad values fail now, not after reading a big file
     options["viewpoint"] = getattr(args, "viewpoint", None)
     return options

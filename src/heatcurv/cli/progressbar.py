@@ -4,13 +4,9 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["StageProgress"]
+from ..progress import PROGRESS_STAGES, PROGRESS_WEIGHTS
 
-# share of the run time of each stage of estimate(), for the progress bar
-_STAGE_WEIGHTS = {
-    "validate": 1, "neighbours": 6, "spacing": 1, "areas": 10,
-    "normals": 4, "orientation": 4, "mean": 6, "principal": 68,
-}
+__all__ = ["StageProgress"]
 
 
 class StageProgress:
@@ -22,17 +18,22 @@ class StageProgress:
         Draw the bar; otherwise calls do nothing.
     stream : file, optional
         Where the bar goes (stderr).
+    method : {"default", "paper"}, optional
+        The method whose stages run (:data:`heatcurv.progress.PROGRESS_STAGES`).
 
     Notes
     -----
-    The bar runs 0-100 %, each stage weighted by its usual share of the run
-    time (the curvature fit, which reports its blocks, about two thirds); the
-    description names the running stage.
+    The bar runs 0-100 %, each stage weighted by its measured share of the
+    run time (:data:`heatcurv.progress.PROGRESS_WEIGHTS`; the default
+    method's fit, which reports its blocks, about half); the description
+    names the running stage.
     """
 
-    def __init__(self, enabled: bool, stream=None):
+    def __init__(self, enabled: bool, stream=None, method: str = "default"):
         self.bar = None
         self.done = 0.0
+        self.order = list(PROGRESS_STAGES.get(method, PROGRESS_STAGES["default"]))
+        self.weights = PROGRESS_WEIGHTS.get(method, PROGRESS_WEIGHTS["default"])
         if enabled:
             from tqdm import tqdm
 
@@ -42,15 +43,17 @@ class StageProgress:
                 dynamic_ncols=True,
             )
 
+    def position(self, stage: str, fraction: float) -> float:
+        """Percent done when ``stage`` is ``fraction`` done (stages never move the bar back)."""
+        if stage in self.order:
+            before = sum(self.weights[s] for s in self.order[: self.order.index(stage)])
+            return max(self.done, min(100.0, before + self.weights[stage] * float(fraction)))
+        return self.done
+
     def __call__(self, stage: str, fraction: float) -> None:
         if self.bar is None:
             return
-        from ..progress import STAGES
-
-        order = list(STAGES)  # the stage names in the order they run (STAGES maps them to descriptions)
-        before = sum(_STAGE_WEIGHTS.get(s, 0) for s in order[: order.index(stage)]) if stage in order else self.done
-        position = min(100.0, before + _STAGE_WEIGHTS.get(stage, 0) * float(fraction))
-        self.done = max(self.done, position)
+        self.done = self.position(stage, fraction)
         self.bar.set_description_str(stage, refresh=False)
         self.bar.n = self.done
         self.bar.refresh()

@@ -98,7 +98,7 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
     """
     from ..estimator import estimate
 
-    progress = StageProgress(enabled=not log.quiet and sys.stderr.isatty())
+    progress = StageProgress(enabled=not log.quiet and sys.stderr.isatty(), method=options.get("method", "default"))
     tic = time.perf_counter()
     try:
         res = estimate(points, normals, progress=progress, **options)
@@ -110,7 +110,7 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
         progress.close()
     seconds = time.perf_counter() - tic
     scale = res.info.get("scale")
-    kernel = f", kernel {scale['fit']}" if scale else ""
+    kernel = f", kernel {scale.fit}" if scale else ""
     log.info(
         f"estimated curvature in {seconds:.2f} s (method {res.options.method}{kernel}): "
         f"{int(res.reliable.sum())} of {len(res)} points reliable"
@@ -124,15 +124,16 @@ def _report_details(res, log: Log) -> None:
     """``--verbose``: stage timings, the chord-fit kernel, the area solve and duplicates."""
     scale = res.info.get("scale")
     timings = res.info.get("timings", {})
+    width = max([len(stage) for stage in timings] + [len("total")])
     log.detail("  stage timings:")
     for stage, value in timings.items():
-        log.detail(f"    {stage:<12s} {value:8.3f} s")
-    log.detail(f"    {'total':<12s} {sum(timings.values()):8.3f} s")
+        log.detail(f"    {stage:<{width}s} {value:8.3f} s")
+    log.detail(f"    {'total':<{width}s} {sum(timings.values()):8.3f} s")
     if scale:
         log.detail(
-            f"  chord-fit kernel: {scale['fit']} ({scale['k']} neighbours, ball radius "
-            f"{scale['radius']:.4g} (99th percentile), median spacing h {scale['median_h']:.4g}); "
-            f"noise sigma {scale['sigma']:.3g} ({scale['relative_noise']:.3g} h)"
+            f"  chord-fit kernel: {scale.fit} ({scale.k} neighbours, ball radius "
+            f"{scale.radius:.4g} (99th percentile), median spacing h {scale.median_h:.4g}); "
+            f"noise sigma {scale.sigma:.3g} ({scale.relative_noise:.3g} h)"
         )
     solve = res.info.get("area_solve")
     if res.options.area_method == "system" and solve is not None:
