@@ -1,9 +1,11 @@
 """Shared fixtures: analytic samples and their estimates, computed once per session."""
 
 import pytest
+from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import surfaces
+from heatcurv.neighbourhood import knn_neighbourhood
 
 
 @pytest.fixture(scope="session")
@@ -32,3 +34,10 @@ def torus_default(torus_sample):
 def plane_grid():
     """The unit square (x, y in [-1, 1], z = 0) on a 61 x 61 grid: step 1/30."""
     return surfaces.Plane().sample(61 * 61, "grid")
+
+
+@pytest.fixture(scope="module")
+def torus_cloud():
+    pts = surfaces.Torus().sample(6000, "random", seed=3).points
+    tree = cKDTree(pts)
+    return pts, tree, knn_neighbourhood(pts, 40, tree=tree)

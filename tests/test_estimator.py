@@ -252,3 +252,25 @@ def test_normals_and_viewpoint_errors():
         heatcurv.estimate(pts, normals=pts, viewpoint=(0, 0, 5))
     with pytest.raises(HeatcurvError, match="viewpoint must be 3 finite"):
         heatcurv.estimate(pts, viewpoint=(0, 0))
+
+
+def test_input_order_changes_nothing_with_spatial_reordering():
+    sample = surfaces.Ellipsoid().sample(5000, "random", seed=4)
+    perm = np.random.default_rng(0).permutation(5000)
+    a = heatcurv.estimate(sample.points)
+    b = heatcurv.estimate(sample.points[perm])
+    for name in ("mean", "k1", "k2", "area"):
+        np.testing.assert_allclose(getattr(b, name), getattr(a, name)[perm], rtol=1e-9, atol=1e-12)
+
+
+def test_concurrent_calls_from_threads_agree():
+    """Dask-style use: several estimates at once in one process (numba's thread pool is shared)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    sample = surfaces.Sphere(radius=2.0).sample(3000, "random", seed=6)
+    alone = heatcurv.estimate(sample.points)
+    with ThreadPoolExecutor(3) as pool:
+        results = list(pool.map(lambda _: heatcurv.estimate(sample.points), range(3)))
+    for res in results:
+        np.testing.assert_array_equal(res.mean, alone.mean)
+        np.testing.assert_array_equal(res.normals, alone.normals)

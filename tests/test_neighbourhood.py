@@ -5,8 +5,8 @@ import pytest
 from scipy.spatial.distance import cdist
 
 import heatcurv
-from heatcurv import surfaces
-from heatcurv.neighbourhood import ball_neighbourhood
+from heatcurv import HeatcurvError, surfaces
+from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
 
 
 def grid(m=21, step=0.1):
@@ -84,3 +84,59 @@ def test_row_blocks_cover_every_row_once():
     assert all(b[1] == c[0] for b, c in zip(blocks, blocks[1:]))
     sub = nb.rows_slice(*blocks[1])
     np.testing.assert_array_equal(sub.counts, nb.counts[blocks[1][0] : blocks[1][1]])
+
+
+def test_knn_neighbourhood_is_the_ball_of_radius_dk(torus_cloud):
+    pts, tree, nb = torus_cloud
+    # random points: no ties at the radius, so the same sets row by row (the ball query
+    # rounds its own distances: a hair wider keeps the k-th neighbour itself)
+    ball = ball_neighbourhood(pts, nb.radius * (1 + 1e-12), tree=tree)
+    assert np.array_equal(nb.counts, ball.counts)
+    assert np.all(nb.counts == 40)
+    for i in (0, 123, 5999):
+        row, ball_row = slice(nb.indptr[i], nb.indptr[i + 1]), slice(ball.indptr[i], ball.indptr[i + 1])
+        assert set(nb.indices[row]) == set(ball.indices[ball_row])
+    d = nb.distances.reshape(-1, 40)
+    assert np.all(np.diff(d, axis=1) >= 0) and np.array_equal(nb.radius, d[:, -1])
+    np.testing.assert_allclose(d, np.linalg.norm(pts[nb.indices].reshape(-1, 40, 3) - pts[:, None], axis=2), rtol=1e-14)
+    assert nb.indices.dtype == np.int32 and not nb.augmented.any()
+
+
+def test_knn_neighbourhood_blocks_outside_queries_and_levels(torus_cloud):
+    pts, tree, nb = torus_cloud
+    small = knn_neighbourhood(pts, 40, tree=tree, block=777)
+    assert np.array_equal(small.indices, nb.indices) and np.array_equal(small.distances, nb.distances)
+    # queries that are not cloud points keep all k neighbours
+    q = pts[:5] + 1e-3
+    off = knn_neighbourhood(pts, 7, tree=tree, queries=q)
+    d, i = tree.query(q, k=7)
+    assert np.array_equal(off.indices.reshape(-1, 7), i) and np.allclose(off.distances.reshape(-1, 7), d)
+    # a coarse level: indices are mapped to the whole cloud
+    level = np.arange(0, pts.shape[0], 3)
+    sub = knn_neighbourhood(pts[level], 10, queries=pts[:50], source_index=level)
+    assert np.all(np.isin(sub.indices, level))
+    assert np.all(sub.indices.reshape(-1, 10)[::3] != np.arange(50)[::3, None])  # members skip themselves
+    with pytest.raises(HeatcurvError, match="need more than"):
+        knn_neighbourhood(pts[:5], 5)
+
+
+def test_nearest_concatenate_blockwise():
+    rng = np.random.default_rng(0)
+    pts = rng.random((300, 3))
+    ball = ball_neighbourhood(pts, 0.2)  # rows sorted by index, not distance
+    near = ball.nearest(5)
+    ref = knn_neighbourhood(pts, 5)
+    full = ball.counts >= 5
+    rows = np.flatnonzero(full)[:20]
+    for i in rows:
+        near_row, ref_row = slice(near.indptr[i], near.indptr[i + 1]), slice(ref.indptr[i], ref.indptr[i + 1])
+        assert list(near.indices[near_row]) == list(ref.indices[ref_row])
+    np.testing.assert_allclose(near.radius[full], ref.radius[full])
+    assert np.array_equal(ref.nearest(3).indices, ref.indices.reshape(-1, 5)[:, :3].ravel())
+    parts = [ball.rows_slice(lo, hi) for lo, hi in ball.row_blocks(500)]
+    assert len(parts) > 1
+    joined = Neighbourhood.concatenate(parts)
+    for name in ("indptr", "indices", "distances", "radius", "augmented"):
+        assert np.array_equal(getattr(joined, name), getattr(ball, name))
+    sums = ball.blockwise(lambda lo, hi, b: b.segment_sum(b.distances), max_pairs=300)
+    np.testing.assert_allclose(sums, ball.segment_sum(ball.distances), rtol=1e-14)

@@ -76,3 +76,43 @@ def test_tangent_frames_are_right_handed():
     np.testing.assert_allclose(np.einsum("ij,ij->i", e1, n), 0, atol=1e-14)
     np.testing.assert_allclose(np.linalg.norm(e1, axis=1), 1, rtol=1e-14)
     np.testing.assert_allclose(np.cross(e1, e2), n, atol=1e-14)
+
+
+def test_orientation_graph_neighbours_agree(torus_cloud):
+    pts, tree, nb = torus_cloud
+    sample = surfaces.Torus().sample(6000, "random", seed=3)
+    scrambled = sample.normals * np.where(np.random.default_rng(2).random(6000) < 0.5, -1.0, 1.0)[:, None]
+    for k in (None, 10, 6):
+        oriented = orient_normals(pts, scrambled, nb, graph_neighbours=k)
+        assert np.all(np.einsum("ij,ij->i", oriented, sample.normals) > 0.99)  # outward everywhere
+
+
+def scan_lines_sphere(lines=40, anisotropy=16):
+    """A unit sphere sampled along latitude lines, ``anisotropy`` times denser along them than across."""
+    parts = []
+    for lat in np.linspace(-1.4, 1.4, lines):
+        m = int(lines * anisotropy * np.cos(lat))
+        lon = np.linspace(0, 2 * np.pi, m, endpoint=False) + lat
+        parts.append(np.c_[np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.full(m, np.sin(lat))])
+    return np.vstack(parts)
+
+
+def test_orientation_graph_spans_scan_lines():
+    from scipy.sparse import csgraph, csr_matrix
+
+    pts = scan_lines_sphere()
+    nb = heatcurv.build_operator(pts).neighbourhood
+    n = nb.n_points
+
+    def components(sub):
+        graph = csr_matrix((np.ones(sub.n_pairs), sub.indices, sub.indptr), shape=(n, n))
+        return csgraph.connected_components(graph)[0]
+
+    assert components(nb.nearest(10)) == 40  # the nearest ten: one component per scan line
+    spread = nb.spread(10)
+    assert components(spread) == 1 and np.all(spread.counts == 10)
+    ranks = np.searchsorted(nb.distances[:60], spread.distances[:10])
+    assert list(ranks[:5]) == [0, 1, 2, 3, 4] and ranks[-1] == 59  # nearest half, then out to the edge
+    res = heatcurv.estimate(pts)
+    assert np.all(np.einsum("ij,ij->i", res.normals, pts) > 0.99)
+    np.testing.assert_allclose(res.mean, 1.0, atol=0.02)

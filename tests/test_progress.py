@@ -55,7 +55,8 @@ def test_fit_blocks_report_their_fraction(monkeypatch):
 
     monkeypatch.setattr(neighbourhood_module, "BLOCK_PAIRS", 20_000)  # 333 points x 60 pairs a block
     calls = []
-    heatcurv.estimate(surfaces.Sphere().sample(3000, "random", seed=2).points, progress=lambda s, f: calls.append((s, f)))
+    points = surfaces.Sphere().sample(3000, "random", seed=2).points
+    heatcurv.estimate(points, progress=lambda s, f: calls.append((s, f)))
     fractions = [f for s, f in calls if s == "fit"]
     assert fractions == [min(3000, 333 * b) / 3000 for b in range(1, 11)]
 

@@ -5,7 +5,9 @@ import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.scale import Scale, fit_at_scale, select_scale
+from heatcurv.areas import density_areas
+from heatcurv.neighbourhood import knn_neighbourhood
+from heatcurv.scale import Scale, fit_at_scale, fit_blocks, select_scale
 
 
 def test_select_scale_clean_and_noisy():
@@ -32,3 +34,19 @@ def test_coarse_level_keeps_the_cost_bounded():
     # about 240 coarse neighbours per ball instead of 960
     assert 200 < nb.counts.mean() < 280
     assert np.mean(np.abs(fit.principal.mean - 1.0)) < 0.05
+
+
+def test_fit_blocks_reuse_and_block_size_change_nothing(torus_cloud):
+    pts, tree, _ = torus_cloud
+    sample = surfaces.Torus().sample(6000, "random", seed=3)
+    base = knn_neighbourhood(pts, 60, tree=tree)
+    areas = density_areas(base)
+    whole, h, nb, _ = fit_at_scale(pts, tree, sample.normals, areas, Scale(60, False))
+    parts = list(fit_blocks(pts, tree, sample.normals, areas, Scale(60, False), base=base, block_pairs=50_000))
+    assert len(parts) > 5
+    k1 = np.concatenate([p[3].principal.k1 for p in parts])
+    np.testing.assert_allclose(k1, whole.principal.k1, rtol=1e-12)
+    np.testing.assert_allclose(h, base.radius / 2, rtol=1e-15)
+    # coarse level for wide kernels: the pairs per centre stay at about k_fit
+    *_, nbw, fraction = fit_at_scale(pts, tree, sample.normals[:100], areas, Scale(960, True), centres=np.arange(100))
+    assert fraction == pytest.approx(0.25, rel=0.01) and np.all(nbw.counts <= 241)

@@ -127,3 +127,16 @@ def test_signed_zeros_are_one_point_and_distinct_clouds_keep_their_order():
     prep = prepare_points(twins)
     assert prep.n_distinct == 201
     assert prep.inverse[200] == prep.inverse[201]
+
+
+def test_reordered_points_map_back_to_input_rows():
+    rng = np.random.default_rng(1)
+    pts = rng.random((500, 3))
+    pts = np.vstack([pts, pts[:7]])  # duplicates
+    prep = prepare_points(pts)
+    order = rng.permutation(prep.n_distinct)
+    moved = prep.reordered(order)
+    np.testing.assert_array_equal(moved.points[moved.inverse] + moved.offset, pts)
+    np.testing.assert_array_equal(moved.first, prep.first[order])
+    area = rng.random(prep.n_distinct)
+    assert moved.share_among_duplicates(area[order]).sum() == pytest.approx(area.sum(), rel=1e-12)

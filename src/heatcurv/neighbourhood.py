@@ -98,7 +98,7 @@ class Neighbourhood:
         return np.repeat(np.arange(self.n_points, dtype=self.indices.dtype), self.counts)
 
     @staticmethod
-    def concatenate(parts: list) -> "Neighbourhood":
+    def concatenate(parts: list) -> Neighbourhood:
         """Stack the rows of several neighbourhoods (e.g. consecutive blocks of centres)."""
         if len(parts) == 1:
             return parts[0]
@@ -112,7 +112,7 @@ class Neighbourhood:
             by_distance=all(p.by_distance for p in parts),
         )
 
-    def nearest(self, k: int) -> "Neighbourhood":
+    def nearest(self, k: int) -> Neighbourhood:
         """Each row's ``k`` nearest stored neighbours (all of a shorter row), nearest first.
 
         ``radius`` becomes the distance of the farthest one kept.
@@ -138,9 +138,11 @@ class Neighbourhood:
         np.cumsum(new_counts, out=indptr[1:])
         last = np.maximum(indptr[1:] - 1, 0)
         radius = np.where(new_counts > 0, dist[last] if dist.size else 0.0, self.radius)
-        return Neighbourhood(indptr=indptr, indices=idx, distances=dist, radius=radius, augmented=self.augmented, by_distance=True)
+        return Neighbourhood(
+            indptr=indptr, indices=idx, distances=dist, radius=radius, augmented=self.augmented, by_distance=True
+        )
 
-    def spread(self, k: int) -> "Neighbourhood":
+    def spread(self, k: int) -> Neighbourhood:
         """``k`` neighbours per row: the ``k // 2`` nearest and the rest at evenly spaced ranks out to the farthest.
 
         A sparse graph that still reaches across the whole ball: the ``k``
@@ -204,7 +206,7 @@ class Neighbourhood:
             yield lo, hi
             lo = hi
 
-    def rows_slice(self, lo: int, hi: int) -> "Neighbourhood":
+    def rows_slice(self, lo: int, hi: int) -> Neighbourhood:
         """The neighbourhood of rows ``lo:hi`` (indices still refer to the whole cloud)."""
         a, b = self.indptr[lo], self.indptr[hi]
         return Neighbourhood(

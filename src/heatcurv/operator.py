@@ -117,7 +117,9 @@ class HeatKernelOperator:
                     areas, solve = density_areas(nbhd), AreaSolve("density", 0, 0.0, True)
                 else:
                     weights = heat_kernel_weights(nbhd, h, options.m)
-                    areas, solve = point_areas(nbhd, weights, h, options.m, solver=options.area_solver, return_info=True)
+                    areas, solve = point_areas(
+                        nbhd, weights, h, options.m, solver=options.area_solver, return_info=True
+                    )
         if not solve.converged:
             warnings.warn(
                 f"the area system H A = 1 did not converge ({solve.solver}: {solve.iterations} iterations, "

@@ -191,7 +191,8 @@ class FitLevel:
         fraction = coarse.size / n
         level_points = points[coarse]
         # the k-th neighbour in the cloud is about the (k * fraction)-th of the coarse level
-        return cls(level_points, cKDTree(level_points), coarse, fraction, min(int(round(k * fraction)), coarse.size - 1))
+        k_level = min(int(round(k * fraction)), coarse.size - 1)
+        return cls(level_points, cKDTree(level_points), coarse, fraction, k_level)
 
     def rows_per_block(self, block_pairs: int | None = None) -> int:
         """Centres per block so that a block holds at most ``block_pairs`` pairs (default the policy's)."""
@@ -311,15 +312,16 @@ def fit_at_scale(
     fraction : float
         Share of the cloud the neighbours were drawn from (1, or the coarse level's).
     """
-    fits, nbhds, fraction = [], [], 1.0
+    fits, nbhds, fractions = [], [], [1.0]
     for _, _, nbhd, fit, fraction in fit_blocks(
         points, tree, normals, areas, scale, centres=centres, alpha=alpha, k_fit=k_fit, passes=passes, seed=seed,
         workers=workers,
     ):
         fits.append(fit)
         nbhds.append(nbhd)
+        fractions.append(fraction)
     nbhd = Neighbourhood.concatenate(nbhds)
-    return ChordFit.concatenate(fits), nbhd.radius / alpha, nbhd, fraction
+    return ChordFit.concatenate(fits), nbhd.radius / alpha, nbhd, fractions[-1]
 
 
 def select_scale(

@@ -52,7 +52,7 @@ class PreparedPoints:
         """Number of distinct points used by the computation."""
         return int(self.points.shape[0])
 
-    def reordered(self, order: np.ndarray) -> "PreparedPoints":
+    def reordered(self, order: np.ndarray) -> PreparedPoints:
         """The same points in the order ``points[order]``, with the maps back updated.
 
         Parameters
@@ -67,7 +67,9 @@ class PreparedPoints:
         order = np.asarray(order)
         rank = np.empty(order.shape[0], dtype=np.int64)
         rank[order] = np.arange(order.shape[0])
-        return PreparedPoints(points=self.points[order], offset=self.offset, inverse=rank[self.inverse], first=self.first[order])
+        return PreparedPoints(
+            points=self.points[order], offset=self.offset, inverse=rank[self.inverse], first=self.first[order]
+        )
 
     def to_input_order(self, values: np.ndarray) -> np.ndarray:
         """Expand per-distinct-point ``values`` (shape ``(m, ...)``) to the input rows."""
