@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import HeatcurvError
 from .console import Log
 from .fields import COMPUTED_FIELDS, FEATURE_FIELDS
+from .options import estimator_kwargs
 from .progressbar import StageProgress
 
 __all__ = [
@@ -88,6 +89,26 @@ def input_normals(cloud, use: bool, rows):
             f"{cloud.path} has no normals (nx ny nz); drop --normals-from-input to estimate them"
         )
     return cloud.normals if rows is None else cloud.normals[rows]
+
+
+def estimate_input(args, log: Log):
+    """Read ``args.input`` and estimate on it with the command line's options (validated first).
+
+    Returns
+    -------
+    cloud : PointCloud
+        The file as read.
+    rows : ndarray of int or None
+        The rows computed on (``--skip-nonfinite``), None for all.
+    res : CurvatureResult
+        The estimate on those rows.
+    """
+    options = estimator_kwargs(args)  # bad option values fail before a big file is read
+    cloud = read_cloud(args.input, log)
+    rows = finite_rows(cloud, args.skip_nonfinite)
+    points = cloud.points if rows is None else cloud.points[rows]
+    normals = input_normals(cloud, args.normals_from_input, rows)
+    return cloud, rows, run_estimate(points, normals, options, log, source=args.input)
 
 
 def run_estimate(points, normals, options: dict, log: Log, source=None):
