@@ -2,12 +2,13 @@
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.areas import density_areas
 from heatcurv.neighbourhood import knn_neighbourhood
-from heatcurv.scale import Scale, fit_at_scale, fit_blocks, select_scale
+from heatcurv.scale import FitLevel, Scale, ScaleReport, fit_at_scale, fit_blocks, select_scale
 
 
 def test_select_scale_clean_and_noisy():
@@ -50,3 +51,30 @@ def test_fit_blocks_reuse_and_block_size_change_nothing(torus_cloud):
     # coarse level for wide kernels: the pairs per centre stay at about k_fit
     *_, nbw, fraction = fit_at_scale(pts, tree, sample.normals[:100], areas, Scale(960, True), centres=np.arange(100))
     assert fraction == pytest.approx(0.25, rel=0.01) and np.all(nbw.counts <= 241)
+
+
+def test_scale_report_reads_by_attribute_and_by_key():
+    sample = surfaces.Torus().sample(4000, "random", seed=5)
+    report = heatcurv.estimate(sample.points).info["scale"]
+    assert isinstance(report, ScaleReport)
+    assert report["k"] == report.k == 60 and report.get("fit") == report.fit == "chord-60"
+    assert report.get("nothing", 7) == 7 and set(report.keys()) == set(report.as_dict())
+    with pytest.raises(KeyError):
+        report["nothing"]
+    assert 0 < report.median_h < report.radius
+
+
+def test_fit_level_is_the_cloud_up_to_k_fit_then_a_coarser_random_level():
+    pts = surfaces.Sphere().sample(20_000, "random", seed=1).points
+    tree = cKDTree(pts)
+    full = FitLevel.for_kernel(pts, tree, 240, k_fit=240)
+    assert full.source is None and full.fraction == 1.0 and full.k == 240 and full.tree is tree
+    coarse = FitLevel.for_kernel(pts, tree, 960, k_fit=240, seed=3)
+    assert coarse.fraction == pytest.approx(0.25) and coarse.k == 240
+    assert np.all(np.diff(coarse.source) > 0) and len(coarse.points) == 5000
+    again = FitLevel.for_kernel(pts, tree, 960, k_fit=240, seed=3)
+    np.testing.assert_array_equal(again.source, coarse.source)  # seeded: reproducible
+    nb = coarse.neighbourhood(pts[:10])
+    assert nb.n_points == 10 and np.all(nb.counts == 240) and nb.indices.max() < len(pts)
+    assert set(nb.indices) <= set(coarse.source)
+    assert coarse.rows_per_block(24_000) == 100
