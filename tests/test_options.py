@@ -37,6 +37,7 @@ def test_presets():
         ({"alpha": float("nan")}, "alpha must be a positive number"),
         ({"m": -1}, r"m must be a positive number \(paper: 1/4\), got -1"),
         ({"gamma": 2}, r"gamma must lie in \[0, 1\]"),
+        ({"gamma": "half"}, r"gamma must lie in \[0, 1\] \(paper: 0.1-0.5\), got 'half'"),
         ({"spacing": "exact"}, "spacing must be one of 'global', 'local', 'density', got 'exact'"),
         ({"fit": "jet"}, "fit must be one of"),
         ({"area_solver": "lu"}, "area_solver must be one of"),

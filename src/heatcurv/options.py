@@ -45,6 +45,18 @@ def _positive(name: str, paper: str):
     return check
 
 
+def _unit_interval(name: str, paper: str):
+    """A check that ``value`` is a number in ``[0, 1]``."""
+
+    def check(value):
+        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+        if not (number and 0 <= value <= 1):
+            return f"{name} must lie in [0, 1] (paper: {paper}), got {value!r}"
+        return None
+
+    return check
+
+
 def _int_at_least(name: str, minimum: int, why: str = ""):
     """A check that ``value`` is a whole number ``>= minimum`` (``why`` says where the bound comes from)."""
 
@@ -212,7 +224,7 @@ class Options:
     )
     gamma: float = _option(
         0.25, "blend of the local spacing, eq 2.7 (0..1)",
-        check=lambda v: None if 0 <= v <= 1 else f"gamma must lie in [0, 1] (paper: 0.1-0.5), got {v}",
+        check=_unit_interval("gamma", "0.1-0.5"),
         paper="eq 2.7",
     )
     k_local: int = _option(
