@@ -274,3 +274,14 @@ def test_concurrent_calls_from_threads_agree():
     for res in results:
         np.testing.assert_array_equal(res.mean, alone.mean)
         np.testing.assert_array_equal(res.normals, alone.normals)
+
+
+def test_default_fit_on_the_papers_area_system_warns_instead_of_crashing():
+    # H A = 1 at the default's alpha = 2 does not converge and gives negative areas: before, the
+    # chord fit's weights W_ij A_j went negative and LAPACK raised LinAlgError; now those
+    # neighbours get weight zero (as in the paper's fit) and every point is marked unreliable
+    pts = surfaces.Sphere().sample(3000, "fibonacci").points
+    with pytest.warns(heatcurv.HeatcurvWarning, match="did not converge"):
+        res = heatcurv.estimate(pts, area_method="system")
+    assert not res.reliable.any()
+    assert np.all(np.isfinite(res.mean)) and np.median(res.mean) == pytest.approx(1.0, rel=1e-3)

@@ -198,9 +198,12 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
     opts, X, base = op.options, op.points, op.neighbourhood
     tuning = opts.scale_tuning
     n = X.shape[0]
+    # fit weights W_ij A_j: negative areas (the paper's H A = 1 on irregular samples) get weight
+    # zero, as in the paper's fit; the density areas are positive by construction
+    fit_areas = np.maximum(op.areas, 0.0)
     with clock.stage("kernel_choice"):
         choice = select_scale(
-            X, op.tree, nrm, op.areas, base_k=int(opts.neighbours), alpha=opts.alpha,
+            X, op.tree, nrm, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
             fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, **asdict(tuning),
         )
     scale = choice.scale
@@ -217,7 +220,7 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
             nbhd = base.rows_slice(lo, hi) if reuse_base else level.neighbourhood(centres, opts.workers)
         with clock.stage("fit_weights", report=False):
             # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
-            weights = tapered_heat_weights(nbhd, nbhd.radius / opts.alpha, op.areas)
+            weights = tapered_heat_weights(nbhd, nbhd.radius / opts.alpha, fit_areas)
         start = nrm[lo:hi]
         if not keep_normals:
             with clock.stage("normal_refinement", report=False):
