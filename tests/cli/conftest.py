@@ -27,7 +27,7 @@ def sphere_cloud():
 def sphere_ply(workdir, sphere_cloud):
     points, colors, intensity = sphere_cloud
     path = workdir / "sphere.ply"
-    io.write_points(path, points, {"intensity": intensity}, colors=colors)
+    io.write_points(path, points, {"intensity": intensity}, colours=colors)
     return path
 
 

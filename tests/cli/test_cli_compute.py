@@ -42,7 +42,7 @@ def test_compute_round_trip_keeps_values_and_properties(
     back = io.read_points(out_path)
     res = sphere_reference
     # the input's properties are kept
-    np.testing.assert_array_equal(back.colors, colors)
+    np.testing.assert_array_equal(back.colours, colors)
     np.testing.assert_array_equal(back.fields["intensity"], intensity)
     atol = 2e-6 if ext in (".las", ".laz") else 0.0  # LAS stores scaled integer coordinates
     np.testing.assert_allclose(back.points, points, rtol=0, atol=atol)

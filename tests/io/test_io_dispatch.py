@@ -20,14 +20,14 @@ def test_round_trip_exact(tmp_path, cloud, ext):
     points = points.copy()
     points[5] = np.nan  # NaN rows are read faithfully, not rejected
     path = tmp_path / f"out{ext}"
-    write_points(path, points, fields, normals=normals, colors=colors)
+    write_points(path, points, fields, normals=normals, colours=colors)
     back = read_points(path)
     assert back.format == ext[1:] and len(back) == N
     np.testing.assert_array_equal(back.points, points)
     assert back.points.dtype == np.float64
     np.testing.assert_array_equal(back.normals, normals)
-    np.testing.assert_array_equal(back.colors, colors)
-    assert back.colors.dtype == np.uint8
+    np.testing.assert_array_equal(back.colours, colors)
+    assert back.colours.dtype == np.uint8
     assert list(back.fields) == list(expanded(fields))
     for name, values in expanded(fields).items():
         np.testing.assert_array_equal(back.fields[name], values, err_msg=name)
@@ -137,7 +137,7 @@ def test_write_validation_errors(tmp_path):
         ),
         (dict(fields={"label": np.array(list("abcd"))}), r"field 'label' must hold numbers"),
         (dict(normals=np.zeros((4, 2))), r"normals has shape \(4, 2\), expected \(4, 3\)"),
-        (dict(colors=np.full((4, 3), 300)), r"colors must be integers 0-255"),
+        (dict(colours=np.full((4, 3), 300)), r"colours must be integers 0-255"),
         (dict(source=PointCloud(points=np.zeros((5, 3)))), r"source has 5 points, points has 4"),
     ]
     for kwargs, message in cases:
@@ -150,3 +150,48 @@ def test_write_validation_errors(tmp_path):
     with pytest.raises(HeatcurvError, match=r"does not exist"):
         write_points(tmp_path / "missing_dir" / "out.ply", points)
     assert leftovers(tmp_path) == []
+
+
+def test_colours_is_the_name_and_colors_a_deprecated_alias(tmp_path):
+    import dataclasses
+    import warnings
+
+    points = np.zeros((2, 3))
+    rgb = np.array([[255, 0, 9], [0, 1, 2]], dtype=np.uint8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the British names warn about nothing
+        cloud = PointCloud(points, None, rgb)
+        assert cloud.colours is rgb and PointCloud(points, colours=rgb).colours is rgb
+        assert "colours=True" in repr(cloud)
+        assert dataclasses.replace(cloud, path=tmp_path).colours is rgb
+        assert PointCloud(points).fields == {} and PointCloud(points).meta == {}
+        write_points(tmp_path / "new.ply", points, colours=rgb)
+    np.testing.assert_array_equal(read_points(tmp_path / "new.ply").colours, rgb)
+
+    with pytest.warns(DeprecationWarning, match=r"PointCloud\.colors is deprecated, use \.colours") as record:
+        assert cloud.colors is rgb
+    assert record[0].filename == __file__  # points at the caller
+    with pytest.warns(DeprecationWarning, match=r"PointCloud\.colors is deprecated"):
+        cloud.colors = rgb[::-1]
+    assert cloud.colours[0, 2] == 2
+    with pytest.warns(DeprecationWarning, match=r"PointCloud: colors= is deprecated, use colours=") as record:
+        old = PointCloud(points, colors=rgb)
+    assert old.colours is rgb and record[0].filename == __file__
+    with pytest.warns(DeprecationWarning, match=r"write_points: colors= is deprecated, use colours=") as record:
+        write_points(tmp_path / "old.ply", points, colors=rgb)
+    assert record[0].filename == __file__
+    np.testing.assert_array_equal(read_points(tmp_path / "old.ply").colours, rgb)
+
+    with pytest.raises(HeatcurvError, match=r"PointCloud: give colours= or its deprecated alias colors=, not both"):
+        PointCloud(points, colours=rgb, colors=rgb)
+    with pytest.raises(HeatcurvError, match=r"write_points: give colours= or its deprecated alias colors=, not both"):
+        write_points(tmp_path / "both.ply", points, colours=rgb, colors=rgb)
+    assert not (tmp_path / "both.ply").exists()
+
+
+def test_npz_keeps_its_colors_key(tmp_path):
+    rgb = np.array([[255, 0, 9], [0, 1, 2]], dtype=np.uint8)
+    write_points(tmp_path / "c.npz", np.zeros((2, 3)), colours=rgb)
+    with np.load(tmp_path / "c.npz") as archive:
+        assert sorted(archive.files) == ["colors", "points"]  # the file format is unchanged
+    np.testing.assert_array_equal(read_points(tmp_path / "c.npz").colours, rgb)

@@ -19,14 +19,14 @@ def cloud():
 def test_round_trip_las(tmp_path, cloud, ext):
     points, normals, colors, fields = cloud
     path = tmp_path / f"out{ext}"
-    write_points(path, points, fields, normals=normals, colors=colors)
+    write_points(path, points, fields, normals=normals, colours=colors)
     back = read_points(path)
     header = back.meta["las_header"]
     extent = np.ptp(points, axis=0).max()
     assert np.all(header.scales <= 1e-6 * extent)
     assert np.all(np.abs(back.points - points) <= header.scales)
     np.testing.assert_array_equal(back.normals, normals)
-    np.testing.assert_array_equal(back.colors, colors)
+    np.testing.assert_array_equal(back.colours, colors)
     for name, values in expanded(fields).items():
         np.testing.assert_array_equal(back.fields[name], values, err_msg=name)
     assert back.fields["reliable"].dtype == np.uint8  # bools as uint8
@@ -56,7 +56,7 @@ def test_las_source_header_dimensions_and_colours_kept(tmp_path):
     las.write(source_path)
 
     source = read_points(source_path)
-    np.testing.assert_array_equal(source.colors, np.round(rgb16 / 257).astype(np.uint8))
+    np.testing.assert_array_equal(source.colours, np.round(rgb16 / 257).astype(np.uint8))
     np.testing.assert_array_equal(source.fields["intensity"], las.intensity)
     mean = rng.normal(size=n)
     out = tmp_path / "result.laz"
@@ -83,7 +83,7 @@ def test_las_eight_bit_values_in_sixteen_bit_colour_fields(tmp_path):
     las.x = [0.0, 1.0, 2.0]
     las.red, las.green, las.blue = [0, 128, 255], [1, 2, 3], [255, 255, 0]
     las.write(tmp_path / "c.las")
-    np.testing.assert_array_equal(read_points(tmp_path / "c.las").colors[:, 0], [0, 128, 255])
+    np.testing.assert_array_equal(read_points(tmp_path / "c.las").colours[:, 0], [0, 128, 255])
 
 
 def test_las_standard_dimensions_filled_from_fields(tmp_path):
@@ -94,7 +94,7 @@ def test_las_standard_dimensions_filled_from_fields(tmp_path):
         "classification": np.full(30, 2),
         "mean": rng.random(30),
     }
-    write_points(tmp_path / "a.las", points, fields, colors=np.full((30, 3), 200))
+    write_points(tmp_path / "a.las", points, fields, colours=np.full((30, 3), 200))
     las = laspy.read(tmp_path / "a.las")
     assert las.point_format.id == 7  # LAS 1.4 with RGB
     np.testing.assert_array_equal(las.intensity, fields["intensity"])
@@ -111,7 +111,7 @@ def test_las_standard_dimensions_filled_from_fields(tmp_path):
     source_las.x = points[:, 0]
     source_las.write(tmp_path / "src.las")
     source = read_points(tmp_path / "src.las")
-    write_points(tmp_path / "c.las", source.points, colors=np.full((30, 3), 9), source=source)
+    write_points(tmp_path / "c.las", source.points, colours=np.full((30, 3), 9), source=source)
     assert laspy.read(tmp_path / "c.las").point_format.id == 3
     assert not (tmp_path / "b.las").exists()
 

@@ -14,9 +14,9 @@ def test_obj_vertices_only(tmp_path):
     (tmp_path / "m.obj").write_text(content)
     got = read_points(tmp_path / "m.obj")
     np.testing.assert_array_equal(got.points, [[1, 2, 3], [4, 5, 6]])
-    np.testing.assert_array_equal(got.colors, [[255, 128, 0], [0, 0, 255]])
+    np.testing.assert_array_equal(got.colours, [[255, 128, 0], [0, 0, 255]])
     (tmp_path / "p.obj").write_text("v 1 2 3\nv 4 5 6\n")
-    assert read_points(tmp_path / "p.obj").colors is None
+    assert read_points(tmp_path / "p.obj").colours is None
 
 
 @pytest.mark.parametrize(
@@ -37,9 +37,9 @@ def test_off(tmp_path, content, colors, normals):
     (tmp_path / "m.off").write_text(content)
     got = read_points(tmp_path / "m.off")
     np.testing.assert_array_equal(got.points, [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
-    assert (got.colors is None) == (colors is None) and (got.normals is None) == (normals is None)
+    assert (got.colours is None) == (colors is None) and (got.normals is None) == (normals is None)
     if colors:
-        np.testing.assert_array_equal(got.colors[0], colors)
+        np.testing.assert_array_equal(got.colours[0], colors)
     if normals:
         np.testing.assert_array_equal(got.normals[2], normals)
 

@@ -70,7 +70,7 @@ def test_foreign_ply_read(tmp_path, byte_order, text):
         got.points, np.column_stack([vertex["x"], vertex["y"], vertex["z"]])
     )
     np.testing.assert_array_equal(got.normals[:, 2], vertex["normal_z"])
-    np.testing.assert_array_equal(got.colors[:, 0], vertex["diffuse_red"])
+    np.testing.assert_array_equal(got.colours[:, 0], vertex["diffuse_red"])
     assert list(got.fields) == ["quality", "label"]  # faces ignored
     assert got.fields["quality"].dtype == np.float32 and got.fields["quality"].dtype.isnative
     np.testing.assert_array_equal(got.fields["label"], vertex["label"])
@@ -96,7 +96,7 @@ def test_ply_with_quads_and_vertex_after_faces(tmp_path):
     ).write(str(tmp_path / "q.ply"))
     got = read_points(tmp_path / "q.ply")
     np.testing.assert_array_equal(got.points[:, 0], np.arange(5))
-    assert got.colors is not None and got.fields == {}
+    assert got.colours is not None and got.fields == {}
 
 
 def test_ply_float_colours_are_scaled(tmp_path):
@@ -107,12 +107,12 @@ def test_ply_float_colours_are_scaled(tmp_path):
     plyfile.PlyData([plyfile.PlyElement.describe(vertex, "vertex")], text=True).write(
         str(tmp_path / "f.ply")
     )
-    np.testing.assert_array_equal(read_points(tmp_path / "f.ply").colors[:, 0], [255, 128])
+    np.testing.assert_array_equal(read_points(tmp_path / "f.ply").colours[:, 0], [255, 128])
 
 
 def test_truncated_binary_ply(tmp_path, cloud):
     points, normals, colors, fields = cloud
-    write_points(tmp_path / "full.ply", points, fields, normals=normals, colors=colors)
+    write_points(tmp_path / "full.ply", points, fields, normals=normals, colours=colors)
     data = (tmp_path / "full.ply").read_bytes()
     (tmp_path / "half.ply").write_bytes(data[: len(data) // 2])
     with pytest.raises(HeatcurvError, match=r"half\.ply: not a valid PLY file \(.*end-of-file"):

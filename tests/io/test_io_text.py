@@ -48,9 +48,9 @@ def test_text_variants(tmp_path, name):
     got = read_points(path)
     np.testing.assert_array_equal(got.points, [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
     assert (got.normals is not None) == (normals is not None)
-    assert (got.colors is not None) == (colors is not None)
+    assert (got.colours is not None) == (colors is not None)
     if colors:
-        np.testing.assert_array_equal(got.colors, [[255, 0, 9], [0, 1, 2]])
+        np.testing.assert_array_equal(got.colours, [[255, 0, 9], [0, 1, 2]])
     if normals:
         np.testing.assert_array_equal(got.normals[0], [0, 0, 1])
     assert list(got.fields) == fields

@@ -59,7 +59,7 @@ def wavy_graph() -> hs.Graph:
 
 CASES = {
     "sphere": lambda: hs.Sphere(),
-    "sphere_shifted": lambda: hs.Sphere(radius=1.7, center=(0.3, -0.2, 0.5)),
+    "sphere_shifted": lambda: hs.Sphere(radius=1.7, centre=(0.3, -0.2, 0.5)),
     "ellipsoid": lambda: hs.Ellipsoid(),
     "ellipsoid_prolate": lambda: hs.Ellipsoid(a=0.7, b=1.3, c=1.9),  # axes in any order
     "torus": lambda: hs.Torus(),
@@ -103,7 +103,7 @@ def residual(case, surf, p, strict=True):
         return _residual_formula(case, surf, p)
     x, y, z = p.T
     if isinstance(surf, hs.Sphere):
-        return np.linalg.norm(p - surf.center, axis=1) - surf.radius
+        return np.linalg.norm(p - surf.centre, axis=1) - surf.radius
     if isinstance(surf, hs.Ellipsoid):
         return (x / surf.a) ** 2 + (y / surf.b) ** 2 + (z / surf.c) ** 2 - 1
     if isinstance(surf, hs.Torus):
@@ -125,7 +125,7 @@ def _residual_formula(case, surf, p):
     x, y, z = p.T
     tol = 1e-12
     if isinstance(surf, hs.Sphere):
-        return np.linalg.norm(p - surf.center, axis=1) - surf.radius
+        return np.linalg.norm(p - surf.centre, axis=1) - surf.radius
     if isinstance(surf, hs.Ellipsoid):
         return (x / surf.a) ** 2 + (y / surf.b) ** 2 + (z / surf.c) ** 2 - 1
     if isinstance(surf, hs.Torus):

@@ -35,7 +35,7 @@ from heatcurv.errors import HeatcurvError
 def outward_reference(surf, p):
     """Independent orientation reference vector for each surface (shape (n, 3))."""
     if isinstance(surf, hs.Sphere):
-        return p - surf.center
+        return p - surf.centre
     if isinstance(surf, hs.Ellipsoid):
         return p  # star-shaped about the origin: p . n >= min(a, b, c) > 0
     if isinstance(surf, hs.Torus):

@@ -63,7 +63,7 @@ def test_ray_intersect_finds_the_first_hit(case):
 
 
 def test_ray_intersect_closed_forms_agree_with_the_marcher_and_torus_quartic():
-    for surf in (hs.Sphere(radius=1.7, center=(0.3, -0.2, 0.5)), hs.Ellipsoid(0.7, 1.3, 1.9)):
+    for surf in (hs.Sphere(radius=1.7, centre=(0.3, -0.2, 0.5)), hs.Ellipsoid(0.7, 1.3, 1.9)):
         o, d = random_rays(surf, 300, seed=10)
         closed = surf.ray_intersect(o, d)
         marched = hs.Surface._intersect(surf, o, d)  # the generic algorithm

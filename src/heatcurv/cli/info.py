@@ -117,7 +117,7 @@ def _property_lines(cloud) -> list:
         lines.append(("normals", f"yes (nx ny nz, {unit})"))
     else:
         lines.append(("normals", "no"))
-    lines.append(("colours", "yes (red green blue, 8-bit)" if cloud.colors is not None else "no"))
+    lines.append(("colours", "yes (red green blue, 8-bit)" if cloud.colours is not None else "no"))
     if cloud.fields:
         width = max(16, max(len(str(name)) for name in cloud.fields) + 1)
         for k, (name, values) in enumerate(cloud.fields.items()):

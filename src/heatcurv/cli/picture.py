@@ -39,8 +39,8 @@ def field_from_file(cloud, name: str):
     if axis is not None:
         return cloud.points[:, axis]
     axis = {"red": 0, "green": 1, "blue": 2}.get(name)
-    if axis is not None and cloud.colors is not None:
-        return cloud.colors[:, axis]
+    if axis is not None and cloud.colours is not None:
+        return cloud.colours[:, axis]
     return None
 
 
@@ -85,7 +85,7 @@ def _field_values(args, cloud, options: dict, log: Log):
         camera_normals = full_rows(res.normals, rows, len(cloud))
     else:
         present = ["x", "y", "z"] + (["nx", "ny", "nz"] if cloud.normals is not None else []) + (
-            ["red", "green", "blue"] if cloud.colors is not None else []) + list(cloud.fields)
+            ["red", "green", "blue"] if cloud.colours is not None else []) + list(cloud.fields)
         raise HeatcurvError(
             f"{args.input} has no field {field!r} and heatcurv does not compute it; the file holds "
             f"{', '.join(present)}; heatcurv computes {', '.join(COMPUTED_FIELDS)}"

@@ -55,7 +55,7 @@ def read_cloud(path, log: Log):
     extras = []
     if cloud.normals is not None:
         extras.append("normals")
-    if cloud.colors is not None:
+    if cloud.colours is not None:
         extras.append("colours")
     if cloud.fields:
         extras.append(f"{len(cloud.fields)} other field(s)")

@@ -80,7 +80,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import HeatcurvError
-from ._common import PointCloud, _one_line, _output, _read_error, _write_error
+from ._common import PointCloud, _one_line, _output, _read_error, _renamed_keyword, _write_error
 from .arrays import _read_npy, _read_npz, _write_npz
 from .atomic import atomic_write
 from .las import _read_las, _write_las
@@ -122,7 +122,7 @@ def read_points(path) -> PointCloud:
     -------
     PointCloud
         ``points`` of shape (n, 3) float64, optional ``normals`` (n, 3) and
-        ``colors`` (n, 3) uint8, every other per-point property in ``fields``.
+        ``colours`` (n, 3) uint8, every other per-point property in ``fields``.
         Rows holding NaN are kept as they are (``heatcurv.estimate`` reports
         them). PLY: only the ``vertex`` element is read, list properties are
         skipped. OBJ: ``v`` lines only. OFF: vertices only.
@@ -171,7 +171,7 @@ _READERS = {
 }
 
 
-def write_points(path, points, fields=None, *, normals=None, colors=None, source=None) -> None:
+def write_points(path, points, fields=None, *, normals=None, colours=None, source=None, colors=None) -> None:
     """Write points and per-point fields to a file, atomically, choosing the format by extension.
 
     Parameters
@@ -189,14 +189,16 @@ def write_points(path, points, fields=None, *, normals=None, colors=None, source
         field replaces a source property of the same name.
     normals : array_like, shape (n, 3), optional
         Written as ``nx ny nz``; default: ``source.normals``.
-    colors : array_like, shape (n, 3), integers 0-255, optional
+    colours : array_like, shape (n, 3), integers 0-255, optional
         Written as ``red green blue`` (uint8; LAS 16-bit, ``value * 257``);
-        default: ``source.colors``.
+        default: ``source.colours``.
     source : PointCloud, optional
         The cloud the points came from: its ``fields`` are written back (and
         its normals and colours unless given). For LAS/LAZ output from a LAS
         source the header's point format, version, scales, offsets and
         records (CRS) are kept and 16-bit colours written unchanged.
+    colors : array_like, optional
+        Deprecated alias of ``colours`` (a DeprecationWarning; giving both is an error).
 
     Notes
     -----
@@ -215,8 +217,8 @@ def write_points(path, points, fields=None, *, normals=None, colors=None, source
     ``.csv``: comma-separated with a header line; ``.xyz``/``.txt``:
     space-separated with a ``# x y z ...`` header line. Floats are written
     with 17 significant digits (``%.17g``), so they read back exactly.
-    ``.npz``: arrays ``points``, ``normals``, ``colors`` and each field
-    ((n, 3) fields as one array).
+    ``.npz``: arrays ``points``, ``normals``, ``colors`` (the archive's key
+    keeps this name) and each field ((n, 3) fields as one array).
 
     Raises
     ------
@@ -233,7 +235,8 @@ def write_points(path, points, fields=None, *, normals=None, colors=None, source
         raise _write_error(
             path, f"unknown extension {ext or '(none)'!r}; supported: {' '.join(SUPPORTED_WRITE)}"
         )
-    output = _output(path, points, fields, normals, colors, source)
+    colours = _renamed_keyword("write_points", "colours", colours, "colors", colors)
+    output = _output(path, points, fields, normals, colours, source)
     directory = path.parent
     if not directory.is_dir():
         raise _write_error(path, f"the directory {directory} does not exist")

@@ -9,6 +9,7 @@ the one-line error helpers, the colour conversion, the assembly of a
 from __future__ import annotations
 
 import re
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,7 +32,7 @@ _ALIASES = {
 }
 _ROLE_OF = {alias: role for role, aliases in _ALIASES.items() for alias in aliases}
 _NORMAL_NAMES = ("nx", "ny", "nz")
-_COLOR_NAMES = ("red", "green", "blue")
+_COLOUR_NAMES = ("red", "green", "blue")
 # characters a written property name cannot hold: PLY headers are ASCII and split on
 # whitespace, text headers split on commas and semicolons
 _BAD_NAME = re.compile(r"[^\x21-\x7e]|[,;#\"']")
@@ -47,8 +48,9 @@ class PointCloud:
         Coordinates as stored in the file (LAS: scaled and offset).
     normals : ndarray, shape (n, 3), float64, or None
         Normals from the file (not normalised), if it has all three components.
-    colors : ndarray, shape (n, 3), uint8, or None
+    colours : ndarray, shape (n, 3), uint8, or None
         RGB colours, scaled to 8 bits (see the notes of :mod:`heatcurv.io`).
+        ``colors`` (attribute and constructor keyword) is a deprecated alias.
     fields : dict of str to ndarray, shape (n,)
         Every other per-point property by its name in the file, with its
         stored dtype (text files: float64). :func:`~heatcurv.io.write_points` writes them
@@ -67,11 +69,43 @@ class PointCloud:
 
     points: np.ndarray
     normals: np.ndarray | None = None
-    colors: np.ndarray | None = None
+    colours: np.ndarray | None = None
     fields: dict = field(default_factory=dict)
     path: Path | None = None
     format: str | None = None
     meta: dict = field(default_factory=dict)
+
+    # written out (the dataclass keeps it) for the deprecated alias ``colors=``
+    def __init__(
+        self,
+        points: np.ndarray,
+        normals: np.ndarray | None = None,
+        colours: np.ndarray | None = None,
+        fields: dict | None = None,
+        path: Path | None = None,
+        format: str | None = None,
+        meta: dict | None = None,
+        *,
+        colors: np.ndarray | None = None,
+    ) -> None:
+        self.points = points
+        self.normals = normals
+        self.colours = _renamed_keyword("PointCloud", "colours", colours, "colors", colors)
+        self.fields = {} if fields is None else fields
+        self.path = path
+        self.format = format
+        self.meta = {} if meta is None else meta
+
+    @property
+    def colors(self) -> np.ndarray | None:
+        """Deprecated alias of :attr:`colours`."""
+        warnings.warn("PointCloud.colors is deprecated, use .colours", DeprecationWarning, stacklevel=2)
+        return self.colours
+
+    @colors.setter
+    def colors(self, value) -> None:
+        warnings.warn("PointCloud.colors is deprecated, use .colours", DeprecationWarning, stacklevel=2)
+        self.colours = value
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
@@ -79,12 +113,34 @@ class PointCloud:
     def __repr__(self) -> str:
         return (
             f"PointCloud(n={len(self)}, format={self.format!r}, "
-            f"normals={self.normals is not None}, colors={self.colors is not None}, "
+            f"normals={self.normals is not None}, colours={self.colours is not None}, "
             f"fields={list(self.fields)}, path={str(self.path) if self.path else None!r})"
         )
 
 
 # ----------------------------------------------------------------------------- helpers
+
+
+def _renamed_keyword(where: str, name: str, value, alias: str, alias_value):
+    """``value`` of keyword ``name``, or that of its deprecated alias (American spelling), warning.
+
+    The warning points at the caller of the function that calls this helper.
+
+    Raises
+    ------
+    HeatcurvError
+        When both spellings are given.
+    """
+    if alias_value is None:
+        return value
+    if value is not None:
+        raise HeatcurvError(f"{where}: give {name}= or its deprecated alias {alias}=, not both")
+    warnings.warn(
+        f"{where}: {alias}= is deprecated, use {name}= (British spelling)",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+    return alias_value
 
 
 def _one_line(exc: BaseException) -> str:
@@ -119,7 +175,7 @@ def _is_integral(values: np.ndarray) -> bool:
     return bool(np.all(np.isfinite(values)) and np.all(values == np.round(values)))
 
 
-def _colors_to_uint8(rgb: np.ndarray, *, text: bool) -> np.ndarray | None:
+def _colours_to_uint8(rgb: np.ndarray, *, text: bool) -> np.ndarray | None:
     """RGB values of shape (n, 3) as uint8, or None if they do not read as colours.
 
     ``text=True``: integer values 0-255 are 8-bit, other values in [0, 1] are
@@ -148,7 +204,7 @@ def _colors_to_uint8(rgb: np.ndarray, *, text: bool) -> np.ndarray | None:
 
 
 def _cloud_from_columns(
-    columns: dict, path: Path, fmt: str, *, text_colors: bool, meta=None
+    columns: dict, path: Path, fmt: str, *, text_colours: bool, meta=None
 ) -> PointCloud:
     """Assemble a :class:`PointCloud` from named per-point columns.
 
@@ -160,8 +216,8 @@ def _cloud_from_columns(
         The file (for messages).
     fmt : str
         The format label.
-    text_colors : bool
-        How to read colours (see :func:`_colors_to_uint8`).
+    text_colours : bool
+        How to read colours (see :func:`_colours_to_uint8`).
     meta : dict, optional
         Stored as :attr:`PointCloud.meta`.
     """
@@ -189,19 +245,19 @@ def _cloud_from_columns(
         normals = np.column_stack([np.asarray(columns[name], dtype=np.float64) for name in names])
         used += names
 
-    colors = None
-    if all(role in role_of for role in _COLOR_NAMES):
-        names = [role_of[role] for role in _COLOR_NAMES]
+    colours = None
+    if all(role in role_of for role in _COLOUR_NAMES):
+        names = [role_of[role] for role in _COLOUR_NAMES]
         stacked = np.column_stack([np.asarray(columns[name]) for name in names])
-        colors = _colors_to_uint8(stacked, text=text_colors)
-        if colors is not None:
+        colours = _colours_to_uint8(stacked, text=text_colours)
+        if colours is not None:
             used += names
 
     fields = {name: values for name, values in columns.items() if name not in used}
     return PointCloud(
         points=np.ascontiguousarray(points),
         normals=normals,
-        colors=colors,
+        colours=colours,
         fields=fields,
         path=path,
         format=fmt,
@@ -223,11 +279,11 @@ class _Output:
 
     points: np.ndarray  # (n, 3) float64
     normals: np.ndarray | None  # (n, 3) float
-    colors: np.ndarray | None  # (n, 3) uint8
+    colours: np.ndarray | None  # (n, 3) uint8
     columns: dict  # name -> (n,): source properties then the given fields, expanded
     arrays: dict  # name -> (n,) or (n, 3): the same, (n, 3) fields unexpanded (NPZ)
     source: PointCloud | None
-    colors_from_source: bool
+    colours_from_source: bool
 
 
 def _check_name(path, name) -> str:
@@ -258,7 +314,7 @@ def _as_rows(path, name: str, values, n: int, *, width=None) -> np.ndarray:
     return array
 
 
-def _output(path, points, fields, normals, colors, source) -> _Output:
+def _output(path, points, fields, normals, colours, source) -> _Output:
     """Validate and arrange the arrays to write (see :func:`~heatcurv.io.write_points`)."""
     points_array = np.asarray(points)
     if (
@@ -277,26 +333,26 @@ def _output(path, points, fields, normals, colors, source) -> _Output:
             raise _write_error(path, f"source must be a PointCloud, got {type(source).__name__}")
         if len(source) != n:
             raise _write_error(path, f"source has {len(source)} points, points has {n}")
-    colors_from_source = False
+    colours_from_source = False
     if normals is None and source is not None:
         normals = source.normals
-    if colors is None and source is not None and source.colors is not None:
-        colors, colors_from_source = source.colors, True
-    elif colors is not None and source is not None and colors is source.colors:
-        colors_from_source = True
+    if colours is None and source is not None and source.colours is not None:
+        colours, colours_from_source = source.colours, True
+    elif colours is not None and source is not None and colours is source.colours:
+        colours_from_source = True
     if normals is not None:
         normals = _as_rows(path, "normals", normals, n, width=3)
         normals = normals.astype(normals.dtype if normals.dtype.kind == "f" else np.float64)
-    if colors is not None:
-        colors = _as_rows(path, "colors", colors, n, width=3)
-        if colors.size and (not _is_integral(colors) or colors.min() < 0 or colors.max() > 255):
-            raise _write_error(path, "colors must be integers 0-255")
-        colors = colors.astype(np.uint8)
+    if colours is not None:
+        colours = _as_rows(path, "colors", colours, n, width=3)
+        if colours.size and (not _is_integral(colours) or colours.min() < 0 or colours.max() > 255):
+            raise _write_error(path, "colours must be integers 0-255")
+        colours = colours.astype(np.uint8)
 
     reserved = (
         {"x", "y", "z"}
         | (set(_NORMAL_NAMES) if normals is not None else set())
-        | (set(_COLOR_NAMES) if colors is not None else set())
+        | (set(_COLOUR_NAMES) if colours is not None else set())
     )
     if fields is not None and not isinstance(fields, Mapping):
         raise _write_error(
@@ -317,7 +373,7 @@ def _output(path, points, fields, normals, colors, source) -> _Output:
                 raise _write_error(
                     path,
                     f"field {name!r} would write the property {column!r}, "
-                    "already taken by the points, normals or colors",
+                    "already taken by the points, normals or colours",
                 )
             if column in given_columns:
                 raise _write_error(path, f"field {name!r} gives the property {column!r} twice")
@@ -340,7 +396,7 @@ def _output(path, points, fields, normals, colors, source) -> _Output:
             columns[clean] = arrays[clean] = array
     columns.update(given_columns)
     arrays.update(given_arrays)
-    return _Output(points_array, normals, colors, columns, arrays, source, colors_from_source)
+    return _Output(points_array, normals, colours, columns, arrays, source, colours_from_source)
 
 
 def _ordered_columns(output: _Output) -> dict:
@@ -348,7 +404,7 @@ def _ordered_columns(output: _Output) -> dict:
     columns = {axis: output.points[:, k] for k, axis in enumerate("xyz")}
     if output.normals is not None:
         columns.update({name: output.normals[:, k] for k, name in enumerate(_NORMAL_NAMES)})
-    if output.colors is not None:
-        columns.update({name: output.colors[:, k] for k, name in enumerate(_COLOR_NAMES)})
+    if output.colours is not None:
+        columns.update({name: output.colours[:, k] for k, name in enumerate(_COLOUR_NAMES)})
     columns.update(output.columns)
     return columns

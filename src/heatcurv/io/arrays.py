@@ -11,7 +11,7 @@ from ._common import (
     _NORMAL_NAMES,
     PointCloud,
     _cloud_from_columns,
-    _colors_to_uint8,
+    _colours_to_uint8,
     _magic,
     _native,
     _one_line,
@@ -36,7 +36,7 @@ def _read_npy(path: Path, fmt: str) -> PointCloud:
         columns = {
             name: _native(array[name]) for name in array.dtype.names if array[name].ndim == 1
         }
-        return _cloud_from_columns(columns, path, fmt, text_colors=False)
+        return _cloud_from_columns(columns, path, fmt, text_colours=False)
     if array.dtype.kind not in "biuf":
         raise _read_error(path, f"the array holds {array.dtype} values, not numbers")
     if array.ndim != 2 or array.shape[1] < 3:
@@ -50,7 +50,7 @@ def _read_npy(path: Path, fmt: str) -> PointCloud:
         list(_NORMAL_NAMES) if ncols == 6 else [f"column_{k}" for k in range(4, ncols + 1)]
     )
     columns = {name: _native(array[:, k]) for k, name in enumerate(names)}
-    return _cloud_from_columns(columns, path, fmt, text_colors=False)
+    return _cloud_from_columns(columns, path, fmt, text_colours=False)
 
 
 def _read_npz(path: Path, fmt: str) -> PointCloud:
@@ -84,16 +84,16 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
                 path, f"'normals' has shape {normals.shape}; expected ({n}, 3) like the points"
             )
         normals = _native(normals).astype(np.float64)
-    colors = arrays.pop("colors", None)
-    if colors is not None:
-        converted = _colors_to_uint8(colors, text=False) if colors.shape == (n, 3) else None
+    colours = arrays.pop("colors", None)
+    if colours is not None:
+        converted = _colours_to_uint8(colours, text=False) if colours.shape == (n, 3) else None
         if converted is None:
             raise _read_error(
                 path,
-                f"'colors' (shape {colors.shape}, dtype {colors.dtype}) "
+                f"'colors' (shape {colours.shape}, dtype {colours.dtype}) "
                 f"are not ({n}, 3) RGB values",
             )
-        colors = converted
+        colours = converted
     fields = {}
     for name, values in arrays.items():
         if values.dtype.kind not in "biuf" or values.ndim not in (1, 2) or values.shape[0] != n:
@@ -107,7 +107,7 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
     return PointCloud(
         points=np.ascontiguousarray(points, dtype=np.float64),
         normals=normals,
-        colors=colors,
+        colours=colours,
         fields=fields,
         path=path,
         format=fmt,
@@ -118,8 +118,8 @@ def _write_npz(stream, output: _Output, path: Path) -> None:
     arrays = {"points": output.points}
     if output.normals is not None:
         arrays["normals"] = output.normals
-    if output.colors is not None:
-        arrays["colors"] = output.colors
+    if output.colours is not None:
+        arrays["colors"] = output.colours
     for name, values in output.arrays.items():
         if name in ("points", "xyz", "normals", "colors"):
             raise _write_error(path, f"field name {name!r} is reserved in NPZ output")

@@ -71,10 +71,10 @@ def _read_las(path: Path, fmt: str) -> PointCloud:
         normals = np.column_stack(
             [columns.pop(role_of[role]).astype(np.float64) for role in _NORMAL_NAMES]
         )
-    colors = None
+    colours = None
     meta = {"las_header": header}
     if rgb16 is not None:
-        colors = (
+        colours = (
             rgb16.astype(np.uint8)
             if rgb16.max(initial=0) <= 255
             else np.round(rgb16 / 257.0).astype(np.uint8)
@@ -83,7 +83,7 @@ def _read_las(path: Path, fmt: str) -> PointCloud:
     return PointCloud(
         points=np.ascontiguousarray(points),
         normals=normals,
-        colors=colors,
+        colours=colours,
         fields=columns,
         path=path,
         format=fmt,
@@ -142,7 +142,7 @@ def _write_las(stream, output: _Output, path: Path) -> None:
     if source_header is not None:
         header = source_header.copy()
         header.remove_extra_dims(list(header.point_format.extra_dimension_names))
-        if output.colors is not None and "red" not in header.point_format.dimension_names:
+        if output.colours is not None and "red" not in header.point_format.dimension_names:
             target = _LAS_WITH_RGB[header.point_format.id]
             version = str(header.version)
             if target == 5 and version < "1.3" or target in (7, 8, 10) and version < "1.4":
@@ -153,7 +153,7 @@ def _write_las(stream, output: _Output, path: Path) -> None:
         header.partial_reset()
         header.creation_date = datetime.date.today()
     else:
-        header = laspy.LasHeader(point_format=7 if output.colors is not None else 6, version="1.4")
+        header = laspy.LasHeader(point_format=7 if output.colours is not None else 6, version="1.4")
         header.scales, header.offsets = _las_scales_offsets(points)
     header.generating_software = "heatcurv"
 
@@ -191,10 +191,10 @@ def _write_las(stream, output: _Output, path: Path) -> None:
     except Exception as exc:
         raise _write_error(path, f"laspy: {_one_line(exc)}") from None
 
-    if output.colors is not None:
-        rgb16 = output.source.meta.get("las_rgb16") if output.colors_from_source else None
+    if output.colours is not None:
+        rgb16 = output.source.meta.get("las_rgb16") if output.colours_from_source else None
         if rgb16 is None:
-            rgb16 = output.colors.astype(np.uint16) * np.uint16(257)
+            rgb16 = output.colours.astype(np.uint16) * np.uint16(257)
         las.red, las.green, las.blue = rgb16[:, 0], rgb16[:, 1], rgb16[:, 2]
     for name, values in fill_standard.items():
         target = np.asarray(las[name]).dtype

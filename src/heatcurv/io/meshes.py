@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from ._common import (
-    _COLOR_NAMES,
+    _COLOUR_NAMES,
     _NORMAL_NAMES,
     PointCloud,
     _cloud_from_columns,
-    _colors_to_uint8,
+    _colours_to_uint8,
     _is_integral,
     _read_error,
 )
@@ -42,9 +42,9 @@ def _read_obj(path: Path, fmt: str) -> PointCloud:
         if bad is None:
             raise _read_error(path, "cannot parse the 'v' lines") from None
         raise _read_error(path, f"line {_obj_line_number(text, bad[0] - 1)}: {bad[1]}") from None
-    names = {3: ["x", "y", "z"], 4: ["x", "y", "z", "w"], 6: ["x", "y", "z", *_COLOR_NAMES]}[ncols]
+    names = {3: ["x", "y", "z"], 4: ["x", "y", "z", "w"], 6: ["x", "y", "z", *_COLOUR_NAMES]}[ncols]
     columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
-    return _cloud_from_columns(columns, path, fmt, text_colors=False)
+    return _cloud_from_columns(columns, path, fmt, text_colours=False)
 
 
 def _obj_line_number(text: str, vertex_index: int) -> int:
@@ -109,22 +109,22 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
             f"truncated: the header announces {n_vertices} vertices, the file has {table.shape[0]}",
         )
 
-    has_texture, has_color, has_normal = (bool(match.group(k)) for k in (1, 2, 3))
-    n_color = ncols - 3 - 3 * has_normal - 2 * has_texture
-    if (has_color and n_color not in (3, 4)) or (not has_color and n_color != 0):
+    has_texture, has_colour, has_normal = (bool(match.group(k)) for k in (1, 2, 3))
+    n_colour = ncols - 3 - 3 * has_normal - 2 * has_texture
+    if (has_colour and n_colour not in (3, 4)) or (not has_colour and n_colour != 0):
         raise _read_error(path, f"line {first[0]}: {ncols} values do not match a {keyword} vertex")
     names = ["x", "y", "z"] + (list(_NORMAL_NAMES) if has_normal else [])
     columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
-    cloud = _cloud_from_columns(columns, path, fmt, text_colors=False)
-    if has_color:
+    cloud = _cloud_from_columns(columns, path, fmt, text_colours=False)
+    if has_colour:
         start = len(names)
-        rgba = table[:, start : start + n_color]
+        rgba = table[:, start : start + n_colour]
         # Geomview colours are floats 0-1, MeshLab writes integers 0-255 (alpha included)
         as_bytes = _is_integral(rgba) and rgba.max(initial=0) > 1
-        cloud.colors = _colors_to_uint8(rgba[:, :3], text=as_bytes)
-        if cloud.colors is None:
+        cloud.colours = _colours_to_uint8(rgba[:, :3], text=as_bytes)
+        if cloud.colours is None:
             raise _read_error(path, "vertex colours are neither 0-255 integers nor 0-1 fractions")
-        if n_color == 4:
+        if n_colour == 4:
             cloud.fields["alpha"] = np.ascontiguousarray(rgba[:, 3])
     if has_texture:
         start = ncols - 2

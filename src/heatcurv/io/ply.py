@@ -57,7 +57,7 @@ def _read_ply(path: Path, fmt: str) -> PointCloud:
         for prop in vertex.properties
         if not isinstance(prop, plyfile.PlyListProperty)
     }
-    return _cloud_from_columns(columns, path, fmt, text_colors=False)
+    return _cloud_from_columns(columns, path, fmt, text_colours=False)
 
 
 def _ply_dtype(path, name: str, values: np.ndarray) -> np.dtype:

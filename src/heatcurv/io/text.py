@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import (
-    _COLOR_NAMES,
+    _COLOUR_NAMES,
     _NORMAL_NAMES,
     _ROLE_OF,
     PointCloud,
@@ -53,17 +53,17 @@ def _positional_names(table: np.ndarray, ext: str) -> list:
         names = ["x", "y", "z", "intensity"]
     elif ncols == 6:
         names = ["x", "y", "z"] + (
-            list(_COLOR_NAMES) if _looks_like_rgb(table[:, 3:6]) else list(_NORMAL_NAMES)
+            list(_COLOUR_NAMES) if _looks_like_rgb(table[:, 3:6]) else list(_NORMAL_NAMES)
         )
     elif ncols == 7 and _looks_like_rgb(table[:, 4:7]):
-        names = ["x", "y", "z", "intensity", *_COLOR_NAMES]
+        names = ["x", "y", "z", "intensity", *_COLOUR_NAMES]
     elif ncols == 9:
         if _looks_like_rgb(table[:, 3:6]) and not _looks_like_rgb(table[:, 6:9]):
-            names = ["x", "y", "z", *_COLOR_NAMES, *_NORMAL_NAMES]
+            names = ["x", "y", "z", *_COLOUR_NAMES, *_NORMAL_NAMES]
         elif _looks_like_rgb(table[:, 6:9]):
-            names = ["x", "y", "z", *_NORMAL_NAMES, *_COLOR_NAMES]
+            names = ["x", "y", "z", *_NORMAL_NAMES, *_COLOUR_NAMES]
     elif ncols == 10 and _looks_like_rgb(table[:, 4:7]):
-        names = ["x", "y", "z", "intensity", *_COLOR_NAMES, *_NORMAL_NAMES]
+        names = ["x", "y", "z", "intensity", *_COLOUR_NAMES, *_NORMAL_NAMES]
     return names
 
 
@@ -135,7 +135,7 @@ def _read_text(path: Path, fmt: str) -> PointCloud:
         raise _read_error(path, "the file holds no points")
     names = _unique_names(names) if names is not None else _positional_names(table, ext)
     columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
-    return _cloud_from_columns(columns, path, fmt, text_colors=True)
+    return _cloud_from_columns(columns, path, fmt, text_colours=True)
 
 
 def _text_format(values: np.ndarray) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from ._util import (
     _longitude,
     _positive,
     _radial,
+    _renamed_keyword,
     _unit,
     _vec,
     _wrap,
@@ -30,7 +32,7 @@ from .rays import _first_quadric_root
 class _LatitudeLongitude(Surface):
     """Closed surface parametrised like the sphere, by longitude and latitude.
 
-    ``X(u, v) = center + (a cos v cos u, b cos v sin u, c sin v)`` with the
+    ``X(u, v) = centre + (a cos v cos u, b cos v sin u, c sin v)`` with the
     semi-axes ``(a, b, c)`` of :meth:`_semi_axes`, longitude ``u`` in
     ``[0, 2 pi)`` and latitude ``v`` in ``[-pi/2, pi/2]``; the subclasses give
     the position, normal and closed-form curvature.  A latitude-longitude grid
@@ -114,9 +116,9 @@ class _LatitudeLongitude(Surface):
 
 
 class Sphere(_LatitudeLongitude):
-    """Sphere of radius ``R`` about ``center``, outward normals.
+    """Sphere of radius ``R`` about ``centre``, outward normals.
 
-    ``X(u, v) = center + R (cos v cos u, cos v sin u, sin v)`` with longitude
+    ``X(u, v) = centre + R (cos v cos u, cos v sin u, sin v)`` with longitude
     ``u`` in ``[0, 2 pi)`` and latitude ``v`` in ``[-pi/2, pi/2]``.
     Curvatures ``k1 = k2 = mean = 1/R``, ``gaussian = 1/R^2``; every point is
     umbilic (``d1`` is the east direction, ``d2`` north).  ``"grid"`` sampling
@@ -126,30 +128,48 @@ class Sphere(_LatitudeLongitude):
     ----------
     radius : float
         ``R > 0``.
-    center : array_like, shape (3,)
+    centre : array_like, shape (3,), optional
+        The centre; default the origin.
+    center : array_like, shape (3,), optional
+        Deprecated alias of ``centre`` (a DeprecationWarning; giving both is an error).
+
+    Attributes
+    ----------
+    radius : float
+    centre : ndarray, shape (3,)
+        ``center`` is a deprecated alias.
     """
 
     name = "sphere"
 
-    def __init__(self, radius: float = 1.0, center=(0.0, 0.0, 0.0)):
+    def __init__(self, radius: float = 1.0, centre=None, *, center=None):
         self.radius = _positive("radius", radius)
-        c = np.asarray(center, dtype=np.float64)
+        centre = _renamed_keyword("Sphere", "centre", centre, "center", center)
+        if centre is None:
+            centre = (0.0, 0.0, 0.0)
+        c = np.asarray(centre, dtype=np.float64)
         if c.shape != (3,) or not np.all(np.isfinite(c)):
-            raise HeatcurvError(f"center must be 3 finite numbers, got {center!r}")
-        self.center = c
+            raise HeatcurvError(f"centre must be 3 finite numbers, got {centre!r}")
+        self.centre = c
+
+    @property
+    def center(self) -> np.ndarray:
+        """Deprecated alias of :attr:`centre`."""
+        warnings.warn("Sphere.center is deprecated, use .centre", DeprecationWarning, stacklevel=2)
+        return self.centre
 
     def _params(self):
-        return {"radius": self.radius, "center": tuple(self.center.tolist())}
+        return {"radius": self.radius, "centre": tuple(self.centre.tolist())}
 
     def _semi_axes(self):
         return self.radius, self.radius, self.radius
 
     def _angle_frame(self, p):
-        return p - self.center
+        return p - self.centre
 
     def position(self, u, v):
         u, v = _as_uv(u, v)
-        return self.center + self.radius * _radial(u, v)
+        return self.centre + self.radius * _radial(u, v)
 
     def normal(self, u, v):
         u, v = _as_uv(u, v)
@@ -167,15 +187,15 @@ class Sphere(_LatitudeLongitude):
         return 4.0 * math.pi * self.radius**2
 
     def implicit(self, points):
-        """Signed distance ``|p - center| - R``, shape (n,)."""
+        """Signed distance ``|p - centre| - R``, shape (n,)."""
         p = _as_points(points)
-        return np.linalg.norm(p - self.center, axis=1) - self.radius
+        return np.linalg.norm(p - self.centre, axis=1) - self.radius
 
     def bounding_box(self):
-        return self.center - self.radius, self.center + self.radius
+        return self.centre - self.radius, self.centre + self.radius
 
     def _intersect(self, o, d):
-        rel = o - self.center
+        rel = o - self.centre
         return _first_quadric_root(
             np.ones(o.shape[0]), _dot(rel, d), _dot(rel, rel) - self.radius**2
         )
