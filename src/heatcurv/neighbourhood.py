@@ -19,8 +19,8 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ._deprecation import renamed_keyword
 from .errors import HeatcurvError
-from .options import rename_aliases
 
 __all__ = [
     "Neighbourhood", "ball_neighbourhood", "knn_neighbourhood", "BLOCK_PAIRS", "rows_per_block", "block_ranges",
@@ -291,7 +291,7 @@ def ball_neighbourhood(
         One row per query.
     """
     if min_neighbors is not None:
-        min_neighbours = rename_aliases({"min_neighbors": min_neighbors}, "ball_neighbourhood")["min_neighbours"]
+        min_neighbours = renamed_keyword("ball_neighbourhood", "min_neighbours", None, "min_neighbors", min_neighbors)
     if tree is None:
         tree = cKDTree(points)
     if queries is None:

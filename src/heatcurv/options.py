@@ -21,11 +21,11 @@ aliases (:data:`DEPRECATED_ALIASES`).
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+from ._deprecation import renamed_keyword
 from .errors import HeatcurvError
 
 __all__ = [
@@ -302,17 +302,7 @@ def rename_aliases(kwargs: dict, where: str = "heatcurv", stacklevel: int = 3) -
     out = dict(kwargs)
     for alias, name in DEPRECATED_ALIASES.items():
         if alias in out:
-            value = out.pop(alias)
-            if value is None:
-                continue
-            if out.get(name) is not None:
-                raise HeatcurvError(f"give {name}= or its deprecated alias {alias}=, not both")
-            warnings.warn(
-                f"{where}: {alias}= is deprecated, use {name}= (British spelling, as res.{name})",
-                DeprecationWarning,
-                stacklevel=stacklevel,
-            )
-            out[name] = value
+            out[name] = renamed_keyword(where, name, out.get(name), alias, out.pop(alias), stacklevel=stacklevel + 1)
     return out
 
 

@@ -80,7 +80,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import HeatcurvError
-from ._common import PointCloud, _one_line, _output, _read_error, _renamed_keyword, _write_error
+from ._common import PointCloud, _one_line, _output, _read_error, _write_error, renamed_keyword
 from .arrays import _read_npy, _read_npz, _write_npz
 from .atomic import atomic_write
 from .las import _read_las, _write_las
@@ -235,7 +235,7 @@ def write_points(path, points, fields=None, *, normals=None, colours=None, sourc
         raise _write_error(
             path, f"unknown extension {ext or '(none)'!r}; supported: {' '.join(SUPPORTED_WRITE)}"
         )
-    colours = _renamed_keyword("write_points", "colours", colours, "colors", colors)
+    colours = renamed_keyword("write_points", "colours", colours, "colors", colors)
     output = _output(path, points, fields, normals, colours, source)
     directory = path.parent
     if not directory.is_dir():

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._deprecation import renamed_keyword
 from ..errors import HeatcurvError
 
 # canonical name (lower case, alphanumerics only) -> role
@@ -90,7 +91,7 @@ class PointCloud:
     ) -> None:
         self.points = points
         self.normals = normals
-        self.colours = _renamed_keyword("PointCloud", "colours", colours, "colors", colors)
+        self.colours = renamed_keyword("PointCloud", "colours", colours, "colors", colors)
         self.fields = {} if fields is None else fields
         self.path = path
         self.format = format
@@ -119,28 +120,6 @@ class PointCloud:
 
 
 # ----------------------------------------------------------------------------- helpers
-
-
-def _renamed_keyword(where: str, name: str, value, alias: str, alias_value):
-    """``value`` of keyword ``name``, or that of its deprecated alias (American spelling), warning.
-
-    The warning points at the caller of the function that calls this helper.
-
-    Raises
-    ------
-    HeatcurvError
-        When both spellings are given.
-    """
-    if alias_value is None:
-        return value
-    if value is not None:
-        raise HeatcurvError(f"{where}: give {name}= or its deprecated alias {alias}=, not both")
-    warnings.warn(
-        f"{where}: {alias}= is deprecated, use {name}= (British spelling)",
-        DeprecationWarning,
-        stacklevel=3,
-    )
-    return alias_value
 
 
 def _one_line(exc: BaseException) -> str:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import functools
 import math
-import warnings
 from numbers import Integral, Real
 
 import numpy as np
@@ -54,28 +53,6 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _unit(a: np.ndarray) -> np.ndarray:
     return a / np.linalg.norm(a, axis=1)[:, None]
-
-
-def _renamed_keyword(where: str, name: str, value, alias: str, alias_value):
-    """``value`` of keyword ``name``, or that of its deprecated alias (American spelling), warning.
-
-    The warning points at the caller of the function that calls this helper.
-
-    Raises
-    ------
-    HeatcurvError
-        When both spellings are given.
-    """
-    if alias_value is None:
-        return value
-    if value is not None:
-        raise HeatcurvError(f"{where}: give {name}= or its deprecated alias {alias}=, not both")
-    warnings.warn(
-        f"{where}: {alias}= is deprecated, use {name}= (British spelling)",
-        DeprecationWarning,
-        stacklevel=3,
-    )
-    return alias_value
 
 
 def _positive(name: str, value) -> float:

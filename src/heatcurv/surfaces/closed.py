@@ -7,6 +7,7 @@ import warnings
 
 import numpy as np
 
+from heatcurv._deprecation import renamed_keyword
 from heatcurv.errors import HeatcurvError
 
 from ._util import (
@@ -19,7 +20,6 @@ from ._util import (
     _longitude,
     _positive,
     _radial,
-    _renamed_keyword,
     _unit,
     _vec,
     _wrap,
@@ -144,7 +144,7 @@ class Sphere(_LatitudeLongitude):
 
     def __init__(self, radius: float = 1.0, centre=None, *, center=None):
         self.radius = _positive("radius", radius)
-        centre = _renamed_keyword("Sphere", "centre", centre, "center", center)
+        centre = renamed_keyword("Sphere", "centre", centre, "center", center)
         if centre is None:
             centre = (0.0, 0.0, 0.0)
         c = np.asarray(centre, dtype=np.float64)
