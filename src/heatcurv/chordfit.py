@@ -41,15 +41,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._kernels import chordfit as kernels
-from .neighbourhood import Neighbourhood
+from .neighbourhood import Neighbourhood, block_ranges, rows_per_block
 from .normals import tangent_frames
 from .principal import PrincipalCurvatures, tensor_to_principal
 
 __all__ = ["ChordFit", "chord_fit", "refine_normals", "ridge_solve", "segment_lstsq", "solve_normal_equations"]
-
-#: Pairs processed at once; bounds the temporary (pairs x unknowns^2) arrays.
-BLOCK_PAIRS = 400_000
-
 
 @dataclass(frozen=True)
 class ChordFit:
@@ -144,11 +140,9 @@ def segment_lstsq(
     G2 = np.zeros((n, p, p)) if contrast is not None else None
     counts = nbhd.counts
     # Rows are padded to a common length and multiplied as batched matrices
-    # (X^T W X per point); blocks of about BLOCK_PAIRS padded pairs bound the memory.
+    # (X^T W X per point); blocks of BLOCK_PAIRS padded pairs (the block-size policy) bound the memory.
     width = max(int(counts.max()) if n else 1, 1)
-    rows_per_block = max(1, BLOCK_PAIRS // width)
-    for lo in range(0, n, rows_per_block):
-        hi = min(n, lo + rows_per_block)
+    for lo, hi in block_ranges(n, rows_per_block(width)):
         a, b = nbhd.indptr[lo], nbhd.indptr[hi]
         if a == b:
             continue

@@ -23,14 +23,22 @@ from ._deprecation import renamed_keyword
 from .errors import HeatcurvError
 
 __all__ = [
-    "Neighbourhood", "ball_neighbourhood", "knn_neighbourhood", "BLOCK_PAIRS", "rows_per_block", "block_ranges",
+    "Neighbourhood", "ball_neighbourhood", "knn_neighbourhood", "BLOCK_PAIRS", "QUERY_PAIRS", "rows_per_block",
+    "block_ranges",
 ]
 
-#: The one block-size policy: a stage that streams over neighbour pairs holds at most
-#: about this many at once (k-d tree query results before narrowing, the numpy
-#: temporaries of ``Neighbourhood.blockwise``, a block of the default fit with its own
-#: neighbourhood: about 1 KB per pair at that peak, so ~1 GB).
+# The one block-size policy, in neighbour pairs. Every stage that streams over pairs
+# sizes its blocks with rows_per_block() from one of these two budgets.
+
+#: Pairs a streamed stage holds at once: a block of the default fit with its own
+#: neighbourhood (about 1 KB per pair at its peak, so ~1 GB), the numpy temporaries of
+#: ``Neighbourhood.blockwise`` and of ``chordfit.segment_lstsq``.
 BLOCK_PAIRS = 1_000_000
+
+#: Pairs one k-d tree query returns at once (scipy's int64 + float64 arrays, 16 bytes a
+#: pair, ~200 MB, before they are narrowed): 200 000 points at the default 60 neighbours.
+#: Smaller batches cost time (1M points, k = 60: 5.6 s at this size, 6.2 s at BLOCK_PAIRS).
+QUERY_PAIRS = 12_000_000
 
 
 def rows_per_block(pairs_per_row: int, block_pairs: int | None = None) -> int:
@@ -381,7 +389,7 @@ def knn_neighbourhood(
         Global index of each of ``points`` (a coarser level of a larger
         cloud); the returned ``indices`` are mapped through it.
     block : int, optional
-        Queries per k-d tree call (default: :data:`BLOCK_PAIRS` pairs' worth);
+        Queries per k-d tree call (default: :data:`QUERY_PAIRS` pairs' worth);
         bounds the temporaries.
 
     Returns
@@ -400,7 +408,7 @@ def knn_neighbourhood(
     n_global = int(np.max(source_index)) + 1 if source_index is not None else n_src
     indices = np.empty((m, k), dtype=_index_dtype(n_global))
     distances = np.empty((m, k))
-    for lo, hi in block_ranges(m, block or rows_per_block(k + 1)):
+    for lo, hi in block_ranges(m, block or rows_per_block(k + 1, QUERY_PAIRS)):
         dist, idx = tree.query(queries[lo:hi], k=k + 1, workers=workers)
         # drop the query itself where it is one of the points (distance 0: the points
         # are distinct, so nothing else is at 0), else the (k+1)-th neighbour
