@@ -62,15 +62,15 @@ PROGRESS_STAGES = {
 }
 
 #: Share (%) of a run's time per progress stage, for progress bars: measured on a 200 000-point
-#: random torus (default: clean; the fit's share grows with noise) on the project's 2-core machine.
+#: random torus on the project's 2-core machine (default: clean; the fit's share grows with noise).
 PROGRESS_WEIGHTS = {
     "paper": {
-        "validate": 1, "spacing": 2, "neighbours": 10, "areas": 50, "normals": 5, "orientation": 5,
-        "mean_curvature_normal": 5, "mean": 1, "principal": 20, "border": 1,
+        "validate": 2, "spacing": 1, "neighbours": 14, "areas": 50, "normals": 1, "orientation": 15,
+        "mean_curvature_normal": 0, "mean": 0, "principal": 17, "border": 0,
     },
     "default": {
-        "validate": 2, "neighbours": 12, "spacing": 1, "areas": 3, "normals": 6, "orientation": 10,
-        "mean_curvature_normal": 5, "kernel_choice": 6, "fit": 55,
+        "validate": 4, "neighbours": 26, "spacing": 0, "areas": 2, "normals": 6, "orientation": 12,
+        "mean_curvature_normal": 2, "kernel_choice": 2, "fit": 46,
     },
 }
 

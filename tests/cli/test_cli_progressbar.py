@@ -14,11 +14,12 @@ from heatcurv.progress import PROGRESS_STAGES
 def test_progress_bar_runs_over_the_stages(method):
     stream = stdio.StringIO()
     bar = StageProgress(enabled=True, stream=stream, method=method)
+    seen = []
     for stage in PROGRESS_STAGES[method]:
-        bar(stage, 0.0)
-        bar(stage, 0.5)
-        assert 0 < bar.done < 100 or stage == PROGRESS_STAGES[method][0]
-        bar(stage, 1.0)
+        for fraction in (0.0, 0.5, 1.0):
+            bar(stage, fraction)
+            seen.append(bar.done)
+    assert seen == sorted(seen) and 0 < seen[1] < seen[-4] < 100
     assert bar.done == pytest.approx(100.0)
     bar.close()
     assert PROGRESS_STAGES[method][-1] in stream.getvalue()
