@@ -19,7 +19,7 @@ def test_progress_bar_runs_over_the_stages(method):
         for fraction in (0.0, 0.5, 1.0):
             bar(stage, fraction)
             seen.append(bar.done)
-    assert seen == sorted(seen) and 0 < seen[1] < seen[-4] < 100
+    assert seen == sorted(seen) and 0 < seen[1] < 50 < seen[-1]  # never back, 0 -> 100 %
     assert bar.done == pytest.approx(100.0)
     bar.close()
     assert PROGRESS_STAGES[method][-1] in stream.getvalue()
