@@ -3,6 +3,7 @@
 Both methods share the operator and the normals::
 
     validate -> neighbours -> spacing -> areas            (heatcurv.operator)
+    -> kernel_check                                       (enough neighbours under the fit's kernel)
     -> normals -> orientation                             (PCA; or given; or a viewpoint)
     -> mean_curvature_normal                              (K = L x, eq 2.10)
 
@@ -35,6 +36,7 @@ from .border import border_points
 from .chordfit import ChordFit, chord_fit, refine_normals
 from .errors import HeatcurvError
 from .kernel import tapered_heat_weights
+from .kernel_check import check_kernel
 from .mean_curvature import mean_curvature
 from .neighbourhood import block_ranges
 from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
@@ -130,6 +132,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     with threads(opts.workers):
         op = HeatKernelOperator.from_points(points, opts, progress)  # validate, neighbours, spacing, areas
         clock = StageClock(progress, dict(op.timings))
+        with clock.stage("kernel_check"):
+            check_kernel(op.neighbourhood, op.h, opts)  # refuse a kernel that leaves nothing to fit
         nrm, planarity = _normal_stages(op, normals, vp, clock)
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()

@@ -27,6 +27,7 @@ __all__ = [
     "flat_top",
     "ball_taper",
     "tapered_heat_weights",
+    "effective_neighbours",
     "TAPER_START",
 ]
 
@@ -130,3 +131,26 @@ def tapered_heat_weights(nbhd: Neighbourhood, h: np.ndarray, areas: np.ndarray) 
     return kernels.tapered_heat_weights(
         nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, inv_h2, areas, TAPER_START
     )
+
+
+def effective_neighbours(nbhd: Neighbourhood, weights: np.ndarray) -> np.ndarray:
+    """Kish's effective number of neighbours of each row's weights, ``(sum_j w_ij)^2 / sum_j w_ij^2``.
+
+    As many as the row's neighbours when the weights are equal; about 1 when
+    one neighbour carries all the weight (a kernel much narrower than the
+    spacing). A least-squares fit with ``p`` unknowns needs more than ``p``.
+
+    Parameters
+    ----------
+    nbhd : Neighbourhood
+    weights : ndarray, shape (nnz,)
+        Non-negative pair weights.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        0 for rows without weight.
+    """
+    total = nbhd.segment_sum(weights)
+    squares = nbhd.segment_sum(weights * weights)
+    return np.where(squares > 0, total * total / np.where(squares > 0, squares, 1.0), 0.0)

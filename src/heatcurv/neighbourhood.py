@@ -226,6 +226,23 @@ class Neighbourhood:
             by_distance=self.by_distance,
         )
 
+    def take_rows(self, rows: np.ndarray) -> Neighbourhood:
+        """The neighbourhood of the given rows (e.g. a random subsample), in that order."""
+        rows = np.asarray(rows, dtype=np.int64)
+        counts = self.counts[rows]
+        indptr = np.zeros(rows.shape[0] + 1, dtype=np.int64)
+        np.cumsum(counts, out=indptr[1:])
+        # position of every kept pair in the full arrays: its row's start plus its rank in the row
+        pairs = np.repeat(self.indptr[rows], counts) + (np.arange(indptr[-1]) - np.repeat(indptr[:-1], counts))
+        return Neighbourhood(
+            indptr=indptr,
+            indices=self.indices[pairs],
+            distances=self.distances[pairs],
+            radius=self.radius[rows],
+            augmented=self.augmented[rows],
+            by_distance=self.by_distance,
+        )
+
     def blockwise(self, compute, max_pairs: int | None = None) -> np.ndarray:
         """Apply ``compute(lo, hi, block)`` to consecutive row blocks and stack the results.
 

@@ -28,6 +28,7 @@ STAGES = {
     "neighbours": "ball neighbourhood of radius alpha h (density spacing: the k nearest)",
     "spacing": "spacing h (eq 2.6, 2.7, or the density radius d_k / alpha)",
     "areas": "per-point areas (H A = 1, section 2.2, or the density estimate)",
+    "kernel_check": "the fit's kernel has enough effective neighbours (heatcurv.kernel_check)",
     # normals
     "normals": "PCA normals (or the caller's normals)",
     "orientation": "one consistent orientation (spanning tree) or towards the viewpoint",
@@ -52,12 +53,12 @@ FIT_STAGES = ("fit_neighbourhood", "fit_weights", "normal_refinement", "curvatur
 #: Names ``progress`` is called with, in order, per method (the fit's block stages report as ``"fit"``).
 PROGRESS_STAGES = {
     "paper": (
-        "validate", "spacing", "neighbours", "areas", "normals", "orientation", "mean_curvature_normal",
-        "mean", "principal", "border",
+        "validate", "spacing", "neighbours", "areas", "kernel_check", "normals", "orientation",
+        "mean_curvature_normal", "mean", "principal", "border",
     ),
     "default": (
-        "validate", "neighbours", "spacing", "areas", "normals", "orientation", "mean_curvature_normal",
-        "kernel_choice", "fit",
+        "validate", "neighbours", "spacing", "areas", "kernel_check", "normals", "orientation",
+        "mean_curvature_normal", "kernel_choice", "fit",
     ),
 }
 
@@ -65,11 +66,11 @@ PROGRESS_STAGES = {
 #: random torus on the project's 2-core machine (default: clean; the fit's share grows with noise).
 PROGRESS_WEIGHTS = {
     "paper": {
-        "validate": 2, "spacing": 1, "neighbours": 14, "areas": 50, "normals": 1, "orientation": 15,
+        "validate": 2, "spacing": 1, "neighbours": 14, "areas": 50, "kernel_check": 0, "normals": 1, "orientation": 15,
         "mean_curvature_normal": 0, "mean": 0, "principal": 17, "border": 0,
     },
     "default": {
-        "validate": 4, "neighbours": 26, "spacing": 0, "areas": 2, "normals": 6, "orientation": 12,
+        "validate": 4, "neighbours": 26, "spacing": 0, "areas": 2, "kernel_check": 0, "normals": 6, "orientation": 12,
         "mean_curvature_normal": 2, "kernel_choice": 2, "fit": 46,
     },
 }

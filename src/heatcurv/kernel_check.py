@@ -1,0 +1,255 @@
+"""Stage ``kernel_check``: refuse a kernel that cannot give an answer, warn about a doubtful one.
+
+Every fit of the estimator is a weighted least-squares problem over a point's
+ball, with the heat kernel as weights. Its options (``alpha``, ``m``,
+``neighbours``, ``scale``) set the kernel's width against the ball, and some
+combinations leave nothing to fit: ``alpha = 20`` with the density spacing
+makes the default kernel ``R / 20`` wide, so a median point's fit rests on about
+one neighbour (a unit sphere then gave a median mean curvature of 0.56, every
+point flagged unreliable, exit status 0); ``m = 0.05`` does the same to the
+paper's kernel (mean curvature off by 87 %, every point "reliable"). Before any
+curvature is computed, this stage measures the kernel on a random subsample of
+the operator's balls:
+
+* the **effective neighbours** of the fit's weights, ``(sum w)^2 / sum w^2``
+  (:func:`heatcurv.kernel.effective_neighbours`): a median below the fit's
+  floor (:data:`SUPPORT_LIMITS`) is an error that names the values that work
+  for this cloud; a median just above it, a warning. The floors are measured:
+  the chord fit interpolates (exact on clean data with any positive weights)
+  and needs little (random sphere and torus: ``alpha = 8``, 2.4 effective
+  neighbours, mean curvature 0.13 % off, 7 % of points unreliable;
+  ``alpha = 12``, 1.5, 4.7 % off, 84 % unreliable), the paper's tensor fit
+  and its quadratures average and need more (Fibonacci sphere: ``m = 0.1``,
+  4.5 effective neighbours, mean curvature 33 % off and every point
+  "reliable"; ``m = 0.15``, 5.4, 8 %; ``m = 1/4``, 7.1, 0.4 %);
+* the **kernel at the ball's edge**, relative to its centre: the paper's
+  quadratures assume the ball holds the whole kernel, so a kernel cut above
+  1e-3 of its peak warns (``alpha = 2`` at ``m = 1/4`` cuts it at 1.8 %; a
+  regular sphere's mean curvature is then 10 % off); the default's fit is
+  tapered to 0 at the edge by design and warns only when the kernel is
+  wider than the ball (edge above ``exp(-1)``), where the ball, not the heat
+  kernel, sets the weights.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import HeatcurvError, HeatcurvWarning
+from .kernel import effective_neighbours, heat_kernel_weights, tapered_heat_weights
+from .neighbourhood import Neighbourhood
+from .options import METHODS, Options
+
+__all__ = ["KernelSupport", "measure_support", "check_kernel", "SUPPORT_LIMITS"]
+
+#: Median effective neighbours of each fit below which it is an error, and below which a
+#: warning (measured: see the module docstring).
+SUPPORT_LIMITS = {"chord": (2.0, 3.0), "tensor": (5.0, 6.5)}
+#: Largest kernel weight at the ball's edge (relative to the centre's) the paper's
+#: untapered quadratures accept without a warning, and the tapered chord fit's.
+EDGE_WEIGHT_MAX = {"untapered": 1e-3, "tapered": math.exp(-1.0)}
+#: Balls the measurement runs on.
+SAMPLE = 2000
+
+
+@dataclass(frozen=True)
+class KernelSupport:
+    """What :func:`measure_support` measured.
+
+    Attributes
+    ----------
+    effective_neighbours : float
+        Median effective neighbours of the fit's weights over the subsample.
+    fit : {"chord", "tensor"}
+        The fit the kernel weights: the default's chord fit or the paper's tensor fit.
+    edge_weight : float
+        The heat kernel at the ball's edge relative to its centre,
+        ``exp(-alpha^2 / (4 m))`` (the chord fit: ``m = 1/4``).
+    tapered : bool
+        Whether the fit's weights are tapered to 0 at the ball's edge.
+    """
+
+    effective_neighbours: float
+    fit: str
+    edge_weight: float
+    tapered: bool
+
+
+def _fit_weights(sub: Neighbourhood, h: np.ndarray, options: Options, n_points: int) -> np.ndarray:
+    """The fit's pair weights on the sampled balls (areas left out: they only reweight mildly)."""
+    if options.fit == "chord":
+        # the chord fit: t = h^2 / 4 with h = R / alpha, tapered at the edge (heatcurv.kernel)
+        return tapered_heat_weights(sub, sub.radius / options.alpha, np.ones(n_points))
+    return heat_kernel_weights(sub, h, options.m)
+
+
+def _sample(nbhd: Neighbourhood, h: np.ndarray, options: Options, seed: int = 0):
+    """A random subsample of the balls the fit will use (the narrowest, for the chord fit)."""
+    n = nbhd.n_points
+    rows = np.sort(np.random.default_rng(seed).choice(n, min(SAMPLE, n), replace=False))
+    sub = nbhd.take_rows(rows)
+    if options.fit == "chord" and options.scale != "auto" and int(options.scale) < int(options.neighbours):
+        sub = sub.nearest(int(options.scale))  # a fixed kernel narrower than the operator's ball
+    return sub, h[rows]
+
+
+def measure_support(nbhd: Neighbourhood, h: np.ndarray, options: Options, seed: int = 0) -> KernelSupport:
+    """Effective neighbours and edge weight of the fit's kernel on a random subsample of balls.
+
+    Parameters
+    ----------
+    nbhd : Neighbourhood
+        The operator's neighbourhood (for the chord fit, its narrowest kernel).
+    h : ndarray, shape (n,)
+        The operator's spacing.
+    options : Options
+    seed : int, optional
+        Seed of the subsample.
+
+    Returns
+    -------
+    KernelSupport
+    """
+    sub, h_sub = _sample(nbhd, h, options, seed)
+    weights = _fit_weights(sub, h_sub, options, nbhd.n_points)
+    tapered = options.fit == "chord"
+    m = 0.25 if tapered else options.m
+    return KernelSupport(
+        effective_neighbours=float(np.median(effective_neighbours(sub, weights))),
+        fit="chord" if tapered else "tensor",
+        edge_weight=math.exp(-(options.alpha**2) / (4.0 * m)),
+        tapered=tapered,
+    )
+
+
+def _widest_alpha(sub: Neighbourhood, target: float, n_points: int, alpha: float) -> float | None:
+    """The largest ``alpha`` below ``alpha`` whose chord-fit kernel reaches ``target`` effective neighbours."""
+
+    def support(a):
+        w = tapered_heat_weights(sub, sub.radius / a, np.ones(n_points))
+        return np.median(effective_neighbours(sub, w))
+
+    lo, hi = 0.25, alpha
+    if support(lo) < target:
+        return None
+    for _ in range(30):  # bisection: the support falls as alpha grows
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if support(mid) >= target else (lo, mid)
+    return lo
+
+
+def _smallest_m(sub: Neighbourhood, h: np.ndarray, target: float, m: float) -> float | None:
+    """The smallest ``m`` above ``m`` whose heat kernel reaches ``target`` effective neighbours."""
+
+    def support(value):
+        return np.median(effective_neighbours(sub, heat_kernel_weights(sub, h, value)))
+
+    lo, hi = m, 1e3
+    if support(hi) < target:
+        return None
+    for _ in range(40):  # bisection in log m: the support grows with m
+        mid = math.sqrt(lo * hi)
+        lo, hi = (lo, mid) if support(mid) >= target else (mid, hi)
+    return hi
+
+
+def _advice(nbhd: Neighbourhood, h: np.ndarray, options: Options, target: float) -> str:
+    """What would give the fit ``target`` effective neighbours on this cloud."""
+    sub, h_sub = _sample(nbhd, h, options)
+    if options.fit == "chord":
+        best = _widest_alpha(sub, target, nbhd.n_points, options.alpha)
+        more = "more neighbours (neighbours=, or a wider scale=)"
+        return f"use alpha <= {best:.3g} or {more}" if best is not None else f"use {more}"
+    best = _smallest_m(sub, h_sub, target, options.m)
+    if best is None:
+        return "use a larger alpha (a wider ball)"
+    return f"use m >= {best:.3g} (and alpha >= {math.sqrt(4 * best * math.log(1e3)):.3g} so the ball holds its kernel)"
+
+
+#: The options that shape the fit's kernel.
+KERNEL_OPTIONS = ("alpha", "m", "spacing", "gamma", "k_local", "neighbours", "scale", "fit")
+
+
+def _options_chosen(options: Options) -> bool:
+    """Whether the caller changed the kernel from the method's preset (then a useless kernel is an error)."""
+    preset = METHODS[options.method]
+    return any(getattr(options, name) != getattr(preset, name) for name in KERNEL_OPTIONS if name != "scale") or (
+        options.fit == "chord" and options.scale != "auto"
+    )
+
+
+def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options) -> KernelSupport:
+    """Raise on a kernel that cannot give an answer, warn on a doubtful one (see the module docstring).
+
+    Parameters
+    ----------
+    nbhd : Neighbourhood
+        The operator's neighbourhood.
+    h : ndarray, shape (n,)
+        The operator's spacing.
+    options : Options
+
+    Returns
+    -------
+    KernelSupport
+
+    Raises
+    ------
+    HeatcurvError
+        When the median point's fit has fewer effective neighbours than the
+        fit's floor (:data:`SUPPORT_LIMITS`) with options the caller chose;
+        with the method's own preset (the paper's on a random cloud) this is
+        a warning: the literal method stays reproducible.
+
+    Warns
+    -----
+    HeatcurvWarning
+        When it has barely more, or the ball cuts the kernel (:data:`EDGE_WEIGHT_MAX`).
+    """
+    support = measure_support(nbhd, h, options)
+    n_eff = support.effective_neighbours
+    low, few = SUPPORT_LIMITS[support.fit]
+    what = f"alpha = {options.alpha:g}" + ("" if options.fit == "chord" else f", m = {options.m:g}")
+    fit = "chord fit" if options.fit == "chord" else "paper's tensor fit"
+    if n_eff < low:
+        message = (
+            f"{what}: the heat kernel is so narrow that a median point's fit rests on {n_eff:.2g} effective "
+            f"neighbours; the {fit} needs at least {low:g}: {_advice(nbhd, h, options, few)}"
+        )
+        if _options_chosen(options):
+            raise HeatcurvError(message)
+        # the method's own preset: the cloud, not the options, is the problem (the paper's eq 2.6
+        # spacing measures about half the spacing of a random cloud); reproduce it, loudly
+        warnings.warn(
+            f"method {options.method!r} does not suit this cloud ({message}); method='default' is built for "
+            "irregular clouds",
+            HeatcurvWarning,
+            stacklevel=3,
+        )
+    elif n_eff < few:
+        warnings.warn(
+            f"{what}: a median point's fit rests on only {n_eff:.3g} effective neighbours; expect noisy "
+            f"curvatures ({_advice(nbhd, h, options, few)})",
+            HeatcurvWarning,
+            stacklevel=3,
+        )
+    limit = EDGE_WEIGHT_MAX["tapered" if support.tapered else "untapered"]
+    if support.edge_weight > limit:
+        if support.tapered:
+            message = (
+                f"alpha = {options.alpha:g} makes the heat kernel wider than its ball (it is still "
+                f"{support.edge_weight:.2g} of its peak at the edge): the ball, not the kernel, sets the fit's "
+                "weights; alpha >= 1 keeps the kernel inside"
+            )
+        else:
+            need = math.sqrt(4 * options.m * math.log(1.0 / limit))
+            message = (
+                f"{what}: the ball cuts the heat kernel at {support.edge_weight:.2g} of its peak, which biases "
+                f"the paper's quadratures (areas, mean curvature); use alpha >= {need:.3g} at this m"
+            )
+        warnings.warn(message, HeatcurvWarning, stacklevel=3)
+    return support
