@@ -8,6 +8,7 @@ from heatcurv import surfaces
 from heatcurv.progress import FIT_STAGES, PROGRESS_STAGES, PROGRESS_WEIGHTS, STAGES, StageClock
 
 OPERATOR = ["validate", "neighbours", "spacing", "areas"]
+CHECK = ["kernel_check"]
 NORMALS = ["normals", "orientation", "mean_curvature_normal"]
 
 
@@ -24,10 +25,10 @@ def test_default_method_times_every_stage_under_its_own_name():
     calls = []
     res = heatcurv.estimate(sample.points, progress=lambda stage, fraction: calls.append((stage, fraction)))
     started = [s for s, f in calls if f == 0.0]
-    assert started == OPERATOR + NORMALS + ["kernel_choice"]
+    assert started == OPERATOR + CHECK + NORMALS + ["kernel_choice"]
     assert all(0.0 <= f <= 1.0 for _, f in calls) and calls[-1] == ("fit", 1.0)
     assert all(s in PROGRESS_STAGES["default"] for s, _ in calls)
-    assert list(res.info["timings"]) == OPERATOR + NORMALS + ["kernel_choice", *FIT_STAGES]
+    assert list(res.info["timings"]) == OPERATOR + CHECK + NORMALS + ["kernel_choice", *FIT_STAGES]
     assert list(res.info["timings"]) == [s for s in STAGES if s in res.info["timings"]]  # the declared order
     assert all(t >= 0 for t in res.info["timings"].values())
     single = heatcurv.estimate(sample.points, workers=1)
@@ -45,7 +46,7 @@ def test_paper_method_stages():
     sample = surfaces.Sphere().sample(2000, "fibonacci")
     calls = []
     res = heatcurv.estimate(sample.points, method="paper", progress=lambda s, f: calls.append((s, f)))
-    expected = ["validate", "spacing", "neighbours", "areas", *NORMALS, "mean", "principal", "border"]
+    expected = ["validate", "spacing", "neighbours", "areas", *CHECK, *NORMALS, "mean", "principal", "border"]
     assert [s for s, f in calls if f == 0.0] == expected == list(PROGRESS_STAGES["paper"])
     assert list(res.info["timings"]) == expected
 
