@@ -38,14 +38,14 @@ from .errors import HeatcurvError
 from .kernel import tapered_heat_weights
 from .kernel_check import check_kernel
 from .mean_curvature import mean_curvature
-from .neighbourhood import block_ranges
+from .neighbourhood import BLOCK_PAIRS, block_ranges
 from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
 from .operator import HeatKernelOperator
 from .options import rename_aliases, resolve_options
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
 from .results import CurvatureResult
-from .scale import FitLevel, ScaleReport, select_scale
+from .scale import FitLevel, ScaleReport, select_form, select_scale
 from .validation import prepare_normals
 
 __all__ = ["CurvatureResult", "estimate"]
@@ -205,20 +205,27 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
     # fit weights W_ij A_j: negative areas (the paper's H A = 1 on irregular samples) get weight
     # zero, as in the paper's fit; the density areas are positive by construction
     fit_areas = np.maximum(op.areas, 0.0)
+    fixed_radius = opts.radius is not None
     with clock.stage("kernel_choice"):
-        choice = select_scale(
-            X, op.tree, nrm, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
-            fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, **asdict(tuning),
-        )
+        if fixed_radius:  # radius=: the operator's balls are the fit's; only the fit's form is chosen
+            choice = select_form(X, base, nrm, fit_areas, alpha=opts.alpha, **asdict(tuning))
+        else:
+            choice = select_scale(
+                X, op.tree, nrm, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
+                fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, **asdict(tuning),
+            )
     scale = choice.scale
     # the operator's neighbourhood already is the kernel's when the density ball holds k points
-    reuse_base = opts.spacing == "density" and scale.k == int(opts.neighbours)
+    reuse_base = fixed_radius or (opts.spacing == "density" and scale.k == int(opts.neighbours))
+    # a kernel wider than the operator's counts its own density for the areas
+    own_density = not fixed_radius and scale.k > opts.neighbours
     with clock.stage("fit_neighbourhood", report=False):
-        level = FitLevel.for_kernel(X, op.tree, scale.k, tuning.k_fit, tuning.seed)
+        level = None if fixed_radius else FitLevel.for_kernel(X, op.tree, scale.k, tuning.k_fit, tuning.seed)
+    blocks = base.row_blocks(BLOCK_PAIRS) if fixed_radius else block_ranges(n, level.rows_per_block())
 
     areas, border, radius = np.empty(n), np.empty(n, dtype=bool), np.empty(n)
     fits = []
-    for lo, hi in block_ranges(n, level.rows_per_block()):
+    for lo, hi in blocks:
         centres = X[lo:hi]
         with clock.stage("fit_neighbourhood", report=False):
             nbhd = base.rows_slice(lo, hi) if reuse_base else level.neighbourhood(centres, opts.workers)
@@ -232,7 +239,8 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
         with clock.stage("curvature_fit", report=False):
             fit = chord_fit(X, nbhd, start, weights, denoise=scale.denoise, centres=centres, passes=1)
         with clock.stage("area_correction", report=False):
-            areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, scale.k, level.fraction)
+            fraction = 1.0 if level is None else level.fraction
+            areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, fraction)
         with clock.stage("border", report=False):
             border[lo:hi] = border_points(X, nbhd, fit.normals, taper=opts.taper, centres=centres)
         radius[lo:hi] = nbhd.radius
@@ -240,10 +248,13 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
         clock.report("fit", hi / n)
     fit = ChordFit.concatenate(fits)
     pc = fit.principal
-    return _Fitted(fit.normals, pc.mean, pc, areas, border, ScaleReport.from_choice(choice, radius, opts.alpha))
+    report = ScaleReport.from_choice(choice, radius, opts.alpha, opts.radius)
+    return _Fitted(fit.normals, pc.mean, pc, areas, border, report)
 
 
-def _corrected_areas(op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordFit, k: int, fraction: float):
+def _corrected_areas(
+    op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordFit, own_density: bool, fraction: float
+) -> np.ndarray:
     """Stage ``area_correction``: areas of points ``lo:hi`` on the fit's kernel, shape (hi - lo,).
 
     A kernel wider than the operator's counts its own, less noisy, density
@@ -251,13 +262,12 @@ def _corrected_areas(op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordF
     is corrected by the fitted curvatures (:func:`heatcurv.areas.ball_area_factor`).
     The paper's areas (``H A = 1``) are kept as they are.
     """
-    opts = op.options
-    if opts.area_method != "density":
+    if op.options.area_method != "density":
         return op.areas[lo:hi]
-    if k <= opts.neighbours:
-        own, area_radius = op.areas[lo:hi], op.neighbourhood.radius[lo:hi]
-    else:
+    if own_density:
         own, area_radius = density_areas(nbhd, fraction=fraction), nbhd.radius
+    else:
+        own, area_radius = op.areas[lo:hi], op.neighbourhood.radius[lo:hi]
     return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2)
 
 

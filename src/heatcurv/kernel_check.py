@@ -92,7 +92,8 @@ def _sample(nbhd: Neighbourhood, h: np.ndarray, options: Options, seed: int = 0)
     n = nbhd.n_points
     rows = np.sort(np.random.default_rng(seed).choice(n, min(SAMPLE, n), replace=False))
     sub = nbhd.take_rows(rows)
-    if options.fit == "chord" and options.scale != "auto" and int(options.scale) < int(options.neighbours):
+    fixed = options.radius is None and options.scale != "auto"
+    if options.fit == "chord" and fixed and int(options.scale) < int(options.neighbours):
         sub = sub.nearest(int(options.scale))  # a fixed kernel narrower than the operator's ball
     return sub, h[rows]
 
@@ -171,7 +172,7 @@ def _advice(nbhd: Neighbourhood, h: np.ndarray, options: Options, target: float)
 
 
 #: The options that shape the fit's kernel.
-KERNEL_OPTIONS = ("alpha", "m", "spacing", "gamma", "k_local", "neighbours", "scale", "fit")
+KERNEL_OPTIONS = ("alpha", "m", "spacing", "gamma", "k_local", "neighbours", "radius", "scale", "fit")
 
 
 def _options_chosen(options: Options) -> bool:

@@ -5,8 +5,10 @@ under its own name:
 
     validate    checks, centring, duplicate merging, k-d tree leaf order
     neighbours  ball neighbourhood (radius ``alpha h``; the density spacing's
-                ball is the ``neighbours`` nearest points, one query)
-    spacing     ``h``: eq 2.6, eq 2.7, or the density radius ``d_k / alpha``
+                ball is the ``neighbours`` nearest points, one query; with
+                ``radius=``, the ball of that radius)
+    spacing     ``h``: eq 2.6, eq 2.7, the density radius ``d_k / alpha``, or
+                ``radius / alpha``
     areas       per-point areas: ``H A = 1`` (section 2.2) or the density estimate
 
 The object then answers the paper's operator questions without recomputing
@@ -179,7 +181,7 @@ class HeatKernelOperator:
 def _prepare(points, options: Options) -> PreparedPoints:
     """Validated, centred, distinct points in k-d tree leaf order (cache-friendly gathers)."""
     need = int(options.min_neighbours) + 1
-    if options.spacing == "density" or options.fit == "chord":
+    if options.radius is None and (options.spacing == "density" or options.fit == "chord"):
         need = max(need, int(options.neighbours) + 1)
     prepared = prepare_points(points, min_points=need)
     return prepared.reordered(cKDTree(prepared.points).indices)
@@ -188,7 +190,16 @@ def _prepare(points, options: Options) -> PreparedPoints:
 def _neighbourhood_and_spacing(prepared: PreparedPoints, tree: cKDTree, options: Options, clock: StageClock):
     """The ball neighbourhood and the spacing ``h``, each timed as its own stage."""
     X = prepared.points
-    if options.spacing == "density":
+    if options.radius is not None:
+        # one physical ball for every point: h = radius / alpha
+        with clock.stage("spacing"):
+            h = np.full(X.shape[0], float(options.radius) / options.alpha)
+        with clock.stage("neighbours"):
+            nbhd = ball_neighbourhood(
+                X, float(options.radius), tree=tree, min_neighbours=int(options.min_neighbours),
+                workers=options.workers,
+            )
+    elif options.spacing == "density":
         # the ball of radius d_k = alpha h holds the k nearest neighbours: one query gives both
         with clock.stage("neighbours"):
             nbhd = knn_neighbourhood(X, int(options.neighbours), tree=tree, workers=options.workers)

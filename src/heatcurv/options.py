@@ -77,7 +77,22 @@ def _workers(value):
     return None
 
 
-def _option(default, help: str, *, choices=None, check=None, paper: str = "", cli: bool = True):
+def _optional_positive(name: str):
+    """A check that ``value`` is None or a finite positive number."""
+    positive = _positive(name, "")
+
+    def check(value):
+        if value is None:
+            return None
+        problem = positive(value)
+        return None if problem is None else f"{name} must be a positive length (or None), got {value}"
+
+    return check
+
+
+def _option(
+    default, help: str, *, choices=None, check=None, paper: str = "", cli: bool = True, type=None  # noqa: A002
+):
     """A dataclass field of :class:`Options` with its documentation and validation.
 
     Parameters
@@ -94,8 +109,10 @@ def _option(default, help: str, *, choices=None, check=None, paper: str = "", cl
         The paper's equation or section that defines the parameter.
     cli : bool, optional
         Whether the command line exposes it as ``--name``.
+    type : type, optional
+        The value's type where the default (None) does not show it.
     """
-    meta = {"help": help, "choices": choices, "check": check, "paper": paper, "cli": cli}
+    meta = {"help": help, "choices": choices, "check": check, "paper": paper, "cli": cli, "type": type}
     return field(default=default, metadata=meta)
 
 
@@ -183,6 +200,13 @@ class Options:
     neighbours : int
         Neighbours in the ball of the density spacing, and the narrowest
         kernel of the chord fit.
+    radius : float or None
+        One ball radius for every point, in the cloud's length unit (as PCL's
+        or CloudCompare's radius), instead of a neighbour count: the operator
+        and the chord fit use the ball of this radius, ``h = radius / alpha``.
+        Points whose ball holds fewer than ``min_neighbours`` get their
+        nearest ones (and are unreliable). None: the ball holds ``neighbours``
+        points (density spacing) and the fit's kernel is chosen from the noise.
     area_method : {"system", "density"}
         Areas from the paper's ``H A = 1`` (section 2.2) or from the
         flat-top density estimate (:func:`heatcurv.areas.density_areas`).
@@ -233,6 +257,10 @@ class Options:
     neighbours: int = _option(
         60, "neighbours in the density ball, and the narrowest kernel of the chord fit",
         check=_int_at_least("neighbours", 20, " (the chord fit has 9 unknowns)"),
+    )
+    radius: float | None = _option(
+        None, "one ball radius for every point, in the cloud's length unit, instead of a neighbour count "
+        "(the fit's kernel then does not adapt to the noise)", check=_optional_positive("radius"), type=float,
     )
     area_method: str = _option(
         "density", "per-point areas: paper's H A = 1 (system) or density estimate", choices=("system", "density"),

@@ -41,7 +41,9 @@ from .chordfit import ChordFit, chord_fit
 from .kernel import tapered_heat_weights
 from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
 
-__all__ = ["Scale", "ScaleChoice", "ScaleReport", "FitLevel", "fit_blocks", "fit_at_scale", "select_scale"]
+__all__ = [
+    "Scale", "ScaleChoice", "ScaleReport", "FitLevel", "fit_blocks", "fit_at_scale", "select_scale", "select_form",
+]
 
 
 @dataclass(frozen=True)
@@ -101,6 +103,8 @@ class ScaleReport:
         99th percentile of the fit's ball radii, length units.
     median_h : float
         Median kernel spacing ``h = R / alpha`` of the fit.
+    median_radius : float
+        Median ball radius ``R`` of the fit, length units (with ``radius=``: that radius).
     sigma : float
         Estimated noise, length units.
     relative_noise : float
@@ -119,19 +123,29 @@ class ScaleReport:
     relative_noise: float
     candidates: list = field(default_factory=list)
     sd: list = field(default_factory=list)
+    median_radius: float = float("nan")
 
     @classmethod
-    def from_choice(cls, choice: ScaleChoice, radius: np.ndarray, alpha: float) -> ScaleReport:
-        """The report of ``choice`` fitted with ball radii ``radius`` (shape (n,))."""
+    def from_choice(
+        cls, choice: ScaleChoice, radius: np.ndarray, alpha: float, fixed_radius: float | None = None
+    ) -> ScaleReport:
+        """The report of ``choice`` fitted with ball radii ``radius`` (shape (n,)).
+
+        With ``fixed_radius`` (``radius=``) the label is ``"<form>-r<radius>"``.
+        """
+        label = choice.scale.label
+        if fixed_radius is not None:
+            label = f"{'denoised' if choice.scale.denoise else 'chord'}-r{fixed_radius:g}"
         return cls(
             k=choice.scale.k,
-            fit=choice.scale.label,
+            fit=label,
             radius=float(np.percentile(radius, 99)),
             median_h=float(np.median(radius / alpha)),
             sigma=choice.sigma,
             relative_noise=choice.relative_noise,
-            candidates=[c.label for c in choice.candidates],
+            candidates=[label] if fixed_radius is not None else [c.label for c in choice.candidates],
             sd=choice.sd,
+            median_radius=float(np.median(radius)),
         )
 
     def __getitem__(self, key: str):
@@ -324,6 +338,61 @@ def fit_at_scale(
     return ChordFit.concatenate(fits), nbhd.radius / alpha, nbhd, fractions[-1]
 
 
+def _is_clean(sigma_chord: float, sigma: float, h0: float, clean_ratio: float) -> bool:
+    """The noise gate: the chord fit's residual is not clearly above the denoised fit's."""
+    # large noise saturates the chord residual (|kN| <= 1/|z|), so the ratio alone
+    # cannot tell; past sigma/h = 1 % no clean cloud gets (measured <= 3.5e-4)
+    return sigma_chord <= clean_ratio * sigma and sigma < 0.01 * h0
+
+
+def select_form(
+    points: np.ndarray,
+    nbhd: Neighbourhood,
+    normals: np.ndarray,
+    areas: np.ndarray,
+    *,
+    alpha: float = 2.0,
+    n_sub: int = 2000,
+    clean_ratio: float = 1.6,
+    seed: int = 0,
+    **_ignored,
+) -> ScaleChoice:
+    """The noise gate alone, on a neighbourhood the caller fixed (``radius=``): chord or denoised fit.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        Distinct centred points.
+    nbhd : Neighbourhood
+        The fixed balls of every point (e.g. one physical radius).
+    normals : ndarray, shape (n, 3)
+        Oriented starting normals.
+    areas : ndarray, shape (n,)
+        Per-point areas.
+    alpha, n_sub, clean_ratio, seed
+        As :func:`select_scale` (its other tuning constants do not apply).
+
+    Returns
+    -------
+    ScaleChoice
+        ``scale.k`` is the median neighbour count of the balls.
+    """
+    n = points.shape[0]
+    sub = np.sort(np.random.default_rng(seed).choice(n, min(n_sub, n), replace=False))
+    balls = nbhd.take_rows(sub)
+    h = balls.radius / alpha
+    weights = tapered_heat_weights(balls, h, areas)
+    chord = chord_fit(points, balls, normals[sub], weights, centres=points[sub])
+    denoised = chord_fit(points, balls, normals[sub], weights, centres=points[sub], denoise=True)
+    sigma, h0 = float(np.median(denoised.sigma)), float(np.median(h))
+    clean = _is_clean(float(np.median(chord.sigma)), sigma, h0, clean_ratio)
+    k = int(np.median(nbhd.counts))
+    return ScaleChoice(
+        scale=Scale(k, not clean), sigma=sigma, relative_noise=sigma / h0, candidates=[Scale(k, not clean)], sd=[0.0],
+        mean_abs=float(np.mean(np.abs((chord if clean else denoised).principal.mean))),
+    )
+
+
 def select_scale(
     points: np.ndarray,
     tree: cKDTree,
@@ -424,9 +493,7 @@ def select_scale(
             sigma = float(np.median(fit.sigma))
             h0 = float(np.median(h))
             sigma_chord = float(np.median(chord.sigma))
-            # large noise saturates the chord residual (|kN| <= 1/|z|), so the ratio alone
-            # cannot tell; past sigma/h = 1 % no clean cloud gets (measured <= 3.5e-4)
-            clean = sigma_chord <= clean_ratio * sigma and sigma < 0.01 * h0
+            clean = _is_clean(sigma_chord, sigma, h0, clean_ratio)
             if clean or fixed_k is not None:
                 k_use = base_k if fixed_k is None else int(fixed_k)
                 return ScaleChoice(

@@ -63,3 +63,11 @@ def test_help_names_both_presets():
     text = " ".join(parser.format_help().split())
     assert "(default method: 2; paper: 4)" in text  # --alpha
     assert "(default: %(default)s)" not in text and "not used" in text  # the paper's fit has no kernel
+
+
+def test_radius_flag(capsys):
+    assert estimator_kwargs(parse("--radius", "0.25"))["radius"] == 0.25
+    assert estimator_kwargs(parse())["radius"] is None
+    with pytest.raises(SystemExit):
+        parse("--radius", "-1")
+    assert "argument --radius: radius must be a positive length (or None), got -1.0" in capsys.readouterr().err

@@ -37,11 +37,12 @@ def _workers(text: str) -> int:
 def _parser_of(name: str, meta: dict):
     """The argparse type of option ``name``: its Python type, then the option's own check."""
     default = getattr(METHODS["default"], name)
+    is_float = meta.get("type") is float or isinstance(default, float)
 
     def parse(text: str):
         if name == "scale" and text == "auto":
             value = "auto"
-        elif isinstance(default, float):
+        elif is_float:
             value = finite_float(text)
         else:  # int options, and scale's neighbour count
             try:
@@ -103,7 +104,7 @@ def add_estimator_options(parser, *, viewpoint: bool = True) -> None:
             kwargs["choices"] = meta["choices"]
         else:
             kwargs["type"] = _parser_of(f.name, meta)
-            float_option = isinstance(getattr(METHODS["default"], f.name), float)
+            float_option = f.metadata.get("type") is float or isinstance(getattr(METHODS["default"], f.name), float)
             kwargs["metavar"] = "auto|K" if f.name == "scale" else "X" if float_option else "K"
         group.add_argument(*option_flags()[f.name], **kwargs)
     if viewpoint:
