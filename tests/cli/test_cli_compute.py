@@ -26,17 +26,21 @@ def test_compute_sphere_mean_curvature_is_one(sphere_fields_ply):
     assert np.all(np.einsum("ij,ij->i", cloud.normals, cloud.points) > 0.99)
 
 
-@pytest.mark.parametrize("ext", [".ply", ".las", ".laz", ".csv", ".npz"])
+@pytest.mark.parametrize(
+    "ext,float64",
+    [(".ply", False), (".las", False), (".laz", False), (".csv", False), (".npz", False), (".ply", True),
+     (".laz", True)],
+)
 def test_compute_round_trip_keeps_values_and_properties(
-    workdir, sphere_ply, sphere_fields_ply, sphere_cloud, sphere_reference, ext
+    workdir, sphere_ply, sphere_fields_ply, sphere_cloud, sphere_reference, ext, float64
 ):
     points, colors, intensity = sphere_cloud
-    if ext == ".ply":
+    if ext == ".ply" and not float64:
         out, out_path = sphere_fields_ply
         assert out.returncode == 0, out.stderr
     else:
-        out_path = workdir / f"round_trip{ext}"
-        out = run("compute", sphere_ply, "-o", out_path, "--quiet")
+        out_path = workdir / f"round_trip{'_64' if float64 else ''}{ext}"
+        out = run("compute", sphere_ply, "-o", out_path, "--quiet", *(["--float64"] if float64 else []))
         assert out.returncode == 0, out.stderr
         assert out.stdout == ""  # --quiet
     back = io.read_points(out_path)
@@ -45,17 +49,45 @@ def test_compute_round_trip_keeps_values_and_properties(
     np.testing.assert_array_equal(back.colours, colors)
     np.testing.assert_array_equal(back.fields["intensity"], intensity)
     atol = 2e-6 if ext in (".las", ".laz") else 0.0  # LAS stores scaled integer coordinates
-    np.testing.assert_allclose(back.points, points, rtol=0, atol=atol)
-    # every field, as computed in this process
-    np.testing.assert_allclose(back.normals, res.normals, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(back.points, points, rtol=0, atol=atol)  # coordinates never narrowed
+    # every field, as computed in this process: float32 in binary formats unless --float64
+    narrow = ext != ".csv" and not float64
+    rtol = 1.2e-7 if narrow else 1e-9  # float32 keeps 7 significant digits
+    expected_type = np.float32 if narrow else np.float64
+    assert back.normals.dtype == np.float64  # read as float64, whatever the file stores
+    assert back.fields["mean"].dtype == expected_type
+    np.testing.assert_allclose(back.normals, res.normals, rtol=rtol, atol=1e-12)
     for name in ("mean", "gaussian", "k1", "k2", "area"):
-        np.testing.assert_allclose(back.fields[name], getattr(res, name), rtol=1e-9, atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(back.fields[name], getattr(res, name), rtol=rtol, atol=1e-12, err_msg=name)
     for vector in ("d1", "d2"):
         stacked = np.column_stack([back.fields[vector + axis] for axis in "xyz"])
-        np.testing.assert_allclose(stacked, getattr(res, vector), rtol=1e-9, atol=1e-12, err_msg=vector)
+        np.testing.assert_allclose(stacked, getattr(res, vector), rtol=rtol, atol=1e-12, err_msg=vector)
     np.testing.assert_array_equal(back.fields["reliable"].astype(bool), res.reliable)
+    assert ext == ".csv" or back.fields["reliable"].dtype.kind in "bu"  # text is read as float64
     names = [name for name in back.fields if name in WRITTEN]
     assert names == [name for name in WRITTEN if name not in ("nx", "ny", "nz")]
+
+
+def test_float32_by_default_makes_a_laz_much_smaller(workdir, sphere_fields_ply):
+    """The issue: every field was float64, a LAZ grew 10x; float32 by default, --float64 on request."""
+    out, ply = sphere_fields_ply
+    assert out.returncode == 0, out.stderr
+    source = workdir / "sphere_source.laz"
+    cloud = io.read_points(ply)
+    io.write_points(source, cloud.points, {"intensity": cloud.fields["intensity"]}, colours=cloud.colours)
+    sizes = {}
+    for flag in ((), ("--float64",)):
+        path = workdir / f"sizes{''.join(flag)}.laz"
+        done = run("compute", source, "-o", path, "-q", *flag)
+        assert done.returncode == 0, done.stderr
+        sizes[flag] = path.stat().st_size
+        import laspy
+
+        written = laspy.read(path).point_format
+        kind = np.float64 if flag else np.float32
+        assert written.dimension_by_name("mean").dtype == kind
+        assert written.dimension_by_name("reliable").dtype == np.uint8
+    assert sizes[()] < 0.6 * sizes[("--float64",)], sizes
 
 
 def test_ply_output_has_exactly_the_named_properties(sphere_fields_ply):
@@ -72,8 +104,11 @@ def test_compute_field_subset_and_features(tmp_path, sphere_ply):
     out = run("compute", sphere_ply, "-o", out_path, "--fields", "mean,k1,d1,feature_score", "-q")
     assert out.returncode == 0, out.stderr
     with np.load(out_path) as archive:
-        assert sorted(archive.files) == sorted(["points", "colors", "intensity", "mean", "k1", "d1", "feature_score"])
-        assert archive["d1"].shape == (3000, 3)
+        # the documented field names, one array each, as in every other format
+        assert archive.files == [
+            "points", "red", "green", "blue", "intensity", "mean", "k1", "d1x", "d1y", "d1z", "feature_score"
+        ]
+        assert archive["d1x"].shape == (3000,) and archive["mean"].dtype == np.float32
     out = run("compute", sphere_ply, "-o", tmp_path / "features.ply", "--features", "-q")
     back = io.read_points(tmp_path / "features.ply")
     assert list(back.fields)[-3:] == ["reliable", "feature", "feature_score"]
@@ -100,13 +135,18 @@ def test_skip_nonfinite_rows(tmp_path, sphere_cloud):
     points[[5, 70]] = np.nan
     path = tmp_path / "holes.npy"
     np.save(path, points)
-    out = run("compute", path, "-o", tmp_path / "out.ply", "--skip-nonfinite", "-q")
+    out = run(
+        "compute", path, "-o", tmp_path / "out.ply", "--skip-nonfinite", "-q", "--fields", "mean,reliable,neighbours"
+    )
     assert out.returncode == 0, out.stderr
     back = io.read_points(tmp_path / "out.ply")
     finite = np.isfinite(points).all(axis=1)
     assert np.isnan(back.fields["mean"][~finite]).all() and not back.fields["reliable"][~finite].any()
+    # counts stay integers: 0 neighbours on the rows not computed (not NaN in a float column)
+    assert back.fields["neighbours"].dtype == np.int32 and not back.fields["neighbours"][~finite].any()
     res = heatcurv.estimate(points[finite])
-    np.testing.assert_allclose(back.fields["mean"][finite], res.mean, rtol=1e-9)
+    np.testing.assert_allclose(back.fields["mean"][finite], res.mean, rtol=1.2e-7)
+    np.testing.assert_array_equal(back.fields["neighbours"][finite], res.neighbours)
 
 
 def test_verbose_prints_stage_timings_and_the_kernel(workdir, sphere_ply):
@@ -116,3 +156,90 @@ def test_verbose_prints_stage_timings_and_the_kernel(workdir, sphere_ply):
     # the default method's fit stage (named "principal" before the core named each stage of the chord fit)
     assert re.search(r"curvature_fit\s+\d+\.\d+ s", out.stdout), out.stdout
     assert "chord-fit kernel: chord-60 (60 neighbours" in out.stdout
+
+
+def test_ply_mesh_keeps_its_faces_and_other_formats_warn(tmp_path):
+    import plyfile
+
+    sample = heatcurv.surfaces.Sphere().sample(800, "fibonacci")
+    vertex = np.zeros(800, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"), ("quality", "f4")])
+    for k, axis in enumerate("xyz"):
+        vertex[axis] = sample.points[:, k]
+    faces = np.zeros(500, dtype=[("vertex_indices", "i4", (3,))])
+    faces["vertex_indices"] = np.random.default_rng(1).integers(0, 800, (500, 3))
+    mesh = tmp_path / "mesh.ply"
+    plyfile.PlyData([plyfile.PlyElement.describe(vertex, "vertex"), plyfile.PlyElement.describe(faces, "face")]).write(
+        str(mesh)
+    )
+    out = run("compute", mesh, "-o", tmp_path / "out.ply", "-q")
+    assert out.returncode == 0 and out.stderr == "", out.stderr
+    written = plyfile.PlyData.read(str(tmp_path / "out.ply"))
+    np.testing.assert_array_equal(np.vstack(written["face"].data["vertex_indices"]), faces["vertex_indices"])
+    assert written["vertex"].data.dtype["x"] == np.dtype("<f4")  # the input's coordinate type
+    for ext in (".laz", ".csv"):
+        out = run("compute", mesh, "-o", tmp_path / f"out{ext}", "-q")
+        assert out.returncode == 0, out.stderr
+        assert out.stderr == (
+            f"heatcurv: warning: the 500 faces of {mesh} are not written to {tmp_path / f'out{ext}'} "
+            f"({ext} holds points only; write a .ply to keep them)\n"
+        )
+
+
+@pytest.mark.parametrize("spelling", ["same", "dotted", "symlink", "hardlink"])
+def test_output_equal_to_the_input_is_refused(tmp_path, sphere_ply, spelling):
+    import os
+    import shutil
+
+    from cli_helpers import assert_one_line_error
+
+    directory = tmp_path / "data"
+    directory.mkdir()
+    original = directory / "scan.ply"
+    shutil.copy(sphere_ply, original)
+    before = original.read_bytes()
+    output = {
+        "same": original,
+        "dotted": directory / ".." / "data" / "." / "scan.ply",
+        "symlink": tmp_path / "link.ply",
+        "hardlink": tmp_path / "hard.ply",
+    }[spelling]
+    if spelling == "symlink":
+        output.symlink_to(original)
+    elif spelling == "hardlink":
+        os.link(original, output)
+    for command in (["compute"], ["features"]):
+        out = run(*command, original, "-o", output)
+        assert_one_line_error(out)
+        assert "it is the input file" in out.stderr and "choose another output name" in out.stderr
+        assert "read " not in out.stdout  # refused before reading
+    assert original.read_bytes() == before
+    assert sorted(p.name for p in directory.iterdir()) == ["scan.ply"]
+
+
+def test_unwritable_output_fails_before_reading(tmp_path, sphere_ply, monkeypatch, capsys):
+    from cli_helpers import assert_one_line_error
+
+    from heatcurv.cli import main, steps
+
+    blocker = tmp_path / "not_a_directory"
+    blocker.write_text("a file where a directory should be")
+    out = run("compute", sphere_ply, "-o", blocker / "out.ply")
+    assert_one_line_error(out)
+    assert f"cannot write {blocker / 'out.ply'}: {blocker} is not a directory" in out.stderr
+    assert "read " not in out.stdout and "estimated" not in out.stdout
+
+    # a read-only file or directory (as an ordinary user sees it; root may write anything)
+    import os
+    import subprocess
+
+    kept = tmp_path / "kept.ply"
+    kept.write_bytes(b"protected")
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) == str(kept) else real_access(p, mode))
+    estimated = []
+    monkeypatch.setattr(steps, "read_cloud", lambda *a, **k: estimated.append(a))
+    status = main(["compute", str(sphere_ply), "-o", str(kept)])
+    captured = capsys.readouterr()
+    assert_one_line_error(subprocess.CompletedProcess([], status, captured.out, captured.err))
+    assert "kept.ply: the file exists and is read-only" in captured.err
+    assert estimated == [] and kept.read_bytes() == b"protected"

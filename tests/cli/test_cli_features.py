@@ -20,3 +20,16 @@ def test_features_command_finds_the_crease(tmp_path):
     assert mask.sum() > 20
     # measured: 159 features, median distance to the fold 0.038, farthest 0.09 (the square is 2 wide)
     assert np.median(distance[mask]) < 0.05 and distance[mask].max() < 0.15
+
+
+def test_features_writes_float32_scores_unless_float64(tmp_path):
+    fold = surfaces.FoldedSquare(interior_angle=90).sample(1500, "random", seed=1)
+    path = tmp_path / "fold.ply"
+    io.write_points(path, fold.points)
+    for flag, kind in (((), np.float32), (("--float64",), np.float64)):
+        out = run("features", path, "-o", tmp_path / "out.npz", "-q", *flag)
+        assert out.returncode == 0, out.stderr
+        with np.load(tmp_path / "out.npz") as archive:
+            assert archive.files == ["points", "feature", "feature_score"]
+            assert archive["feature_score"].dtype == kind and archive["feature"].dtype == np.bool_
+            assert archive["points"].dtype == np.float64  # coordinates never narrowed

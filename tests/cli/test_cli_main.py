@@ -31,7 +31,7 @@ def test_help_and_version():
     "command, option",
     [
         ("compute", "--normals-from-input"), ("render", "--views"), ("features", "--threshold"), ("info", "input"),
-        ("demo", "--surface"),
+        ("demo", "--surface"), ("compute", "--float64"), ("features", "--float64"),
     ],
 )
 def test_help_of_every_subcommand(command, option, capsys):

@@ -1,6 +1,7 @@
 """Atomic writes: a failing writer or library leaves nothing behind, ordinary permissions."""
 
 import os
+import re
 
 import numpy as np
 import plyfile
@@ -76,3 +77,73 @@ def test_atomic_write_is_public_and_replaces_only_when_complete(tmp_path):
         atomic_write(path, fail)
     assert path.read_bytes() == b"first" and leftovers(tmp_path) == [path.name]
     assert hio._atomic_write is atomic_write  # the old private name, until heatcurv.render switches
+
+
+def test_check_writable_refuses_at_once(tmp_path, monkeypatch):
+    from heatcurv.io import check_writable
+
+    assert check_writable(tmp_path / "new.ply") == tmp_path / "new.ply"
+    (tmp_path / "a_file").write_text("not a directory")
+    cases = [
+        (tmp_path / "missing" / "out.ply", "the directory .*missing does not exist"),
+        (tmp_path / "a_file" / "out.ply", ".*a_file is not a directory"),  # works as root too
+        (tmp_path, "it is a directory"),
+    ]
+    for path, message in cases:
+        with pytest.raises(HeatcurvError, match=rf"^cannot write {re.escape(str(path))}: {message}$"):
+            check_writable(path)
+    assert leftovers(tmp_path) == ["a_file"]  # the probe file is removed
+
+
+def test_read_only_output_file_is_refused_before_writing(tmp_path, monkeypatch):
+    from heatcurv.io import check_writable
+
+    path = tmp_path / "kept.ply"
+    path.write_bytes(b"a result the user protected")
+    real_access = os.access
+    # os.access as for an ordinary user (root may write anything): the file is read-only
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) == str(path) else real_access(p, mode))
+    with pytest.raises(HeatcurvError, match=r"kept\.ply: the file exists and is read-only"):
+        check_writable(path)
+    with pytest.raises(HeatcurvError, match=r"kept\.ply: the file exists and is read-only"):
+        write_points(path, np.zeros((3, 3)))
+    assert path.read_bytes() == b"a result the user protected" and leftovers(tmp_path) == ["kept.ply"]
+
+
+def test_unwritable_directory_is_refused(tmp_path, monkeypatch):
+    import tempfile
+
+    from heatcurv.io import check_writable
+
+    # a directory where no file can be created (read-only file system, ...): works as root
+    def read_only_fs(*args, **kwargs):
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(tempfile, "NamedTemporaryFile", read_only_fs)
+    with pytest.raises(HeatcurvError, match=r"out\.ply: cannot create a file in .* \(Read-only file system\)$"):
+        check_writable(tmp_path / "out.ply")
+    monkeypatch.undo()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) == str(tmp_path) else real_access(p, mode))
+    with pytest.raises(HeatcurvError, match=rf"out\.ply: no permission to create files in {re.escape(str(tmp_path))}$"):
+        write_points(tmp_path / "out.ply", np.zeros((3, 3)))
+    assert leftovers(tmp_path) == []
+
+
+@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="root writes read-only files and directories")
+def test_read_only_permissions_are_refused(tmp_path):
+    from heatcurv.io import check_writable
+
+    path = tmp_path / "kept.ply"
+    path.write_bytes(b"protected")
+    path.chmod(0o444)
+    with pytest.raises(HeatcurvError, match=r"the file exists and is read-only"):
+        check_writable(path)
+    directory = tmp_path / "locked"
+    directory.mkdir()
+    directory.chmod(0o555)
+    try:
+        with pytest.raises(HeatcurvError, match=r"no permission to create files in"):
+            write_points(directory / "out.ply", np.zeros((3, 3)))
+    finally:
+        directory.chmod(0o755)

@@ -20,7 +20,7 @@ def test_round_trip_exact(tmp_path, cloud, ext):
     points = points.copy()
     points[5] = np.nan  # NaN rows are read faithfully, not rejected
     path = tmp_path / f"out{ext}"
-    write_points(path, points, fields, normals=normals, colours=colors)
+    write_points(path, points, fields, normals=normals, colours=colors, dtype="float64")
     back = read_points(path)
     assert back.format == ext[1:] and len(back) == N
     np.testing.assert_array_equal(back.points, points)
@@ -189,9 +189,94 @@ def test_colours_is_the_name_and_colors_a_deprecated_alias(tmp_path):
     assert not (tmp_path / "both.ply").exists()
 
 
-def test_npz_keeps_its_colors_key(tmp_path):
+@pytest.mark.parametrize("ext", [".ply", ".npz", ".las", ".laz", ".csv", ".txt"])
+def test_computed_floats_are_float32_by_default_in_binary_formats(tmp_path, cloud, ext):
+    points, normals, colors, fields = cloud
+    path = tmp_path / f"out{ext}"
+    write_points(path, points, fields, normals=normals, colours=colors)
+    back = read_points(path)
+    binary = ext in (".ply", ".npz", ".las", ".laz")
+    narrow = np.float32 if binary else np.float64
+    np.testing.assert_array_equal(back.normals, normals.astype(narrow))
+    for name, values in expanded(fields).items():
+        if values.dtype.kind == "f":
+            np.testing.assert_array_equal(back.fields[name], values.astype(narrow), err_msg=name)
+            if binary:
+                assert back.fields[name].dtype == np.float32, name
+        else:
+            np.testing.assert_array_equal(back.fields[name], values, err_msg=name)
+    if binary:  # integers keep an integer type: bools as 0/1 bytes (NPZ: bool), int64 as int32
+        assert back.fields["reliable"].dtype in (np.uint8, np.bool_)
+        assert back.fields["count"].dtype == np.int32
+    # the coordinates are never narrowed
+    if ext in (".las", ".laz"):
+        assert np.all(np.abs(back.points - points) <= back.meta["las_header"].scales)
+    else:
+        np.testing.assert_array_equal(back.points, points)
+    # dtype="float64" on request
+    write_points(path, points, fields, normals=normals, dtype=np.float64)
+    back = read_points(path)
+    np.testing.assert_array_equal(back.normals, normals)
+    np.testing.assert_array_equal(back.fields["mean"], fields["mean"])
+
+
+def test_binary_float32_files_are_smaller(tmp_path, cloud):
+    points, normals, _, fields = cloud
+    for ext in (".ply", ".laz", ".npz"):
+        write_points(tmp_path / f"a{ext}", points, fields, normals=normals)
+        write_points(tmp_path / f"b{ext}", points, fields, normals=normals, dtype="float64")
+        small, large = (tmp_path / f"a{ext}").stat().st_size, (tmp_path / f"b{ext}").stat().st_size
+        assert small < 0.75 * large, (ext, small, large)
+
+
+def test_bad_dtype(tmp_path):
+    for dtype in ("int32", "float16", "double precision", np.complex128):
+        with pytest.raises(HeatcurvError, match=r"dtype must be float32 or float64, got"):
+            write_points(tmp_path / "out.ply", np.zeros((3, 3)), {"mean": np.zeros(3)}, dtype=dtype)
+    assert leftovers(tmp_path) == []
+
+
+def test_npz_keys_are_the_property_names(tmp_path, cloud):
+    points, normals, colors, fields = cloud
+    path = tmp_path / "out.npz"
+    write_points(path, points, fields, normals=normals, colours=colors)
+    with np.load(path) as archive:
+        keys = list(archive.files)
+        assert all(archive[key].shape == (N,) for key in keys if key != "points")
+    # the same names as the columns of every other format (PLY, CSV, LAS extra dimensions)
+    assert keys == ["points", "nx", "ny", "nz", "red", "green", "blue", *expanded(fields)]
+    write_points(tmp_path / "out.csv", points, fields, normals=normals, colours=colors)
+    header = (tmp_path / "out.csv").read_text().splitlines()[0].split(",")
+    assert header == ["x", "y", "z", *keys[1:]]
+    back = read_points(path)
+    np.testing.assert_array_equal(back.colours, colors)
+    np.testing.assert_array_equal(back.normals, normals.astype(np.float32))
+    assert list(back.fields) == list(expanded(fields))
+
+
+def test_npz_of_earlier_versions_is_still_read(tmp_path, cloud):
+    points, normals, colors, fields = cloud
+    # the earlier layout: normals and colours as (n, 3) arrays, (n, 3) fields as one array
+    np.savez(tmp_path / "old.npz", points=points, normals=normals, colors=colors, **fields)
+    old = read_points(tmp_path / "old.npz")
+    write_points(tmp_path / "new.npz", points, fields, normals=normals, colours=colors, dtype="float64")
+    new = read_points(tmp_path / "new.npz")
+    np.testing.assert_array_equal(old.points, new.points)
+    np.testing.assert_array_equal(old.normals, new.normals)
+    np.testing.assert_array_equal(old.colours, new.colours)
+    assert list(old.fields) == list(new.fields) == list(expanded(fields))
+    for name in old.fields:
+        np.testing.assert_array_equal(old.fields[name], new.fields[name], err_msg=name)
     rgb = np.array([[255, 0, 9], [0, 1, 2]], dtype=np.uint8)
-    write_points(tmp_path / "c.npz", np.zeros((2, 3)), colours=rgb)
-    with np.load(tmp_path / "c.npz") as archive:
-        assert sorted(archive.files) == ["colors", "points"]  # the file format is unchanged
+    np.savez(tmp_path / "c.npz", points=np.zeros((2, 3)), colors=rgb)
     np.testing.assert_array_equal(read_points(tmp_path / "c.npz").colours, rgb)
+    np.savez(tmp_path / "bad.npz", points=np.zeros((2, 3)), colors=np.full((2, 3), -1))
+    with pytest.raises(HeatcurvError, match=r"'colors' \(shape \(2, 3\), dtype int64\) are not"):
+        read_points(tmp_path / "bad.npz")
+
+
+def test_npz_reserved_names(tmp_path):
+    for name in ("points", "xyz", "normals", "colors"):
+        with pytest.raises(HeatcurvError, match=rf"field name '{name}' is reserved in NPZ output"):
+            write_points(tmp_path / "out.npz", np.zeros((2, 3)), {name: np.zeros(2)})
+    assert leftovers(tmp_path) == []

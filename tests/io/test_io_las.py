@@ -25,14 +25,20 @@ def test_round_trip_las(tmp_path, cloud, ext):
     extent = np.ptp(points, axis=0).max()
     assert np.all(header.scales <= 1e-6 * extent)
     assert np.all(np.abs(back.points - points) <= header.scales)
-    np.testing.assert_array_equal(back.normals, normals)
+    np.testing.assert_array_equal(back.normals, normals.astype(np.float32))  # float32 by default
     np.testing.assert_array_equal(back.colours, colors)
     for name, values in expanded(fields).items():
-        np.testing.assert_array_equal(back.fields[name], values, err_msg=name)
+        expected = values.astype(np.float32) if values.dtype.kind == "f" else values
+        np.testing.assert_array_equal(back.fields[name], expected, err_msg=name)
     assert back.fields["reliable"].dtype == np.uint8  # bools as uint8
     assert back.fields["weight32"].dtype == np.float32
-    extra = list(laspy.read(path).point_format.extra_dimension_names)
+    assert back.fields["count"].dtype == np.int32  # int64 narrowed where it fits
+    written = laspy.read(path).point_format
+    extra = list(written.extra_dimension_names)
     assert extra == ["nx", "ny", "nz"] + list(expanded(fields))
+    assert {written.dimension_by_name(name).dtype for name in ("nx", "mean", "d1x", "area")} == {
+        np.dtype(np.float32)
+    }
 
 
 def test_las_source_header_dimensions_and_colours_kept(tmp_path):
@@ -74,7 +80,52 @@ def test_las_source_header_dimensions_and_colours_kept(tmp_path):
             np.asarray(written[name]), np.asarray(las[name]), err_msg=name
         )
     assert list(written.point_format.extra_dimension_names) == ["amplitude", "mean"]
-    np.testing.assert_array_equal(written.mean, mean)
+    np.testing.assert_array_equal(written.mean, mean.astype(np.float32))
+    write_points(out, source.points, {"mean": mean}, source=source, dtype="float64")
+    np.testing.assert_array_equal(laspy.read(out).mean, mean)
+
+
+def test_las_extra_dimensions_kept_with_type_scale_and_description(tmp_path):
+    rng = np.random.default_rng(11)
+    n = 120
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.add_extra_dims(
+        [
+            laspy.ExtraBytesParams("temperature", "i2", description="degrees C",
+                                   scales=np.array([0.01]), offsets=np.array([20.0])),
+            laspy.ExtraBytesParams("deviation", "3f8", description="to the model"),
+            laspy.ExtraBytesParams("echo", "u1"),
+            laspy.ExtraBytesParams("range", "f8"),
+        ]
+    )
+    las = laspy.LasData(header, points=laspy.ScaleAwarePointRecord.zeros(n, header=header))
+    las.x, las.y, las.z = rng.random((3, n)) * 10
+    las.temperature = 20.0 + np.round(rng.normal(size=n) * 300) / 100
+    las.deviation = rng.normal(size=(n, 3))
+    las.echo = rng.integers(0, 5, n)
+    las.range = rng.random(n) * 1e5
+    las.gps_time = rng.random(n) * 1e6
+    las.write(tmp_path / "scan.laz")
+
+    source = read_points(tmp_path / "scan.laz")
+    out = tmp_path / "result.laz"
+    gps = source.fields["gps_time"] + 0.125
+    write_points(out, source.points, {"mean": rng.random(n), "gps_time": gps}, source=source)
+    written = laspy.read(out)
+    names = list(written.point_format.extra_dimension_names)
+    assert names == ["temperature", "deviation", "echo", "range", "mean"]
+    for name, kind in [("temperature", "i2"), ("echo", "u1"), ("range", "f8"), ("mean", "f4")]:
+        assert written.point_format.dimension_by_name(name).dtype == np.dtype(kind), name
+    temperature = written.point_format.dimension_by_name("temperature")
+    assert temperature.description == "degrees C"
+    np.testing.assert_array_equal(temperature.scales, [0.01])
+    np.testing.assert_array_equal(temperature.offsets, [20.0])
+    assert written.point_format.dimension_by_name("deviation").num_elements == 3
+    for name in ("temperature", "deviation", "echo", "range"):
+        np.testing.assert_array_equal(np.asarray(written[name]), np.asarray(las[name]), err_msg=name)
+    np.testing.assert_array_equal(written.X, las.X)
+    # a float64 field filling a standard double dimension is not narrowed
+    np.testing.assert_array_equal(written.gps_time, gps)
 
 
 def test_las_eight_bit_values_in_sixteen_bit_colour_fields(tmp_path):

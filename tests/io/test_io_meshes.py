@@ -60,3 +60,47 @@ def test_mesh_errors_name_the_line(tmp_path, name, content, message):
     (tmp_path / name).write_text(content)
     with pytest.raises(HeatcurvError, match=message):
         read_points(tmp_path / name)
+
+
+@pytest.mark.parametrize(
+    "name,content,faces",
+    [
+        ("m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\n  f 2 4 3\n", 2),
+        ("m.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n", 2),
+        ("points.off", "OFF\n4 0 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n", 0),
+        ("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", 0),
+    ],
+)
+def test_mesh_faces_are_counted_and_a_warning_says_they_are_not_written(tmp_path, name, content, faces):
+    import warnings
+
+    from heatcurv import HeatcurvWarning
+    from heatcurv.io import write_points
+
+    (tmp_path / name).write_text(content)
+    source = read_points(tmp_path / name)
+    assert source.meta.get("faces", 0) == faces
+    for ext in (".ply", ".csv"):
+        out = tmp_path / f"out{ext}"
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            write_points(out, source.points, {"mean": np.zeros(len(source))}, source=source)
+        messages = [str(w.message) for w in record if issubclass(w.category, HeatcurvWarning)]
+        if faces:
+            kind = name.rsplit(".", 1)[1].upper()
+            assert messages == [
+                f"the {faces} faces of {tmp_path / name} are not written to {out} "
+                f"(heatcurv reads only the vertices of {kind} files)"
+            ]
+        else:
+            assert messages == []
+
+
+def test_off_float_colours_are_written_back_as_stored(tmp_path):
+    from heatcurv.io import write_points
+
+    (tmp_path / "c.off").write_text("COFF\n2 0 0\n0 0 0 0.1 0.2 0.3 1\n1 0 0 0.5 0.6 0.7 1\n")
+    source = read_points(tmp_path / "c.off")
+    write_points(tmp_path / "c.csv", source.points, source=source)
+    np.testing.assert_allclose(np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=1)[:, 3:6],
+                               [[0.1, 0.2, 0.3], [0.5, 0.6, 0.7]], rtol=0, atol=0)

@@ -76,6 +76,91 @@ def test_foreign_ply_read(tmp_path, byte_order, text):
     np.testing.assert_array_equal(got.fields["label"], vertex["label"])
 
 
+@pytest.mark.parametrize("byte_order,text", [(">", False), ("=", True)], ids=["big", "ascii"])
+def test_ply_mesh_written_back_with_faces_and_every_property(tmp_path, byte_order, text):
+    data, vertex = _vertex_face_ply(byte_order, text)
+    data.comments = ["scanned by someone"]
+    data.obj_info = ["units mm"]
+    data.write(str(tmp_path / "mesh.ply"))
+    source = read_points(tmp_path / "mesh.ply")
+    assert source.meta["faces"] == 40
+    mean = np.linspace(-1, 1, 40)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # faces kept: nothing to warn about
+        write_points(tmp_path / "out.ply", source.points, {"mean": mean}, source=source)
+    out = plyfile.PlyData.read(str(tmp_path / "out.ply"))
+    assert [element.name for element in out.elements] == ["vertex", "face"]
+    np.testing.assert_array_equal(
+        np.vstack(out["face"].data["vertex_indices"]), np.vstack(data["face"].data["vertex_indices"])
+    )
+    assert out.comments == ["scanned by someone", "written by heatcurv"] and out.obj_info == ["units mm"]
+    written = out["vertex"].data
+    # every input property, with its stored type: float coordinates and normals stay float
+    for name, kind in [("x", "f4"), ("nx", "f4"), ("red", "u1"), ("quality", "f4"), ("label", "i4"),
+                       ("mean", "f4")]:
+        assert written.dtype[name] == np.dtype("<" + kind), name
+    for name, stored in [("x", "x"), ("nz", "normal_z"), ("blue", "diffuse_blue"), ("quality", "quality"),
+                         ("label", "label")]:
+        np.testing.assert_array_equal(written[name], vertex[stored], err_msg=name)
+    # the output read again gives the same cloud and faces
+    again = read_points(tmp_path / "out.ply")
+    assert again.meta["faces"] == 40 and list(again.fields) == ["quality", "label", "mean"]
+
+
+def test_ply_coordinates_keep_their_type_and_are_never_narrowed(tmp_path):
+    rng = np.random.default_rng(12)
+    points = rng.random((20, 3)) + 1000.0
+    write_points(tmp_path / "f8.ply", points)
+    assert plyfile.PlyData.read(str(tmp_path / "f8.ply"))["vertex"].data.dtype["x"] == np.dtype("<f8")
+    write_points(tmp_path / "f4.ply", points.astype(np.float32))  # float32 points: float32 coordinates
+    source = read_points(tmp_path / "f4.ply")
+    assert source.meta["points_dtype"] == np.float32
+    write_points(tmp_path / "again.ply", source.points, {"mean": np.ones(20)}, source=source)
+    assert plyfile.PlyData.read(str(tmp_path / "again.ply"))["vertex"].data.dtype["x"] == np.dtype("<f4")
+    moved = source.points + 1e-4  # no longer float32 values: written as double, exactly
+    write_points(tmp_path / "moved.ply", moved, source=source)
+    np.testing.assert_array_equal(read_points(tmp_path / "moved.ply").points, moved)
+
+
+def test_ply_sixteen_bit_colours_are_kept(tmp_path):
+    vertex = np.zeros(3, dtype=[("x", "f8"), ("y", "f8"), ("z", "f8"), ("red", "u2"), ("green", "u2"),
+                                ("blue", "u2")])
+    vertex["red"] = [0, 1000, 65535]
+    plyfile.PlyData([plyfile.PlyElement.describe(vertex, "vertex")]).write(str(tmp_path / "c16.ply"))
+    source = read_points(tmp_path / "c16.ply")
+    np.testing.assert_array_equal(source.colours[:, 0], [0, 4, 255])
+    write_points(tmp_path / "out.ply", source.points, source=source)
+    written = plyfile.PlyData.read(str(tmp_path / "out.ply"))["vertex"].data
+    assert written.dtype["red"] == np.dtype("<u2")
+    np.testing.assert_array_equal(written["red"], [0, 1000, 65535])
+    write_points(tmp_path / "out.las", source.points, source=source)  # LAS colours are 16-bit too
+    import laspy
+
+    np.testing.assert_array_equal(laspy.read(tmp_path / "out.las").red, [0, 1000, 65535])
+
+
+def test_ply_faces_not_writable_elsewhere_give_one_warning(tmp_path):
+    from heatcurv import HeatcurvWarning
+
+    data, _ = _vertex_face_ply("<", False)
+    data.write(str(tmp_path / "mesh.ply"))
+    source = read_points(tmp_path / "mesh.ply")
+    for ext in (".las", ".csv", ".npz"):
+        out = tmp_path / f"out{ext}"
+        with pytest.warns(HeatcurvWarning) as record:
+            write_points(out, source.points, source=source)
+        assert len(record) == 1
+        message = str(record[0].message)
+        assert message == (
+            f"the 40 faces of {tmp_path / 'mesh.ply'} are not written to {out} "
+            f"({ext} holds points only; write a .ply to keep them)"
+        )
+        assert record[0].filename == __file__  # points at the caller
+        assert out.exists()
+
+
 def test_ply_with_quads_and_vertex_after_faces(tmp_path):
     vertex = np.zeros(
         5,

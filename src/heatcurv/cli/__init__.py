@@ -7,7 +7,12 @@ Subcommands
     run :func:`heatcurv.estimate` and write every field (``nx ny nz mean
     gaussian k1 k2 d1x d1y d1z d2x d2y d2z area reliable``, with
     ``--features`` also ``feature feature_score``) next to the input's own
-    properties, in the format of OUTPUT's extension.
+    properties, in the format of OUTPUT's extension: computed values as
+    float32 in PLY, LAS/LAZ and NPZ (``--float64`` keeps double precision),
+    the input's properties in their own types, a PLY mesh's faces kept (a
+    warning when the output format cannot hold them). OUTPUT is refused,
+    before anything is read or computed, when it is the input file or cannot
+    be written.
 ``render INPUT -o PICTURE``
     A picture of the cloud coloured by one field, read from INPUT if it holds
     it (a file written by ``compute``) or computed (:mod:`heatcurv.render`).

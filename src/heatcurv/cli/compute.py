@@ -11,11 +11,11 @@ __all__ = ["run"]
 
 def run(args, log: Log) -> int:
     """Run ``heatcurv compute`` on the parsed arguments."""
-    output = check_output_path(args.output, supported_write(), "output")
+    output = check_output_path(args.output, supported_write(), "output", args.input)
     wanted = args.fields or DEFAULT_FIELDS + (FEATURE_FIELDS if args.features else ())
     want_features = bool(set(wanted) & set(FEATURE_FIELDS))
     cloud, rows, res = estimate_input(args, log)
     feat = detect_features(res, args.feature_threshold, 10.0, log) if want_features else None
     fields, out_normals = result_fields(res, feat, wanted, rows, len(cloud))
-    write_cloud(output, cloud, fields, out_normals, log)
+    write_cloud(output, cloud, fields, out_normals, log, float64=args.float64)
     return EXIT_OK

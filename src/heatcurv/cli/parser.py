@@ -112,6 +112,12 @@ def _add_picture_options(parser) -> None:
                        help="length unit for the colour-bar label, e.g. m gives 1/m (default: %(default)s)")
 
 
+def _add_float64(parser) -> None:
+    parser.add_argument("--float64", action="store_true",
+                        help="write the computed values in double precision (default: float32 in PLY, "
+                        "LAS/LAZ and NPZ, half the size; text files always get 17 digits)")
+
+
 def _add_compute(add, read_exts: str, write_exts: str) -> None:
     parser = add(
         "compute", "compute curvature fields of a point-cloud file and write them out",
@@ -119,8 +125,10 @@ def _add_compute(add, read_exts: str, write_exts: str) -> None:
         "directions and per-point areas, and write them with the input's own properties as "
         "scalar fields named nx ny nz mean gaussian k1 k2 d1x d1y d1z d2x d2y d2z area reliable "
         "(with --features also feature feature_score), which CloudCompare and MeshLab show "
-        "as scalar fields. The output format follows the extension; the file is written only "
-        "once everything is computed.",
+        "as scalar fields. The output format follows the extension; computed values are float32 "
+        "in PLY, LAS/LAZ and NPZ (--float64 for double precision), the input's properties and "
+        "a PLY mesh's faces are kept. The file is written only once everything is computed, "
+        "never over the input; an unwritable output fails before the computation.",
         epilog=f"input formats:  {read_exts}\noutput formats: {write_exts}\n\n"
         "Curvature is in 1/(input length unit), area in (input length unit)^2; a sphere of "
         "radius R\nwith outward normals has mean = k1 = k2 = +1/R. 'reliable' is 0 where a value "
@@ -135,6 +143,7 @@ def _add_compute(add, read_exts: str, write_exts: str) -> None:
                         "(default: all but border, spacing, neighbours)")
     parser.add_argument("--features", action="store_true",
                         help="also detect sharp features: fields feature (0/1) and feature_score (degrees)")
+    _add_float64(parser)
     parser.add_argument("--feature-threshold", type=finite_float, metavar="DEGREES",
                         help="turning angle above which a point is a feature (default: automatic)")
     add_estimator_options(parser)
@@ -185,6 +194,7 @@ def _add_features(add, write_exts: str) -> None:
                         help="turning angle above which a point is a feature (default: automatic)")
     parser.add_argument("--min-angle", type=finite_float, default=10.0, metavar="DEGREES",
                         help="floor of the automatic threshold (default: %(default)s)")
+    _add_float64(parser)
     add_estimator_options(parser)
     _add_global_options(parser, suppress=True)
     parser.set_defaults(run=features.run)

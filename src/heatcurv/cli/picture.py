@@ -97,7 +97,7 @@ def run(args, log: Log) -> int:
     """Run ``heatcurv render`` on the parsed arguments."""
     from ..render import field_style, render_field, supported_picture_formats
 
-    output = check_output_path(args.output, supported_picture_formats(), "picture")
+    output = check_output_path(args.output, supported_picture_formats(), "picture", args.input)
     _check_field_options(args)
     field = args.field
     options = estimator_kwargs(args)

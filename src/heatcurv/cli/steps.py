@@ -6,6 +6,7 @@ and raises :class:`~heatcurv.errors.HeatcurvError` with a one-line message.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -19,24 +20,41 @@ from .options import estimator_kwargs
 from .progressbar import StageProgress
 
 __all__ = [
-    "check_output_path", "supported_write", "read_cloud", "finite_rows", "input_normals", "run_estimate",
+    "check_output_path", "same_file", "supported_write", "read_cloud", "finite_rows", "input_normals", "run_estimate",
     "detect_features", "full_rows", "computed_values", "result_fields", "write_cloud",
 ]
 
 
-def check_output_path(path, extensions, what: str) -> Path:
-    """Fail early (before any computation) on an output the writer would refuse."""
+def check_output_path(path, extensions, what: str, input_path=None) -> Path:
+    """Fail early (before reading or computing anything) on an output that cannot or must not be written.
+
+    Refused: an extension the writer does not know, the input file itself
+    (also through another spelling of its path, a symbolic or a hard link),
+    a missing or unwritable directory, an existing read-only file
+    (:func:`heatcurv.io.check_writable`).
+    """
+    from ..io import check_writable
+
     path = Path(path)
     ext = path.suffix.lower()
     if ext not in extensions:
         raise HeatcurvError(
             f"cannot write {path}: unknown {what} extension {ext or '(none)'!r}; supported: {' '.join(extensions)}"
         )
-    if not path.parent.is_dir():
-        raise HeatcurvError(f"cannot write {path}: the directory {path.parent} does not exist")
-    if path.is_dir():
-        raise HeatcurvError(f"cannot write {path}: it is a directory")
-    return path
+    if input_path is not None and same_file(path, input_path):
+        raise HeatcurvError(
+            f"cannot write {path}: it is the input file {input_path}; heatcurv never overwrites its input, "
+            "choose another output name"
+        )
+    return check_writable(path)
+
+
+def same_file(path, other) -> bool:
+    """Whether ``path`` and ``other`` name the same file (:func:`os.path.samefile` where both exist)."""
+    try:
+        return os.path.samefile(path, other)
+    except OSError:  # one of them does not exist (yet)
+        return os.path.normcase(os.path.abspath(path)) == os.path.normcase(os.path.abspath(other))
 
 
 def supported_write():
@@ -177,13 +195,16 @@ def detect_features(res, threshold, min_angle, log: Log):
 
 
 def full_rows(values: np.ndarray, rows, n: int) -> np.ndarray:
-    """``values`` of the computed rows spread to all ``n`` rows (NaN, or False, elsewhere)."""
+    """``values`` of the computed rows spread to all ``n`` rows (NaN, False or 0 elsewhere).
+
+    Masks stay boolean and counts (``neighbours``) integer, with 0 on the
+    rows not computed, so that they are written as integers.
+    """
     values = np.asarray(values)
     if rows is None:
         return values
-    fill = False if values.dtype.kind == "b" else np.nan
-    dtype = values.dtype if values.dtype.kind in "bf" else np.float64
-    full = np.full((n,) + values.shape[1:], fill, dtype=dtype)
+    fill = np.nan if values.dtype.kind == "f" else 0
+    full = np.full((n,) + values.shape[1:], fill, dtype=values.dtype)
     full[rows] = values
     return full
 
@@ -203,9 +224,9 @@ def result_fields(res, feat, wanted, rows, n: int) -> tuple[dict, np.ndarray | N
     """The arrays to write, ``(fields, normals)``, for :func:`heatcurv.io.write_points`.
 
     Fields come in the order of :data:`~.fields.COMPUTED_FIELDS`; a complete triple
-    ``d1x d1y d1z`` is passed as one (n, 3) field ``d1`` (NPZ keeps it as one
-    array, the other formats expand it to the same three names). Rows not
-    computed (``rows``) get NaN, or 0 in masks.
+    ``d1x d1y d1z`` is passed as one (n, 3) field ``d1``, which every format
+    writes as the same three names. Rows not
+    computed (``rows``) get NaN, or 0 in masks and counts.
     """
     wanted = set(wanted)
     normals = full_rows(res.normals, rows, n) if "nx" in wanted else None
@@ -222,12 +243,16 @@ def result_fields(res, feat, wanted, rows, n: int) -> tuple[dict, np.ndarray | N
     return fields, normals
 
 
-def write_cloud(path, cloud, fields: dict, normals, log: Log) -> None:
-    """:func:`heatcurv.io.write_points` of the input's points and properties plus ``fields``, saying what."""
+def write_cloud(path, cloud, fields: dict, normals, log: Log, *, float64: bool = False) -> None:
+    """:func:`heatcurv.io.write_points` of the input's points and properties plus ``fields``, saying what.
+
+    The computed values are float32 in PLY, LAS/LAZ and NPZ unless ``float64``
+    (``--float64``); a warning says so if the input's faces cannot be written.
+    """
     from ..io import write_points
 
     tic = time.perf_counter()
-    write_points(path, cloud.points, fields, normals=normals, source=cloud)
+    write_points(path, cloud.points, fields, normals=normals, source=cloud, dtype="float64" if float64 else None)
     names = []
     for name, values in fields.items():
         names += [name + a for a in "xyz"] if np.ndim(values) == 2 else [name]

@@ -20,7 +20,8 @@ extension                      read                      write
 ``.obj``                       ``v`` lines               --
 ``.off``                       vertices (C/N/ST OFF)     --
 ``.npy``                       ``(n, >=3)`` array        --
-``.npz``                       ``points`` or ``xyz``     ``points`` + arrays
+``.npz``                       ``points`` or ``xyz``     ``points`` + one array
+                                                         per property
 =============================  ========================  =======================
 
 Conventions
@@ -67,7 +68,43 @@ as float64.
 Writing is atomic: the file is written to a temporary file in the target
 directory and moved over the target with :func:`os.replace`; on a failure the
 temporary file is removed, so there is never a partial output, and an existing
-file of the same name stays as it was.
+file of the same name stays as it was. Before writing,
+:func:`~heatcurv.io.atomic.check_writable` refuses a missing or unwritable
+directory and an existing read-only file (the command line calls it before
+computing anything).
+
+What is written
+---------------
+Computed values (the ``fields`` and ``normals`` given to :func:`write_points`)
+are float32 in PLY, LAS/LAZ and NPZ by default: seven significant digits are
+far below the error of any curvature estimate, and a LAZ of float64 fields is
+two to three times larger (its compression does little for float noise).
+``dtype="float64"`` (the command line's ``--float64``) keeps full precision.
+Text formats always write float64 values with 17 significant digits. Booleans
+(``reliable``, ``feature``) are written as 0/1 ``uint8``, 64-bit integers
+(``neighbours``) as 32-bit integers where they fit.
+
+The coordinates are never narrowed: LAS/LAZ from a LAS source keep its
+integer coordinates, scales and offsets; PLY and NPZ write float32
+coordinates only where the source stored float32 (or the given points are
+float32) and the values are unchanged, float64 otherwise.
+
+Every property of the ``source`` is written back with its stored type: PLY
+properties, LAS standard and extra dimensions (an extra dimension keeps its
+type, scale, offset and description; an array dimension read as
+``name_0 name_1 ...`` is written as the array again), 16-bit and float
+colours (16-bit PLY colours become LAS 16-bit colours and back), normals
+(renamed ``nx ny nz``, in their stored float type), NPZ arrays. Only PLY list
+properties of the ``vertex`` element are not read, hence not written.
+
+Faces: a PLY source's other elements (``face``, ``edge``, ...) are written
+back, unchanged, when the output is PLY (the points are written in the same
+order, so the vertex indices stay valid), with its comments and ``obj_info``
+lines. Where they cannot be kept -- a PLY mesh written to LAS/LAZ, text or
+NPZ, or any OBJ or OFF mesh (heatcurv reads their vertices only) --
+:func:`write_points` issues one :class:`~heatcurv.errors.HeatcurvWarning`
+saying how many faces are not written (the command line prints it as one
+``heatcurv: warning:`` line).
 
 The readers and writers live in one module per format family: :mod:`.ply`,
 :mod:`.las` (LAS/LAZ), :mod:`.text` (XYZ/TXT/CSV/PTS), :mod:`.meshes` (OBJ,
@@ -77,18 +114,29 @@ module holds the public API and the dispatch by extension.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
-from ..errors import HeatcurvError
-from ._common import PointCloud, _one_line, _output, _read_error, _write_error, renamed_keyword
+from ..errors import HeatcurvError, HeatcurvWarning
+from ._common import (
+    PointCloud,
+    _float_dtype,
+    _one_line,
+    _output,
+    _read_error,
+    _write_error,
+    renamed_keyword,
+)
 from .arrays import _read_npy, _read_npz, _write_npz
-from .atomic import atomic_write
+from .atomic import atomic_write, check_writable
 from .las import _read_las, _write_las
 from .meshes import _read_obj, _read_off
 from .ply import _read_ply, _write_ply
 from .text import _read_text, _write_csv, _write_xyz
 
-__all__ = ["PointCloud", "SUPPORTED_READ", "SUPPORTED_WRITE", "read_points", "write_points"]
+__all__ = [
+    "PointCloud", "SUPPORTED_READ", "SUPPORTED_WRITE", "read_points", "write_points", "check_writable",
+]
 
 
 #: Extensions :func:`read_points` understands (compared case-insensitively).
@@ -124,8 +172,10 @@ def read_points(path) -> PointCloud:
         ``points`` of shape (n, 3) float64, optional ``normals`` (n, 3) and
         ``colours`` (n, 3) uint8, every other per-point property in ``fields``.
         Rows holding NaN are kept as they are (``heatcurv.estimate`` reports
-        them). PLY: only the ``vertex`` element is read, list properties are
-        skipped. OBJ: ``v`` lines only. OFF: vertices only.
+        them). PLY: the ``vertex`` element gives the points (its list
+        properties are skipped); the other elements (faces) are kept in
+        ``meta`` for :func:`write_points`. OBJ: ``v`` lines only. OFF:
+        vertices only. A mesh's face count is ``meta["faces"]``.
 
     Raises
     ------
@@ -171,7 +221,9 @@ _READERS = {
 }
 
 
-def write_points(path, points, fields=None, *, normals=None, colours=None, source=None, colors=None) -> None:
+def write_points(
+    path, points, fields=None, *, normals=None, colours=None, source=None, dtype=None, colors=None
+) -> None:
     """Write points and per-point fields to a file, atomically, choosing the format by extension.
 
     Parameters
@@ -185,10 +237,13 @@ def write_points(path, points, fields=None, *, normals=None, colours=None, sourc
     fields : dict of str to array_like, shape (n,) or (n, 3), optional
         Per-point values written as scalar properties with exactly these
         names, after those of ``source``; an (n, 3) field ``d1`` becomes
-        ``d1x d1y d1z``. Booleans are written as 0/1 (``uint8``). A given
-        field replaces a source property of the same name.
+        ``d1x d1y d1z`` (in every format, NPZ too). Float fields are written
+        as ``dtype``; booleans as 0/1 (``uint8``); 64-bit integers as 32-bit
+        where they fit. A given field replaces a source property of the same
+        name.
     normals : array_like, shape (n, 3), optional
-        Written as ``nx ny nz``; default: ``source.normals``.
+        Written as ``nx ny nz``, as ``dtype``; default: ``source.normals``,
+        in the float type the source stored them with.
     colours : array_like, shape (n, 3), integers 0-255, optional
         Written as ``red green blue`` (uint8; LAS 16-bit, ``value * 257``);
         default: ``source.colours``.
@@ -197,17 +252,30 @@ def write_points(path, points, fields=None, *, normals=None, colours=None, sourc
         its normals and colours unless given). For LAS/LAZ output from a LAS
         source the header's point format, version, scales, offsets and
         records (CRS) are kept and 16-bit colours written unchanged.
+    dtype : {None, "float32", "float64"}, optional
+        Type of the float ``fields`` and ``normals`` given. Default (None):
+        float32 for ``.ply``, ``.las``, ``.laz`` and ``.npz``, float64 for the
+        text formats. The coordinates and the ``source``'s properties keep
+        their own types (see the notes of :mod:`heatcurv.io`).
     colors : array_like, optional
         Deprecated alias of ``colours`` (a DeprecationWarning; giving both is an error).
+
+    Warns
+    -----
+    HeatcurvWarning
+        When ``source`` is a mesh whose faces are not written: a PLY with a
+        ``face`` element written to another format, or an OBJ or OFF mesh.
 
     Notes
     -----
     Property order: ``x y z``, ``nx ny nz``, ``red green blue``, the source's
     fields, the given fields.
 
-    ``.ply``: binary little endian, ``x y z`` as double; other properties keep
+    ``.ply``: binary little endian, ``x y z`` as double (float where the
+    source stored float and the values are unchanged); other properties keep
     their dtype (int64 values become int32/uint32 where they fit, else
-    double; float16 becomes float).
+    double; float16 becomes float); a PLY source's faces and other elements,
+    comments and ``obj_info`` follow the vertices.
     ``.las``/``.laz``: LAS 1.4 point format 6 (7 with colours) unless the
     source is LAS; fields named like a standard dimension of the point format
     (``intensity``, ``classification``, ...) fill it when their values fit
@@ -217,8 +285,10 @@ def write_points(path, points, fields=None, *, normals=None, colours=None, sourc
     ``.csv``: comma-separated with a header line; ``.xyz``/``.txt``:
     space-separated with a ``# x y z ...`` header line. Floats are written
     with 17 significant digits (``%.17g``), so they read back exactly.
-    ``.npz``: arrays ``points``, ``normals``, ``colors`` (the archive's key
-    keeps this name) and each field ((n, 3) fields as one array).
+    ``.npz``: an array ``points`` (n, 3) and one array (n,) per property,
+    named as in the other formats: ``nx ny nz``, ``red green blue``, the
+    source's properties, the fields (``d1x d1y d1z``, ...). Archives of
+    earlier versions (``normals``, ``colors``, (n, 3) fields) are still read.
 
     Raises
     ------
@@ -226,7 +296,8 @@ def write_points(path, points, fields=None, *, normals=None, colours=None, sourc
         On an unsupported extension, arrays that do not have one row per
         point, unusable or repeated field names, values the format cannot
         hold (NaN coordinates in LAS, fields that do not fit a standard LAS
-        dimension), or an OS error (missing directory, permissions).
+        dimension), a ``dtype`` other than float32 or float64, or an OS error
+        (missing or read-only directory, read-only existing file).
     """
     path = Path(path)
     ext = path.suffix.lower()
@@ -236,14 +307,57 @@ def write_points(path, points, fields=None, *, normals=None, colours=None, sourc
             path, f"unknown extension {ext or '(none)'!r}; supported: {' '.join(SUPPORTED_WRITE)}"
         )
     colours = renamed_keyword("write_points", "colours", colours, "colors", colors)
-    output = _output(path, points, fields, normals, colours, source)
-    directory = path.parent
-    if not directory.is_dir():
-        raise _write_error(path, f"the directory {directory} does not exist")
+    float_dtype = _float_dtype(path, dtype, ext)
+    output = _output(path, points, fields, normals, colours, source, float_dtype)
+    check_writable(path)
     try:
         atomic_write(path, lambda stream: writer(stream, output, path))
     except OSError as exc:
         raise _write_error(path, exc.strerror or _one_line(exc)) from exc
+    dropped = _unwritten_faces(source, path)
+    if dropped:
+        warnings.warn(HeatcurvWarning(dropped), stacklevel=2)
+
+
+def _unwritten_faces(source, path) -> str | None:
+    """Why the faces of ``source`` would not be in a file written to ``path``, or None if they would.
+
+    Parameters
+    ----------
+    source : PointCloud or None
+        The cloud read (its ``meta`` says whether it had faces).
+    path : str or os.PathLike
+        The output file; PLY keeps a PLY source's faces.
+
+    Returns
+    -------
+    str or None
+        A one-line message, e.g. ``the 2000 faces of mesh.ply are not written
+        to out.laz (.laz holds points only; write a .ply to keep them)``.
+    """
+    if source is None:
+        return None
+    meta = source.meta
+    count = int(meta.get("faces") or 0)
+    elements = meta.get("ply_elements") or []
+    ext = Path(path).suffix.lower()
+    if ext == ".ply" and elements:
+        return None  # written back
+    if not count and not elements:
+        return None
+    named = source.path if source.path is not None else "the source"
+    if count:
+        what = f"the {count} faces of {named}"
+        others = [e for e in elements if e.name != "face"]
+        if others:
+            what += " (and its PLY elements " + ", ".join(f"{e.name} ({e.count})" for e in others) + ")"
+    else:
+        what = "the PLY elements " + ", ".join(f"{e.name} ({e.count})" for e in elements) + f" of {named}"
+    if elements:
+        why = f"{ext} holds points only; write a .ply to keep them"
+    else:
+        why = f"heatcurv reads only the vertices of {(source.format or 'mesh').upper()} files"
+    return f"{what} are not written to {path} ({why})"
 
 
 _WRITERS = {

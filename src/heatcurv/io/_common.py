@@ -62,10 +62,18 @@ class PointCloud:
         The format read: ``"ply"``, ``"las"``, ``"laz"``, ``"xyz"``, ``"txt"``,
         ``"csv"``, ``"pts"``, ``"obj"``, ``"off"``, ``"npy"`` or ``"npz"``.
     meta : dict
-        Format details needed to write the cloud back faithfully: for LAS/LAZ
-        ``"las_header"`` (the :class:`laspy.LasHeader`: point format, scales,
-        offsets, CRS records) and ``"las_rgb16"`` (the 16-bit colours, shape
-        ``(n, 3)``, when the file has RGB).
+        Format details needed to write the cloud back faithfully:
+        ``"points_dtype"`` and ``"normals_dtype"`` (the stored types of the
+        coordinates and normals, e.g. float32 in many PLY files);
+        ``"colour_values"`` (the colours as stored, shape ``(n, 3)``, when
+        they are not 8-bit: 16-bit or float colours); ``"faces"`` (the number
+        of faces of a PLY, OBJ or OFF mesh). PLY: ``"ply_elements"`` (every
+        element other than ``vertex``, e.g. the faces, as
+        :class:`plyfile.PlyElement`), ``"ply_comments"`` and
+        ``"ply_obj_info"``. LAS/LAZ: ``"las_header"`` (the
+        :class:`laspy.LasHeader`: point format, scales, offsets, extra
+        dimensions, CRS records) and ``"las_rgb16"`` (the 16-bit colours,
+        shape ``(n, 3)``, when the file has RGB).
     """
 
     points: np.ndarray
@@ -209,11 +217,10 @@ def _cloud_from_columns(
     if missing:
         names = ", ".join(columns) or "none"
         raise _read_error(path, f"no {'/'.join(missing)} coordinate column (columns: {names})")
-    used = []
-    points = np.column_stack(
-        [np.asarray(columns[role_of[axis]], dtype=np.float64) for axis in "xyz"]
-    )
-    used += [role_of[axis] for axis in "xyz"]
+    meta = dict(meta or {})
+    used = [role_of[axis] for axis in "xyz"]
+    meta["points_dtype"] = _stored_dtype([columns[name] for name in used])
+    points = np.column_stack([np.asarray(columns[name], dtype=np.float64) for name in used])
     n = points.shape[0]
     if n == 0:
         raise _read_error(path, "the file holds no points")
@@ -221,6 +228,7 @@ def _cloud_from_columns(
     normals = None
     if all(role in role_of for role in _NORMAL_NAMES):
         names = [role_of[role] for role in _NORMAL_NAMES]
+        meta["normals_dtype"] = _stored_dtype([columns[name] for name in names])
         normals = np.column_stack([np.asarray(columns[name], dtype=np.float64) for name in names])
         used += names
 
@@ -231,6 +239,8 @@ def _cloud_from_columns(
         colours = _colours_to_uint8(stacked, text=text_colours)
         if colours is not None:
             used += names
+            if stacked.dtype != np.uint8 and not np.array_equal(colours, stacked):
+                meta["colour_values"] = stacked  # 16-bit or float colours, written back as stored
 
     fields = {name: values for name, values in columns.items() if name not in used}
     return PointCloud(
@@ -240,8 +250,14 @@ def _cloud_from_columns(
         fields=fields,
         path=path,
         format=fmt,
-        meta=dict(meta or {}),
+        meta=meta,
     )
+
+
+def _stored_dtype(arrays) -> np.dtype:
+    """The common dtype of stored coordinate or normal columns: float32 or float64."""
+    dtype = np.result_type(*[np.asarray(values).dtype for values in arrays])
+    return np.dtype(np.float32) if dtype == np.float32 else np.dtype(np.float64)
 
 
 def _magic(path: Path, size: int) -> bytes:
@@ -252,17 +268,52 @@ def _magic(path: Path, size: int) -> bytes:
 # ----------------------------------------------------------------------------- output records
 
 
+#: Extensions whose computed float fields are float32 unless ``dtype=`` says otherwise.
+_FLOAT32_BY_DEFAULT = (".ply", ".las", ".laz", ".npz")
+
+
 @dataclass
 class _Output:
     """What :func:`~heatcurv.io.write_points` writes, validated: one row per point in every array."""
 
     points: np.ndarray  # (n, 3) float64
-    normals: np.ndarray | None  # (n, 3) float
+    normals: np.ndarray | None  # (n, 3) float, in the type to write
     colours: np.ndarray | None  # (n, 3) uint8
-    columns: dict  # name -> (n,): source properties then the given fields, expanded
-    arrays: dict  # name -> (n,) or (n, 3): the same, (n, 3) fields unexpanded (NPZ)
+    columns: dict  # name -> (n,): source properties then the given fields, expanded, types to write
+    arrays: dict  # name -> (n,) or (n, 3): the same, (n, 3) fields unexpanded
     source: PointCloud | None
     colours_from_source: bool
+    points_dtype: np.dtype = np.dtype(np.float64)  # coordinates in PLY and NPZ: float32 if lossless
+    colour_values: np.ndarray | None = None  # the source's colours as stored (16-bit, float), if not 8-bit
+    source_names: frozenset = frozenset()  # columns holding a source property unchanged
+    uncast: dict = field(default_factory=dict)  # given float64 columns narrowed to float32: the originals
+
+
+def _float_dtype(path, dtype, ext: str) -> np.dtype:
+    """The type of the computed float fields: ``dtype`` (float32 or float64), else the format's default."""
+    if dtype is None:
+        return np.dtype(np.float32 if ext in _FLOAT32_BY_DEFAULT else np.float64)
+    try:
+        resolved = np.dtype(dtype)
+    except (TypeError, ValueError):
+        resolved = None
+    if resolved is None or resolved not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise _write_error(path, f"dtype must be float32 or float64, got {dtype!r}")
+    return resolved
+
+
+def _computed_type(array: np.ndarray, float_dtype: np.dtype) -> np.ndarray:
+    """A given field in the type to write: floats as ``float_dtype``, 64-bit integers narrowed where they fit."""
+    kind = array.dtype.kind
+    if kind == "f":
+        return array.astype(float_dtype, copy=False)
+    if kind in "iu" and array.dtype.itemsize > 4 and array.size:
+        low, high = int(array.min()), int(array.max())
+        for candidate in (np.int32, np.uint32):
+            info = np.iinfo(candidate)
+            if info.min <= low and high <= info.max:
+                return array.astype(candidate)
+    return array
 
 
 def _check_name(path, name) -> str:
@@ -293,8 +344,14 @@ def _as_rows(path, name: str, values, n: int, *, width=None) -> np.ndarray:
     return array
 
 
-def _output(path, points, fields, normals, colours, source) -> _Output:
-    """Validate and arrange the arrays to write (see :func:`~heatcurv.io.write_points`)."""
+def _output(path, points, fields, normals, colours, source, float_dtype=np.float64) -> _Output:
+    """Validate and arrange the arrays to write (see :func:`~heatcurv.io.write_points`).
+
+    Given ``fields`` and ``normals`` get the type ``float_dtype`` (floats) or a
+    32-bit integer type (64-bit integers that fit); the source's properties and
+    normals keep the type they were stored with.
+    """
+    float_dtype = np.dtype(float_dtype)
     points_array = np.asarray(points)
     if (
         points_array.dtype.kind not in "biuf"
@@ -304,6 +361,7 @@ def _output(path, points, fields, normals, colours, source) -> _Output:
         raise _write_error(
             path, f"points must be numbers of shape (n, 3), got shape {points_array.shape}"
         )
+    given_points_dtype = points_array.dtype
     points_array = np.ascontiguousarray(points_array, dtype=np.float64)
     n = points_array.shape[0]
 
@@ -313,15 +371,22 @@ def _output(path, points, fields, normals, colours, source) -> _Output:
         if len(source) != n:
             raise _write_error(path, f"source has {len(source)} points, points has {n}")
     colours_from_source = False
-    if normals is None and source is not None:
+    normals_dtype = float_dtype
+    if normals is None and source is not None and source.normals is not None:
         normals = source.normals
+        normals_dtype = np.dtype(source.meta.get("normals_dtype", np.float64))
     if colours is None and source is not None and source.colours is not None:
         colours, colours_from_source = source.colours, True
     elif colours is not None and source is not None and colours is source.colours:
         colours_from_source = True
     if normals is not None:
         normals = _as_rows(path, "normals", normals, n, width=3)
-        normals = normals.astype(normals.dtype if normals.dtype.kind == "f" else np.float64)
+        normals = normals.astype(normals_dtype)
+    colour_values = None
+    if colours_from_source:
+        colour_values = source.meta.get("colour_values")
+        if colour_values is not None and np.shape(colour_values) != (n, 3):
+            colour_values = None
     if colours is not None:
         colours = _as_rows(path, "colors", colours, n, width=3)
         if colours.size and (not _is_integral(colours) or colours.min() < 0 or colours.max() > 255):
@@ -337,16 +402,23 @@ def _output(path, points, fields, normals, colours, source) -> _Output:
         raise _write_error(
             path, f"fields must be a dict of name -> array, got {type(fields).__name__}"
         )
-    given_columns, given_arrays = {}, {}
+    given_columns, given_arrays, uncast = {}, {}, {}
     for name, values in (fields or {}).items():
         _check_name(path, name)
-        array = _as_rows(path, f"field {name!r}", values, n)
+        original = _as_rows(path, f"field {name!r}", values, n)
+        array = _computed_type(original, float_dtype)
         given_arrays[name] = array
         expanded = (
             {name: array}
             if array.ndim == 1
             else {name + axis: array[:, k] for k, axis in enumerate("xyz")}
         )
+        if array.dtype != original.dtype:
+            uncast.update(
+                {name: original}
+                if original.ndim == 1
+                else {name + axis: original[:, k] for k, axis in enumerate("xyz")}
+            )
         for column, column_values in expanded.items():
             if column.lower() in reserved:
                 raise _write_error(
@@ -373,9 +445,21 @@ def _output(path, points, fields, normals, colours, source) -> _Output:
             if array.ndim != 1:
                 continue
             columns[clean] = arrays[clean] = array
+    source_names = frozenset(columns)
     columns.update(given_columns)
     arrays.update(given_arrays)
-    return _Output(points_array, normals, colours, columns, arrays, source, colours_from_source)
+
+    # coordinates are never narrowed: float32 only where they were float32 and still are exactly
+    points_dtype = np.dtype(np.float64)
+    stored = source.meta.get("points_dtype") if source is not None else given_points_dtype
+    if stored is not None and np.dtype(stored) == np.float32:
+        if np.array_equal(points_array.astype(np.float32), points_array, equal_nan=True):
+            points_dtype = np.dtype(np.float32)
+    return _Output(
+        points_array, normals, colours, columns, arrays, source, colours_from_source,
+        points_dtype=points_dtype, colour_values=colour_values, source_names=source_names,
+        uncast=uncast,
+    )
 
 
 def _ordered_columns(output: _Output) -> dict:
@@ -384,6 +468,7 @@ def _ordered_columns(output: _Output) -> dict:
     if output.normals is not None:
         columns.update({name: output.normals[:, k] for k, name in enumerate(_NORMAL_NAMES)})
     if output.colours is not None:
-        columns.update({name: output.colours[:, k] for k, name in enumerate(_COLOUR_NAMES)})
+        colours = output.colours if output.colour_values is None else output.colour_values
+        columns.update({name: colours[:, k] for k, name in enumerate(_COLOUR_NAMES)})
     columns.update(output.columns)
     return columns

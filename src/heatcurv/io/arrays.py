@@ -1,4 +1,11 @@
-"""NumPy files: NPY arrays (plain or structured) and NPZ archives, read; NPZ written."""
+"""NumPy files: NPY arrays (plain or structured) and NPZ archives, read; NPZ written.
+
+An NPZ written by heatcurv holds ``points`` (n, 3) and one array of shape (n,)
+per property, named as the other formats name their properties: ``nx ny nz``,
+``red green blue``, the source's properties, then the fields (``mean``,
+``d1x d1y d1z``, ...). Older archives, with ``normals`` (n, 3), ``colors``
+(n, 3) and (n, 3) fields such as ``d1``, are read into the same names.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import (
+    _COLOUR_NAMES,
     _NORMAL_NAMES,
     PointCloud,
     _cloud_from_columns,
@@ -15,6 +23,7 @@ from ._common import (
     _magic,
     _native,
     _one_line,
+    _ordered_columns,
     _Output,
     _read_error,
     _write_error,
@@ -77,13 +86,14 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
     n = points.shape[0]
     if n == 0:
         raise _read_error(path, "the file holds no points")
-    normals = arrays.pop("normals", None)
+    columns = {axis: _native(points[:, k]) for k, axis in enumerate("xyz")}
+    normals = arrays.pop("normals", None)  # archives of earlier heatcurv versions (now nx ny nz)
     if normals is not None:
         if normals.dtype.kind not in "biuf" or normals.shape != (n, 3):
             raise _read_error(
                 path, f"'normals' has shape {normals.shape}; expected ({n}, 3) like the points"
             )
-        normals = _native(normals).astype(np.float64)
+        columns.update({name: _native(normals[:, k]) for k, name in enumerate(_NORMAL_NAMES)})
     colours = arrays.pop("colors", None)
     if colours is not None:
         converted = _colours_to_uint8(colours, text=False) if colours.shape == (n, 3) else None
@@ -93,34 +103,25 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
                 f"'colors' (shape {colours.shape}, dtype {colours.dtype}) "
                 f"are not ({n}, 3) RGB values",
             )
-        colours = converted
-    fields = {}
+        columns.update({name: _native(colours[:, k]) for k, name in enumerate(_COLOUR_NAMES)})
     for name, values in arrays.items():
         if values.dtype.kind not in "biuf" or values.ndim not in (1, 2) or values.shape[0] != n:
             continue  # not a per-point array (metadata): ignored
         if values.ndim == 1:
-            fields[name] = _native(values)
+            columns.setdefault(name, _native(values))
         else:
             suffixes = "xyz" if values.shape[1] == 3 else [f"_{k}" for k in range(values.shape[1])]
             for k, suffix in enumerate(suffixes):
-                fields[f"{name}{suffix}"] = _native(values[:, k])
-    return PointCloud(
-        points=np.ascontiguousarray(points, dtype=np.float64),
-        normals=normals,
-        colours=colours,
-        fields=fields,
-        path=path,
-        format=fmt,
-    )
+                columns.setdefault(f"{name}{suffix}", _native(values[:, k]))
+    return _cloud_from_columns(columns, path, fmt, text_colours=False)
 
 
 def _write_npz(stream, output: _Output, path: Path) -> None:
-    arrays = {"points": output.points}
-    if output.normals is not None:
-        arrays["normals"] = output.normals
-    if output.colours is not None:
-        arrays["colors"] = output.colours
-    for name, values in output.arrays.items():
+    arrays = {"points": output.points.astype(output.points_dtype, copy=False)}
+    columns = _ordered_columns(output)
+    for axis in "xyz":
+        del columns[axis]
+    for name, values in columns.items():
         if name in ("points", "xyz", "normals", "colors"):
             raise _write_error(path, f"field name {name!r} is reserved in NPZ output")
         arrays[name] = values

@@ -15,6 +15,7 @@ from ._common import (
     _one_line,
     _Output,
     _read_error,
+    _stored_dtype,
     _write_error,
 )
 
@@ -67,12 +68,12 @@ def _read_las(path: Path, fmt: str) -> PointCloud:
         role = _ROLE_OF.get(_canonical(name))
         if name in extra_names and role in _NORMAL_NAMES and role not in role_of:
             role_of[role] = name
+    meta = {"las_header": header, "points_dtype": np.dtype(np.float64)}
     if all(role in role_of for role in _NORMAL_NAMES):
-        normals = np.column_stack(
-            [columns.pop(role_of[role]).astype(np.float64) for role in _NORMAL_NAMES]
-        )
+        stored = [columns.pop(role_of[role]) for role in _NORMAL_NAMES]
+        meta["normals_dtype"] = _stored_dtype(stored)
+        normals = np.column_stack([values.astype(np.float64) for values in stored])
     colours = None
-    meta = {"las_header": header}
     if rgb16 is not None:
         colours = (
             rgb16.astype(np.uint8)
@@ -80,6 +81,8 @@ def _read_las(path: Path, fmt: str) -> PointCloud:
             else np.round(rgb16 / 257.0).astype(np.uint8)
         )
         meta["las_rgb16"] = rgb16
+        if not np.array_equal(colours, rgb16):
+            meta["colour_values"] = rgb16
     return PointCloud(
         points=np.ascontiguousarray(points),
         normals=normals,
@@ -123,6 +126,60 @@ def _fits_exactly(values: np.ndarray, dtype: np.dtype) -> bool:
     return info.min <= values.min() and values.max() <= info.max
 
 
+def _extra_dimensions(laspy, extra: dict, output: _Output, source_header):
+    """The extra-bytes dimensions to add for the columns ``extra``, and the values to set.
+
+    A source LAS property written back unchanged keeps its definition (type,
+    scale and offset, description), and the components ``name_0``,
+    ``name_1``... of an array dimension become that array dimension again.
+
+    Returns
+    -------
+    params : list of laspy.ExtraBytesParams
+    values : dict of str to ndarray, shape (n,) or (n, k)
+    """
+    definitions = {}
+    if source_header is not None:
+        definitions = {dim.name: dim for dim in source_header.point_format.extra_dimensions}
+    kept = output.source_names
+    params, values = [], {}
+    for name, column in extra.items():
+        if name in values:
+            continue
+        dim = definitions.get(name) if name in kept else None
+        base, _, index = name.rpartition("_")
+        array_dim = definitions.get(base) if name in kept and index.isdigit() else None
+        if dim is not None and dim.num_elements == 1:
+            params.append(
+                laspy.ExtraBytesParams(
+                    name=name, type=dim.dtype, description=dim.description,
+                    scales=dim.scales, offsets=dim.offsets,
+                )
+            )
+            values[name] = column
+            continue
+        if array_dim is not None and array_dim.num_elements > 1 and base not in values and base not in extra:
+            parts = [f"{base}_{k}" for k in range(array_dim.num_elements)]
+            if all(part in kept and part in extra for part in parts):
+                params.append(
+                    laspy.ExtraBytesParams(
+                        name=base, type=array_dim.dtype, description=array_dim.description,
+                        scales=array_dim.scales, offsets=array_dim.offsets,
+                    )
+                )
+                values[base] = np.column_stack([extra[part] for part in parts])
+                values.update({part: None for part in parts})  # written as part of the array
+                continue
+        dtype = column.dtype
+        if dtype.kind == "b":
+            dtype = np.dtype(np.uint8)
+        elif dtype.kind == "f" and dtype.itemsize < 4:
+            dtype = np.dtype(np.float32)
+        params.append(laspy.ExtraBytesParams(name=name, type=dtype))
+        values[name] = column
+    return params, {name: column for name, column in values.items() if column is not None}
+
+
 def _write_las(stream, output: _Output, path: Path) -> None:
     import datetime
 
@@ -164,17 +221,12 @@ def _write_las(stream, output: _Output, path: Path) -> None:
     fill_standard = {}
     for name in list(extra):
         if name in standard:
-            fill_standard[name] = extra.pop(name)
+            # a standard dimension gets the values as given (not narrowed: gps_time is double)
+            values = extra.pop(name)
+            fill_standard[name] = output.uncast.get(name, values)
         elif len(name.encode("utf-8")) > 32:
             raise _write_error(path, f"field name {name!r} is longer than the 32 bytes LAS allows")
-    params = []
-    for name, values in extra.items():
-        dtype = values.dtype
-        if dtype.kind == "b":
-            dtype = np.dtype(np.uint8)
-        elif dtype.kind == "f" and dtype.itemsize < 4:
-            dtype = np.dtype(np.float32)
-        params.append(laspy.ExtraBytesParams(name=name, type=dtype))
+    params, extra = _extra_dimensions(laspy, extra, output, source_header)
     try:
         if params:
             header.add_extra_dims(params)
@@ -193,6 +245,9 @@ def _write_las(stream, output: _Output, path: Path) -> None:
 
     if output.colours is not None:
         rgb16 = output.source.meta.get("las_rgb16") if output.colours_from_source else None
+        stored = output.colour_values
+        if rgb16 is None and stored is not None and stored.dtype == np.uint16:
+            rgb16 = stored  # 16-bit colours of a PLY source
         if rgb16 is None:
             rgb16 = output.colours.astype(np.uint16) * np.uint16(257)
         las.red, las.green, las.blue = rgb16[:, 0], rgb16[:, 1], rgb16[:, 2]

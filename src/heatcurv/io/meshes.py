@@ -1,4 +1,8 @@
-"""Mesh files read as point clouds: the vertices of OBJ (``v`` lines) and ASCII OFF."""
+"""Mesh files read as point clouds: the vertices of OBJ (``v`` lines) and ASCII OFF.
+
+The faces are not read; their number is ``meta["faces"]``, so that a writer
+can say they are not written.
+"""
 
 from __future__ import annotations
 
@@ -44,7 +48,10 @@ def _read_obj(path: Path, fmt: str) -> PointCloud:
         raise _read_error(path, f"line {_obj_line_number(text, bad[0] - 1)}: {bad[1]}") from None
     names = {3: ["x", "y", "z"], 4: ["x", "y", "z", "w"], 6: ["x", "y", "z", *_COLOUR_NAMES]}[ncols]
     columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
-    return _cloud_from_columns(columns, path, fmt, text_colours=False)
+    faces = len(re.findall(r"(?m)^[ \t]*f[ \t]", text))
+    return _cloud_from_columns(
+        columns, path, fmt, text_colours=False, meta={"faces": faces} if faces else None
+    )
 
 
 def _obj_line_number(text: str, vertex_index: int) -> int:
@@ -90,6 +97,10 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
         ) from None
     if n_vertices <= 0:
         raise _read_error(path, "the file holds no points")
+    try:
+        n_faces = max(int(tokens[1]), 0) if len(tokens) > 1 else 0
+    except ValueError:
+        n_faces = 0
 
     first = None
     for number, line in lines:
@@ -115,7 +126,9 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
         raise _read_error(path, f"line {first[0]}: {ncols} values do not match a {keyword} vertex")
     names = ["x", "y", "z"] + (list(_NORMAL_NAMES) if has_normal else [])
     columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
-    cloud = _cloud_from_columns(columns, path, fmt, text_colours=False)
+    cloud = _cloud_from_columns(
+        columns, path, fmt, text_colours=False, meta={"faces": n_faces} if n_faces else None
+    )
     if has_colour:
         start = len(names)
         rgba = table[:, start : start + n_colour]
@@ -124,6 +137,8 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
         cloud.colours = _colours_to_uint8(rgba[:, :3], text=as_bytes)
         if cloud.colours is None:
             raise _read_error(path, "vertex colours are neither 0-255 integers nor 0-1 fractions")
+        if not np.array_equal(cloud.colours, rgba[:, :3]):
+            cloud.meta["colour_values"] = np.ascontiguousarray(rgba[:, :3])  # 0-1 fractions
         if n_colour == 4:
             cloud.fields["alpha"] = np.ascontiguousarray(rgba[:, 3])
     if has_texture:

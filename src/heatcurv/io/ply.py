@@ -1,4 +1,10 @@
-"""PLY: ascii and binary reading (the ``vertex`` element) with plyfile, binary little-endian writing."""
+"""PLY: ascii and binary reading with plyfile, binary little-endian writing.
+
+The ``vertex`` element becomes the points and their properties; every other
+element (faces, edges, ...), the comments and the ``obj_info`` lines are kept
+in :attr:`PointCloud.meta` and written back when the cloud is the ``source``
+of a PLY output.
+"""
 
 from __future__ import annotations
 
@@ -57,7 +63,15 @@ def _read_ply(path: Path, fmt: str) -> PointCloud:
         for prop in vertex.properties
         if not isinstance(prop, plyfile.PlyListProperty)
     }
-    return _cloud_from_columns(columns, path, fmt, text_colours=False)
+    meta = {"ply_comments": list(ply.comments), "ply_obj_info": list(ply.obj_info)}
+    others = [element for element in ply.elements if element.name != "vertex"]
+    if others:
+        for element in others:  # in memory, not a map of the file (which may be replaced)
+            element.data = np.array(element.data)
+        meta["ply_elements"] = others
+    if "face" in names:
+        meta["faces"] = int(ply["face"].count)
+    return _cloud_from_columns(columns, path, fmt, text_colours=False, meta=meta)
 
 
 def _ply_dtype(path, name: str, values: np.ndarray) -> np.dtype:
@@ -84,11 +98,22 @@ def _write_ply(stream, output: _Output, path: Path) -> None:
     import plyfile
 
     columns = _ordered_columns(output)
-    dtype = [(name, _ply_dtype(path, name, values)) for name, values in columns.items()]
+    coordinates = np.dtype(output.points_dtype).newbyteorder("<")
+    dtype = [
+        (name, coordinates if name in ("x", "y", "z") else _ply_dtype(path, name, values))
+        for name, values in columns.items()
+    ]
     vertices = np.empty(output.points.shape[0], dtype=dtype)
     for name, values in columns.items():
         vertices[name] = values
-    element = plyfile.PlyElement.describe(vertices, "vertex")
-    plyfile.PlyData([element], text=False, byte_order="<", comments=["written by heatcurv"]).write(
-        stream
-    )
+    elements = [plyfile.PlyElement.describe(vertices, "vertex")]
+    meta = output.source.meta if output.source is not None else {}
+    elements += meta.get("ply_elements", [])  # the source's faces and other elements
+    comments = [c for c in meta.get("ply_comments", []) if c != "written by heatcurv"]
+    plyfile.PlyData(
+        elements,
+        text=False,
+        byte_order="<",
+        comments=comments + ["written by heatcurv"],
+        obj_info=list(meta.get("ply_obj_info", [])),
+    ).write(stream)
