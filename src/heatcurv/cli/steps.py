@@ -170,8 +170,9 @@ def _report_details(res, log: Log) -> None:
     log.detail(f"    {'total':<{width}s} {sum(timings.values()):8.3f} s")
     if scale:
         log.detail(
-            f"  chord-fit kernel: {scale.fit} ({scale.k} neighbours, ball radius "
-            f"{scale.radius:.4g} (99th percentile), median spacing h {scale.median_h:.4g}); "
+            f"  chord-fit kernel: {scale.fit} ({'median ' if res.options.radius is not None else ''}{scale.k} "
+            f"neighbours; ball radius {scale.median_radius:.4g} median, {scale.radius:.4g} 99th percentile, in the "
+            f"cloud's unit; spacing h {scale.median_h:.4g}); "
             f"noise sigma {scale.sigma:.3g} ({scale.relative_noise:.3g} h)"
         )
     solve = res.info.get("area_solve")
