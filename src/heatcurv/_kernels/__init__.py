@@ -1,7 +1,7 @@
 """Compiled (numba) kernels of the hot stages: the one implementation of each per-pair loop.
 
 Every loop over the CSR neighbour pairs that the estimator runs lives here as
-a numba kernel, parallel over points, with no per-pair temporaries:
+a numba kernel, with no per-pair temporaries:
 
 =============  ==============================================================
 ``segment``    PCA covariances and their eigenvectors, orientation costs,
@@ -18,12 +18,238 @@ compare every kernel with its reference on the same inputs.
 
 numba is required (see :mod:`heatcurv.backend`); without it importing heatcurv
 fails here with an ImportError that says so.
+
+Compilation, once per machine
+-----------------------------
+numba compiles the kernels the first time they run and caches the machine
+code (``cache=True``: next to these files in ``__pycache__``, or where
+``NUMBA_CACHE_DIR`` points; a read-only install falls back to numba's per-user
+cache). Compilation is what a fresh install's first run waits for, so the
+kernels are written to compile fast (measured by ``benchmarks/first_run.py``):
+
+* each kernel is a serial ``nogil`` loop over a range of rows,
+  ``core(row0, row1, ...)``, and :func:`parallel_rows` runs the row ranges on
+  threads. numba's ``parallel=True`` (``prange``) ran as fast but compiled
+  every kernel about twice as slowly (it outlines the loop body and compiles
+  it again as a "gufunc"). A row is computed by the same operations in the
+  same order either way, so the results are bit for bit the same; the row
+  cores use ``error_model="numpy"`` as ``prange`` bodies do (a division by
+  zero gives inf or nan, not an exception);
+* no array is assigned into an array slice: ``G[i] = np.dot(...)`` compiled
+  numba's general broadcasting setitem, 5 s per call site; ``np.dot`` writes
+  into its ``out`` argument instead;
+* the wrappers pass each argument in one type (float64 and int64 contiguous
+  arrays, int32 neighbour indices where they fit, Python scalars), so each
+  kernel compiles once, whatever dtypes the caller used.
+
+Together these took a fresh install's first ``heatcurv demo -n 5000`` from
+39 s to 14.5 s on a 2-core machine (compilation 36 s -> 11 s; a run with the
+cache filled takes 3.4 s either way), at the same run-time speed.
+
+The first compilation in a process is announced once, before it starts, as an
+INFO message on the ``heatcurv.kernels`` logger (:data:`COMPILE_NOTICE`):
+silent unless the application configures logging. The ``heatcurv`` command
+shows it on stderr when that is a terminal (as its progress bar), or on
+stdout with ``--verbose``.
 """
 
 try:
-    import numba  # noqa: F401
+    import numba
+    from numba.core import event as _numba_event
 except ImportError as exc:  # also raised by a numba too old or too new for the installed numpy
     raise ImportError(
         "heatcurv requires numba: its per-pair loops are compiled numba kernels and there is no "
         f"numpy fallback. Install a numba that supports this Python and numpy (pip install numba). ({exc})"
     ) from exc
+
+import logging
+import os
+import queue
+import threading
+
+import numpy as np
+
+__all__ = [
+    "COMPILE_NOTICE",
+    "COMPILE_SECONDS",
+    "LOGGER_NAME",
+    "ROW_CORE",
+    "as_floats",
+    "as_indices",
+    "as_pointers",
+    "parallel_rows",
+]
+
+#: The logger the compile notice goes to (a child of ``heatcurv``).
+LOGGER_NAME = "heatcurv.kernels"
+#: What compiling every kernel takes on the 2-core machine of ``benchmarks/first_run.py``.
+COMPILE_SECONDS = 15
+#: The notice, logged once per process when the first kernel starts compiling.
+COMPILE_NOTICE = (
+    f"compiling the numba kernels for this machine (first run only, about {COMPILE_SECONDS} s; "
+    "later runs load them from numba's cache)"
+)
+
+_logger = logging.getLogger(LOGGER_NAME)
+
+
+class _CompileNotice(_numba_event.Listener):
+    """Log :data:`COMPILE_NOTICE` when numba starts compiling one of these kernels, once per process.
+
+    numba broadcasts ``numba:compile`` only for real compilations: a kernel
+    loaded from the cache sends none, so a warm cache stays silent.
+    """
+
+    def __init__(self):
+        self.told = False
+        self._lock = threading.Lock()
+
+    def on_start(self, event):
+        if self.told:
+            return
+        dispatcher = event.data.get("dispatcher") if isinstance(event.data, dict) else None
+        module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+        if not module.startswith(__name__):
+            return
+        with self._lock:
+            if self.told:
+                return
+            self.told = True
+        _logger.info(COMPILE_NOTICE)
+
+    def on_end(self, event):
+        pass
+
+
+_numba_event.register("numba:compile", _CompileNotice())
+
+#: Options of the row cores: cached, run on threads, float errors as inf/nan (as numba's ``prange`` bodies were).
+ROW_CORE = dict(cache=True, nogil=True, error_model="numpy")
+#: Fewest rows a thread gets (smaller calls run on the calling thread alone).
+MIN_ROWS_PER_CHUNK = 512
+#: Chunks per thread: threads that finish early take more, evening out rows of different cost.
+CHUNKS_PER_THREAD = 4
+
+
+def parallel_rows(core, n: int, *args) -> None:
+    """Run ``core(row0, row1, *args)`` over the rows ``0 <= i < n`` on numba's thread count.
+
+    ``core`` is a ``nogil`` kernel that computes rows ``row0`` to ``row1 - 1``
+    and writes them into its output arguments. The rows are cut into chunks
+    that the calling thread and up to ``numba.get_num_threads() - 1`` helper
+    threads take in turn; :func:`heatcurv.backend.threads` sets that count
+    (numba's thread count of the calling thread, ``NUMBA_NUM_THREADS`` by
+    default). The helpers are daemon threads started once per process and
+    shared by all callers; the calling thread works too, so a call finishes
+    even when every helper is busy with another call. An exception in a chunk
+    is raised here once the chunks already started have finished.
+    """
+    n = int(n)
+    if not getattr(core, "signatures", True):  # (a plain function under NUMBA_DISABLE_JIT=1)
+        # compile (or load from the cache) on the calling thread, where ctrl-C can stop it
+        core(0, 0, *args)
+    threads = numba.get_num_threads()
+    chunks = min(threads * CHUNKS_PER_THREAD, n // MIN_ROWS_PER_CHUNK)
+    if threads <= 1 or chunks <= 1:
+        core(0, n, *args)
+        return
+    job = _Job(core, args, [n * c // chunks for c in range(chunks + 1)])
+    _helpers.ask(job, min(threads, chunks) - 1)
+    try:
+        job.run()
+        job.wait()
+    finally:
+        job.stop()  # after ctrl-C: the helpers take no further chunk
+    if job.errors:
+        raise job.errors[0]
+
+
+class _Job:
+    """The chunks of one :func:`parallel_rows` call, taken in turn by whichever threads run it."""
+
+    def __init__(self, core, args, bounds):
+        self.core, self.args, self.bounds = core, args, bounds
+        self.chunks = len(bounds) - 1
+        self.taken = self.done = 0
+        self.stopped = False
+        self.errors = []
+        self.condition = threading.Condition(threading.Lock())
+
+    def run(self) -> None:
+        """Compute chunks until none is left."""
+        while True:
+            with self.condition:
+                if self.stopped or self.taken >= self.chunks:
+                    return
+                c = self.taken
+                self.taken += 1
+            error = None
+            try:
+                self.core(self.bounds[c], self.bounds[c + 1], *self.args)
+            except BaseException as exc:  # raised by the calling thread
+                error = exc
+            with self.condition:
+                self.done += 1
+                if error is not None:
+                    self.errors.append(error)
+                    self.stopped = True
+                self.condition.notify_all()
+
+    def wait(self) -> None:
+        """Until every chunk taken so far is computed."""
+        with self.condition:
+            while self.done < self.taken:
+                self.condition.wait()
+
+    def stop(self) -> None:
+        with self.condition:
+            self.stopped = True
+
+
+class _Helpers:
+    """Daemon threads that run :class:`_Job` s from a queue; started when first needed, again after a fork."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.pid = None
+        self.queue = None
+        self.count = 0
+
+    def ask(self, job: _Job, helpers: int) -> None:
+        """Let ``helpers`` threads join ``job`` (those still busy join it later, or find it finished)."""
+        with self.lock:
+            if self.pid != os.getpid():  # first call, or a child process: its parent's threads are not here
+                self.pid, self.queue, self.count = os.getpid(), queue.SimpleQueue(), 0
+            while self.count < helpers:
+                threading.Thread(target=self._serve, args=(self.queue,), name="heatcurv-kernels", daemon=True).start()
+                self.count += 1
+            for _ in range(helpers):
+                self.queue.put(job)
+
+    @staticmethod
+    def _serve(jobs) -> None:
+        while True:
+            jobs.get().run()
+
+
+_helpers = _Helpers()
+
+
+def as_floats(a) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array (no copy if it is one)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def as_pointers(indptr) -> np.ndarray:
+    """CSR row pointers as a C-contiguous int64 array."""
+    return np.ascontiguousarray(indptr, dtype=np.int64)
+
+
+def as_indices(indices, n_points: int) -> np.ndarray:
+    """CSR neighbour indices as int32 when ``n_points`` fit (as :mod:`heatcurv.neighbourhood` makes them), else int64.
+
+    One index type means one compilation of each kernel; callers that pass
+    int64 indices of a small cloud pay a copy instead.
+    """
+    dtype = np.int32 if n_points < np.iinfo(np.int32).max else np.int64
+    return np.ascontiguousarray(indices, dtype=dtype)

@@ -1,6 +1,7 @@
 """Compiled per-pair work of :func:`heatcurv.chordfit.chord_fit`.
 
-One kernel per fit loops, in parallel over the centres, over each centre's CSR
+One kernel per fit loops, in parallel over the centres (row cores on threads,
+as in :mod:`heatcurv._kernels.segment`), over each centre's CSR
 neighbours and accumulates the normal equations directly,
 
     G_i = sum_j w_ij X_ij X_ij^T,   r_i = sum_j w_ij y_ij X_ij,   (y^T W y)_i,
@@ -27,6 +28,8 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+
+from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
 
 __all__ = [
     "CHORD",
@@ -106,7 +109,6 @@ def _denoised_denominator(cols, n_shape, r2, height_beta, i):
     return r2 + dz * dz
 
 
-@numba.njit(parallel=True, cache=True)
 def assemble_normal_equations(
     points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, G, rhs, yy, G2
 ):
@@ -133,11 +135,21 @@ def assemble_normal_equations(
         Output if not empty: ``X^T W^2 S^2 X`` with ``S`` the response noise per
         unit height noise (``2 / D^2`` for chord curvatures, 1 for heights).
     """
-    n = indptr.shape[0] - 1
+    points, indptr = as_floats(points), as_pointers(indptr)
+    args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights)
+    args += as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2), bool(tilt), bool(cubic), int(kind)
+    parallel_rows(_assemble_normal_equations, indptr.shape[0] - 1, *args, as_floats(height_beta), G, rhs, yy, G2)
+
+
+@numba.njit(**ROW_CORE)
+def _assemble_normal_equations(
+    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta,
+    G, rhs, yy, G2
+):
     p = rhs.shape[1]
     n_shape = 3 + 2 * tilt + 4 * cubic
     with_g2 = G2.shape[0] > 0
-    for i in numba.prange(n):
+    for i in range(row0, row1):
         lo, hi = indptr[i], indptr[i + 1]
         m = hi - lo
         cols = np.empty(n_shape)
@@ -190,11 +202,16 @@ def assemble_normal_equations(
             if with_g2:
                 G2[i] = 0.0
         else:
-            At = A.T
-            G[i] = np.dot(At, A)
-            rhs[i] = np.dot(At, b)
+            # into G[i] directly: assigning an array to G[i] compiles numba's general
+            # broadcasting setitem, 5 s per call site
+            np.dot(A.T, A, G[i])
+            for a in range(p):  # A^T b summed in row order, as numba's parallel np.dot(A.T, b) did
+                s = 0.0
+                for t in range(m):
+                    s += A[t, a] * b[t]
+                rhs[i, a] = s
             if with_g2:
-                G2[i] = np.dot(S.T, S)
+                np.dot(S.T, S, G2[i])
         yy[i] = yyi
 
 
@@ -218,7 +235,6 @@ def _unbiased_mean_square(weighted_sq, total_weight, total_sq_weight, p):
     return mean_sq / max(1.0 - p / n_eff, MIN_DOF_FRACTION)
 
 
-@numba.njit(parallel=True, cache=True)
 def weighted_height_residual(
     points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, beta, sigma2
 ):
@@ -228,10 +244,21 @@ def weighted_height_residual(
     ``DENOISED_HEIGHT`` (``beta`` the refit of ``height_beta``); other
     arguments as :func:`assemble_normal_equations`. Units of ``unit``.
     """
-    n = indptr.shape[0] - 1
+    points, indptr = as_floats(points), as_pointers(indptr)
+    args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights)
+    args += as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2), bool(tilt), bool(cubic), int(kind)
+    args += as_floats(height_beta), as_floats(beta), sigma2
+    parallel_rows(_weighted_height_residual, indptr.shape[0] - 1, *args)
+
+
+@numba.njit(**ROW_CORE)
+def _weighted_height_residual(
+    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, beta,
+    sigma2
+):
     p = beta.shape[1]
     n_shape = 3 + 2 * tilt + 4 * cubic
-    for i in numba.prange(n):
+    for i in range(row0, row1):
         cols = np.empty(n_shape)
         weighted_sq = 0.0
         total_weight = 0.0
@@ -318,17 +345,19 @@ def _trace_of_inverse(L, work):
 WELL_POSED_RCOND = 1e-10
 
 
-@numba.njit(parallel=True, cache=True)
-def _solve_normal_equations(G, rhs, yy, ridge, contrast, G2, with_variance, check, beta, rss, posed, variance):
-    """:func:`heatcurv.chordfit.solve_normal_equations`, point by point, by Cholesky.
+@numba.njit(**ROW_CORE)
+def _solve_normal_equations(
+    row0, row1, G, rhs, yy, ridge, contrast, G2, with_variance, check, beta, rss, posed, variance
+):
+    """:func:`heatcurv.chordfit.solve_normal_equations` for the points ``row0 <= i < row1``, by Cholesky.
 
     ``posed`` gets 1 (well posed), 0 (ill posed) or -1 (undecided: the caller
     checks those few points by their eigenvalues). The condition number
     ``kappa = lambda_max / lambda_min`` is bracketed without eigenvalues:
     ``kappa <= trace(G) trace(G^-1) <= p^2 kappa``.
     """
-    n, p = rhs.shape
-    for i in numba.prange(n):
+    p = rhs.shape[1]
+    for i in range(row0, row1):
         A = np.empty((p, p))
         L = np.empty((p, p))
         work = np.empty(p)
@@ -392,14 +421,14 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True):
     undecided). ``check=False`` skips the well-posedness test (all True) for
     fits whose coefficients alone are used.
     """
+    G, rhs, yy = as_floats(G), as_floats(rhs), as_floats(yy)
     n, p = rhs.shape
     beta, rss, variance = np.empty((n, p)), np.empty(n), np.empty(n if contrast is not None else 0)
     posed = np.empty(n, dtype=np.int8)
-    c = np.zeros(p) if contrast is None else np.ascontiguousarray(contrast, dtype=np.float64)
-    g2 = G2 if contrast is not None else np.empty((0, p, p))
-    _solve_normal_equations(
-        G, rhs, yy, float(ridge), c, g2, contrast is not None, bool(check), beta, rss, posed, variance
-    )
+    c = np.zeros(p) if contrast is None else as_floats(contrast)
+    g2 = as_floats(G2) if contrast is not None else np.empty((0, p, p))
+    args = G, rhs, yy, float(ridge), c, g2, contrast is not None, bool(check), beta, rss, posed, variance
+    parallel_rows(_solve_normal_equations, n, *args)
     well_posed = posed == 1
     undecided = np.flatnonzero(posed < 0)
     if undecided.size:

@@ -1,8 +1,11 @@
 """Compiled kernels for the per-pair sums over CSR neighbourhoods.
 
-Each kernel loops over the points in parallel (``prange``) and over each
-point's neighbours ``indices[indptr[i]:indptr[i+1]]`` sequentially, so no
-per-pair temporary is ever allocated. These are the only implementations the
+Each kernel is a row core, ``_name(row0, row1, ..., out)``, that loops over the
+points ``row0 <= i < row1`` and over each point's neighbours
+``indices[indptr[i]:indptr[i+1]]``, so no per-pair temporary is ever
+allocated; the public function of the same name without the underscore
+allocates the output and runs the core on threads
+(:func:`heatcurv._kernels.parallel_rows`). These are the only implementations the
 stages run (:mod:`heatcurv.normals`, :mod:`heatcurv.kernel`,
 :mod:`heatcurv.areas`, :mod:`heatcurv.mean_curvature`, :mod:`heatcurv.border`
 call them directly); ``tests/reference/segment.py`` holds their numpy
@@ -16,7 +19,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
+
+from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
 
 __all__ = [
     "orientation_costs",
@@ -39,57 +44,79 @@ def _flat_top(u, start):
     return 0.5 * (1.0 + math.cos(math.pi * (u - start) / (1.0 - start)))
 
 
-@njit(parallel=True, cache=True)
 def orientation_costs(normals, indptr, indices, distances, radius):
     """``1 - |n_i . n_j| + 1e-3 |xi - xj| / R_i + 1e-12`` per pair (heatcurv.normals.orient_normals)."""
-    n = indptr.shape[0] - 1
+    normals, indptr, distances = as_floats(normals), as_pointers(indptr), as_floats(distances)
     out = np.empty(distances.shape[0])
-    for i in prange(n):
+    args = normals, indptr, as_indices(indices, normals.shape[0]), distances, as_floats(radius), out
+    parallel_rows(_orientation_costs, indptr.shape[0] - 1, *args)
+    return out
+
+
+@njit(**ROW_CORE)
+def _orientation_costs(row0, row1, normals, indptr, indices, distances, radius, out):
+    for i in range(row0, row1):
         inv = 1e-3 / radius[i]
         for p in range(indptr[i], indptr[i + 1]):
             j = indices[p]
             dot = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
             out[p] = (1.0 - abs(dot)) + distances[p] * inv + 1e-12
+
+
+def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):
+    """``exp(-|xi - xj|^2 inv_h2[i]) flat_top(|xi - xj| / R_i) A_j`` per pair, shape (nnz,)."""
+    indptr, distances, areas = as_pointers(indptr), as_floats(distances), as_floats(areas)
+    out = np.empty(distances.shape[0])
+    args = indptr, as_indices(indices, areas.shape[0]), distances, as_floats(radius), as_floats(inv_h2), areas
+    parallel_rows(_tapered_heat_weights, indptr.shape[0] - 1, *args, float(start), out)
     return out
 
 
-@njit(parallel=True, cache=True)
-def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):
-    """``exp(-|xi - xj|^2 inv_h2[i]) flat_top(|xi - xj| / R_i) A_j`` per pair, shape (nnz,)."""
-    n = indptr.shape[0] - 1
-    out = np.empty(distances.shape[0])
-    for i in prange(n):
+@njit(**ROW_CORE)
+def _tapered_heat_weights(row0, row1, indptr, indices, distances, radius, inv_h2, areas, start, out):
+    for i in range(row0, row1):
         inv = 1.0 / radius[i]
         for p in range(indptr[i], indptr[i + 1]):
             d = distances[p]
             out[p] = math.exp(-d * d * inv_h2[i]) * _flat_top(d * inv, start) * areas[indices[p]]
+
+
+def taper_sums(indptr, distances, radius, start):
+    """``sum_j flat_top(|xi - xj| / R_i)`` per point, shape (n,)."""
+    indptr = as_pointers(indptr)
+    n = indptr.shape[0] - 1
+    out = np.zeros(n)
+    parallel_rows(_taper_sums, n, indptr, as_floats(distances), as_floats(radius), float(start), out)
     return out
 
 
-@njit(parallel=True, cache=True)
-def taper_sums(indptr, distances, radius, start):
-    """``sum_j flat_top(|xi - xj| / R_i)`` per point, shape (n,)."""
-    n = indptr.shape[0] - 1
-    out = np.zeros(n)
-    for i in prange(n):
+@njit(**ROW_CORE)
+def _taper_sums(row0, row1, indptr, distances, radius, start, out):
+    for i in range(row0, row1):
         s = 0.0
         inv = 1.0 / radius[i]
         for p in range(indptr[i], indptr[i + 1]):
             s += _flat_top(distances[p] * inv, start)
         out[i] = s
-    return out
 
 
-@njit(parallel=True, cache=True)
 def weighted_covariances(points, indptr, indices, distances, radius, start, use_taper):
     """Covariance of each neighbourhood and its centre (weight 1), shape (n, 3, 3).
 
     Neighbour ``j`` has weight ``flat_top(|xi - xj| / R_i)`` (or 1), the centre
     weight 1; the mean is the weighted mean of the same points.
     """
+    points, indptr = as_floats(points), as_pointers(indptr)
     n = indptr.shape[0] - 1
     cov = np.zeros((n, 3, 3))
-    for i in prange(n):
+    args = points, indptr, as_indices(indices, points.shape[0]), as_floats(distances), as_floats(radius)
+    parallel_rows(_weighted_covariances, n, *args, float(start), bool(use_taper), cov)
+    return cov
+
+
+@njit(**ROW_CORE)
+def _weighted_covariances(row0, row1, points, indptr, indices, distances, radius, start, use_taper, cov):
+    for i in range(row0, row1):
         lo, hi = indptr[i], indptr[i + 1]
         inv = 1.0 / radius[i]
         total = 1.0
@@ -122,19 +149,25 @@ def weighted_covariances(points, indptr, indices, distances, radius, start, use_
         cov[i, 1, 1] = c11 / total
         cov[i, 1, 2] = cov[i, 2, 1] = c12 / total
         cov[i, 2, 2] = c22 / total
-    return cov
 
 
-@njit(parallel=True, cache=True)
 def kappa_normal_sums(points, indptr, indices, distances, inv_4t, weights, areas, has_weights):
     """``sum_j W_ij A_j (x_i - x_j)`` per point, shape (n, 3) (eq 2.10 without its constant).
 
     ``W_ij`` is ``weights[p]`` when ``has_weights``, else the heat kernel
     ``exp(-|xi - xj|^2 inv_4t[i])`` computed on the fly.
     """
+    points, indptr = as_floats(points), as_pointers(indptr)
     n = indptr.shape[0] - 1
     out = np.zeros((n, 3))
-    for i in prange(n):
+    args = points, indptr, as_indices(indices, points.shape[0]), as_floats(distances), as_floats(inv_4t)
+    parallel_rows(_kappa_normal_sums, n, *args, as_floats(weights), as_floats(areas), bool(has_weights), out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _kappa_normal_sums(row0, row1, points, indptr, indices, distances, inv_4t, weights, areas, has_weights, out):
+    for i in range(row0, row1):
         s0 = s1 = s2 = 0.0
         for p in range(indptr[i], indptr[i + 1]):
             j = indices[p]
@@ -144,16 +177,23 @@ def kappa_normal_sums(points, indptr, indices, distances, inv_4t, weights, areas
             s1 += c * (points[i, 1] - points[j, 1])
             s2 += c * (points[i, 2] - points[j, 2])
         out[i, 0], out[i, 1], out[i, 2] = s0, s1, s2
+
+
+def centroid_offsets(points, centres, indptr, indices, distances, radius, normals, start, use_taper):
+    """``|P_t (mean_j x_j - x_i)| / R_i`` per point (heatcurv.border.centroid_offset)."""
+    points, indptr = as_floats(points), as_pointers(indptr)
+    n = indptr.shape[0] - 1
+    out = np.zeros(n)
+    args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(distances)
+    args += as_floats(radius), as_floats(normals), float(start), bool(use_taper), out
+    parallel_rows(_centroid_offsets, n, *args)
     return out
 
 
-@njit(parallel=True, cache=True)
-def centroid_offsets(points, centres, indptr, indices, distances, radius, normals, start, use_taper):
-    """``|P_t (mean_j x_j - x_i)| / R_i`` per point (heatcurv.border.centroid_offset)."""
-    n = indptr.shape[0] - 1
-    out = np.zeros(n)
+@njit(**ROW_CORE)
+def _centroid_offsets(row0, row1, points, centres, indptr, indices, distances, radius, normals, start, use_taper, out):
     tiny = np.finfo(np.float64).tiny
-    for i in prange(n):
+    for i in range(row0, row1):
         inv = 1.0 / radius[i]
         total = 0.0
         c0 = c1 = c2 = 0.0
@@ -173,7 +213,6 @@ def centroid_offsets(points, centres, indptr, indices, distances, radius, normal
         c1 -= dn * normals[i, 1]
         c2 -= dn * normals[i, 2]
         out[i] = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) * inv
-    return out
 
 
 @njit(cache=True)
@@ -219,7 +258,6 @@ def _jacobi_eigen3(a, v):
                 v[k, q] = vkq + s * (vkp - tau * vkq)
 
 
-@njit(parallel=True, cache=True)
 def smallest_eigenvectors(cov):
     """Unit eigenvector of the smallest eigenvalue and the sorted eigenvalues of each 3 x 3 matrix.
 
@@ -227,10 +265,17 @@ def smallest_eigenvectors(cov):
     batched ``np.linalg.eigh`` (1.1 s for a million matrices, LAPACK's
     per-call overhead) by an inlined Jacobi iteration.
     """
+    cov = as_floats(cov)
     n = cov.shape[0]
     vectors = np.empty((n, 3))
     values = np.empty((n, 3))
-    for i in prange(n):
+    parallel_rows(_smallest_eigenvectors, n, cov, vectors, values)
+    return vectors, values
+
+
+@njit(**ROW_CORE)
+def _smallest_eigenvectors(row0, row1, cov, vectors, values):
+    for i in range(row0, row1):
         a = cov[i].copy()
         v = np.empty((3, 3))
         _jacobi_eigen3(a, v)
@@ -250,4 +295,3 @@ def smallest_eigenvectors(cov):
             lo, mid = mid, lo
         values[i, 0], values[i, 1], values[i, 2] = lo, mid, hi
         vectors[i, 0], vectors[i, 1], vectors[i, 2] = v[0, k], v[1, k], v[2, k]
-    return vectors, values
