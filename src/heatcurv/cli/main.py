@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 import warnings
+from contextlib import contextmanager
 
+from .._kernels import LOGGER_NAME as KERNELS_LOGGER
 from ..errors import HeatcurvError, HeatcurvWarning
 from .console import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, EXIT_OK, Log
 from .parser import UsageError, build_parser, join_negative_values
@@ -22,6 +25,60 @@ def _warning_printer(show_all: bool, stream):
             print(f"heatcurv: warning: {text}", file=stream, flush=True)
 
     return show
+
+
+class _NoticeLine(logging.Handler):
+    """A log record as one line ``heatcurv: ...`` on ``stream``, written around any progress bar there."""
+
+    def __init__(self, stream):
+        super().__init__(logging.INFO)
+        self.stream = stream
+
+    def emit(self, record):
+        try:
+            from tqdm import tqdm
+
+            tqdm.write(f"heatcurv: {' '.join(record.getMessage().split())}", file=self.stream)
+        except Exception:
+            self.handleError(record)
+
+
+def notice_stream(quiet: bool, verbose: bool, stderr, stdout):
+    """Where the compile notice goes: stderr on a terminal, as the progress bar; stdout with --verbose; else nowhere.
+
+    Kept off a stderr that is not a terminal, which holds only errors and
+    warnings (scripts and tests read it), unless --verbose asks for details.
+    """
+    if quiet:
+        return None
+    isatty = getattr(stderr, "isatty", None)
+    if isatty is not None and isatty():
+        return stderr
+    return stdout if verbose else None
+
+
+@contextmanager
+def compile_notice(stream):
+    """Show the compiled kernels' notice (logged once, when numba starts compiling them) on ``stream``.
+
+    The library logs it at INFO on the ``heatcurv.kernels`` logger, which an
+    application that does not configure logging never shows; the command
+    prints it, so that the first run's wait for the compiler is explained.
+    ``stream`` None shows nothing.
+    """
+    if stream is None:
+        yield
+        return
+    logger = logging.getLogger(KERNELS_LOGGER)
+    handler, level = _NoticeLine(stream), logger.level
+    logger.addHandler(handler)
+    if logger.getEffectiveLevel() > logging.INFO:
+        logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -59,7 +116,8 @@ def main(argv=None) -> int:
         return EXIT_BAD_INPUT
     log = Log(quiet=args.quiet, verbose=args.verbose)
     try:
-        with warnings.catch_warnings():
+        notices = notice_stream(args.quiet, args.verbose, sys.stderr, sys.stdout)
+        with warnings.catch_warnings(), compile_notice(notices):
             if not debug:
                 warnings.showwarning = _warning_printer(args.verbose, sys.stderr)
             return args.run(args, log)
