@@ -130,20 +130,16 @@ def test_unwritable_directory_is_refused(tmp_path, monkeypatch):
     assert leftovers(tmp_path) == []
 
 
-@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="root writes read-only files and directories")
-def test_read_only_permissions_are_refused(tmp_path):
+def test_read_only_permissions_are_refused(tmp_path, monkeypatch):
+    # permission bits, seen through os.access (as root, CI's user, chmod alone would not stop a write)
     from heatcurv.io import check_writable
 
     path = tmp_path / "kept.ply"
     path.write_bytes(b"protected")
     path.chmod(0o444)
+    real_access = os.access
+    read_only = {str(path)} if os.geteuid() == 0 else set()
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) in read_only else real_access(p, mode))
     with pytest.raises(HeatcurvError, match=r"the file exists and is read-only"):
         check_writable(path)
-    directory = tmp_path / "locked"
-    directory.mkdir()
-    directory.chmod(0o555)
-    try:
-        with pytest.raises(HeatcurvError, match=r"no permission to create files in"):
-            write_points(directory / "out.ply", np.zeros((3, 3)))
-    finally:
-        directory.chmod(0o755)
+    assert path.read_bytes() == b"protected"
