@@ -104,3 +104,15 @@ def test_off_float_colours_are_written_back_as_stored(tmp_path):
     write_points(tmp_path / "c.csv", source.points, source=source)
     np.testing.assert_allclose(np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=1)[:, 3:6],
                                [[0.1, 0.2, 0.3], [0.5, 0.6, 0.7]], rtol=0, atol=0)
+
+
+def test_mesh_readers_directly(tmp_path):
+    from heatcurv.io.meshes import _read_obj, _read_off
+
+    obj = tmp_path / "tri.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    cloud = _read_obj(obj, "obj")
+    np.testing.assert_array_equal(cloud.points, [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    off = tmp_path / "tri.off"
+    off.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    np.testing.assert_array_equal(_read_off(off, "off").points, cloud.points)
