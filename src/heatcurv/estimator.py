@@ -208,7 +208,10 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
     fixed_radius = opts.radius is not None
     with clock.stage("kernel_choice"):
         if fixed_radius:  # radius=: the operator's balls are the fit's; only the fit's form is chosen
-            choice = select_form(X, base, nrm, fit_areas, alpha=opts.alpha, **asdict(tuning))
+            choice = select_form(
+                X, base, nrm, fit_areas, alpha=opts.alpha, n_sub=tuning.n_sub, clean_ratio=tuning.clean_ratio,
+                seed=tuning.seed,
+            )
         else:
             choice = select_scale(
                 X, op.tree, nrm, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,

@@ -115,8 +115,12 @@ def measure_support(nbhd: Neighbourhood, h: np.ndarray, options: Options, seed: 
     -------
     KernelSupport
     """
-    sub, h_sub = _sample(nbhd, h, options, seed)
-    weights = _fit_weights(sub, h_sub, options, nbhd.n_points)
+    return _measure(*_sample(nbhd, h, options, seed), options, nbhd.n_points)
+
+
+def _measure(sub: Neighbourhood, h_sub: np.ndarray, options: Options, n_points: int) -> KernelSupport:
+    """:func:`measure_support` on balls already sampled."""
+    weights = _fit_weights(sub, h_sub, options, n_points)
     tapered = options.fit == "chord"
     m = 0.25 if tapered else options.m
     return KernelSupport(
@@ -158,11 +162,10 @@ def _smallest_m(sub: Neighbourhood, h: np.ndarray, target: float, m: float) -> f
     return hi
 
 
-def _advice(nbhd: Neighbourhood, h: np.ndarray, options: Options, target: float) -> str:
-    """What would give the fit ``target`` effective neighbours on this cloud."""
-    sub, h_sub = _sample(nbhd, h, options)
+def _advice(sub: Neighbourhood, h_sub: np.ndarray, options: Options, n_points: int, target: float) -> str:
+    """What would give the fit ``target`` effective neighbours on the sampled balls."""
     if options.fit == "chord":
-        best = _widest_alpha(sub, target, nbhd.n_points, options.alpha)
+        best = _widest_alpha(sub, target, n_points, options.alpha)
         more = "more neighbours (neighbours=, or a wider scale=)"
         return f"use alpha <= {best:.3g} or {more}" if best is not None else f"use {more}"
     best = _smallest_m(sub, h_sub, target, options.m)
@@ -211,7 +214,8 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options) -> Kernel
     HeatcurvWarning
         When it has barely more, or the ball cuts the kernel (:data:`EDGE_WEIGHT_MAX`).
     """
-    support = measure_support(nbhd, h, options)
+    sub, h_sub = _sample(nbhd, h, options)
+    support = _measure(sub, h_sub, options, nbhd.n_points)
     n_eff = support.effective_neighbours
     low, few = SUPPORT_LIMITS[support.fit]
     what = f"alpha = {options.alpha:g}" + ("" if options.fit == "chord" else f", m = {options.m:g}")
@@ -219,7 +223,7 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options) -> Kernel
     if n_eff < low:
         message = (
             f"{what}: the heat kernel is so narrow that a median point's fit rests on {n_eff:.2g} effective "
-            f"neighbours; the {fit} needs at least {low:g}: {_advice(nbhd, h, options, few)}"
+            f"neighbours; the {fit} needs at least {low:g}: {_advice(sub, h_sub, options, nbhd.n_points, few)}"
         )
         if _options_chosen(options):
             raise HeatcurvError(message)
@@ -234,7 +238,7 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options) -> Kernel
     elif n_eff < few:
         warnings.warn(
             f"{what}: a median point's fit rests on only {n_eff:.3g} effective neighbours; expect noisy "
-            f"curvatures ({_advice(nbhd, h, options, few)})",
+            f"curvatures ({_advice(sub, h_sub, options, nbhd.n_points, few)})",
             HeatcurvWarning,
             stacklevel=3,
         )

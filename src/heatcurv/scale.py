@@ -355,7 +355,6 @@ def select_form(
     n_sub: int = 2000,
     clean_ratio: float = 1.6,
     seed: int = 0,
-    **_ignored,
 ) -> ScaleChoice:
     """The noise gate alone, on a neighbourhood the caller fixed (``radius=``): chord or denoised fit.
 
