@@ -98,6 +98,9 @@ Modules
                        the implicit-function interface
 ``noise``              the Gaussian noise of the samples
 ``registry``           :data:`SURFACES` and :func:`get`
+``scenes``             simulated scenes of several surfaces with known
+                       answers: :func:`lidar_tile` (terrain, buildings,
+                       trees), :func:`cad_part` (sharp edges), :class:`Scene`
 =====================  ======================================================
 
 Everything public is importable from :mod:`heatcurv.surfaces` itself.
@@ -112,8 +115,29 @@ from .graphs import Arch, Graph, Paraboloid, Plane, Saddle
 from .patches import Cylinder, FoldedSquare
 from .registry import SURFACES, get
 from .samplers import SAMPLERS
+from .scenes import (
+    BOSS_SIDE,
+    BUILDING_ROOF,
+    BUILDING_WALL,
+    GROUND,
+    HOLE_WALL,
+    PLANAR_FACE,
+    VEGETATION,
+    Scene,
+    cad_part,
+    cad_part_area,
+    lidar_terrain,
+    lidar_tile,
+)
 
 __all__ = [
+    "BOSS_SIDE",
+    "BUILDING_ROOF",
+    "BUILDING_WALL",
+    "GROUND",
+    "HOLE_WALL",
+    "PLANAR_FACE",
+    "VEGETATION",
     "Arch",
     "Curvature",
     "Cylinder",
@@ -125,9 +149,14 @@ __all__ = [
     "SAMPLERS",
     "SURFACES",
     "Saddle",
+    "Scene",
     "Sphere",
     "Surface",
     "SurfaceSample",
     "Torus",
+    "cad_part",
+    "cad_part_area",
     "get",
+    "lidar_terrain",
+    "lidar_tile",
 ]
