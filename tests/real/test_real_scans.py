@@ -1,0 +1,78 @@
+"""The pymeshlab sample meshes read by heatcurv.testing.scans: the counts and areas we rely on.
+
+These are the reference values of the real-scan tests: a closed object scan
+(the bunny), a range map with its camera (face000), closed models (bone, cow,
+airplane) and a unit cube.
+"""
+
+import time
+
+import numpy as np
+import pytest
+
+from heatcurv.testing.scans import PYMESHLAB_SAMPLES, range_camera, read_mesh
+
+
+def edge_use(mesh):
+    """How many faces use each undirected edge, shape (edges,)."""
+    f = mesh.faces
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    return np.unique(edges, axis=0, return_counts=True)[1]
+
+
+def signed_volume(mesh):
+    v, f = mesh.vertices, mesh.faces
+    return float(np.einsum("ij,ij->", v[f[:, 0]], np.cross(v[f[:, 1]], v[f[:, 2]])) / 6.0)
+
+
+def test_every_sample_is_there(pymeshlab_samples):
+    for name in PYMESHLAB_SAMPLES:
+        assert (pymeshlab_samples / name).is_file(), name
+
+
+def test_bunny_is_a_closed_scan_with_outward_file_normals(pymeshlab_samples):
+    start = time.perf_counter()
+    mesh = read_mesh(pymeshlab_samples / "bunny.obj")
+    assert time.perf_counter() - start < 3.0  # 3.9 MB of OBJ: about 0.4 s
+    assert mesh.vertices.shape == (28088, 3) and mesh.faces.shape == (56172, 3)
+    assert mesh.area == pytest.approx(0.9227, rel=1e-4)
+    assert np.all(edge_use(mesh) == 2)  # closed, manifold
+    assert mesh.used.all() and np.all(mesh.components() == 0)
+    assert signed_volume(mesh) > 0  # faces wound outward
+    assert mesh.normals is not None
+    np.testing.assert_allclose(np.linalg.norm(mesh.normals, axis=1), 1.0, atol=1e-12)
+    agree = np.einsum("ij,ij->i", mesh.normals, mesh.vertex_normals())
+    assert np.min(agree) > 0.9 and np.median(agree) > 0.9999
+    assert mesh.vertex_areas().sum() == pytest.approx(mesh.area)
+
+
+def test_face_range_map_faces_its_camera(pymeshlab_samples):
+    path = pymeshlab_samples / "rangemaps" / "face000.ply"
+    mesh = read_mesh(path)
+    assert mesh.vertices.shape == (85849, 3) and mesh.faces.shape == (166259, 3)
+    assert mesh.area == pytest.approx(19880.0, rel=1e-4)
+    assert np.any(edge_use(mesh) == 1)  # a range map is open
+    camera = range_camera(path)
+    np.testing.assert_allclose(camera, [0.0, 0.0, 21.625208], atol=1e-5)
+    used = mesh.used
+    x = mesh.vertices[used]
+    towards = (camera - x) / np.linalg.norm(camera - x, axis=1)[:, None]
+    facing = np.einsum("ij,ij->i", mesh.vertex_normals()[used], towards)
+    assert np.mean(facing > 0) > 0.999
+    assert np.median(facing) > 0.5  # seen from the front, not grazing
+    assert x[:, 2].max() < camera[2] - 700  # the face lies 780 to 900 units down the -z axis
+
+
+@pytest.mark.parametrize("name", ["bone.ply", "cow.obj", "airplane.obj"])
+def test_closed_models(pymeshlab_samples, name):
+    mesh = read_mesh(pymeshlab_samples / name)
+    assert mesh.area > 0 and np.all(edge_use(mesh) == 2)
+    assert len(np.unique(mesh.components()[mesh.used])) == 1
+    assert signed_volume(mesh) > 0
+
+
+def test_cube_is_the_unit_cube(pymeshlab_samples):
+    mesh = read_mesh(pymeshlab_samples / "cube.obj")
+    assert mesh.vertices.shape == (8, 3) and mesh.faces.shape == (12, 3)
+    assert mesh.area == pytest.approx(6.0) and signed_volume(mesh) == pytest.approx(1.0)
+    assert np.all(np.einsum("ij,ij->i", mesh.vertex_normals(), mesh.vertices) > 0)  # outward from the centre
