@@ -37,7 +37,7 @@ def run_python(code: str, cache_dir, *args):
 ROW_CORES = {
     "_orientation_costs", "_tapered_heat_weights", "_taper_sums", "_weighted_covariances", "_kappa_normal_sums",
     "_centroid_offsets", "_smallest_eigenvectors", "_assemble_normal_equations", "_weighted_height_residual",
-    "_solve_normal_equations",
+    "_solve_normal_equations", "_orientation_conflicts", "_neighbour_medians",
 }
 
 
@@ -61,7 +61,7 @@ d, r = np.array([0.5, 0.2]), np.ones(2)
 s.taper_sums(np.array([0, 1, 2]), d, r, 0.7)
 s.taper_sums(np.array([0, 1, 2], dtype=np.int32), d.astype(np.float32), r, 0.7)  # converted, not compiled again
 for index in (np.int64, np.int32):
-    s.orientation_costs(np.eye(3)[:2], np.array([0, 1, 2]), np.array([1, 0], dtype=index), d, r)
+    s.orientation_costs(np.eye(3)[:2], np.eye(3)[:2], np.array([0, 1, 2]), np.array([1, 0], dtype=index), d, r)
 print(json.dumps(dict(
     notices=notices,
     signatures=[len(s._taper_sums.signatures), len(s._orientation_costs.signatures)],
@@ -246,7 +246,9 @@ def test_results_do_not_depend_on_the_thread_count(torus_cloud):
         return [
             segment.taper_sums(nb.indptr, nb.distances, nb.radius, 0.7),
             weights,
-            segment.orientation_costs(normals, nb.indptr, nb.indices, nb.distances, nb.radius),
+            segment.orientation_costs(pts, normals, nb.indptr, nb.indices, nb.distances, nb.radius),
+            *segment.orientation_conflicts(pts, normals, nb.indptr, nb.indices, nb.distances, 0.5, 0.7),
+            segment.neighbour_medians(nb.radius, nb.indptr, nb.indices),
             segment.kappa_normal_sums(pts, nb.indptr, nb.indices, nb.distances, 1 / nb.radius**2, weights, areas, True),
             segment.centroid_offsets(pts, pts, nb.indptr, nb.indices, nb.distances, nb.radius, normals, 0.7, True),
             *segment.smallest_eigenvectors(

@@ -3,9 +3,11 @@
 import numpy as np
 import pytest
 
+import heatcurv
+from heatcurv import surfaces
 from heatcurv.mean_curvature import edge_normal_curvatures
 from heatcurv.neighbourhood import ball_neighbourhood
-from heatcurv.principal import _disc_constrained_lsq, principal_fit
+from heatcurv.principal import PrincipalCurvatures, _disc_constrained_lsq, principal_fit
 
 
 def synthetic_neighbourhood(k1, k2, angle, n_nb=40, seed=0):
@@ -95,3 +97,20 @@ def test_disc_constrained_least_squares_against_brute_force():
     best = obj(cand).min(axis=1)
     got = obj(z[:, None, :])[:, 0]
     assert np.all(got <= best + 1e-6 * (1 + np.abs(best)))
+
+
+def test_flipped_sees_the_surface_from_the_other_side():
+    sample = surfaces.Ellipsoid().sample(3000, "random", seed=5)
+    pc = heatcurv.estimate(sample.points)
+    fitted = PrincipalCurvatures(pc.k1, pc.k2, pc.d1, pc.d2, pc.mean, pc.gaussian, pc.reliable)
+    mask = np.arange(len(pc)) % 2 == 0
+    flipped = fitted.flipped(mask)
+    np.testing.assert_array_equal(flipped.k1[mask], -pc.k2[mask])
+    np.testing.assert_array_equal(flipped.k2[mask], -pc.k1[mask])
+    np.testing.assert_array_equal(flipped.mean[mask], -pc.mean[mask])
+    np.testing.assert_array_equal(flipped.gaussian, pc.gaussian)
+    np.testing.assert_array_equal(flipped.k1[~mask], pc.k1[~mask])
+    assert np.all(flipped.k1 >= flipped.k2)
+    # d1 x d2 = n for the reversed normals
+    normals = np.where(mask[:, None], -pc.normals, pc.normals)
+    np.testing.assert_allclose(np.cross(flipped.d1, flipped.d2), normals, atol=1e-9)

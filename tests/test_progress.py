@@ -8,7 +8,7 @@ from heatcurv import surfaces
 from heatcurv.progress import FIT_STAGES, PROGRESS_STAGES, PROGRESS_WEIGHTS, STAGES, StageClock
 
 OPERATOR = ["validate", "neighbours", "spacing", "areas"]
-CHECK = ["kernel_check"]
+CHECK = ["kernel_check", "outliers"]
 NORMALS = ["normals", "orientation", "mean_curvature_normal"]
 
 

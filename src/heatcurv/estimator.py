@@ -4,7 +4,8 @@ Both methods share the operator and the normals::
 
     validate -> neighbours -> spacing -> areas            (heatcurv.operator)
     -> kernel_check                                       (enough neighbours under the fit's kernel)
-    -> normals -> orientation                             (PCA; or given; or a viewpoint)
+    -> outliers                                           (stray points and islands: unreliable, area 0)
+    -> normals -> orientation                             (PCA; given; outward, up or to a viewpoint)
     -> mean_curvature_normal                              (K = L x, eq 2.10)
 
 then ``method="paper"`` (section 3)::
@@ -16,7 +17,7 @@ and ``method="default"`` (the chord fit, :mod:`heatcurv.chordfit`)::
     -> kernel_choice                                      (noise and kernel width, heatcurv.scale)
     -> per block of points:
          fit_neighbourhood -> fit_weights -> normal_refinement
-         -> curvature_fit -> area_correction -> border
+         -> curvature_fit -> border -> area_correction
 
 Each stage is timed under its own name (``result.info["timings"]``; the
 command line's ``--verbose``); :mod:`heatcurv.progress` lists them. The default
@@ -26,22 +27,24 @@ only one block at a time; its stages report progress together as ``"fit"``.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from .areas import ball_area_factor, density_areas
+from .areas import ball_area_factor, cut_ball_coverage, density_areas
 from .backend import threads
-from .border import border_points
+from .border import BORDER_OFFSET, border_points, centroid_offset
 from .chordfit import ChordFit, chord_fit, refine_normals
 from .errors import HeatcurvError
 from .kernel import tapered_heat_weights
 from .kernel_check import check_kernel
 from .mean_curvature import mean_curvature
 from .neighbourhood import BLOCK_PAIRS, block_ranges
-from .normals import as_viewpoint, orient_normals, orient_towards_viewpoint, pca_normals
+from .normals import pca_normals
 from .operator import HeatKernelOperator
 from .options import rename_aliases, resolve_options
+from .orientation import Orientation, OrientationReport, as_viewpoint, orient
+from .outliers import Outliers, find_outliers
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
 from .results import CurvatureResult
@@ -86,9 +89,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         ball holds 60 neighbours), density areas, and the chord fit with tilt
         and cubic terms at a kernel chosen from the measured noise. Every
         option overrides the preset (``heatcurv.METHODS`` lists both).
-    viewpoint : array_like, shape (3,), optional
-        Sensor position, in the input coordinates: orient every estimated
-        normal towards it instead of propagating one orientation.
+    viewpoint : array_like, shape (3,) or (n, 3), optional
+        Sensor position, or one per point (scanner positions), in the input
+        coordinates: every estimated normal faces it (``orient="viewpoint"``,
+        implied).
     progress : callable, optional
         Called as ``progress(stage, fraction)`` as the stages run
         (:mod:`heatcurv.progress`); the command line's progress bars use it.
@@ -103,6 +107,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         ``fit`` (``"chord"``, ``"constrained"`` eq 3.1, ``"unconstrained"``),
         ``scale`` (``"auto"`` or a neighbour count; ``res.info["scale"]``
         reports the choice), ``scale_tuning`` (:class:`heatcurv.ScaleTuning`),
+        ``orient`` (which side the normals point to: ``"auto"``, the
+        default, is ``"viewpoint"`` when a viewpoint is given, else
+        ``"outward"``; ``"up"`` for terrain and aerial scans, towards +z;
+        :mod:`heatcurv.orientation`),
         ``area_solver``, ``taper``, ``min_neighbours`` (6) and ``workers``
         (threads; -1: all cores). ``neighbors`` and ``min_neighbors`` are
         accepted as deprecated aliases.
@@ -126,43 +134,95 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     True
     """
     opts = resolve_options(method, **rename_aliases(options, "estimate"))
-    if normals is not None and viewpoint is not None:
-        raise HeatcurvError("give either normals or a viewpoint, not both")
-    vp = None if viewpoint is None else as_viewpoint(viewpoint)
+    mode = _orientation_mode(opts.orient, normals, viewpoint)
+    if viewpoint is not None:
+        as_viewpoint(viewpoint, len(points) if hasattr(points, "__len__") else None)  # fail before the work
     with threads(opts.workers):
         op = HeatKernelOperator.from_points(points, opts, progress)  # validate, neighbours, spacing, areas
         clock = StageClock(progress, dict(op.timings))
         with clock.stage("kernel_check"):
             check_kernel(op.neighbourhood, op.h, opts)  # refuse a kernel that leaves nothing to fit
-        nrm, planarity = _normal_stages(op, normals, vp, clock)
+        with clock.stage("outliers"):
+            outliers = find_outliers(op.points, op.neighbourhood)
+        towards = _reference(op, mode, viewpoint)
+        nrm, planarity, orientation = _normal_stages(op, normals, mode, towards, outliers.mask, clock)
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()
         if opts.fit == "chord":
-            fitted = _default_fit_stages(op, nrm, normals is not None, clock)
+            fitted = _default_fit_stages(op, nrm, normals is not None, outliers.mask, clock)
         else:
-            fitted = _paper_fit_stages(op, nrm, K, clock)
-    return _result(op, fitted, planarity, K, clock.timings)
+            fitted = _paper_fit_stages(op, nrm, K, outliers.mask, clock)
+        if mode == "viewpoint" and normals is None:
+            # a scanner sees only surfaces facing it: the fit's refined normals must too
+            fitted = _facing_viewpoint(fitted, op.points, towards)
+    return _result(op, fitted, planarity, K, orientation, outliers, clock.timings)
 
 
-def _normal_stages(op: HeatKernelOperator, given, viewpoint, clock: StageClock):
-    """Stages ``normals`` and ``orientation``: oriented unit normals and PCA planarity, shape (m, 3), (m,)."""
+def _orientation_mode(orient_option: str, normals, viewpoint) -> str:
+    """The orientation policy of this call: ``"given"``, ``"outward"``, ``"up"`` or ``"viewpoint"``."""
+    if normals is not None:
+        if viewpoint is not None:
+            raise HeatcurvError("give either normals or a viewpoint, not both")
+        if orient_option != "auto":
+            raise HeatcurvError(f"orient={orient_option!r} orients estimated normals; the given normals are kept "
+                                "as they are (leave orient='auto')")
+        return "given"
+    if orient_option == "auto":
+        return "outward" if viewpoint is None else "viewpoint"
+    if orient_option == "viewpoint" and viewpoint is None:
+        raise HeatcurvError("orient='viewpoint' needs viewpoint=(x, y, z), the scanner's position")
+    if orient_option != "viewpoint" and viewpoint is not None:
+        raise HeatcurvError(f"a viewpoint orients the normals towards the scanner; it cannot be combined with "
+                            f"orient={orient_option!r}")
+    return orient_option
+
+
+def _reference(op: HeatKernelOperator, mode: str, viewpoint):
+    """What ``"viewpoint"`` orients towards, in the operator's (centred, distinct) frame; None otherwise."""
+    if mode != "viewpoint":
+        return None
+    prepared = op.prepared
+    v = as_viewpoint(viewpoint, prepared.n_input)
+    return (v if v.ndim == 1 else v[prepared.first]) - prepared.offset
+
+
+def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np.ndarray, clock: StageClock):
+    """Stages ``normals`` and ``orientation``: oriented unit normals, PCA planarity and the orientation.
+
+    Outliers get no weight in the outward vote (one far point would drag the centroid).
+
+    Returns
+    -------
+    normals : ndarray, shape (m, 3)
+    planarity : ndarray, shape (m,)
+    orientation : Orientation
+    """
     X, nbhd, prepared = op.points, op.neighbourhood, op.prepared
-    planarity = np.ones(X.shape[0])
     if given is not None:
         with clock.stage("normals"):
-            return prepare_normals(given, prepared), planarity
+            nrm = prepare_normals(given, prepared)
+        kept = Orientation(nrm, np.zeros(X.shape[0], dtype=bool), OrientationReport("given"))
+        return nrm, np.ones(X.shape[0]), kept
     with clock.stage("normals"):
         nrm, planarity = pca_normals(X, nbhd, taper=op.options.taper)
     with clock.stage("orientation"):
-        if viewpoint is not None:
-            nrm = orient_towards_viewpoint(X, nrm, viewpoint - prepared.offset)
-        else:
-            nrm = orient_normals(X, nrm, nbhd, op.areas)
-    return nrm, planarity
+        orientation = orient(X, nrm, nbhd, np.where(outlier, 0.0, op.areas), mode=mode, towards=towards)
+    return orientation.normals, planarity, orientation
 
 
-def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, clock: StageClock) -> _Fitted:
-    """Stages ``mean``, ``principal`` and ``border`` of the paper's method (section 3)."""
+def _facing_viewpoint(fitted: _Fitted, points: np.ndarray, towards: np.ndarray) -> _Fitted:
+    """``fitted`` with every normal facing ``towards`` (flipped with its curvatures where it did not)."""
+    away = np.einsum("ij,ij->i", fitted.normals, towards - points) < 0
+    if not away.any():
+        return fitted
+    normals = np.where(away[:, None], -fitted.normals, fitted.normals)
+    pc = fitted.principal.flipped(away)
+    return replace(fitted, normals=normals, mean=pc.mean, principal=pc)
+
+
+def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, outlier: np.ndarray,
+                      clock: StageClock) -> _Fitted:
+    """Stages ``mean``, ``principal`` and ``border`` of the paper's method (section 3); outliers get no weight."""
     opts, X, nbhd = op.options, op.points, op.neighbourhood
     with clock.stage("mean"):
         mean = mean_curvature(K, nrm, opts.mean_formula)
@@ -170,7 +230,7 @@ def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, cl
         # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
         # samples can give negative A_j; a least-squares objective with negative
         # weights has no minimum, so those neighbours get weight zero.
-        pair_w = op.weights * nbhd.distances**2 * np.maximum(op.areas, 0.0)[nbhd.indices]
+        pair_w = op.weights * nbhd.distances**2 * np.where(outlier, 0.0, np.maximum(op.areas, 0.0))[nbhd.indices]
         pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
         if opts.fit == "unconstrained":
             mean = pc.mean
@@ -180,7 +240,9 @@ def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, cl
     return _Fitted(nrm, mean, pc, op.areas, border)
 
 
-def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, clock: StageClock) -> _Fitted:
+def _default_fit_stages(
+    op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, outlier: np.ndarray, clock: StageClock
+) -> _Fitted:
     """The default method's chord fit: ``kernel_choice``, then the per-block stages.
 
     Parameters
@@ -190,6 +252,8 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
         Oriented starting normals.
     keep_normals : bool
         The caller gave the normals: no refinement, and the result keeps them.
+    outlier : ndarray, shape (m,), bool
+        Points that get no weight in anyone's fit (:mod:`heatcurv.outliers`).
     clock : StageClock
 
     Returns
@@ -203,8 +267,8 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
     tuning = opts.scale_tuning
     n = X.shape[0]
     # fit weights W_ij A_j: negative areas (the paper's H A = 1 on irregular samples) get weight
-    # zero, as in the paper's fit; the density areas are positive by construction
-    fit_areas = np.maximum(op.areas, 0.0)
+    # zero, as in the paper's fit; the density areas are positive by construction; outliers weigh nothing
+    fit_areas = np.where(outlier, 0.0, np.maximum(op.areas, 0.0))
     fixed_radius = opts.radius is not None
     with clock.stage("kernel_choice"):
         if fixed_radius:  # radius=: the operator's balls are the fit's; only the fit's form is chosen
@@ -241,11 +305,12 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
                 start = refine_normals(X, nbhd, start, weights, denoise=scale.denoise, centres=centres)
         with clock.stage("curvature_fit", report=False):
             fit = chord_fit(X, nbhd, start, weights, denoise=scale.denoise, centres=centres, passes=1)
+        with clock.stage("border", report=False):
+            offset = centroid_offset(X, nbhd, fit.normals, taper=opts.taper, centres=centres)
+            border[lo:hi] = offset > BORDER_OFFSET
         with clock.stage("area_correction", report=False):
             fraction = 1.0 if level is None else level.fraction
-            areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, fraction)
-        with clock.stage("border", report=False):
-            border[lo:hi] = border_points(X, nbhd, fit.normals, taper=opts.taper, centres=centres)
+            areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, fraction, offset, reuse_base)
         radius[lo:hi] = nbhd.radius
         fits.append(fit)
         clock.report("fit", hi / n)
@@ -256,14 +321,18 @@ def _default_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, keep_normals: b
 
 
 def _corrected_areas(
-    op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordFit, own_density: bool, fraction: float
+    op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordFit, own_density: bool, fraction: float,
+    offset: np.ndarray, same_ball: bool,
 ) -> np.ndarray:
     """Stage ``area_correction``: areas of points ``lo:hi`` on the fit's kernel, shape (hi - lo,).
 
     A kernel wider than the operator's counts its own, less noisy, density
     (:func:`heatcurv.areas.density_areas`); either way the ball's curved area
-    is corrected by the fitted curvatures (:func:`heatcurv.areas.ball_area_factor`).
-    The paper's areas (``H A = 1``) are kept as they are.
+    is corrected by the fitted curvatures (:func:`heatcurv.areas.ball_area_factor`)
+    and a border point's by the share of its ball the surface covers
+    (:func:`heatcurv.areas.cut_ball_coverage`, from the centroid ``offset`` on the
+    fit's ball, which is the density's ball when ``own_density`` or
+    ``same_ball``). The paper's areas (``H A = 1``) are kept as they are.
     """
     if op.options.area_method != "density":
         return op.areas[lo:hi]
@@ -271,15 +340,27 @@ def _corrected_areas(
         own, area_radius = density_areas(nbhd, fraction=fraction), nbhd.radius
     else:
         own, area_radius = op.areas[lo:hi], op.neighbourhood.radius[lo:hi]
-    return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2)
+        if not same_ball:  # the density was counted on the operator's ball: its own offset
+            base = op.neighbourhood.rows_slice(lo, hi)
+            offset = centroid_offset(op.points, base, fit.normals, taper=op.options.taper, centres=op.points[lo:hi])
+    coverage = cut_ball_coverage(offset, BORDER_OFFSET)
+    return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2) * coverage
 
 
-def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, timings) -> CurvatureResult:
-    """The reliability flags, and every field back in the input order."""
+def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: Orientation, outliers: Outliers,
+            timings):
+    """The reliability flags, and every field back in the input order (a :class:`CurvatureResult`).
+
+    Outliers stand for no measured surface: area 0, never reliable.
+    """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
-    reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (fitted.areas > 0) & ~fitted.border
-    reliable &= op.area_solve.converged
-    info = {"n_distinct": prepared.n_distinct, "area_solve": op.area_solve}
+    areas = np.where(outliers.mask, 0.0, fitted.areas)
+    reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~fitted.border
+    reliable &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask
+    info = {
+        "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
+        "outliers": outliers.count,
+    }
     if fitted.scale is not None:
         info["scale"] = fitted.scale
     info["timings"] = timings
@@ -292,7 +373,8 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, timings) -> C
         k2=back(pc.k2),
         d1=back(pc.d1),
         d2=back(pc.d2),
-        area=prepared.share_among_duplicates(fitted.areas),
+        area=prepared.share_among_duplicates(areas),
+        outlier=back(outliers.mask),
         reliable=back(reliable),
         border=back(fitted.border),
         spacing=back(op.h),

@@ -221,6 +221,11 @@ class Options:
         (:mod:`heatcurv.scale`); an integer ``k`` fixes it to ``k`` neighbours.
     scale_tuning : ScaleTuning
         Constants of the automatic kernel choice.
+    orient : {"auto", "outward", "up", "viewpoint"}
+        Which side the estimated normals point to (:mod:`heatcurv.orientation`):
+        away from the enclosed volume, towards +z, or towards the scanner
+        (``estimate(viewpoint=...)``); ``"auto"`` is ``"viewpoint"`` when a
+        viewpoint is given, else ``"outward"``.
     area_solver : {"auto", "cg", "bicgstab", "direct"}
         Solver of ``H A = 1``.
     taper : bool
@@ -280,6 +285,12 @@ class Options:
     )
     scale_tuning: ScaleTuning = _option(ScaleTuning(), "constants of the automatic kernel choice", check=_check_tuning,
                                         cli=False)
+    orient: str = _option(
+        "auto", "which side the normals point to: outward (closed objects), up (+z: terrain, buildings, aerial "
+        "LiDAR), viewpoint (towards the scanner); auto: viewpoint when one is given, else outward "
+        "(the command line: up for LAS/LAZ)",
+        choices=("auto", "outward", "up", "viewpoint"),
+    )
     area_solver: str = _option(
         "auto", "solver of H A = 1 (area_method system)", choices=("auto", "cg", "bicgstab", "direct"),
     )

@@ -63,6 +63,22 @@ class PrincipalCurvatures:
     gaussian: np.ndarray
     well_posed: np.ndarray
 
+    def flipped(self, mask: np.ndarray) -> PrincipalCurvatures:
+        """The curvatures seen from the other side where ``mask`` (shape (n,), bool) is set.
+
+        Reversing the normal negates every curvature, so ``k1' = -k2`` along
+        ``d2`` and ``k2' = -k1`` along ``d1``; ``d2 x d1 = -n`` keeps the
+        frame right-handed about the reversed normal; the Gaussian curvature
+        is unchanged.
+        """
+        m = np.asarray(mask, dtype=bool)
+        col = m[:, None]
+        return PrincipalCurvatures(
+            k1=np.where(m, -self.k2, self.k1), k2=np.where(m, -self.k1, self.k2),
+            d1=np.where(col, self.d2, self.d1), d2=np.where(col, self.d1, self.d2),
+            mean=np.where(m, -self.mean, self.mean), gaussian=self.gaussian, well_posed=self.well_posed,
+        )
+
 
 def tensor_to_principal(H, p, b, e1, e2, normals) -> PrincipalCurvatures:
     """Eigen-decompose ``B = H I + [[p, b], [b, -p]]`` given in the frame ``(e1, e2)``.

@@ -29,6 +29,7 @@ STAGES = {
     "spacing": "spacing h (eq 2.6, 2.7, or the density radius d_k / alpha)",
     "areas": "per-point areas (H A = 1, section 2.2, or the density estimate)",
     "kernel_check": "the fit's kernel has enough effective neighbours (heatcurv.kernel_check)",
+    "outliers": "stray points and islands that no surface explains (heatcurv.outliers)",
     # normals
     "normals": "PCA normals (or the caller's normals)",
     "orientation": "one consistent orientation (spanning tree) or towards the viewpoint",
@@ -42,22 +43,23 @@ STAGES = {
     "fit_weights": "tapered heat-kernel weights of the fit (eq 2.8)",
     "normal_refinement": "a first chord fit whose tilt corrects the normals",
     "curvature_fit": "the chord fit at the refined normals: k1, k2, d1, d2, mean",
-    "area_correction": "areas on the fit's kernel, corrected by the fitted curvatures",
     # both
-    "border": "border points of open surfaces",
+    "border": "border points of open surfaces (the offset of the ball's centroid)",
+    # method "default"
+    "area_correction": "areas on the fit's kernel, corrected by the fitted curvatures and the border's cut",
 }
 
 #: The default method's stages that run once per block of points.
-FIT_STAGES = ("fit_neighbourhood", "fit_weights", "normal_refinement", "curvature_fit", "area_correction", "border")
+FIT_STAGES = ("fit_neighbourhood", "fit_weights", "normal_refinement", "curvature_fit", "border", "area_correction")
 
 #: Names ``progress`` is called with, in order, per method (the fit's block stages report as ``"fit"``).
 PROGRESS_STAGES = {
     "paper": (
-        "validate", "spacing", "neighbours", "areas", "kernel_check", "normals", "orientation",
+        "validate", "spacing", "neighbours", "areas", "kernel_check", "outliers", "normals", "orientation",
         "mean_curvature_normal", "mean", "principal", "border",
     ),
     "default": (
-        "validate", "neighbours", "spacing", "areas", "kernel_check", "normals", "orientation",
+        "validate", "neighbours", "spacing", "areas", "kernel_check", "outliers", "normals", "orientation",
         "mean_curvature_normal", "kernel_choice", "fit",
     ),
 }
@@ -66,11 +68,13 @@ PROGRESS_STAGES = {
 #: random torus on the project's 2-core machine (default: clean; the fit's share grows with noise).
 PROGRESS_WEIGHTS = {
     "paper": {
-        "validate": 2, "spacing": 1, "neighbours": 14, "areas": 50, "kernel_check": 0, "normals": 1, "orientation": 15,
+        "validate": 2, "spacing": 1, "neighbours": 14, "areas": 50, "kernel_check": 0, "outliers": 1, "normals": 1,
+        "orientation": 14,
         "mean_curvature_normal": 0, "mean": 0, "principal": 17, "border": 0,
     },
     "default": {
-        "validate": 4, "neighbours": 26, "spacing": 0, "areas": 2, "kernel_check": 0, "normals": 6, "orientation": 12,
+        "validate": 4, "neighbours": 26, "spacing": 0, "areas": 2, "kernel_check": 0, "outliers": 2, "normals": 6,
+        "orientation": 10,
         "mean_curvature_normal": 2, "kernel_choice": 2, "fit": 46,
     },
 }

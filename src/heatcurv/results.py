@@ -36,9 +36,14 @@ class CurvatureResult:
         False where the values are not to be trusted: the point's ball held
         too few neighbours (nearest neighbours were used instead), its
         neighbourhood is not surface-like (PCA planarity < 0.05), the tensor
-        fit was ill-posed, its area came out non-positive, or it is a border
-        point; everywhere if the area system did not converge (a
+        fit was ill-posed, its area came out non-positive, it is a border
+        point, an outlier, or its normal has no consistent side
+        (``info["orientation"]``); everywhere if the area system did not converge (a
         ``HeatcurvWarning`` says so).
+    outlier : ndarray, shape (n,), bool
+        Stray points and small islands that no surface at the kernel's scale
+        explains (:mod:`heatcurv.outliers`): area 0 (``area.sum()`` leaves
+        them out), never reliable, and no weight in their neighbours' fits.
     border : ndarray, shape (n,), bool
         Points whose fit's ball is cut by the border of an open surface
         (:mod:`heatcurv.border`): their values come from one-sided
@@ -57,7 +62,9 @@ class CurvatureResult:
     options : Options
         The resolved options the result was computed with.
     info : dict
-        ``n_distinct`` (points after merging duplicates), ``area_solve``
+        ``n_distinct`` (points after merging duplicates), ``orientation`` (a
+        :class:`heatcurv.orientation.OrientationReport`: the policy used and
+        how many points it could not orient), ``outliers`` (their number), ``area_solve``
         (solver, iterations, residual), ``timings`` (seconds per named stage,
         :data:`heatcurv.progress.STAGES`), and for the chord fit ``scale``, a
         :class:`heatcurv.scale.ScaleReport`: the kernel chosen (``k``
@@ -75,6 +82,7 @@ class CurvatureResult:
     d2: np.ndarray
     area: np.ndarray
     reliable: np.ndarray
+    outlier: np.ndarray
     border: np.ndarray
     spacing: np.ndarray
     neighbours: np.ndarray

@@ -243,3 +243,19 @@ def test_unwritable_output_fails_before_reading(tmp_path, sphere_ply, monkeypatc
     assert_one_line_error(subprocess.CompletedProcess([], status, captured.out, captured.err))
     assert "kept.ply: the file exists and is read-only" in captured.err
     assert estimated == [] and kept.read_bytes() == b"protected"
+
+
+def test_las_input_is_oriented_up_by_default(tmp_path):
+    # aerial LiDAR: normals towards the sky unless told otherwise; --orient outward is obeyed
+    tile = heatcurv.surfaces.lidar_tile(6000, seed=4)
+    src = tmp_path / "tile.laz"
+    io.write_points(src, tile.points)
+    ground = tile.labels == 2
+    out = run("compute", str(src), "-o", str(tmp_path / "up.ply"))
+    assert out.returncode == 0, out.stderr
+    assert "orienting normals up (+z)" in out.stdout
+    up = io.read_points(tmp_path / "up.ply")
+    assert (up.normals[ground, 2] > 0).mean() >= 0.995
+    out = run("compute", str(src), "-o", str(tmp_path / "out.ply"), "--orient", "outward", "-v")
+    assert out.returncode == 0, out.stderr
+    assert "orienting normals up" not in out.stdout and "orientation: outward" in out.stdout

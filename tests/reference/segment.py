@@ -13,6 +13,8 @@ from heatcurv.kernel import flat_top
 
 __all__ = [
     "orientation_costs",
+    "orientation_conflicts",
+    "neighbour_medians",
     "tapered_heat_weights",
     "taper_sums",
     "weighted_covariances",
@@ -41,11 +43,30 @@ def _taper(indptr, distances, radius, start):
     return flat_top(distances / radius[_rows(indptr)], start)
 
 
-def orientation_costs(normals, indptr, indices, distances, radius):
-    """``1 - |n_i . n_j| + 1e-3 |xi - xj| / R_i + 1e-12`` per pair."""
+def orientation_costs(points, normals, indptr, indices, distances, radius):
+    """``1 - |n_i . n_j - (n_i . e)(n_j . e)| + max(|n_i . e|, |n_j . e|) + 1e-3 |xi - xj| / R_i + 1e-12``."""
     rows = _rows(indptr)
-    align = np.abs(np.einsum("ij,ij->i", normals[rows], normals[indices]))
-    return (1.0 - align) + 1e-3 * distances / radius[rows] + 1e-12
+    edge = points[indices] - points[rows]
+    edge = np.divide(edge, distances[:, None], out=np.zeros_like(edge), where=distances[:, None] > 0)
+    ti = np.einsum("ij,ij->i", normals[rows], edge)
+    tj = np.einsum("ij,ij->i", normals[indices], edge)
+    align = np.abs(np.einsum("ij,ij->i", normals[rows], normals[indices]) - ti * tj)
+    return (1.0 - align) + np.maximum(np.abs(ti), np.abs(tj)) + 1e-3 * distances / radius[rows] + 1e-12
+
+
+def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
+    """In-plane aligned neighbours of each point, and those of them pointing the other way."""
+    rows = _rows(indptr)
+    dot = np.einsum("ij,ij->i", normals[rows], normals[indices])
+    height = np.abs(np.einsum("ij,ij->i", normals[rows], points[indices] - points[rows]))
+    counted = (np.abs(dot) >= aligned) & (height <= in_plane * distances)
+    n = len(indptr) - 1
+    return (np.bincount(rows[counted], minlength=n), np.bincount(rows[counted & (dot < 0)], minlength=n))
+
+
+def neighbour_medians(values, indptr, indices):
+    """Median of ``values[j]`` over each point's neighbours (NaN for none)."""
+    return np.array([np.median(values[indices[a:b]]) if b > a else np.nan for a, b in zip(indptr[:-1], indptr[1:])])
 
 
 def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):

@@ -25,6 +25,8 @@ from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
 
 __all__ = [
     "orientation_costs",
+    "orientation_conflicts",
+    "neighbour_medians",
     "tapered_heat_weights",
     "taper_sums",
     "weighted_covariances",
@@ -44,23 +46,106 @@ def _flat_top(u, start):
     return 0.5 * (1.0 + math.cos(math.pi * (u - start) / (1.0 - start)))
 
 
-def orientation_costs(normals, indptr, indices, distances, radius):
-    """``1 - |n_i . n_j| + 1e-3 |xi - xj| / R_i + 1e-12`` per pair (heatcurv.normals.orient_normals)."""
-    normals, indptr, distances = as_floats(normals), as_pointers(indptr), as_floats(distances)
+def orientation_costs(points, normals, indptr, indices, distances, radius):
+    """Spanning-tree edge costs of the orientation (heatcurv.orientation.orient), shape (nnz,).
+
+    ``1 - |s_ij| + max(|n_i . e|, |n_j . e|) + 1e-3 |xi - xj| / R_i + 1e-12`` with
+    ``e = (xj - xi) / |xj - xi|`` and ``s_ij = n_i . n_j - (n_i . e)(n_j . e)``, the
+    normals' agreement once their components along the edge are removed (which
+    stays clear across a sharp edge, where ``n_i . n_j`` is near 0); the tilt term
+    makes an edge that leaves the tangent planes (across a thin part) costly.
+    """
+    points, normals = as_floats(points), as_floats(normals)
+    indptr, distances = as_pointers(indptr), as_floats(distances)
     out = np.empty(distances.shape[0])
-    args = normals, indptr, as_indices(indices, normals.shape[0]), distances, as_floats(radius), out
+    args = points, normals, indptr, as_indices(indices, normals.shape[0]), distances, as_floats(radius), out
     parallel_rows(_orientation_costs, indptr.shape[0] - 1, *args)
     return out
 
 
 @njit(**ROW_CORE)
-def _orientation_costs(row0, row1, normals, indptr, indices, distances, radius, out):
+def _orientation_costs(row0, row1, points, normals, indptr, indices, distances, radius, out):
     for i in range(row0, row1):
         inv = 1e-3 / radius[i]
         for p in range(indptr[i], indptr[i + 1]):
             j = indices[p]
             dot = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
-            out[p] = (1.0 - abs(dot)) + distances[p] * inv + 1e-12
+            ti = 0.0
+            tj = 0.0
+            if distances[p] > 0.0:
+                for a in range(3):
+                    e = (points[j, a] - points[i, a]) / distances[p]
+                    ti += normals[i, a] * e
+                    tj += normals[j, a] * e
+            out[p] = (1.0 - abs(dot - ti * tj)) + max(abs(ti), abs(tj)) + distances[p] * inv + 1e-12
+
+
+def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
+    """Per point: its in-plane, aligned neighbours, and how many of them point the other way.
+
+    A neighbour ``j`` of ``i`` counts when the edge lies near the tangent plane,
+    ``|n_i . (xj - xi)| <= in_plane |xj - xi|``, and the normal axes agree,
+    ``|n_i . n_j| >= aligned``; it conflicts when ``n_i . n_j < 0``
+    (heatcurv.normals.orientation_conflicts).
+
+    Returns
+    -------
+    counted, conflicting : ndarray, shape (n,), int64
+    """
+    points, normals = as_floats(points), as_floats(normals)
+    indptr, distances = as_pointers(indptr), as_floats(distances)
+    n = indptr.shape[0] - 1
+    counted, conflicting = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+    args = points, normals, indptr, as_indices(indices, normals.shape[0]), distances, float(in_plane), float(aligned)
+    parallel_rows(_orientation_conflicts, n, *args, counted, conflicting)
+    return counted, conflicting
+
+
+@njit(**ROW_CORE)
+def _orientation_conflicts(row0, row1, points, normals, indptr, indices, distances, in_plane, aligned, counted,
+                           conflicting):
+    for i in range(row0, row1):
+        c = 0
+        k = 0
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            dot = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
+            if abs(dot) < aligned:
+                continue
+            height = 0.0
+            for a in range(3):
+                height += normals[i, a] * (points[j, a] - points[i, a])
+            if abs(height) > in_plane * distances[p]:
+                continue
+            c += 1
+            if dot < 0.0:
+                k += 1
+        counted[i] = c
+        conflicting[i] = k
+
+
+def neighbour_medians(values, indptr, indices):
+    """Median of ``values[j]`` over each point's neighbours ``j``, shape (n,) (NaN for a point with none)."""
+    values, indptr = as_floats(values), as_pointers(indptr)
+    out = np.empty(indptr.shape[0] - 1)
+    parallel_rows(_neighbour_medians, out.shape[0], values, indptr, as_indices(indices, values.shape[0]), out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _neighbour_medians(row0, row1, values, indptr, indices, out):
+    width = 0
+    for i in range(row0, row1):
+        width = max(width, indptr[i + 1] - indptr[i])
+    buffer = np.empty(width)
+    for i in range(row0, row1):
+        c = indptr[i + 1] - indptr[i]
+        if c == 0:
+            out[i] = np.nan
+            continue
+        for p in range(c):
+            buffer[p] = values[indices[indptr[i] + p]]
+        out[i] = np.median(buffer[:c])
 
 
 def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):

@@ -126,7 +126,29 @@ def estimate_input(args, log: Log):
     rows = finite_rows(cloud, args.skip_nonfinite)
     points = cloud.points if rows is None else cloud.points[rows]
     normals = input_normals(cloud, args.normals_from_input, rows)
+    options["orient"] = orientation_for(cloud, options, normals is not None, log)
     return cloud, rows, run_estimate(points, normals, options, log, source=args.input)
+
+
+#: Formats whose clouds have a vertical axis: their normals are oriented up (+z) by default.
+UP_FORMATS = ("las", "laz")
+
+
+def orientation_for(cloud, options: dict, given_normals: bool, log: Log) -> str | None:
+    """``--orient`` as given, or the command line's choice for ``auto``: up (+z) for LAS/LAZ.
+
+    Aerial and terrestrial LiDAR users expect normals towards the sky (or the
+    scanner, with ``--viewpoint``), which "outward" does not give on an open
+    tile of terrain, roofs and trees.
+    """
+    orient = options.get("orient")
+    if orient not in (None, "auto") or given_normals or options.get("viewpoint") is not None:
+        return orient
+    if cloud.format in UP_FORMATS:
+        log.info(f"orienting normals up (+z), as for terrain and aerial LiDAR ({cloud.format.upper()} input); "
+                 "--orient outward for a closed object, --viewpoint X,Y,Z for a scanner position")
+        return "up"
+    return orient
 
 
 def run_estimate(points, normals, options: dict, log: Log, source=None):
@@ -154,6 +176,10 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
         f"estimated curvature in {seconds:.2f} s (method {res.options.method}{kernel}): "
         f"{int(res.reliable.sum())} of {len(res)} points reliable"
     )
+    orientation = res.info.get("orientation")
+    if orientation is not None and orientation.ambiguous:
+        log.info(f"{orientation.ambiguous} point(s) have no consistent side for their normal (two sheets closer "
+                 "than the kernel, or no way to tell up from down): flagged unreliable")
     if log.verbose:
         _report_details(res, log)
     return res
@@ -175,6 +201,11 @@ def _report_details(res, log: Log) -> None:
             f"cloud's unit; spacing h {scale.median_h:.4g}); "
             f"noise sigma {scale.sigma:.3g} ({scale.relative_noise:.3g} h)"
         )
+    orientation = res.info.get("orientation")
+    if orientation is not None and orientation.mode != "given":
+        log.detail(f"  orientation: {orientation.mode}; {orientation.components} component(s); "
+                   f"{orientation.anchored} point(s) read off the reference direction, "
+                   f"{orientation.by_convention} by the flat-patch convention, {orientation.ambiguous} ambiguous")
     solve = res.info.get("area_solve")
     if res.options.area_method == "system" and solve is not None:
         log.detail(f"  area system H A = 1: {solve.solver}, {solve.iterations} iterations, "

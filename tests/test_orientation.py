@@ -1,0 +1,208 @@
+"""heatcurv.orientation: outward, up and towards a scanner; thin parts; what cannot be oriented is flagged."""
+
+import numpy as np
+import pytest
+
+import heatcurv
+from heatcurv import surfaces
+from heatcurv.errors import HeatcurvError
+from heatcurv.neighbourhood import knn_neighbourhood
+from heatcurv.normals import pca_normals
+from heatcurv.orientation import ANCHOR_COSINE, as_viewpoint, orient
+
+
+def _knn(points, k=60):
+    return knn_neighbourhood(points, k)
+
+
+def _scrambled(normals, seed=0):
+    return normals * np.random.default_rng(seed).choice([-1.0, 1.0], size=(len(normals), 1))
+
+
+def rounded_disk(n, a=1.0, t=0.05, seed=0):
+    """A closed thin disc (radius ``a``, thickness ``2 t``, rim a half torus of tube ``t``) and its outward normals."""
+    rng = np.random.default_rng(seed)
+    flat_area, rim_area = 2 * np.pi * a**2, 2 * np.pi * np.pi * t * a + 4 * np.pi * t**2
+    n_rim = int(n * rim_area / (flat_area + rim_area))
+    m = n - n_rim
+    r, th, side = a * np.sqrt(rng.random(m)), rng.uniform(0, 2 * np.pi, m), rng.choice([-1.0, 1.0], m)
+    flat, flat_n = np.c_[r * np.cos(th), r * np.sin(th), side * t], np.c_[np.zeros((m, 2)), side]
+    # the rim's area element is (a + t cos v) t: rejection sampling
+    u, v = rng.uniform(0, 2 * np.pi, 4 * n_rim), rng.uniform(-np.pi / 2, np.pi / 2, 4 * n_rim)
+    keep = rng.random(4 * n_rim) < (a + t * np.cos(v)) / (a + t)
+    u, v = u[keep][:n_rim], v[keep][:n_rim]
+    rim_n = np.c_[np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)]
+    rim = np.c_[a * np.cos(u), a * np.sin(u), np.zeros(n_rim)] + t * rim_n
+    return np.vstack([flat, rim]), np.vstack([flat_n, rim_n])
+
+
+def test_thin_disc_stays_outward():
+    # a closed disc 0.1 thick whose balls (radius about 0.1) reach across to the other side, like a
+    # bunny's ear: the plain Hoppe cost 1 - |n_i . n_j| takes the edges across, whose normals are
+    # parallel, for the cheapest and turned one side inside out (measured: 50 % of the normals); the
+    # tilt term keeps the tree in the surface
+    pts, normals = rounded_disk(15000)
+    res = heatcurv.estimate(pts)
+    outward = np.einsum("ij,ij->i", res.normals, normals) > 0
+    assert outward.mean() >= 0.995
+    assert res.info["orientation"].mode == "outward"
+
+
+def test_sharp_edges_are_crossed_consistently():
+    # a cube: at its edges n_i . n_j is about 0 and its sign is noise; the normals' agreement across
+    # the edge (components along the edge removed) is 0.5 and decides
+    rng = np.random.default_rng(7)
+    face = rng.integers(0, 6, 12000)
+    uv = rng.uniform(-1, 1, (12000, 2))
+    axis, sign = face // 2, np.where(face % 2 == 0, 1.0, -1.0)
+    pts = np.empty((12000, 3))
+    normals = np.zeros((12000, 3))
+    for k in range(3):
+        on = axis == k
+        others = [j for j in range(3) if j != k]
+        pts[on, k] = sign[on]
+        pts[np.ix_(on, others)] = uv[on]
+        normals[on, k] = sign[on]
+    nb = _knn(pts)
+    nrm, _ = pca_normals(pts, nb)
+    got = orient(pts, _scrambled(nrm, 1), nb)
+    assert (np.einsum("ij,ij->i", got.normals, normals) > 0).mean() >= 0.995
+
+
+def test_outward_on_a_torus_from_scrambled_normals(torus_sample):
+    pts = torus_sample.points
+    nb = _knn(pts)
+    nrm, _ = pca_normals(pts, nb)
+    got = orient(pts, _scrambled(nrm), nb)
+    assert np.all(np.einsum("ij,ij->i", got.normals, torus_sample.normals) > 0.99)
+    assert got.report.components == 1 and got.report.ambiguous == 0 and not got.ambiguous.any()
+
+
+def test_up_orients_a_lidar_tile_to_the_sky():
+    tile = surfaces.lidar_tile(12000, seed=1)
+    surface = tile.labels != 5  # the vegetation has no normal
+    res = heatcurv.estimate(tile.points, orient="up")
+    agree = np.einsum("ij,ij->i", res.normals[surface], tile.normals[surface]) > 0
+    # ground and roofs face the sky, walls (no up or down) face out of their building, from their roofs
+    assert agree.mean() >= 0.995
+    walls = tile.labels[surface] == 66
+    assert agree[walls].mean() >= 0.99
+    report = res.info["orientation"]
+    assert report.mode == "up" and report.anchored >= (tile.labels == 2).sum()
+    # hill tops bend away from the up normal, valleys towards it
+    assert (res.mean[tile.convex & res.reliable] > 0).mean() >= 0.99
+    assert (res.mean[tile.concave & res.reliable] < 0).mean() >= 0.99
+
+
+def test_up_agrees_with_a_random_half():
+    tile = surfaces.lidar_tile(12000, seed=2)
+    full = heatcurv.estimate(tile.points, orient="up")
+    half = np.flatnonzero(np.random.default_rng(2).random(len(tile.points)) < 0.5)
+    part = heatcurv.estimate(tile.points[half], orient="up")
+    agree = np.einsum("ij,ij->i", full.normals[half], part.normals) > 0
+    surface = tile.labels[half] != 5
+    assert agree[surface].mean() >= 0.995
+
+
+def test_up_accepts_another_up_direction():
+    tile = surfaces.lidar_tile(6000, seed=3)
+    pts = tile.points - tile.points.mean(axis=0)
+    yz = pts[:, [0, 2, 1]] * [1, 1, -1]  # the same scene with +y up
+    nb = _knn(yz)
+    nrm, _ = pca_normals(yz, nb)
+    got = orient(yz, nrm, nb, mode="up", towards=(0, 2.0, 0))
+    ground = tile.labels == 2
+    assert (got.normals[ground, 1] > 0).mean() >= 0.995
+
+
+def test_viewpoint_faces_the_scanner_everywhere_after_the_fit():
+    # a range scan of a sphere from one side: every final normal faces the scanner, grazing points too
+    sample = surfaces.Sphere(radius=1.0).scan(6000, viewpoints=[[0.0, 0.0, 6.0]], seed=3)
+    res = heatcurv.estimate(sample.points, viewpoint=(0.0, 0.0, 6.0))
+    facing = np.einsum("ij,ij->i", res.normals, [0.0, 0.0, 6.0] - sample.points)
+    assert np.all(facing > 0)
+    assert res.info["orientation"].mode == "viewpoint"
+    # the flipped points' curvatures were flipped with them: a sphere seen from outside is convex
+    assert np.median(res.mean[res.reliable]) == pytest.approx(1.0, rel=0.02)
+    assert np.all(res.k1 >= res.k2)
+
+
+def test_per_point_scanner_positions():
+    # the inside and the outside of a sphere, each seen from its own scanner: an (n, 3) viewpoint
+    sample = surfaces.Sphere(radius=1.0).sample(4000, "fibonacci")
+    pts = sample.points
+    scanner = np.where(pts[:, 2:3] > 0, [0.0, 0.0, 5.0], [0.0, 0.0, 0.0])
+    res = heatcurv.estimate(pts, viewpoint=scanner)
+    facing = np.einsum("ij,ij->i", res.normals, scanner - pts)
+    assert np.all(facing > 0)
+    with pytest.raises(HeatcurvError, match=r"viewpoint must be 3 finite numbers .* or an \(4000, 3\) array"):
+        heatcurv.estimate(pts, viewpoint=scanner[:10])
+
+
+def test_moebius_strip_is_flagged_not_guessed():
+    # a non-orientable surface: no consistent side exists, so the seam must be flagged ambiguous
+    rng = np.random.default_rng(5)
+    u, v = rng.uniform(0, 2 * np.pi, 20000), rng.uniform(-0.3, 0.3, 20000)
+    pts = np.c_[(1 + v * np.cos(u / 2)) * np.cos(u), (1 + v * np.cos(u / 2)) * np.sin(u), v * np.sin(u / 2)]
+    nb = _knn(pts)
+    nrm, _ = pca_normals(pts, nb)
+    got = orient(pts, nrm, nb)
+    # the seam is where the propagation closes the loop: a band across the strip, few points
+    assert 0 < got.ambiguous.sum() < 0.1 * len(pts)
+    seam_u = u[got.ambiguous]
+    spread = np.abs(np.angle(np.exp(1j * (seam_u - np.angle(np.exp(1j * seam_u).mean())))))
+    assert np.median(spread) < 0.2  # one place along the strip, not scattered
+    res = heatcurv.estimate(pts)
+    assert res.info["orientation"].ambiguous > 0
+    assert res.reliable.sum() <= len(pts) - res.info["orientation"].ambiguous
+
+
+def test_vertical_wall_alone_cannot_be_oriented_up():
+    # no normal faces up or down: nothing tells the sides apart, so every point is ambiguous
+    rng = np.random.default_rng(6)
+    pts = np.c_[rng.uniform(-1, 1, 3000), np.zeros(3000), rng.uniform(0, 1, 3000)]
+    res = heatcurv.estimate(pts, orient="up")
+    assert res.info["orientation"].ambiguous == len(pts)
+    assert not res.reliable.any()
+
+
+def test_clean_closed_surfaces_have_no_ambiguous_point(torus_sample):
+    res = heatcurv.estimate(torus_sample.points)
+    assert res.info["orientation"].ambiguous == 0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"orient": "viewpoint"}, "orient='viewpoint' needs viewpoint="),
+        ({"orient": "up", "viewpoint": (0, 0, 1)}, "cannot be combined with orient='up'"),
+        ({"orient": "sideways"}, "orient must be one of 'auto', 'outward', 'up', 'viewpoint'"),
+        ({"orient": "up", "normals": "given"}, "the given normals are kept as they are"),
+    ],
+)
+def test_bad_orientation_options(kwargs, message):
+    pts = surfaces.Sphere().sample(500, "fibonacci").points
+    if kwargs.get("normals") == "given":
+        kwargs = {**kwargs, "normals": pts}
+    with pytest.raises(HeatcurvError, match=message):
+        heatcurv.estimate(pts, **kwargs)
+
+
+def test_viewpoint_validation():
+    np.testing.assert_array_equal(as_viewpoint((1, 2, 3)), [1.0, 2.0, 3.0])
+    with pytest.raises(HeatcurvError, match="viewpoint must be 3 finite numbers"):
+        as_viewpoint((1, 2, np.nan))
+    with pytest.raises(HeatcurvError, match="viewpoint must be 3 finite numbers"):
+        as_viewpoint("here")
+
+
+def test_anchor_threshold_is_a_cosine():
+    assert 0.0 < ANCHOR_COSINE < 1.0
+    # a point on the equator of a sphere oriented up has |n_z| < ANCHOR_COSINE: it takes its side from
+    # its neighbours, so the equator band comes out outward like the rest of the upper hemisphere
+    sample = surfaces.Sphere().sample(8000, "fibonacci")
+    upper = sample.points[:, 2] > -0.2
+    pts = sample.points[upper]
+    res = heatcurv.estimate(pts, orient="up")
+    band = np.abs(sample.normals[upper][:, 2]) < ANCHOR_COSINE
+    assert np.all(np.einsum("ij,ij->i", res.normals[band], sample.normals[upper][band]) > 0)
