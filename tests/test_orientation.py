@@ -206,3 +206,18 @@ def test_anchor_threshold_is_a_cosine():
     res = heatcurv.estimate(pts, orient="up")
     band = np.abs(sample.normals[upper][:, 2]) < ANCHOR_COSINE
     assert np.all(np.einsum("ij,ij->i", res.normals[band], sample.normals[upper][band]) > 0)
+
+
+def test_a_sheet_seen_from_both_sides_is_flagged():
+    # a thin plate scanned from above and from below, each point facing its own scanner: within one
+    # ball the two faces point opposite ways, so no side is right for the plate; flagged, not guessed
+    rng = np.random.default_rng(8)
+    n = 8000
+    xy = rng.uniform(-1, 1, (n, 2))
+    below = np.arange(n) % 2 == 1
+    pts = np.c_[xy, np.where(below, -0.002, 0.002)]
+    scanner = np.where(below[:, None], [0.0, 0.0, -5.0], [0.0, 0.0, 5.0])
+    res = heatcurv.estimate(pts, viewpoint=scanner)
+    assert np.all(np.einsum("ij,ij->i", res.normals, scanner - pts) > 0)  # each faces its scanner
+    assert res.info["orientation"].ambiguous >= 0.9 * n
+    assert res.reliable.mean() <= 0.1

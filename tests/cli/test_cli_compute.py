@@ -15,6 +15,8 @@ def test_compute_sphere_mean_curvature_is_one(sphere_fields_ply):
     assert out.returncode == 0, out.stderr
     assert out.stderr == ""  # messages go to stdout; no terminal, no progress bar
     assert "read " in out.stdout and f"wrote {out_path}" in out.stdout
+    area = re.search(r"surface area ([0-9.e+-]+) \(reliable points: ([0-9.e+-]+)\)", out.stdout)
+    assert area and abs(float(area.group(1)) / (4 * np.pi) - 1.0) < 0.02
     cloud = io.read_points(out_path)
     reliable = cloud.fields["reliable"].astype(bool)
     assert reliable.mean() > 0.95

@@ -172,10 +172,14 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
     seconds = time.perf_counter() - tic
     scale = res.info.get("scale")
     kernel = f", kernel {scale.fit}" if scale else ""
+    outliers = int(res.outlier.sum())
     log.info(
         f"estimated curvature in {seconds:.2f} s (method {res.options.method}{kernel}): "
         f"{int(res.reliable.sum())} of {len(res)} points reliable"
+        + (f", {outliers} outlier(s) (stray points, no area)" if outliers else "")
     )
+    log.info(f"surface area {res.area.sum():.6g} (reliable points: {res.area[res.reliable].sum():.6g}), "
+             "in the cloud's unit squared")
     orientation = res.info.get("orientation")
     if orientation is not None and orientation.ambiguous:
         log.info(f"{orientation.ambiguous} point(s) have no consistent side for their normal (two sheets closer "
