@@ -263,8 +263,8 @@ def cut_ball_coverage(offset: np.ndarray, threshold: float) -> np.ndarray:
 @functools.cache
 def _cut_disc_table(u0: float = TAPER_START) -> tuple[np.ndarray, np.ndarray]:
     """``(c(a), f(a))`` of a unit disc cut at ``x = a`` for ``a`` from 1 down to -0.95, by quadrature."""
-    x, wx = np.polynomial.legendre.leggauss(400)
-    y, wy = np.polynomial.legendre.leggauss(200)
+    x, wx = np.polynomial.legendre.leggauss(160)
+    y, wy = np.polynomial.legendre.leggauss(48)
     # chord mass g(x) = int W(sqrt(x^2 + y^2)) dy over the disc's chord at x
     half = np.sqrt(1.0 - x**2)
     chord = (flat_top(np.hypot(x[:, None], half[:, None] * y[None, :]), u0) * wy).sum(axis=1) * half
