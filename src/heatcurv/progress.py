@@ -68,14 +68,12 @@ PROGRESS_STAGES = {
 #: random torus on the project's 2-core machine (default: clean; the fit's share grows with noise).
 PROGRESS_WEIGHTS = {
     "paper": {
-        "validate": 2, "spacing": 1, "neighbours": 14, "areas": 50, "kernel_check": 0, "outliers": 1, "normals": 1,
-        "orientation": 14,
-        "mean_curvature_normal": 0, "mean": 0, "principal": 17, "border": 0,
+        "validate": 1, "spacing": 1, "neighbours": 5, "areas": 76, "kernel_check": 0, "outliers": 7, "normals": 0,
+        "orientation": 5, "mean_curvature_normal": 0, "mean": 0, "principal": 5, "border": 0,
     },
     "default": {
-        "validate": 4, "neighbours": 26, "spacing": 0, "areas": 2, "kernel_check": 0, "outliers": 2, "normals": 6,
-        "orientation": 10,
-        "mean_curvature_normal": 2, "kernel_choice": 2, "fit": 46,
+        "validate": 2, "neighbours": 20, "spacing": 0, "areas": 2, "kernel_check": 0, "outliers": 10, "normals": 6,
+        "orientation": 8, "mean_curvature_normal": 2, "kernel_choice": 2, "fit": 48,
     },
 }
 
