@@ -1,4 +1,4 @@
-"""Test support: error measures against exact values, and the quadric-fit baseline.
+"""Test support: error measures against exact values, the quadric-fit baseline, the real scans.
 
 Not part of the estimator: what the tests, the benchmarks and the demo use to
 judge an estimate against the exact values of :mod:`heatcurv.surfaces`.
@@ -8,6 +8,9 @@ judge an estimate against the exact values of :mod:`heatcurv.surfaces`.
                        :func:`compare` (formerly ``heatcurv.evaluation``)
 ``baseline``           the classical k-NN quadric fit, for comparison
                        (formerly ``heatcurv.baseline``)
+``scans``              the real-scan test set: pymeshlab's sample meshes,
+                       fetched (never shipped), and a mesh reader giving
+                       their areas, normals and components
 =====================  ======================================================
 """
 
