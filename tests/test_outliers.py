@@ -5,8 +5,8 @@ import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.neighbourhood import knn_neighbourhood
-from heatcurv.outliers import find_outliers
+from heatcurv.neighbourhood import Neighbourhood, knn_neighbourhood
+from heatcurv.outliers import find_outliers, neighbour_medians
 
 
 def _sphere_with_strays(seed=0):
@@ -76,3 +76,17 @@ def test_far_outlier_does_not_turn_a_sphere_inside_out():
     assert res.outlier[-1] and not res.outlier[:-1].any()
     assert np.all(np.einsum("ij,ij->i", res.normals[:-1], sphere.normals) > 0)
     assert np.median(res.mean[:-1]) == pytest.approx(1.0, rel=0.01)
+
+
+def test_neighbour_medians_match_numpy():
+    rng = np.random.default_rng(9)
+    values = rng.random(300)
+    counts = rng.integers(0, 9, 300)
+    indptr = np.r_[0, np.cumsum(counts)]
+    nbhd = Neighbourhood(indptr=indptr, indices=rng.integers(0, 300, indptr[-1]).astype(np.int32),
+                         distances=rng.random(indptr[-1]), radius=np.ones(300), augmented=np.zeros(300, bool))
+    want = [np.median(values[nbhd.indices[a:b]]) if b > a else np.nan for a, b in zip(indptr[:-1], indptr[1:])]
+    np.testing.assert_allclose(neighbour_medians(values, nbhd), want)
+    uniform = knn_neighbourhood(rng.random((200, 3)), 7)  # rows of one length: the reshape path
+    want = [np.median(values[uniform.indices[a:b]]) for a, b in zip(uniform.indptr[:-1], uniform.indptr[1:])]
+    np.testing.assert_allclose(neighbour_medians(values, uniform), want)

@@ -42,10 +42,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from ._kernels import segment as kernels
 from .neighbourhood import Neighbourhood
 
-__all__ = ["ISOLATION_FACTOR", "BALL_RATIO_MAX", "SPARSE_FACTOR", "Outliers", "find_outliers"]
+__all__ = ["ISOLATION_FACTOR", "BALL_RATIO_MAX", "SPARSE_FACTOR", "Outliers", "find_outliers", "neighbour_medians"]
 
 #: Neighbours per point in the mutual-neighbour graph.
 LINK_NEIGHBOURS = 10
@@ -130,6 +129,28 @@ def find_outliers(points: np.ndarray, nbhd: Neighbourhood) -> Outliers:
     with np.errstate(divide="ignore", invalid="ignore"):
         sparse = (nbhd.radius / spacing) ** 2 > SPARSE_FACTOR * ball_counts / SPACING_RANK
     sparse &= ball_counts > SPACING_RANK
-    isolated = spacing > ISOLATION_FACTOR * kernels.neighbour_medians(spacing, nbhd.indptr, nbhd.indices)
-    isolated |= nbhd.radius > BALL_RATIO_MAX * kernels.neighbour_medians(nbhd.radius, nbhd.indptr, nbhd.indices)
+    isolated = spacing > ISOLATION_FACTOR * neighbour_medians(spacing, nbhd)
+    isolated |= nbhd.radius > BALL_RATIO_MAX * neighbour_medians(nbhd.radius, nbhd)
     return Outliers(detached | isolated | sparse, detached, isolated, sparse, int(n_comp))
+
+
+def neighbour_medians(values: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
+    """Median of ``values[j]`` over each point's neighbours ``j``, shape (n,) (NaN where a row is empty).
+
+    Rows of one length (the k nearest) are a reshape and a vectorised median;
+    others are sorted within their rows. Block by block (:meth:`Neighbourhood.blockwise`).
+    """
+
+    def block_medians(lo, hi, block):
+        counts = block.counts
+        gathered = values[block.indices]
+        if counts.size and counts.min() == counts.max() > 0:
+            return np.median(gathered.reshape(-1, int(counts[0])), axis=1)
+        ordered = gathered[np.lexsort((gathered, block.rows))]
+        start, out = block.indptr[:-1], np.full(hi - lo, np.nan)
+        filled = counts > 0
+        lower, upper = (start + (counts - 1) // 2)[filled], (start + counts // 2)[filled]
+        out[filled] = 0.5 * (ordered[lower] + ordered[upper])
+        return out
+
+    return nbhd.blockwise(block_medians)

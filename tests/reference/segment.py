@@ -14,7 +14,6 @@ from heatcurv.kernel import flat_top
 __all__ = [
     "orientation_costs",
     "orientation_conflicts",
-    "neighbour_medians",
     "tapered_heat_weights",
     "taper_sums",
     "weighted_covariances",
@@ -62,11 +61,6 @@ def orientation_conflicts(points, normals, indptr, indices, distances, in_plane,
     counted = (np.abs(dot) >= aligned) & (height <= in_plane * distances)
     n = len(indptr) - 1
     return (np.bincount(rows[counted], minlength=n), np.bincount(rows[counted & (dot < 0)], minlength=n))
-
-
-def neighbour_medians(values, indptr, indices):
-    """Median of ``values[j]`` over each point's neighbours (NaN for none)."""
-    return np.array([np.median(values[indices[a:b]]) if b > a else np.nan for a, b in zip(indptr[:-1], indptr[1:])])
 
 
 def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):

@@ -26,7 +26,6 @@ from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
 __all__ = [
     "orientation_costs",
     "orientation_conflicts",
-    "neighbour_medians",
     "tapered_heat_weights",
     "taper_sums",
     "weighted_covariances",
@@ -122,30 +121,6 @@ def _orientation_conflicts(row0, row1, points, normals, indptr, indices, distanc
                 k += 1
         counted[i] = c
         conflicting[i] = k
-
-
-def neighbour_medians(values, indptr, indices):
-    """Median of ``values[j]`` over each point's neighbours ``j``, shape (n,) (NaN for a point with none)."""
-    values, indptr = as_floats(values), as_pointers(indptr)
-    out = np.empty(indptr.shape[0] - 1)
-    parallel_rows(_neighbour_medians, out.shape[0], values, indptr, as_indices(indices, values.shape[0]), out)
-    return out
-
-
-@njit(**ROW_CORE)
-def _neighbour_medians(row0, row1, values, indptr, indices, out):
-    width = 0
-    for i in range(row0, row1):
-        width = max(width, indptr[i + 1] - indptr[i])
-    buffer = np.empty(width)
-    for i in range(row0, row1):
-        c = indptr[i + 1] - indptr[i]
-        if c == 0:
-            out[i] = np.nan
-            continue
-        for p in range(c):
-            buffer[p] = values[indices[indptr[i] + p]]
-        out[i] = np.median(buffer[:c])
 
 
 def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):
