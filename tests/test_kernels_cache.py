@@ -37,7 +37,7 @@ def run_python(code: str, cache_dir, *args):
 ROW_CORES = {
     "_orientation_costs", "_tapered_heat_weights", "_taper_sums", "_weighted_covariances", "_kappa_normal_sums",
     "_centroid_offsets", "_smallest_eigenvectors", "_assemble_normal_equations", "_weighted_height_residual",
-    "_solve_normal_equations", "_orientation_conflicts",
+    "_solve_normal_equations",
 }
 
 
@@ -247,7 +247,6 @@ def test_results_do_not_depend_on_the_thread_count(torus_cloud):
             segment.taper_sums(nb.indptr, nb.distances, nb.radius, 0.7),
             weights,
             segment.orientation_costs(pts, normals, nb.indptr, nb.indices, nb.distances, nb.radius),
-            *segment.orientation_conflicts(pts, normals, nb.indptr, nb.indices, nb.distances, 0.5, 0.7),
             segment.kappa_normal_sums(pts, nb.indptr, nb.indices, nb.distances, 1 / nb.radius**2, weights, areas, True),
             segment.centroid_offsets(pts, pts, nb.indptr, nb.indices, nb.distances, nb.radius, normals, 0.7, True),
             *segment.smallest_eigenvectors(

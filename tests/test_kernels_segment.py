@@ -67,7 +67,6 @@ def test_each_kernel_matches_its_reference(cloud, index_dtype, request):
     h = radius / 2
     args = {
         "orientation_costs": (pts, normals, indptr, indices, dist, radius),
-        "orientation_conflicts": (pts, normals, indptr, indices, dist, 0.5, 0.7),
         "tapered_heat_weights": (indptr, indices, dist, radius, 1.0 / h**2, areas, TAPER_START),
         "taper_sums": (indptr, dist, radius, TAPER_START),
         "kappa_normal_sums": (pts, indptr, indices, dist, 1.0 / h**2, np.empty(0), areas, False),

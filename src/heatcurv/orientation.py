@@ -206,15 +206,34 @@ def orient(
     sign, convention, undecided = _component_signs(points, oriented, labels, n_comp, w, reference, ~anchored_comp)
     oriented *= sign[labels][:, None]
 
-    counted, conflicting = kernels.orientation_conflicts(
-        points, oriented, graph.indptr, graph.indices, graph.distances, CONFLICT_IN_PLANE, CONFLICT_ALIGNED
-    )
-    ambiguous = ((conflicting >= 2) & (conflicting >= CONFLICT_SHARE * counted)) | undecided[labels]
+    ambiguous = _conflicting(points, oriented, graph) | undecided[labels]
     report = OrientationReport(
         mode=mode, components=int(n_comp), anchored=int(anchors.sum()),
         by_convention=int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
     )
     return Orientation(oriented, ambiguous, report)
+
+
+def _conflicting(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood) -> np.ndarray:
+    """Points whose in-plane, aligned neighbours point the other way, shape (n,), bool.
+
+    A neighbour ``j`` of ``i`` is compared when the edge lies near the tangent
+    plane, ``|n_i . (xj - xi)| <= CONFLICT_IN_PLANE |xj - xi|``, and the normal
+    axes agree, ``|n_i . n_j| >= CONFLICT_ALIGNED``; a point conflicts when at
+    least two and at least ``CONFLICT_SHARE`` of the compared ones have
+    ``n_i . n_j < 0``.
+    """
+
+    def block_conflicts(lo, hi, block):
+        rows = block.rows + lo
+        dot = np.einsum("ij,ij->i", normals[rows], normals[block.indices])
+        height = np.abs(np.einsum("ij,ij->i", normals[rows], points[block.indices] - points[rows]))
+        compared = (np.abs(dot) >= CONFLICT_ALIGNED) & (height <= CONFLICT_IN_PLANE * block.distances)
+        counted = block.segment_sum(compared.astype(np.float64))
+        against = block.segment_sum((compared & (dot < 0)).astype(np.float64))
+        return (against >= 2) & (against >= CONFLICT_SHARE * counted)
+
+    return graph.blockwise(block_conflicts)
 
 
 def _reference_directions(points: np.ndarray, mode: str, towards) -> np.ndarray | None:

@@ -13,7 +13,6 @@ from heatcurv.kernel import flat_top
 
 __all__ = [
     "orientation_costs",
-    "orientation_conflicts",
     "tapered_heat_weights",
     "taper_sums",
     "weighted_covariances",
@@ -51,16 +50,6 @@ def orientation_costs(points, normals, indptr, indices, distances, radius):
     tj = np.einsum("ij,ij->i", normals[indices], edge)
     align = np.abs(np.einsum("ij,ij->i", normals[rows], normals[indices]) - ti * tj)
     return (1.0 - align) + np.maximum(np.abs(ti), np.abs(tj)) + 1e-3 * distances / radius[rows] + 1e-12
-
-
-def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
-    """In-plane aligned neighbours of each point, and those of them pointing the other way."""
-    rows = _rows(indptr)
-    dot = np.einsum("ij,ij->i", normals[rows], normals[indices])
-    height = np.abs(np.einsum("ij,ij->i", normals[rows], points[indices] - points[rows]))
-    counted = (np.abs(dot) >= aligned) & (height <= in_plane * distances)
-    n = len(indptr) - 1
-    return (np.bincount(rows[counted], minlength=n), np.bincount(rows[counted & (dot < 0)], minlength=n))
 
 
 def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):

@@ -25,7 +25,6 @@ from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
 
 __all__ = [
     "orientation_costs",
-    "orientation_conflicts",
     "tapered_heat_weights",
     "taper_sums",
     "weighted_covariances",
@@ -77,50 +76,6 @@ def _orientation_costs(row0, row1, points, normals, indptr, indices, distances, 
                     ti += normals[i, a] * e
                     tj += normals[j, a] * e
             out[p] = (1.0 - abs(dot - ti * tj)) + max(abs(ti), abs(tj)) + distances[p] * inv + 1e-12
-
-
-def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
-    """Per point: its in-plane, aligned neighbours, and how many of them point the other way.
-
-    A neighbour ``j`` of ``i`` counts when the edge lies near the tangent plane,
-    ``|n_i . (xj - xi)| <= in_plane |xj - xi|``, and the normal axes agree,
-    ``|n_i . n_j| >= aligned``; it conflicts when ``n_i . n_j < 0``
-    (heatcurv.normals.orientation_conflicts).
-
-    Returns
-    -------
-    counted, conflicting : ndarray, shape (n,), int64
-    """
-    points, normals = as_floats(points), as_floats(normals)
-    indptr, distances = as_pointers(indptr), as_floats(distances)
-    n = indptr.shape[0] - 1
-    counted, conflicting = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
-    args = points, normals, indptr, as_indices(indices, normals.shape[0]), distances, float(in_plane), float(aligned)
-    parallel_rows(_orientation_conflicts, n, *args, counted, conflicting)
-    return counted, conflicting
-
-
-@njit(**ROW_CORE)
-def _orientation_conflicts(row0, row1, points, normals, indptr, indices, distances, in_plane, aligned, counted,
-                           conflicting):
-    for i in range(row0, row1):
-        c = 0
-        k = 0
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
-            dot = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
-            if abs(dot) < aligned:
-                continue
-            height = 0.0
-            for a in range(3):
-                height += normals[i, a] * (points[j, a] - points[i, a])
-            if abs(height) > in_plane * distances[p]:
-                continue
-            c += 1
-            if dot < 0.0:
-                k += 1
-        counted[i] = c
-        conflicting[i] = k
 
 
 def tapered_heat_weights(indptr, indices, distances, radius, inv_h2, areas, start):
