@@ -55,6 +55,14 @@ __all__ = ["CurvatureResult", "estimate"]
 
 #: PCA planarity below which a neighbourhood is not treated as a surface patch.
 PLANARITY_MIN = 0.05
+#: A point whose chord-fit residual (in units of its spacing) exceeds this multiple of the
+#: cloud's median is not explained by one smooth surface at the kernel's scale: a sharp edge
+#: inside the ball, vegetation, a veil. Measured (residual / median): noisy tori at most 1.4,
+#: a CAD part's faces 0.1 and the band of a ball's width along its edges 3-450, a LiDAR tile's
+#: ground 0.8-7 and its tree crowns 20-36.
+MISFIT_FACTOR = 10.0
+#: Floor of the median residual (in spacings) a clean cloud's misfits are measured against.
+MISFIT_FLOOR = 1e-3
 
 
 @dataclass(frozen=True)
@@ -67,6 +75,7 @@ class _Fitted:
     areas: np.ndarray
     border: np.ndarray
     scale: ScaleReport | None = None
+    residual: np.ndarray | None = None
 
 
 def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, **options):
@@ -290,7 +299,7 @@ def _default_fit_stages(
         level = None if fixed_radius else FitLevel.for_kernel(X, op.tree, scale.k, tuning.k_fit, tuning.seed)
     blocks = base.row_blocks(BLOCK_PAIRS) if fixed_radius else block_ranges(n, level.rows_per_block())
 
-    areas, border, radius = np.empty(n), np.empty(n, dtype=bool), np.empty(n)
+    areas, border, radius, residual = np.empty(n), np.empty(n, dtype=bool), np.empty(n), np.empty(n)
     fits = []
     for lo, hi in blocks:
         centres = X[lo:hi]
@@ -312,12 +321,13 @@ def _default_fit_stages(
             fraction = 1.0 if level is None else level.fraction
             areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, fraction, offset, reuse_base)
         radius[lo:hi] = nbhd.radius
+        residual[lo:hi] = fit.sigma
         fits.append(fit)
         clock.report("fit", hi / n)
     fit = ChordFit.concatenate(fits)
     pc = fit.principal
     report = ScaleReport.from_choice(choice, radius, opts.alpha, opts.radius)
-    return _Fitted(fit.normals, pc.mean, pc, areas, border, report)
+    return _Fitted(fit.normals, pc.mean, pc, areas, border, report, residual)
 
 
 def _corrected_areas(
@@ -347,6 +357,16 @@ def _corrected_areas(
     return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2) * coverage
 
 
+def _misfits(op: HeatKernelOperator, fitted: _Fitted, outliers: Outliers) -> np.ndarray:
+    """Points the chord fit does not explain (:data:`MISFIT_FACTOR`), shape (m,), bool; none for the paper's fit."""
+    if fitted.residual is None:
+        return np.zeros(op.points.shape[0], dtype=bool)
+    relative = fitted.residual / op.h
+    surface = relative[~outliers.mask]
+    baseline = max(float(np.median(surface)) if surface.size else 0.0, MISFIT_FLOOR)
+    return relative > MISFIT_FACTOR * baseline
+
+
 def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: Orientation, outliers: Outliers,
             timings):
     """The reliability flags, and every field back in the input order (a :class:`CurvatureResult`).
@@ -356,7 +376,7 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     areas = np.where(outliers.mask, 0.0, fitted.areas)
     reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~fitted.border
-    reliable &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask
+    reliable &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask & ~_misfits(op, fitted, outliers)
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count,

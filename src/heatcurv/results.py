@@ -37,8 +37,10 @@ class CurvatureResult:
         too few neighbours (nearest neighbours were used instead), its
         neighbourhood is not surface-like (PCA planarity < 0.05), the tensor
         fit was ill-posed, its area came out non-positive, it is a border
-        point, an outlier, or its normal has no consistent side
-        (``info["orientation"]``); everywhere if the area system did not converge (a
+        point, an outlier, its normal has no consistent side
+        (``info["orientation"]``), or the chord fit's residual is ten times the
+        cloud's median (the ball holds more than one smooth surface: a sharp
+        edge, vegetation); everywhere if the area system did not converge (a
         ``HeatcurvWarning`` says so).
     outlier : ndarray, shape (n,), bool
         Stray points and small islands that no surface at the kernel's scale

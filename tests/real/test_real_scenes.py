@@ -57,3 +57,17 @@ def test_lidar_tile_survives_the_las_round_trip_and_noise(tmp_path):
     ground = tile.labels == 2
     assert (res.normals[ground, 2] > 0).mean() >= 0.995
     assert (res.mean[tile.convex & res.reliable] > 0).mean() >= 0.95
+
+
+def test_what_one_smooth_surface_does_not_explain_is_unreliable(cad):
+    # the fit's residual against the cloud's median: tree crowns (volumetric) and the band of a
+    # ball's width along a CAD part's edges (where the ball holds two faces) are flagged; smooth
+    # faces and noisy smooth surfaces are not
+    part, res = cad
+    assert res.reliable[part.edge_distance > 2 * res.info["scale"].median_radius].mean() >= 0.99
+    assert res.reliable[part.sharp].mean() <= 0.05
+    tile = surfaces.lidar_tile(12000, seed=6)
+    crowns = tile.labels == 5
+    assert heatcurv.estimate(tile.points, orient="up").reliable[crowns].mean() <= 0.05  # measured 0
+    noisy = surfaces.Torus().sample(20000, "random", seed=0, noise=0.006)
+    assert heatcurv.estimate(noisy.points).reliable.mean() >= 0.99  # measured 100 %
