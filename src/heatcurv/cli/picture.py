@@ -18,6 +18,7 @@ from .steps import (
     finite_rows,
     full_rows,
     input_normals,
+    orientation_for,
     read_cloud,
     run_estimate,
 )
@@ -79,6 +80,7 @@ def _field_values(args, cloud, options: dict, log: Log):
         rows = finite_rows(cloud, args.skip_nonfinite)
         points = cloud.points if rows is None else cloud.points[rows]
         normals = input_normals(cloud, args.normals_from_input, rows)
+        options = {**options, "orient": orientation_for(cloud, options, normals is not None, log)}
         res = run_estimate(points, normals, options, log, source=args.input)
         feat = detect_features(res, args.feature_threshold, 10.0, log) if field in FEATURE_FIELDS else None
         values = full_rows(computed_values(res, feat, field), rows, len(cloud))

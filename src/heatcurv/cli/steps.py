@@ -20,7 +20,8 @@ from .options import estimator_kwargs
 from .progressbar import StageProgress
 
 __all__ = [
-    "check_output_path", "same_file", "supported_write", "read_cloud", "finite_rows", "input_normals", "run_estimate",
+    "check_output_path", "same_file", "supported_write", "read_cloud", "finite_rows", "input_normals",
+    "orientation_for", "run_estimate",
     "detect_features", "full_rows", "computed_values", "result_fields", "write_cloud",
 ]
 
