@@ -926,8 +926,8 @@ def explain(cases, r) -> list[str]:
         "* **`res.reliable`**: heatcurv trusts the point's values: not an outlier, not on a border of the",
         "  scan, its ball a surface, the fit well posed, the normal consistently oriented. Use the reliable",
         "  points for statistics. Expect unreliable points on rims, at holes and where the sampling is",
-        "  too coarse. `reliable` is not a promise, though: see the limitations below (thin parts,",
-        "  vegetation, sharp edges).",
+        "  too coarse, along sharp edges and in vegetation (where the fit's residual is many times the",
+        "  cloud's median). `reliable` is not a promise, though: see the limitations below (thin parts).",
         "* **`orient`**: which side the normals point to, and with them the sign of the curvatures",
         "  (positive mean curvature: the surface bends away from its normal, like a sphere with outward",
         "  normals). `\"outward\"`, the default without a viewpoint, carries one side from neighbour to",
@@ -1072,14 +1072,24 @@ def explain(cases, r) -> list[str]:
             "wall corner or wall foot. A random half agrees in side on "
             f"{pfmt(m.get('half_orient_surface', float('nan')), 2)} % of the ground, roof and wall points and on "
             f"{pfmt(m.get('half_orient_volume', float('nan')), 1)} % of the vegetation's.")
-        lines.append(
-            f"* **Vegetation is volumetric.** The tree crowns are a 3-D scatter of returns, with no surface and "
-            f"no true normal. Of their {fmt(veg['n'])} points, {pfmt(veg['reliable'])} % are nevertheless flagged "
-            f"reliable, {pfmt(veg['features'])} % are flagged as sharp features (they make "
-            f"{pfmt(m.get('features_in_vegetation', float('nan')))} % of all flagged points) and {veg['outliers']} "
-            "are outliers. heatcurv fits a surface through whatever it is given and does not tell a crown from "
-            "a roof: remove vegetation by its classification (LAS classes 3-5) before reading curvature or "
-            "features, and never read a crown's curvature as a surface's.")
+        if veg["reliable"] <= 5.0:
+            lines.append(
+                f"* **Vegetation is volumetric.** The tree crowns are a 3-D scatter of returns, with no surface "
+                f"and no true normal. Of their {fmt(veg['n'])} points {pfmt(veg['reliable'])} % are flagged "
+                "reliable: the chord fit's residual there is many times the tile's median (no smooth surface "
+                f"explains a crown), so they are unreliable; {pfmt(veg['features'])} % are flagged as sharp "
+                f"features (they make {pfmt(m.get('features_in_vegetation', float('nan')))} % of all flagged "
+                f"points) and {veg['outliers']} are outliers. Mask them with `reliable`, or remove vegetation "
+                "by its classification (LAS classes 3-5), before reading curvature or features.")
+        else:
+            lines.append(
+                f"* **Vegetation is volumetric.** The tree crowns are a 3-D scatter of returns, with no surface "
+                f"and no true normal. Of their {fmt(veg['n'])} points, {pfmt(veg['reliable'])} % are "
+                f"nevertheless flagged reliable, {pfmt(veg['features'])} % are flagged as sharp features (they "
+                f"make {pfmt(m.get('features_in_vegetation', float('nan')))} % of all flagged points) and "
+                f"{veg['outliers']} are outliers. heatcurv fits a surface through whatever it is given and does "
+                "not tell a crown from a roof: remove vegetation by its classification (LAS classes 3-5) before "
+                "reading curvature or features, and never read a crown's curvature as a surface's.")
     if "cad" in r:
         m = r["cad"]
         lines.append(
@@ -1093,12 +1103,21 @@ def explain(cases, r) -> list[str]:
             f"{pfmt(m['concave_far_sign'])} %. `sharp_features` finds {pfmt(m['sharp_recall'])} % of the points "
             f"within 0.5 mm of an edge, and {pfmt(m['feature_near'])} % of the points it flags are within one "
             "ball radius of one.")
-        lines.append(
-            "* **Next to a sharp edge, `reliable` does not mean smooth.** Within one ball radius of the CAD "
-            f"part's edges {pfmt(m['reliable_near_edge'])} % of the points are flagged reliable, yet their mean "
-            "curvature is the crease's, spread over the ball (the saturated bands along the edges in the "
-            "picture), and all the wrong signs on the boss and in the hole are in that band. On objects with "
-            "sharp edges, use `sharp_features` to mask it.")
+        if m["reliable_near_edge"] < 50.0:
+            lines.append(
+                "* **Next to a sharp edge the ball holds two faces.** Their mean curvature there is the "
+                "crease's, spread over the ball (the saturated bands along the edges in the picture); the fit's "
+                "residual shows it, and within one ball radius of the CAD part's edges only "
+                f"{pfmt(m['reliable_near_edge'])} % of the points are flagged reliable. The wrong signs on the "
+                "boss and in the hole are all in that band. On objects with sharp edges, `sharp_features` "
+                "marks the edges themselves.")
+        else:
+            lines.append(
+                "* **Next to a sharp edge, `reliable` does not mean smooth.** Within one ball radius of the CAD "
+                f"part's edges {pfmt(m['reliable_near_edge'])} % of the points are flagged reliable, yet their "
+                "mean curvature is the crease's, spread over the ball (the saturated bands along the edges in "
+                "the picture), and all the wrong signs on the boss and in the hole are in that band. On objects "
+                "with sharp edges, use `sharp_features` to mask it.")
     low = [c for c in cases if r[c.key]["half_orient"] < 99.5]
     big = [c for c in cases if abs(r[c.key]["half_area"]) > 5.0]
     lines.append(
