@@ -105,7 +105,7 @@ from heatcurv import surfaces as hs
 from heatcurv.testing import compare, quadric_curvature
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
+from machine import cpu_model, table  # noqa: E402  (benchmarks/machine.py)
 
 ESTIMATORS = {
     "default": lambda p: heatcurv.estimate(p),
@@ -289,15 +289,7 @@ def fmt(v, digits=3) -> str:
 
 
 def render(title: str, header: list[str], rows: list[list[str]], markdown: bool) -> str:
-    if markdown:
-        out = [f"### {title}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        out += ["| " + " | ".join(r) + " |" for r in rows]
-        return "\n".join(out) + "\n"
-    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(header)]
-    line = "  ".join(h.rjust(w) for h, w in zip(header, widths))
-    out = [title, "=" * len(title), line, "-" * len(line)]
-    out += ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in rows]
-    return "\n".join(out) + "\n"
+    return table(title, header, rows, markdown)
 
 
 def machine_info() -> list[str]:

@@ -1,8 +1,9 @@
-"""What machine a benchmark ran on (shared by the benchmark scripts)."""
+"""Shared by the benchmark scripts: what machine a benchmark ran on, and its tables as text or Markdown."""
 
 from __future__ import annotations
 
 import platform
+from pathlib import Path
 
 
 def cpu_model() -> str:
@@ -16,3 +17,25 @@ def cpu_model() -> str:
     except OSError:
         pass
     return cpu
+
+
+def memory_text() -> str:
+    """``", 24 GiB RAM"``: the machine's memory from /proc/meminfo (Linux), else ``""``."""
+    try:
+        kb = int(Path("/proc/meminfo").read_text().split()[1])
+    except (OSError, ValueError, IndexError):
+        return ""
+    return f", {kb / 1024**2:.0f} GiB RAM"
+
+
+def table(title: str, header: list, rows: list, markdown: bool, heading: str = "### {}") -> str:
+    """A table of text cells: Markdown (``heading`` formats the title) or right-aligned plain text."""
+    if markdown:
+        out = [heading.format(title), "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        out += ["| " + " | ".join(r) + " |" for r in rows]
+        return "\n".join(out) + "\n"
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(header)]
+    line = "  ".join(h.rjust(w) for h, w in zip(header, widths))
+    out = [title, "=" * len(title), line, "-" * len(line)]
+    out += ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in rows]
+    return "\n".join(out) + "\n"

@@ -79,7 +79,8 @@ from heatcurv import surfaces as hs
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
+from machine import cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
+from machine import table as text_table  # noqa: E402
 
 CASES = ("bunny", "face", "face_camera", "bone", "cow", "airplane", "bunny1839", "lidar", "cad")
 #: picture size of a figure of two views (pixels)
@@ -639,15 +640,7 @@ def signed_pct(v) -> str:
 
 
 def table(title: str, header: list[str], rows: list[list[str]], markdown: bool) -> str:
-    if markdown:
-        out = [f"**{title}**", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        out += ["| " + " | ".join(r) + " |" for r in rows]
-        return "\n".join(out) + "\n"
-    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(header)]
-    line = "  ".join(h.rjust(w) for h, w in zip(header, widths))
-    out = [title, "=" * len(title), line, "-" * len(line)]
-    out += ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in rows]
-    return "\n".join(out) + "\n"
+    return text_table(title, header, rows, markdown, heading="**{}**")
 
 
 def tables(cases: list[Case], results: dict, markdown: bool) -> str:
@@ -752,12 +745,7 @@ def tables(cases: list[Case], results: dict, markdown: bool) -> str:
 
 
 def machine() -> list[str]:
-    mem = ""
-    try:
-        kb = int(Path("/proc/meminfo").read_text().split()[1])
-        mem = f", {kb / 1024**2:.0f} GiB RAM"
-    except (OSError, ValueError, IndexError):
-        pass
+    mem = memory_text()
     import numba
 
     commit = "unknown"

@@ -53,7 +53,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import peers  # noqa: E402  (benchmarks/peers.py)
-from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
+from machine import cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
 
 #: Table column -> the default estimator's stages (``res.info["timings"]``) it sums.
 #: ``fit`` is the chord fit's per-block work; before the stages were named one
@@ -152,12 +152,7 @@ def torus_cloud(n: int, noise: float = 0.0, seed: int = 0) -> np.ndarray:
 def machine() -> str:
     """One line naming this machine and the library versions."""
     cpu = cpu_model()
-    mem = ""
-    try:
-        kb = int(Path("/proc/meminfo").read_text().split()[1])
-        mem = f", {kb / 1024**2:.0f} GiB RAM"
-    except (OSError, ValueError, IndexError):
-        pass
+    mem = memory_text()
     import numba
     import scipy
 
