@@ -36,6 +36,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+from heatcurv.testing.terminal import run_on_a_terminal  # noqa: E402
 from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
 
 ROOT = HERE.parent
@@ -49,25 +50,7 @@ def children_cpu() -> float:
 
 def run(command, env, cwd):
     """Run ``command`` with stderr on a pseudo-terminal, as in a user's shell (the notice is shown there only)."""
-    if not hasattr(os, "openpty"):
-        out = subprocess.run(command, env=env, cwd=cwd, capture_output=True, text=True)
-        return out.returncode, out.stdout, out.stderr
-    master, slave = os.openpty()
-    process = subprocess.Popen(command, env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=slave, text=True)
-    os.close(slave)
-    err = b""
-    while True:
-        try:
-            chunk = os.read(master, 4096)
-        except OSError:  # EIO: the child closed the terminal
-            break
-        if not chunk:
-            break
-        err += chunk
-    out = process.stdout.read()
-    status = process.wait()
-    os.close(master)
-    return status, out, err.decode(errors="replace")
+    return run_on_a_terminal(command, env=env, cwd=cwd)
 
 
 def timed(command, env, cwd) -> dict:

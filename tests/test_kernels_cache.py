@@ -21,6 +21,7 @@ import pytest
 from heatcurv import backend
 from heatcurv._kernels import COMPILE_NOTICE, LOGGER_NAME, chordfit, parallel_rows, segment
 from heatcurv.cli.main import compile_notice, notice_stream
+from heatcurv.testing.terminal import run_on_a_terminal
 
 NOTICE_LINE = f"heatcurv: {COMPILE_NOTICE}"
 
@@ -98,38 +99,25 @@ print(json.dumps(dict(status=status, counts=counts)))
 """
 
 
-def run_on_a_terminal(code: str, cache_dir):
+def run_code_on_a_terminal(code: str, cache_dir):
     """Run ``code`` with stderr on a pseudo-terminal (as a user's shell has it); its stdout and stderr."""
-    master, slave = os.openpty()
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
-    process = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=slave, text=True, env=env)
-    os.close(slave)
-    err = b""
-    while True:
-        try:
-            chunk = os.read(master, 4096)
-        except OSError:  # EIO: the child closed the terminal
-            break
-        if not chunk:
-            break
-        err += chunk
-    out = process.stdout.read()
-    assert process.wait(timeout=600) == 0, err
-    os.close(master)
-    return out, err.decode().replace("\r\n", "\n")
+    status, out, err = run_on_a_terminal([sys.executable, "-c", code], env=env, timeout=600)
+    assert status == 0, err
+    return out, err.replace("\r\n", "\n")
 
 
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
 def test_command_says_once_that_it_compiles_and_compiles_each_kernel_once(tmp_path):
     """A fresh install's first ``heatcurv demo`` in a terminal: one line on stderr before the wait; none once cached."""
-    out, err = run_on_a_terminal(CLI_RUN, tmp_path)
+    out, err = run_code_on_a_terminal(CLI_RUN, tmp_path)
     assert err.splitlines().count(NOTICE_LINE) == 1, err
     report = json.loads(out.splitlines()[-1])
     assert report["status"] == 0
     # the demo (default and paper methods) runs every row core; each kernel compiled for one signature
     assert set(report["counts"]) >= ROW_CORES
     assert set(report["counts"].values()) == {1}, report["counts"]
-    out, err = run_on_a_terminal(CLI_RUN, tmp_path)
+    out, err = run_code_on_a_terminal(CLI_RUN, tmp_path)
     assert "heatcurv: compiling" not in err
 
 

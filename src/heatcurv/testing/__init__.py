@@ -11,6 +11,9 @@ judge an estimate against the exact values of :mod:`heatcurv.surfaces`.
 ``scans``              the real-scan test set: pymeshlab's sample meshes,
                        fetched (never shipped), and a mesh reader giving
                        their areas, normals and components
+``terminal``           run a command with stderr on a pseudo-terminal, as
+                       in a user's shell (the compile notice's test, the
+                       first-run benchmark)
 =====================  ======================================================
 """
 
