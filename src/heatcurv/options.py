@@ -29,63 +29,150 @@ from ._deprecation import renamed_keyword
 from .errors import HeatcurvError
 
 __all__ = [
-    "Options", "ScaleTuning", "METHODS", "DEPRECATED_ALIASES", "resolve_options", "option_help", "rename_aliases",
+    "Options", "ScaleTuning", "METHODS", "DEPRECATED_ALIASES", "RANGES", "Range", "resolve_options", "option_help",
+    "rename_aliases", "range_problem", "check_options_for_cloud",
 ]
 
 
-def _positive(name: str, paper: str):
-    """A check that ``value`` is a finite positive number."""
+@dataclass(frozen=True)
+class Range:
+    """The documented range of a numeric option, and why.
+
+    Attributes
+    ----------
+    low, high : float
+        The smallest and largest accepted value (both included).
+    integer : bool
+        Whether the value must be a whole number.
+    why : str
+        The reason for the range, printed with a refused value.
+    """
+
+    low: float
+    high: float
+    integer: bool
+    why: str
+    shown: str = ""
+
+    def describe(self) -> str:
+        """``[low, high]`` (or ``shown``, where the range has a gap)."""
+        return self.shown or f"[{_show(self.low)}, {_show(self.high)}]"
+
+
+def _show(value) -> str:
+    """A number as the messages print it: ``1e+09``, ``0.25``, ``60``, ``1e+30`` (anything else: its repr)."""
+    if isinstance(value, (bool, np.bool_)):
+        return str(bool(value))
+    if not isinstance(value, (int, float, np.integer, np.floating)):
+        return repr(value)
+    if isinstance(value, (int, np.integer)) and abs(int(value)) < 10**15:
+        return str(int(value))
+    return f"{float(value):g}"
+
+
+def _got(value) -> str:
+    """A refused value of the wrong kind as the messages print it: ``2.0``, ``nan``, ``True``, ``'many'``."""
+    return repr(float(value)) if isinstance(value, (float, np.floating)) else _show(value)
+
+
+#: The documented range of every numeric option of :class:`Options` and
+#: :class:`ScaleTuning`, by name (``scale_tuning.<field>`` for the latter).
+#: Measured on a 2000-point random unit sphere
+#: (``heatcurv.surfaces.Sphere().sample(2000, "random")``) and on the Fibonacci
+#: sphere of the ``"paper"`` method; the limits that depend on the cloud (the
+#: number of its points, its size) are :func:`check_options_for_cloud`'s.
+RANGES: dict[str, Range] = {
+    "alpha": Range(
+        0.5, 20.0, False,
+        "the ball's radius in spacings: below 0.5 the kernel is wider than its ball, above 20 a ball holds "
+        "over a thousand neighbours (the paper uses 3.5-4.5)",
+    ),
+    "m": Range(
+        1e-3, 10.0, False,
+        "t = m h^2: below 1e-3 no neighbour has weight (1e-300 gave NaN), above 10 the kernel is flat over "
+        "its ball (the paper uses 1/4)",
+    ),
+    "gamma": Range(0.0, 1.0, False, "a blend of two spacings, eq 2.7 (the paper uses 0.1-0.5)"),
+    "k_local": Range(
+        2, 1000, True, "the local spacing's min and max need 2 neighbours; more than 1000 is the global spacing",
+    ),
+    "neighbours": Range(
+        20, 1920, True,
+        "the chord fit has 9 unknowns; 1920 is its widest default kernel (and 2e9 pairs on a million points)",
+    ),
+    "min_neighbours": Range(
+        3, 1920, True, "the tensor fit has 3 unknowns; 1920 is the widest neighbour count",
+    ),
+    "scale": Range(
+        20, 1_000_000, True,
+        "the chord fit has 9 unknowns; 1e6 is the automatic choice's widest kernel on 10 million points",
+    ),
+    "workers": Range(
+        -1, 1024, True, "-1 is all cores; more than 1024 threads exceeds any machine's cores",
+        shown="-1 or [1, 1024]",
+    ),
+    "scale_tuning.k_fit": Range(20, 1920, True, "a fitted kernel, as neighbours"),
+    "scale_tuning.n_sub": Range(
+        10, 1_000_000, True, "a median over fewer than 10 points means nothing; 1e6 fits a large cloud whole",
+    ),
+    "scale_tuning.tau": Range(
+        1e-6, 100.0, False,
+        "a tolerance in standard deviations (pure noise: 0.67); 1e-6 already refuses every wider kernel, "
+        "100 accepts every one",
+    ),
+    "scale_tuning.clean_ratio": Range(
+        0.1, 10.0, False,
+        "measured 0.2-1.3 on clean and 2.2-4.4 on noisy clouds: beyond, every cloud is noisy or every one clean",
+    ),
+    "scale_tuning.max_k": Range(20, 1_000_000, True, "the widest candidate kernel, as scale (or None)"),
+    "scale_tuning.seed": Range(0, 2**63 - 1, True, "numpy's random generators take a non-negative 64-bit seed"),
+}
+
+
+def range_problem(name: str, value, limits: Range | None = None) -> str | None:
+    """An error message if ``value`` is not a number in option ``name``'s range, else None.
+
+    NaN, infinities, booleans and strings are refused; a whole number is
+    needed where ``limits.integer`` (``40.0`` is accepted as 40, ``40.5`` not).
+    The message is one line: ``alpha = 1e+09 is outside its range [0.5, 20]: <why>``.
+    """
+    limits = RANGES[name] if limits is None else limits
+    kind = "a whole number" if limits.integer else "a number"
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not number or not math.isfinite(value) or (limits.integer and not float(value).is_integer()):
+        return f"{name} must be {kind} in {limits.describe()}, got {_got(value)}"
+    if not limits.low <= value <= limits.high:
+        return f"{name} = {_show(value)} is outside its range {limits.describe()}: {limits.why}"
+    return None
+
+
+def _in_range(name: str):
+    """The check of option ``name``: its value within :data:`RANGES`."""
 
     def check(value):
-        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-        if not (number and math.isfinite(value) and value > 0):
-            return f"{name} must be a positive number (paper: {paper}), got {value}"
-        return None
-
-    return check
-
-
-def _unit_interval(name: str, paper: str):
-    """A check that ``value`` is a number in ``[0, 1]``."""
-
-    def check(value):
-        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-        if not (number and 0 <= value <= 1):
-            return f"{name} must lie in [0, 1] (paper: {paper}), got {value!r}"
-        return None
-
-    return check
-
-
-def _int_at_least(name: str, minimum: int, why: str = ""):
-    """A check that ``value`` is a whole number ``>= minimum`` (``why`` says where the bound comes from)."""
-
-    def check(value):
-        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-        if not (number and math.isfinite(value) and float(value).is_integer()):
-            return f"{name} must be a whole number, got {value!r}"
-        if value < minimum:
-            return f"{name} must be at least {minimum}{why}, got {value}"
-        return None
+        return range_problem(name, value)
 
     return check
 
 
 def _workers(value):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not (value == -1 or value >= 1):
-        return f"workers must be -1 (all cores) or a thread count >= 1, got {value!r}"
-    return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        return f"workers must be -1 (all cores) or a whole thread count in [1, 1024], got {_got(value)}"
+    if value == 0:
+        return f"workers = 0 is outside its range {RANGES['workers'].describe()}: {RANGES['workers'].why}"
+    return range_problem("workers", value)
 
 
 def _optional_positive(name: str):
-    """A check that ``value`` is None or a finite positive number."""
-    positive = _positive(name, "")
+    """A check that ``value`` is None or a finite positive number (a length: its bounds are the cloud's)."""
 
     def check(value):
         if value is None:
             return None
-        problem = positive(value)
-        return None if problem is None else f"{name} must be a positive length (or None), got {value}"
+        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+        if not (number and math.isfinite(value) and value > 0):
+            return f"{name} must be a positive length (or None), got {_got(value)}"
+        return None
 
     return check
 
@@ -148,24 +235,23 @@ class ScaleTuning:
     seed: int = 0
 
     def check(self) -> str | None:
-        """An error message if a constant is out of range, else None."""
-        if int(self.k_fit) < 20:
-            return f"scale_tuning.k_fit must be at least 20, got {self.k_fit}"
-        if int(self.n_sub) < 10:
-            return f"scale_tuning.n_sub must be at least 10, got {self.n_sub}"
-        if not (math.isfinite(self.tau) and self.tau > 0):
-            return f"scale_tuning.tau must be a positive number, got {self.tau}"
-        if not (math.isfinite(self.clean_ratio) and self.clean_ratio > 0):
-            return f"scale_tuning.clean_ratio must be a positive number, got {self.clean_ratio}"
-        if self.max_k is not None and int(self.max_k) < 20:
-            return f"scale_tuning.max_k must be at least 20 or None, got {self.max_k}"
+        """An error message if a constant is out of its range (:data:`RANGES`), else None."""
+        for name in ("k_fit", "n_sub", "tau", "clean_ratio", "max_k", "seed"):
+            value = getattr(self, name)
+            if name == "max_k" and value is None:
+                continue
+            problem = range_problem(f"scale_tuning.{name}", value)
+            if problem is not None:
+                return problem
         return None
 
 
 def _check_scale(value):
-    if value == "auto" or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 20):
+    if value == "auto":
         return None
-    return f"scale must be 'auto' or a neighbour count of at least 20, got {value!r}"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        return f"scale must be 'auto' or a neighbour count in {RANGES['scale'].describe()}, got {_got(value)}"
+    return range_problem("scale", value)
 
 
 def _check_tuning(value):
@@ -237,31 +323,75 @@ class Options:
     workers : int
         Threads for the k-d tree queries and the compiled kernels (-1: all
         cores; 1: one thread, e.g. when the caller parallelises over clouds).
+
+    Notes
+    -----
+    Every numeric option has a documented range (:data:`RANGES`, with the
+    reason each bound is there); :func:`resolve_options` refuses a value
+    outside it, NaN, infinities, booleans and, where a count is needed,
+    non-integers, with one line naming the option, its value and the range.
+    Measured on a 2000-point random unit sphere (and the paper's Fibonacci
+    sphere for ``m``):
+
+    =========================  ==================  ============================================
+    option                     range               why
+    =========================  ==================  ============================================
+    ``alpha``                  0.5 - 20            below: kernel wider than its ball; above:
+                                                   1000+ neighbours per ball, a small cloud's
+                                                   balls cover it (alpha 40: mean curvature 0)
+    ``m``                      0.001 - 10          below: no neighbour weighs (m = 1e-300: NaN);
+                                                   above: flat kernel, ``H A = 1`` diverges
+    ``gamma``                  0 - 1               a blend (eq 2.7)
+    ``k_local``                2 - 1000 (integer)  a min and a max; memory
+    ``neighbours``             20 - 1920 (integer) 9 unknowns of the chord fit; the kernel
+                                                   ladder's widest default candidate (1921 gave
+                                                   IndexError on 2000 points); memory
+    ``min_neighbours``         3 - 1920 (integer)  3 unknowns of the tensor fit
+    ``scale``                  20 - 10^6 (integer) as ``neighbours``; 10^6: the ladder's widest
+                                                   kernel on 10 million points
+    ``radius``                 > 0                 a length: bounded by the cloud (below)
+    ``workers``                -1 or 1 - 1024      all cores, or a thread count
+    ``scale_tuning.k_fit``     20 - 1920           as ``neighbours``
+    ``scale_tuning.n_sub``     10 - 10^6           a median over the subsample
+    ``scale_tuning.tau``       1e-6 - 100          beyond: no widening / every widening
+    ``scale_tuning.clean_ratio`` 0.1 - 10          measured 0.2-1.3 clean, 2.2-4.4 noisy
+    ``scale_tuning.max_k``     20 - 10^6 or None   as ``scale``; at least ``neighbours``
+    ``scale_tuning.seed``      0 - 2^63-1          numpy's seeds
+    =========================  ==================  ============================================
+
+    The limits that depend on the cloud are :func:`check_options_for_cloud`'s:
+    ``neighbours``, ``scale`` and ``min_neighbours`` at most the number of
+    distinct points minus 2 (at least one point outside every ball),
+    ``k_local`` below the number of distinct points, and ``radius`` at most
+    half the bounding-box diagonal (a larger ball around the cloud's centre
+    holds all of it; a unit sphere's mean curvature came out with the wrong
+    sign at radius 2.5) and at least ``1e-9`` of it (smaller balls hold no
+    neighbour and the kernel ``t = m (radius / alpha)^2`` underflows).
     """
 
     method: str = _option("default", "preset the other options start from", cli=False)
     alpha: float = _option(
-        2.0, "ball radius r = alpha h in units of the spacing (paper's range 3.5-4.5)",
-        check=_positive("alpha", "3.5-4.5"), paper="section 2, alpha 3.5-4.5",
+        2.0, "ball radius r = alpha h in units of the spacing, 0.5-20 (paper's range 3.5-4.5)",
+        check=_in_range("alpha"), paper="section 2, alpha 3.5-4.5",
     )
     m: float = _option(
-        0.25, "diffusion time t = m h^2 (eq 2.8)", check=_positive("m", "1/4"), paper="eq 2.8"
+        0.25, "diffusion time t = m h^2 (eq 2.8), 0.001-10", check=_in_range("m"), paper="eq 2.8"
     )
     spacing: str = _option(
         "density", "spacing h: global mean NN distance (eq 2.6), local blend (eq 2.7), or density (d_k / alpha)",
         choices=("global", "local", "density"), paper="eq 2.6, 2.7",
     )
     gamma: float = _option(
-        0.25, "blend of the local spacing, eq 2.7 (0..1)",
-        check=_unit_interval("gamma", "0.1-0.5"),
+        0.25, "blend of the local spacing, eq 2.7, 0-1",
+        check=_in_range("gamma"),
         paper="eq 2.7",
     )
     k_local: int = _option(
-        8, "neighbours of the local spacing's min/max (eq 2.7)", check=_int_at_least("k_local", 2), paper="eq 2.7"
+        8, "neighbours of the local spacing's min/max (eq 2.7), 2-1000", check=_in_range("k_local"), paper="eq 2.7"
     )
     neighbours: int = _option(
-        60, "neighbours in the density ball, and the narrowest kernel of the chord fit",
-        check=_int_at_least("neighbours", 20, " (the chord fit has 9 unknowns)"),
+        60, "neighbours in the density ball, and the narrowest kernel of the chord fit, 20-1920",
+        check=_in_range("neighbours"),
     )
     radius: float | None = _option(
         None, "one ball radius for every point, in the cloud's length unit, instead of a neighbour count "
@@ -280,7 +410,7 @@ class Options:
         choices=("constrained", "unconstrained", "chord"), paper="section 3, eq 3.1",
     )
     scale: object = _option(
-        "auto", "kernel of the chord fit: auto (from the measured noise) or a neighbour count >= 20",
+        "auto", "kernel of the chord fit: auto (from the measured noise) or a neighbour count, 20-1000000",
         check=_check_scale,
     )
     scale_tuning: ScaleTuning = _option(ScaleTuning(), "constants of the automatic kernel choice", check=_check_tuning,
@@ -296,11 +426,11 @@ class Options:
     )
     taper: bool = _option(True, "taper the PCA and border weights to 0 at the ball's edge", cli=False)
     min_neighbours: int = _option(
-        6, "fewest neighbours per point; sparser points get their nearest ones",
-        check=_int_at_least("min_neighbours", 3, " (the tensor fit has 3 unknowns)"),
+        6, "fewest neighbours per point, 3-1920; sparser points get their nearest ones",
+        check=_in_range("min_neighbours"),
     )
     workers: int = _option(
-        -1, "threads for the k-d tree and the compiled kernels (-1: all cores)", check=_workers, cli=False
+        -1, "threads for the k-d tree and the compiled kernels: -1 (all cores) or 1-1024", check=_workers, cli=False
     )
 
 
@@ -389,4 +519,73 @@ def resolve_options(method: str = "default", **overrides) -> Options:
             problem = meta["check"](value)
             if problem is not None:
                 raise HeatcurvError(problem)
+    max_k = opts.scale_tuning.max_k
+    if opts.fit == "chord" and opts.radius is None and max_k is not None and max_k < opts.neighbours:
+        raise HeatcurvError(
+            f"scale_tuning.max_k = {max_k} is below neighbours = {_show(opts.neighbours)}: the chord fit's kernels "
+            "run from neighbours to max_k; raise max_k or lower neighbours"
+        )
     return opts
+
+
+def check_options_for_cloud(options: Options, n_distinct: int, extent: float | None = None) -> None:
+    """Refuse options that the cloud cannot carry: its number of distinct points, its size.
+
+    :func:`resolve_options` checks each value against its own range; this
+    checks the ones whose limit is the cloud's (see :class:`Options`, Notes):
+
+    * ``neighbours``, ``min_neighbours`` and a fixed ``scale`` at most
+      ``n_distinct - 2``: every ball leaves at least one point out (a ball of
+      every point is no neighbourhood; ``neighbours = n - 2`` failed in the
+      kernel choice);
+    * ``k_local`` (``spacing="local"``) below ``n_distinct``;
+    * ``radius`` at most half of ``extent``, the bounding box's diagonal (a
+      larger ball around the cloud's centre holds the whole cloud; a unit
+      sphere of 2000 points gave the wrong sign of the mean curvature at
+      radius 2.5 = 0.72 of the diagonal, 1.6 % off at 2.0), and at least
+      ``1e-9`` of it (smaller balls hold no neighbour: at 1e-100 the heat
+      kernel's time underflowed and the mean-curvature normal was NaN).
+
+    Parameters
+    ----------
+    options : Options
+        Resolved options (:func:`resolve_options`).
+    n_distinct : int
+        Number of distinct points of the cloud.
+    extent : float, optional
+        Diagonal of the distinct points' bounding box; None skips the radius checks.
+
+    Raises
+    ------
+    HeatcurvError
+        One line naming the option, its value, the limit and the cloud's count or size.
+    """
+    n = int(n_distinct)
+    most = n - 2
+    counts = [("min_neighbours", options.min_neighbours)]
+    if options.radius is None and (options.spacing == "density" or options.fit == "chord"):
+        counts.insert(0, ("neighbours", options.neighbours))
+    if options.fit == "chord" and options.radius is None and options.scale not in (None, "auto"):
+        counts.append(("scale", options.scale))
+    for name, value in counts:
+        if value > most:
+            raise HeatcurvError(
+                f"{name} = {_show(value)} is too many for a cloud of {n} distinct points: at most {most} "
+                "(every ball must leave a point out); lower it or give more points"
+            )
+    if options.radius is None and options.spacing == "local" and options.k_local >= n:
+        raise HeatcurvError(
+            f"k_local = {_show(options.k_local)} is too many for a cloud of {n} distinct points: at most {n - 1}"
+        )
+    if options.radius is not None and extent is not None and math.isfinite(extent) and extent > 0:
+        radius = float(options.radius)
+        if radius > extent / 2:
+            raise HeatcurvError(
+                f"radius = {_show(radius)} is larger than the cloud: at most half its bounding-box diagonal "
+                f"({_show(extent / 2)}), where a ball around its centre holds all of it"
+            )
+        if radius < 1e-9 * extent:
+            raise HeatcurvError(
+                f"radius = {_show(radius)} is too small for a cloud of diagonal {_show(extent)}: at least 1e-9 "
+                f"of it ({_show(1e-9 * extent)}); the balls would hold no neighbour"
+            )

@@ -35,11 +35,21 @@ def test_flags_become_estimate_keywords():
 def test_values_are_checked_as_the_command_line_is_parsed(capsys):
     # each flag runs its option's own check (heatcurv.options), before any file is read
     for argv, message in [
-        (("--gamma", "2"), "argument --gamma: gamma must lie in [0, 1]"),
-        (("--alpha", "-1"), "argument --alpha: alpha must be a positive number (paper: 3.5-4.5), got -1.0"),
-        (("--neighbours", "10"), "argument --neighbours/--neighbors: neighbours must be at least 20"),
+        (("--gamma", "2"), "argument --gamma: gamma = 2 is outside its range [0, 1]"),
+        (("--alpha", "-1"), "argument --alpha: alpha = -1 is outside its range [0.5, 20]: the ball's radius"),
+        (("--alpha", "1e9"), "argument --alpha: alpha = 1e+09 is outside its range [0.5, 20]"),
+        (("--alpha", "nan"), "argument --alpha: expected a finite number, got 'nan'"),
+        (("--m", "1e-300"), "argument --m: m = 1e-300 is outside its range [0.001, 10]"),
+        (("--neighbours", "10"), "argument --neighbours/--neighbors: neighbours = 10 is outside its range [20, 1920]"),
+        (("--neighbors", "1998"), "argument --neighbours/--neighbors: neighbours = 1998 is outside its range"),
         (("--scale", "wide"), "argument --scale: expected 'auto' or a neighbour count, got 'wide'"),
+        (("--scale", "1e9"), "argument --scale: expected 'auto' or a neighbour count, got '1e9'"),
+        (("--scale", "2000000"), "argument --scale: scale = 2000000 is outside its range [20, 1000000]"),
         (("--k-local", "two"), "argument --k-local: expected an integer, got 'two'"),
+        (("--min-neighbours", "2"), "argument --min-neighbours/--min-neighbors: min_neighbours = 2 is outside"),
+        (("-j", "1e30"), "argument -j/--workers: expected an integer, got '1e30'"),
+        (("-j", "0"), "argument -j/--workers: workers = 0 is outside its range -1 or [1, 1024]"),
+        (("-j", "5000"), "argument -j/--workers: workers = 5000 is outside its range -1 or [1, 1024]"),
     ]:
         with pytest.raises(SystemExit):
             parse(*argv)
@@ -71,3 +81,11 @@ def test_radius_flag(capsys):
     with pytest.raises(SystemExit):
         parse("--radius", "-1")
     assert "argument --radius: radius must be a positive length (or None), got -1.0" in capsys.readouterr().err
+
+
+def test_help_shows_the_ranges():
+    parser = argparse.ArgumentParser()
+    add_estimator_options(parser)
+    text = " ".join(parser.format_help().split())
+    for shown in ("0.5-20", "0.001-10", "20-1920", "-1 (all cores) or 1-1024"):
+        assert shown in text, shown

@@ -6,8 +6,11 @@ import argparse
 import math
 import re
 
+from ..options import Range, range_problem
+
 __all__ = [
     "numbers", "point3", "pair", "percentile_pair", "picture_size", "int_at_least", "positive_float", "finite_float",
+    "in_range", "CLI_RANGES",
 ]
 
 
@@ -91,3 +94,47 @@ def finite_float(text: str) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
     return value
+
+
+#: The documented ranges of the command line's own numeric values (the
+#: estimator's are :data:`heatcurv.options.RANGES`), with the reason for each.
+CLI_RANGES: dict[str, Range] = {
+    "views": Range(1, 36, True, "views side by side, turned 360/N degrees apart: 36 is every 10 degrees"),
+    "dpi": Range(10, 2400, True, "the scale of the text; heatcurv.render accepts 10-2400"),
+    "max_points": Range(
+        1, 100_000_000, True, "points drawn; a picture of at most 10000x10000 has 1e8 pixels",
+    ),
+    "point_size": Range(
+        0.01, 1000.0, False, "disc diameter in pixels; the automatic one is 1-80, a picture side at most 10000",
+    ),
+    "elevation": Range(-90.0, 90.0, False, "an angle up from the horizon, in degrees"),
+    "threshold": Range(0.0, 180.0, False, "a turning angle of the surface, in degrees"),
+    "feature_threshold": Range(0.0, 180.0, False, "a turning angle of the surface, in degrees"),
+    "min_angle": Range(0.0, 180.0, False, "a turning angle of the surface, in degrees"),
+    "n": Range(4, 10_000_000, True, "points of the demo's sample: the surfaces need 4; 1e7 fills gigabytes"),
+    "noise": Range(0.0, 1.0, False, "a fraction of the bounding-box diagonal"),
+    "seed": Range(0, 2**63 - 1, True, "numpy's random generators take a non-negative 64-bit seed"),
+}
+
+
+def in_range(name: str, limits: Range | None = None):
+    """A type: a number (an integer where ``limits.integer``) in the range ``limits`` (default ``CLI_RANGES[name]``).
+
+    The error names the value and the range, as :func:`heatcurv.options.resolve_options` does:
+    ``views = 50 is outside its range [1, 36]: ...``.
+    """
+    limits = CLI_RANGES[name] if limits is None else limits
+
+    def parse(text: str):
+        try:
+            value = int(text) if limits.integer else float(text)
+        except ValueError:
+            what = "an integer" if limits.integer else "a number"
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        problem = range_problem(name, value, limits)
+        if problem is not None:
+            raise argparse.ArgumentTypeError(problem)
+        return value
+
+    parse.__name__ = name
+    return parse

@@ -20,17 +20,21 @@ from dataclasses import fields
 from ..options import DEPRECATED_ALIASES, METHODS, Options, resolve_options
 from .argtypes import finite_float, point3
 
+#: The ``workers`` option's own check (its range in :data:`heatcurv.options.RANGES`).
+_WORKERS_CHECK = next(f.metadata["check"] for f in fields(Options) if f.name == "workers")
+
 __all__ = ["add_estimator_options", "estimator_kwargs", "option_flags"]
 
 
 def _workers(text: str) -> int:
-    """``-j``: -1 (all cores) or a thread count."""
+    """``-j``: -1 (all cores) or a thread count, checked as the ``workers`` option is."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value == 0 or value < -1:
-        raise argparse.ArgumentTypeError(f"expected -1 (all cores) or a thread count >= 1, got {value}")
+    problem = _WORKERS_CHECK(value)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
     return value
 
 
@@ -116,7 +120,7 @@ def add_estimator_options(parser, *, viewpoint: bool = True) -> None:
                              help="use the input file's normals (nx ny nz) instead of estimating them; "
                              "curvature signs follow them")
     group.add_argument("-j", "--workers", type=_workers, default=-1, metavar="N",
-                       help="threads (-1: all cores) (default: %(default)s)")
+                       help="threads: -1 (all cores) or 1-1024 (default: %(default)s)")
     group.add_argument("--skip-nonfinite", action="store_true",
                        help="compute on the rows with finite coordinates and give the others NaN "
                        "(default: such rows are an error)")

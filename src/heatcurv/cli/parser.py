@@ -14,7 +14,7 @@ import sys
 
 from .. import __version__, surfaces
 from . import compute, demo, features, info, picture
-from .argtypes import finite_float, int_at_least, pair, percentile_pair, picture_size, point3, positive_float
+from .argtypes import in_range, pair, percentile_pair, picture_size, point3
 from .fields import COMPUTED_FIELDS, field_list
 from .options import add_estimator_options
 
@@ -83,29 +83,31 @@ def _add_global_options(parser, *, suppress: bool) -> None:
 def _add_picture_options(parser) -> None:
     """The options of :func:`heatcurv.render.render_field`."""
     group = parser.add_argument_group("picture")
-    group.add_argument("--views", type=int_at_least(1), default=1, metavar="N",
-                       help="views side by side, the camera turned by 360/N degrees about the up "
+    group.add_argument("--views", type=in_range("views"), default=1, metavar="N",
+                       help="views side by side, 1-36, the camera turned by 360/N degrees about the up "
                        "axis each time (2: front and back) (default: %(default)s)")
     group.add_argument("--size", type=picture_size, default=(1600, 1000), metavar="WxH",
                        help="picture size in pixels (default: 1600x1000)")
-    group.add_argument("--dpi", type=int_at_least(10), default=150,
-                       help="dots per inch: the scale of the text (default: %(default)s)")
+    group.add_argument("--dpi", type=in_range("dpi"), default=150,
+                       help="dots per inch, 10-2400: the scale of the text (default: %(default)s)")
     group.add_argument("--range", dest="value_range", type=pair, metavar="LOW,HIGH",
                        help="colour limits (default: from the percentiles; signed fields symmetric about 0)")
     group.add_argument("--percentiles", type=percentile_pair, default=(2.0, 98.0), metavar="LOW,HIGH",
                        help="robust colour range (default: 2,98)")
     group.add_argument("--cmap", metavar="NAME",
                        help="matplotlib colour map (default: coolwarm for signed fields, viridis otherwise)")
-    group.add_argument("--max-points", type=int_at_least(1), default=200_000, metavar="N",
-                       help="draw a random subset of N points from larger clouds (default: %(default)s)")
-    group.add_argument("--point-size", type=positive_float, metavar="PIXELS",
-                       help="disc diameter (default: from the point spacing, so the surface looks closed)")
+    group.add_argument("--max-points", type=in_range("max_points"), default=200_000, metavar="N",
+                       help="draw a random subset of N points (1-100000000) from larger clouds "
+                       "(default: %(default)s)")
+    group.add_argument("--point-size", type=in_range("point_size"), metavar="PIXELS",
+                       help="disc diameter in pixels, 0.01-1000 (default: from the point spacing, so the "
+                       "surface looks closed)")
     group.add_argument("--view", type=point3, metavar="X,Y,Z",
                        help="direction from the cloud towards the camera (default: the cloud's "
                        "thinnest direction, on the side its normals face)")
     group.add_argument("--up", type=point3, metavar="X,Y,Z",
                        help="direction shown up (default: +y, or +z for LAS/LAZ, unless the camera looks along it)")
-    group.add_argument("--elevation", type=finite_float, default=0.0, metavar="DEGREES",
+    group.add_argument("--elevation", type=in_range("elevation"), default=0.0, metavar="DEGREES",
                        help="tilt the camera up by this angle, -90..90 (default: %(default)s)")
     group.add_argument("--title", help="figure title (default: the field and the file name)")
     group.add_argument("--unit", default="length", metavar="NAME",
@@ -144,8 +146,8 @@ def _add_compute(add, read_exts: str, write_exts: str) -> None:
     parser.add_argument("--features", action="store_true",
                         help="also detect sharp features: fields feature (0/1) and feature_score (degrees)")
     _add_float64(parser)
-    parser.add_argument("--feature-threshold", type=finite_float, metavar="DEGREES",
-                        help="turning angle above which a point is a feature (default: automatic)")
+    parser.add_argument("--feature-threshold", type=in_range("feature_threshold"), metavar="DEGREES",
+                        help="turning angle above which a point is a feature, 0-180 (default: automatic)")
     add_estimator_options(parser)
     _add_global_options(parser, suppress=True)
     parser.set_defaults(run=compute.run)
@@ -171,8 +173,8 @@ def _add_render(add) -> None:
                         "nx, ..., or any per-point property of the file (default: %(default)s)")
     parser.add_argument("--recompute", action="store_true",
                         help="compute the field even if the file holds one of that name")
-    parser.add_argument("--feature-threshold", type=finite_float, metavar="DEGREES",
-                        help="threshold of --field feature (default: automatic)")
+    parser.add_argument("--feature-threshold", type=in_range("feature_threshold"), metavar="DEGREES",
+                        help="threshold of --field feature, 0-180 (default: automatic)")
     _add_picture_options(parser)
     add_estimator_options(parser)
     _add_global_options(parser, suppress=True)
@@ -190,10 +192,10 @@ def _add_features(add, write_exts: str) -> None:
     )
     parser.add_argument("input", help="point-cloud file")
     parser.add_argument("-o", "--output", required=True, help=f"output file ({write_exts})")
-    parser.add_argument("--threshold", type=finite_float, metavar="DEGREES",
-                        help="turning angle above which a point is a feature (default: automatic)")
-    parser.add_argument("--min-angle", type=finite_float, default=10.0, metavar="DEGREES",
-                        help="floor of the automatic threshold (default: %(default)s)")
+    parser.add_argument("--threshold", type=in_range("threshold"), metavar="DEGREES",
+                        help="turning angle above which a point is a feature, 0-180 (default: automatic)")
+    parser.add_argument("--min-angle", type=in_range("min_angle"), default=10.0, metavar="DEGREES",
+                        help="floor of the automatic threshold, 0-180 (default: %(default)s)")
     _add_float64(parser)
     add_estimator_options(parser)
     _add_global_options(parser, suppress=True)
@@ -221,12 +223,13 @@ def _add_demo(add) -> None:
     )
     parser.add_argument("--surface", default="torus", choices=sorted(surfaces.SURFACES),
                         help="surface (default: the paper's torus)")
-    parser.add_argument("-n", type=int, default=20000, help="number of points (default: %(default)s)")
+    parser.add_argument("-n", type=in_range("n"), default=20000,
+                        help="number of points, 4-10000000 (default: %(default)s)")
     parser.add_argument("--sampler", default="random", choices=surfaces.SAMPLERS,
                         help="sampler (default random: area-uniform, irregular like a scan)")
-    parser.add_argument("--noise", type=float, default=0.0,
-                        help="Gaussian noise, fraction of the bounding-box diagonal")
-    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    parser.add_argument("--noise", type=in_range("noise"), default=0.0,
+                        help="Gaussian noise, fraction of the bounding-box diagonal, 0-1")
+    parser.add_argument("--seed", type=in_range("seed"), default=0, help="random seed (>= 0)")
     parser.add_argument("--bunny", action="store_true",
                         help="the real Stanford bunny scan instead of an analytic surface")
     parser.add_argument("-o", "--output", metavar="PICTURE",
