@@ -12,12 +12,13 @@ from heatcurv.cli import info, main
 def test_bad_arguments_give_one_line_and_status_2():
     out = run("demo", "-n", "3")
     assert out.returncode == 2
-    assert out.stderr.strip() == "heatcurv: error: n must be at least 4, got 3"
+    assert out.stderr.strip().startswith("heatcurv: error: argument -n: n = 3 is outside its range [4, 10000000]: ")
+    assert len(out.stderr.strip().splitlines()) == 1
     assert "Traceback" not in out.stderr
 
 
 def test_debug_shows_the_traceback():
-    out = run("--debug", "demo", "-n", "3", "--no-picture")
+    out = run("--debug", "info", "no_such_file.ply")
     assert out.returncode != 0 and "Traceback" in out.stderr
 
 
@@ -50,9 +51,13 @@ BAD_OPTIONS = {
     "negative alpha": (["--alpha", "-1"], "argument --alpha"),
     "unknown method": (["--method", "fast"], "invalid choice: 'fast'"),
     "workers zero": (["-j", "0"], "argument -j/--workers"),
-    "small scale": (["--scale", "5"], "at least 20"),
+    "small scale": (["--scale", "5"], "scale = 5 is outside its range [20, 1000000]"),
     "unknown field": (["--fields", "mean,colour"], "unknown field 'colour'"),
-    "gamma out of range": (["--gamma", "2"], "gamma must lie in [0, 1]"),
+    "gamma out of range": (["--gamma", "2"], "gamma = 2 is outside its range [0, 1]"),
+    "alpha too large": (["--alpha", "1e9"], "alpha = 1e+09 is outside its range [0.5, 20]"),
+    "m too small": (["--m", "1e-300"], "m = 1e-300 is outside its range [0.001, 10]"),
+    "workers overflow": (["--workers", "1e30"], "argument -j/--workers: expected an integer, got '1e30'"),
+    "neighbours too many": (["--neighbors", "1998"], "neighbours = 1998 is outside its range [20, 1920]"),
     "output extension": (["-o", "{tmp}/out.e57"], "unknown output extension '.e57'"),
     "output directory": (["-o", "{tmp}/no/such/dir/out.ply"], "does not exist"),
     "viewpoint and input normals": (["--viewpoint", "0,0,1", "--normals-from-input"], "not allowed with argument"),
@@ -112,3 +117,65 @@ def test_warnings_are_one_line_on_stderr(monkeypatch, capsys, sphere_ply):
     monkeypatch.setattr(info, "run", warns)
     assert main(["info", str(sphere_ply), "--quiet"]) == 0
     assert capsys.readouterr().err == "heatcurv: warning: the area system did not converge after 500 iterations\n"
+
+
+@pytest.mark.parametrize("name, status", [("SIGTERM", 143), ("SIGHUP", 129)])
+def test_termination_is_handled_like_ctrl_c(monkeypatch, capsys, sphere_ply, name, status):
+    import os
+    import signal
+
+    signum = getattr(signal, name, None)
+    if signum is None:
+        pytest.skip(f"no {name} here")
+    before = signal.getsignal(signum)
+    unwound = []
+
+    def terminated(args, log):
+        try:
+            os.kill(os.getpid(), signum)
+            for _ in range(1000):  # the handler raises at the next bytecode; never reaches the end
+                pass
+            raise AssertionError("the signal did not stop the command")
+        finally:
+            unwound.append(True)
+
+    monkeypatch.setattr(info, "run", terminated)
+    assert main(["info", str(sphere_ply)]) == status
+    assert capsys.readouterr().err == f"heatcurv: terminated by {name}\n"
+    assert unwound == [True] and signal.getsignal(signum) == before  # the caller's handler is back
+
+
+_KILLED_COMPUTE = """
+import sys, time
+import heatcurv.io as hio
+from heatcurv.cli import main
+
+def slow(stream, output, target):
+    stream.write(b"x" * (32 << 20))  # 32 MB of the output written, then wait to be terminated
+    stream.flush()
+    print("writing", flush=True)
+    time.sleep(120)
+
+hio._WRITERS[".ply"] = slow
+sys.exit(main(["compute", sys.argv[1], "-o", sys.argv[2], "--quiet"]))
+"""
+
+
+def test_terminated_compute_leaves_no_temporary_file_and_the_old_output(tmp_path, sphere_ply):
+    import signal
+    import sys
+
+    output = tmp_path / "out.ply"
+    output.write_bytes(b"previous result")
+    child = subprocess.Popen(
+        [sys.executable, "-c", _KILLED_COMPUTE, str(sphere_ply), str(output)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    assert child.stdout.readline().strip() == "writing"
+    assert len([p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]) == 1  # mid-write
+    child.send_signal(signal.SIGTERM)
+    _, err = child.communicate(timeout=60)
+    assert child.returncode == 143
+    assert err == "heatcurv: terminated by SIGTERM\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.ply"]
+    assert output.read_bytes() == b"previous result"

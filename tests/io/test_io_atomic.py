@@ -2,6 +2,11 @@
 
 import os
 import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import plyfile
@@ -11,7 +16,7 @@ from io_helpers import N, leftovers, make_cloud
 import heatcurv.io as hio
 from heatcurv import HeatcurvError
 from heatcurv.io import SUPPORTED_WRITE, write_points
-from heatcurv.io.atomic import atomic_write
+from heatcurv.io.atomic import STALE_AFTER, _host, atomic_write, remove_stale_temporaries, temporary_name_pattern
 
 
 @pytest.fixture(scope="module")
@@ -143,3 +148,104 @@ def test_read_only_permissions_are_refused(tmp_path, monkeypatch):
     with pytest.raises(HeatcurvError, match=r"the file exists and is read-only"):
         check_writable(path)
     assert path.read_bytes() == b"protected"
+
+
+# ----------------------------------------------------------------- killed writers and their temporary files
+
+_CHILD = """
+import sys, time
+from pathlib import Path
+from heatcurv.cli.main import Terminated, signals_as_interrupts
+from heatcurv.io.atomic import STALE_AFTER, _host, atomic_write, remove_stale_temporaries, temporary_name_pattern
+
+def slow(stream):
+    stream.write(b"x" * (16 << 20))  # 16 MB written, then the writer waits to be killed
+    stream.flush()
+    print("writing", flush=True)
+    time.sleep(120)
+
+try:
+    with signals_as_interrupts():
+        atomic_write(Path(sys.argv[1]), slow)
+except Terminated as exc:
+    sys.exit(128 + exc.signum)
+"""
+
+
+def _start_writer(path):
+    """A child process in the middle of atomic_write(path): returns once its temporary file holds 16 MB."""
+    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(path)], stdout=subprocess.PIPE, text=True)
+    assert child.stdout.readline().strip() == "writing"
+    return child
+
+
+def _temporaries(directory):
+    return sorted(p.name for p in directory.iterdir() if p.name.endswith(".tmp"))
+
+
+def test_terminated_writer_leaves_no_temporary_file(tmp_path):
+    path = tmp_path / "result.ply"
+    path.write_bytes(b"previous result")
+    child = _start_writer(path)
+    (temporary,) = _temporaries(tmp_path)
+    assert temporary_name_pattern(path.name).fullmatch(temporary)["pid"] == str(child.pid)
+    child.send_signal(signal.SIGTERM)
+    assert child.wait(timeout=60) == 128 + signal.SIGTERM
+    assert leftovers(tmp_path) == [path.name] and path.read_bytes() == b"previous result"
+
+
+def test_killed_writers_temporary_file_is_removed_by_the_next_write(tmp_path):
+    path = tmp_path / "result.ply"
+    path.write_bytes(b"previous result")
+    child = _start_writer(path)
+    child.kill()  # SIGKILL: no cleanup can run
+    child.wait(timeout=60)
+    (temporary,) = _temporaries(tmp_path)
+    assert (tmp_path / temporary).stat().st_size == 16 << 20 and path.read_bytes() == b"previous result"
+    atomic_write(path, lambda stream: stream.write(b"new result"))
+    assert leftovers(tmp_path) == [path.name] and path.read_bytes() == b"new result"
+
+
+def test_only_stale_temporary_files_are_removed(tmp_path):
+    path = tmp_path / "result.ply"
+    host = _host()
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    try:
+        names = {
+            "dead": f".result.ply.heatcurv-{host}-{dead.pid}-abc123_x.tmp",
+            "live": f".result.ply.heatcurv-{host}-{live.pid}-abc123_x.tmp",
+            "mine": f".result.ply.heatcurv-{host}-{os.getpid()}-abc123_x.tmp",
+            "other host, recent": f".result.ply.heatcurv-elsewhere.example-{dead.pid}-abc123_x.tmp",
+            "other host, old": f".result.ply.heatcurv-far-away-{dead.pid}-abc123_x.tmp",
+            "other target": f".other.ply.heatcurv-{host}-{dead.pid}-abc123_x.tmp",
+            "not ours": f".result.ply.{dead.pid}.tmp",
+        }
+        for name in names.values():
+            (tmp_path / name).write_bytes(b"partial")
+        old = time.time() - STALE_AFTER - 3600
+        os.utime(tmp_path / names["other host, old"], (old, old))
+        removed = remove_stale_temporaries(path)
+        assert sorted(p.name for p in removed) == sorted([names["dead"], names["other host, old"]])
+        kept = {key for key, name in names.items() if (tmp_path / name).exists()}
+        assert kept == {"live", "mine", "other host, recent", "other target", "not ours"}
+        # atomic_write does the same before it writes, and leaves the live process's file alone
+        atomic_write(path, lambda stream: stream.write(b"result"))
+        assert (tmp_path / names["live"]).exists() and path.read_bytes() == b"result"
+    finally:
+        live.kill()
+        live.wait()
+
+
+def test_temporary_name_names_heatcurv_the_host_and_the_process(tmp_path):
+    seen = []
+
+    def look(stream):
+        seen.append(Path(stream.name).name)
+        stream.write(b"data")
+
+    atomic_write(tmp_path / "my-file.v2.png", look)
+    match = temporary_name_pattern("my-file.v2.png").fullmatch(seen[0])
+    assert match and match["host"] == _host() and match["pid"] == str(os.getpid())
+    assert seen[0].startswith(".my-file.v2.png.heatcurv-") and seen[0].endswith(".tmp")

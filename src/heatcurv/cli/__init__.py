@@ -33,7 +33,8 @@ warnings and, when it is a terminal, a progress bar.
 Exit status: 0 on success; 2 on bad input or options, with one line
 ``heatcurv: error: ...`` on stderr and no output file; 1 on an unexpected
 error (a bug: one line, ``--debug`` shows the traceback); 130 when
-interrupted.
+interrupted (Ctrl-C); 143 when terminated (SIGTERM), 129 on SIGHUP, both
+unwinding as Ctrl-C does, so that no temporary file is left behind.
 
 Modules
 -------

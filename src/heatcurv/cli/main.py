@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import sys
+import threading
 import warnings
 from contextlib import contextmanager
 
@@ -13,7 +15,52 @@ from ..errors import HeatcurvError, HeatcurvWarning
 from .console import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, EXIT_OK, Log
 from .parser import UsageError, build_parser, join_negative_values
 
-__all__ = ["main", "EXIT_OK", "EXIT_BUG", "EXIT_BAD_INPUT", "EXIT_INTERRUPTED"]
+__all__ = ["main", "EXIT_OK", "EXIT_BUG", "EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "Terminated", "signals_as_interrupts"]
+
+#: The signals that stop the command as Ctrl-C does (SIGHUP: the terminal closed), where the platform has them.
+_STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived: unwinds like Ctrl-C (files being written are removed), exit 128 + signal."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+    @property
+    def name(self) -> str:
+        try:
+            return signal.Signals(self.signum).name
+        except ValueError:
+            return f"signal {self.signum}"
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
+@contextmanager
+def signals_as_interrupts():
+    """In the block, SIGTERM and SIGHUP raise :class:`Terminated` (a KeyboardInterrupt), as Ctrl-C does.
+
+    So ``kill`` (SIGTERM), a closed terminal (SIGHUP) and Ctrl-C all unwind
+    through the ``finally`` and ``except`` blocks, and
+    :func:`heatcurv.io.atomic.atomic_write` removes its temporary file. Only
+    in the main thread (Python delivers signals there); the previous handlers
+    are restored afterwards (the command may run inside a test or a program).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {}
+    try:
+        for signum in _STOP_SIGNALS:
+            previous[signum] = signal.signal(signum, _raise_terminated)
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
 
 
 def _warning_printer(show_all: bool, stream):
@@ -99,7 +146,9 @@ def main(argv=None) -> int:
     -------
     int
         Exit status: 0 success, 2 bad input or options, 1 unexpected error
-        (a bug), 130 interrupted.
+        (a bug), 130 interrupted (Ctrl-C), 128 + the signal's number when
+        terminated by SIGTERM (143) or SIGHUP (129): these unwind as Ctrl-C
+        does, so no temporary file is left behind.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
@@ -115,12 +164,23 @@ def main(argv=None) -> int:
         print("heatcurv: error: --quiet and --verbose exclude each other", file=sys.stderr)
         return EXIT_BAD_INPUT
     log = Log(quiet=args.quiet, verbose=args.verbose)
+    with signals_as_interrupts():
+        return _run(args, log, debug)
+
+
+def _run(args, log: Log, debug: bool) -> int:
+    """Run the parsed command; every failure becomes one line on stderr and an exit status."""
     try:
         notices = notice_stream(args.quiet, args.verbose, sys.stderr, sys.stdout)
         with warnings.catch_warnings(), compile_notice(notices):
             if not debug:
                 warnings.showwarning = _warning_printer(args.verbose, sys.stderr)
             return args.run(args, log)
+    except Terminated as exc:
+        if debug:
+            raise
+        print(f"heatcurv: terminated by {exc.name}", file=sys.stderr)
+        return 128 + exc.signum
     except HeatcurvError as exc:
         if debug:
             raise

@@ -5,17 +5,126 @@ writer of :mod:`heatcurv.render`) write through, so that a failure never
 leaves a partial output and an existing file of the same name stays as it was.
 :func:`check_writable` tells beforehand whether such a write can succeed, so
 that a command fails before a long computation rather than after it.
+
+Temporary files
+---------------
+The temporary file of a write to ``dir/NAME`` is
+``dir/.NAME.heatcurv-HOST-PID-RANDOM.tmp`` (:func:`temporary_name_pattern`):
+hidden, and naming the host and the process that writes it. An exception
+(also Ctrl-C, and SIGTERM/SIGHUP in the ``heatcurv`` command, which turns them
+into one) removes it. A process killed outright (``kill -9``, power loss)
+cannot, so each :func:`atomic_write` first removes the stale temporary files
+of the same target in its directory (:func:`remove_stale_temporaries`):
+
+* those of this host whose process no longer exists (``os.kill(pid, 0)``
+  raises ProcessLookupError);
+* those of another host (a shared network directory) last modified more
+  than :data:`STALE_AFTER` seconds (a day) ago: their process cannot be asked;
+
+and never a file of a live process (also another user's, or this process's
+own), a file of another host modified within the day, or any file that does
+not follow the pattern. A dead writer's pid reused by a new process keeps its
+file until that process ends: the rule errs on the side of keeping.
 """
 
 from __future__ import annotations
 
 import os
+import re
+import signal
+import socket
 import tempfile
+import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import HeatcurvError
 
-__all__ = ["atomic_write", "check_writable"]
+__all__ = ["atomic_write", "check_writable", "remove_stale_temporaries", "temporary_name_pattern", "STALE_AFTER"]
+
+#: Seconds after which another host's temporary file counts as stale (its process cannot be asked).
+STALE_AFTER = 24 * 3600.0
+
+#: The signals held back while a temporary file is removed (a second Ctrl-C must not leave it behind).
+_HELD_SIGNALS = {getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)}
+
+
+def _host() -> str:
+    """This host's name as it appears in temporary names: letters, digits, dots and dashes."""
+    try:
+        name = socket.gethostname()
+    except OSError:
+        name = ""
+    return re.sub(r"[^A-Za-z0-9.-]", "_", name) or "localhost"
+
+
+def _prefix(name: str) -> str:
+    """The start of a temporary name of this process for target ``name``: ``.NAME.heatcurv-HOST-PID-``."""
+    return f".{name}.heatcurv-{_host()}-{os.getpid()}-"
+
+
+def temporary_name_pattern(name: str) -> re.Pattern:
+    """The temporary names of writes to a file called ``name``; groups ``host`` and ``pid``."""
+    return re.compile(rf"\.{re.escape(name)}\.heatcurv-(?P<host>[A-Za-z0-9._-]+)-(?P<pid>\d+)-[a-z0-9_]+\.tmp")
+
+
+def _process_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists on this host (another user's counts: it may be writing)."""
+    if pid <= 0:
+        return True  # not a process id heatcurv writes: keep the file
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, OSError):
+        return True
+    return True
+
+
+def remove_stale_temporaries(path) -> list[Path]:
+    """Remove the stale temporary files of writes to ``path`` (see the module's rule); return them.
+
+    Errors (a directory that cannot be listed, a file removed meanwhile) are
+    ignored: this is housekeeping, never a reason for a write to fail.
+    """
+    path = Path(path)
+    pattern, host, now = temporary_name_pattern(path.name), _host(), time.time()
+    removed = []
+    try:
+        entries = list(os.scandir(path.parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = pattern.fullmatch(entry.name)
+        if match is None:
+            continue
+        try:
+            if not entry.is_file(follow_symlinks=False):
+                continue
+            if match["host"] == host:
+                stale = not _process_alive(int(match["pid"]))
+            else:
+                stale = now - entry.stat(follow_symlinks=False).st_mtime > STALE_AFTER
+            if stale:
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+        except OSError:
+            continue
+    return removed
+
+
+@contextmanager
+def _signals_held():
+    """Hold back Ctrl-C, SIGTERM and SIGHUP for the block (delivered after it), where the platform can."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None:
+        yield
+        return
+    previous = mask(signal.SIG_BLOCK, _HELD_SIGNALS)
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, previous)
 
 
 def _new_file_mode(path: Path) -> int:
@@ -41,10 +150,15 @@ def _new_file_mode(path: Path) -> int:
 def atomic_write(path: Path, write) -> None:
     """Call ``write(stream)`` on a temporary file next to ``path``, then move it over ``path``.
 
-    On any exception the temporary file is removed and the exception re-raised.
+    On any exception (also KeyboardInterrupt) the temporary file is removed and
+    the exception re-raised; ``path`` is then as it was. The temporary file is
+    ``.NAME.heatcurv-HOST-PID-RANDOM.tmp`` in ``path``'s directory; stale ones
+    of earlier writes to ``path`` are removed first (:func:`remove_stale_temporaries`).
     """
+    path = Path(path)
+    remove_stale_temporaries(path)
     temporary = tempfile.NamedTemporaryFile(
-        mode="w+b", delete=False, dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix
+        mode="w+b", delete=False, dir=path.parent, prefix=_prefix(path.name), suffix=".tmp"
     )
     try:
         with temporary as stream:
@@ -54,10 +168,11 @@ def atomic_write(path: Path, write) -> None:
         os.chmod(temporary.name, _new_file_mode(path))
         os.replace(temporary.name, path)
     except BaseException:
-        try:
-            os.unlink(temporary.name)
-        except FileNotFoundError:
-            pass
+        with _signals_held():
+            try:
+                os.unlink(temporary.name)
+            except FileNotFoundError:
+                pass
         raise
 
 
