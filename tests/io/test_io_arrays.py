@@ -36,3 +36,22 @@ def test_npz_xyz_key_and_extras(tmp_path):
         HeatcurvError, match=r"b\.npz: no 'points' or 'xyz' array \(arrays: coords\)"
     ):
         read_points(tmp_path / "b.npz")
+
+
+def test_npz_members_that_are_not_arrays_are_skipped(tmp_path):
+    import zipfile
+
+    path = tmp_path / "a.npz"
+    np.savez(path, points=np.ones((4, 3)), label=np.arange(4))
+    with zipfile.ZipFile(path, "a") as archive:
+        archive.writestr("meta.json", '{"units": "m"}')
+    got = read_points(path)
+    assert got.points.shape == (4, 3) and list(got.fields) == ["label"]
+
+
+def test_npy_and_npz_sizes_must_match_their_headers(tmp_path):
+    np.save(tmp_path / "a.npy", np.ones((4, 3)))
+    (tmp_path / "b.npy").write_bytes((tmp_path / "a.npy").read_bytes() + b"\0")
+    with pytest.raises(HeatcurvError, match=r"b\.npy: the header announces an array of shape \(4, 3\) float64 "
+                       r"\(96 bytes\) after the header, the file holds 97$"):
+        read_points(tmp_path / "b.npy")

@@ -280,3 +280,27 @@ def test_npz_reserved_names(tmp_path):
         with pytest.raises(HeatcurvError, match=rf"field name '{name}' is reserved in NPZ output"):
             write_points(tmp_path / "out.npz", np.zeros((2, 3)), {name: np.zeros(2)})
     assert leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize(
+    "exc,message",
+    [
+        (MemoryError(), "not enough memory to read it"),
+        (OverflowError("cannot fit 'int' into an index-sized integer"), "a count or value is too large"),
+        (RecursionError("maximum recursion depth exceeded"), "its structure is nested too deeply to read"),
+        (UnicodeDecodeError("ascii", b"\xe9", 0, 1, "ordinal not in range(128)"),
+         "it holds bytes that are not valid text"),
+    ],
+)
+def test_unforeseen_errors_are_one_plain_line(tmp_path, monkeypatch, exc, message):
+    import heatcurv.io as hio
+
+    def reader(path, fmt):
+        raise exc
+
+    monkeypatch.setitem(hio._READERS, ".xyz", reader)
+    (tmp_path / "a.xyz").write_text("1 2 3\n")
+    with pytest.raises(HeatcurvError) as info:
+        read_points(tmp_path / "a.xyz")
+    assert str(info.value).startswith(f"cannot read {tmp_path / 'a.xyz'}: {message}")
+    assert "\n" not in str(info.value) and info.value.__cause__ is None

@@ -54,6 +54,13 @@ def test_off(tmp_path, content, colors, normals):
             r"bad\.off: truncated: the header announces 3 vertices",
         ),
         ("word.off", "OFF\n2 0 0\n0 0 0\n1 x 0\n", r"word\.off: line 4: column 2 holds 'x'"),
+        ("neg.off", "OFF\n-5 0 0\n0 0 0\n", r"neg\.off: line 2: the vertex count -5 is negative$"),
+        (
+            "huge.off",
+            "OFF\n1000000000000 0 0\n0 0 0\n",
+            r"huge\.off: truncated: the header announces 1000000000000 vertices, the file has 1 line after line 2$",
+        ),
+        ("faces.off", "OFF\n1 2 0\n0 0 0\n3 0 0 0\n", r"faces\.off: the header announces 2 faces, the file has 1 line"),
     ],
 )
 def test_mesh_errors_name_the_line(tmp_path, name, content, message):

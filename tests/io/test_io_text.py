@@ -36,6 +36,8 @@ TEXT_CASES = {
     "count.pts": ("2\n1 2 3 -120 255 0 9\n4 5 6 17 0 1 2\n", None, "colors", ["intensity"]),
     "two_scans.pts": ("1\n1 2 3 -120 255 0 9\n1\n4 5 6 17 0 1 2\n", None, "colors", ["intensity"]),
     "crlf_blank.xyz": ("1 2 3\r\n\r\n4 5 6 // trailing comment\r\n", None, None, []),
+    "whitespace_lines.csv": ("x,y,z\r\n \r\n1,2,3\r\n\t \r\n4,5,6\r\n   \r\n  ", None, None, []),
+    "count_crlf.pts": ("2\r\n1 2 3 -120 255 0 9\r\n4 5 6 17 0 1 2\r\n \r\n", None, "colors", ["intensity"]),
     "four.xyz": ("1 2 3 0.5\n4 5 6 0.25\n", None, None, ["column_4"]),
 }
 
@@ -80,6 +82,7 @@ def test_text_nan_rows_are_kept(tmp_path):
             r"noxyz\.csv: no x/y/z coordinate column \(columns: a, b, c\)",
         ),
         ("noz.csv", "x,y,h\n1,2,3\n", r"no z coordinate column"),
+        ("count.pts", "3\n1 2 3 4\n4 5 6 7\n", r"count\.pts: line 1: the count line says 3 points, 2 follow$"),
         (
             "hdr.csv",
             "x,y,z,w\n1,2,3\n",

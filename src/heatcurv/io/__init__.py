@@ -115,6 +115,8 @@ module holds the public API and the dispatch by extension.
 from __future__ import annotations
 
 import warnings
+import zipfile
+import zlib
 from pathlib import Path
 
 from ..errors import HeatcurvError, HeatcurvWarning
@@ -204,6 +206,17 @@ def read_points(path) -> PointCloud:
         raise
     except OSError as exc:
         raise _read_error(path, exc.strerror or _one_line(exc)) from exc
+    # what a reader's own checks did not foresee, in plain words (no traceback)
+    except MemoryError:
+        raise _read_error(path, "not enough memory to read it") from None
+    except OverflowError as exc:
+        raise _read_error(path, f"a count or value is too large ({_one_line(exc)})") from None
+    except RecursionError:
+        raise _read_error(path, "its structure is nested too deeply to read") from None
+    except UnicodeError as exc:
+        raise _read_error(path, f"it holds bytes that are not valid text ({_one_line(exc)})") from None
+    except (zlib.error, zipfile.BadZipFile, EOFError) as exc:
+        raise _read_error(path, f"damaged or truncated data ({_one_line(exc)})") from None
 
 
 _READERS = {

@@ -136,6 +136,12 @@ def _one_line(exc: BaseException) -> str:
     return lines[0].strip() if lines else type(exc).__name__
 
 
+def _brief(exc: BaseException, limit: int = 100) -> str:
+    """:func:`_one_line`, cut to ``limit`` characters (third-party messages may quote whole headers)."""
+    line = _one_line(exc)
+    return line if len(line) <= limit else line[: limit - 3].rstrip() + "..."
+
+
 def _read_error(path, problem: str) -> HeatcurvError:
     return HeatcurvError(f"cannot read {path}: {problem}")
 

@@ -7,6 +7,7 @@ second pass that names the first bad line when numpy fails.
 from __future__ import annotations
 
 import io as _stdio
+import re
 from pathlib import Path
 
 import numpy as np
@@ -15,15 +16,54 @@ from ._common import _one_line, _read_error
 
 
 def _decode_text(path: Path) -> str:
-    """The file as text with ``\\n`` line ends (UTF-8, else Latin-1)."""
+    """The file as text with ``\\n`` line ends (UTF-8, else Latin-1; UTF-16 with a byte-order mark).
+
+    Lines holding only spaces and tabs are emptied (a blank line, wherever it is).
+    """
     raw = path.read_bytes()
-    if b"\x00" in raw[:65536]:
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        try:
+            text = raw.decode("utf-16")
+        except UnicodeDecodeError as exc:
+            raise _read_error(
+                path, f"the file starts with a UTF-16 byte-order mark but is not UTF-16 text (byte {exc.start})"
+            ) from None
+        if "\x00" in text:
+            raise _read_error(path, "binary data, not a text file (a NUL character)")
+    elif b"\x00" in raw:
+        head = raw[:65536]
+        if len(head) >= 4 and (head[1::2].count(0) > len(head) // 4 or head[0::2].count(0) > len(head) // 4):
+            raise _read_error(
+                path, "binary data, not a text file (UTF-16 without a byte-order mark? save it as UTF-8)"
+            )
         raise _read_error(path, "binary data, not a text file")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    return text.replace("\r\n", "\n").replace("\r", "\n")
+    else:
+        try:
+            text = raw.decode("utf-8-sig")
+        except UnicodeDecodeError:
+            text = raw.decode("latin-1")
+    del raw
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return _empty_blank_lines(text)
+
+
+# spaces and tabs alone on a line after the first (numpy's parser with a delimiter reads
+# them as a row); a pattern starting with a literal is searched fast, unlike ``^...$``
+_BLANK = re.compile(r"\n[ \t\f\v]+(?=\n)")
+_SPACE = " \t\f\v"
+
+
+def _empty_blank_lines(text: str) -> str:
+    """``text`` with every line of spaces and tabs only emptied (line numbers unchanged)."""
+    if _BLANK.search(text):
+        text = _BLANK.sub("\n", text)
+    first = text.find("\n")
+    if first > 0 and not text[:first].strip(_SPACE):
+        text = text[first:]
+    last = text.rfind("\n") + 1
+    if last < len(text) and not text[last:].strip(_SPACE):
+        text = text[:last]
+    return text
 
 
 def _strip_comment(line: str) -> str:

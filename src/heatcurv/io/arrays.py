@@ -5,19 +5,38 @@ per property, named as the other formats name their properties: ``nx ny nz``,
 ``red green blue``, the source's properties, then the fields (``mean``,
 ``d1x d1y d1z``, ...). Older archives, with ``normals`` (n, 3), ``colors``
 (n, 3) and (n, 3) fields such as ``d1``, are read into the same names.
+
+Untrusted files: an NPY array's shape times its item size must equal the bytes
+after its header. An NPZ's zip directory is checked before anything is
+decompressed (:func:`_npz_members`: ratio, total and memory bounds), each
+``.npy`` member's header against its declared size, and members are read a
+chunk at a time into their array (the CRC checked); members that are not
+``.npy`` arrays are skipped, pickled object arrays are never loaded.
 """
 
 from __future__ import annotations
 
+import errno
+import math
+import os
+import struct
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
 
+try:
+    from lzma import LZMAError
+except ImportError:  # pragma: no cover - Python built without lzma
+    LZMAError = zlib.error
+
+from ..errors import HeatcurvError
 from ._common import (
     _COLOUR_NAMES,
     _NORMAL_NAMES,
     PointCloud,
+    _brief,
     _cloud_from_columns,
     _colours_to_uint8,
     _magic,
@@ -29,16 +48,145 @@ from ._common import (
     _write_error,
 )
 
+# An archive member may declare at most this many bytes per compressed byte. Deflate (the
+# only compression numpy writes) cannot exceed about 1032:1 (a 258-byte match costs at least
+# two bits); numpy's savez_compressed of a constant array reaches 1025-1028:1. 1100 refuses
+# nothing numpy can write and bounds the whole archive too, so members that share (overlap)
+# compressed data cannot multiply it. Bzip2 and LZMA members, which numpy never writes, are
+# held to the same bound.
+_MAX_RATIO = 1100
+# bytes any member or archive may declare beyond the ratio: an .npy header of a small array
+# compresses poorly, and a few kB of arrays are harmless whatever they claim
+_RATIO_SLACK = 1 << 16
+# an archive is read only if this many times its arrays' bytes fit in the memory available:
+# the arrays, their per-column native copies, and the float64 points assembled from them
+_PEAK_FACTOR = 3
+# bytes decompressed per read: the only memory beyond the array being filled
+_CHUNK = 1 << 20
+
+
+def _size_text(nbytes: int) -> str:
+    """``3240 bytes``, ``1.5 MB``, ``3.1 GB``: a byte count in plain words."""
+    if nbytes < 10_000:
+        return f"{nbytes} bytes"
+    for unit, scale in (("kB", 1e3), ("MB", 1e6), ("GB", 1e9), ("TB", 1e12)):
+        if nbytes < scale * 1000 or unit == "TB":
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{nbytes} bytes"  # pragma: no cover
+
+
+def _memory_budget() -> int | None:
+    """Bytes a reader can still allocate, or None if unknown.
+
+    The smaller of the memory available (Linux: ``MemAvailable`` plus free swap;
+    elsewhere the free physical pages) and, under an address-space limit
+    (``ulimit -v``, ``RLIMIT_AS``), what is left of it.
+    """
+    budgets = []
+    try:
+        with open("/proc/meminfo") as stream:
+            info = {line.split(":")[0]: int(line.split()[1]) * 1024 for line in stream if line.strip()}
+        if "MemAvailable" in info:
+            budgets.append(info["MemAvailable"] + info.get("SwapFree", 0))
+    except (OSError, ValueError, IndexError):
+        try:
+            budgets.append(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (AttributeError, ValueError, OSError):
+            pass
+    try:
+        import resource
+
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if limit != resource.RLIM_INFINITY:
+            used = 0
+            with open("/proc/self/status") as stream:
+                for line in stream:
+                    if line.startswith("VmSize:"):
+                        used = int(line.split()[1]) * 1024
+            budgets.append(max(limit - used, 0))
+    except (ImportError, OSError, ValueError, IndexError):
+        pass
+    return min(budgets) if budgets else None
+
+
+class _Counting:
+    """A read-only stream that counts the bytes read (the size of an .npy header)."""
+
+    def __init__(self, stream):
+        self.stream, self.count = stream, 0
+
+    def read(self, size=-1):
+        data = self.stream.read(size)
+        self.count += len(data)
+        return data
+
+
+def _npy_header(path, stream, invalid):
+    """``(shape, fortran_order, dtype, header_bytes)`` of the .npy data at the start of ``stream``.
+
+    ``invalid`` turns a problem into the message, e.g. ``not a valid NPY file (problem)``.
+    """
+    counting = _Counting(stream)
+    fmt = np.lib.format
+    problem = None
+    try:
+        version = fmt.read_magic(counting)
+        if version == (1, 0):
+            shape, fortran, dtype = fmt.read_array_header_1_0(counting)
+        elif version in ((2, 0), (3, 0)):  # 3.0 differs only in allowing UTF-8 field names
+            shape, fortran, dtype = fmt.read_array_header_2_0(counting)
+        else:
+            problem = f"unknown format version {version[0]}.{version[1]}"
+    except (zipfile.BadZipFile, zlib.error, LZMAError, EOFError, OSError):
+        raise  # the archive's, not the header's (see _read_npz)
+    except RecursionError:
+        problem = "the header is nested too deeply"
+    except MemoryError:
+        problem = "the header is too large"
+    except UnicodeError:
+        problem = "the header is not ASCII text"
+    except Exception as exc:  # numpy's literal_eval of untrusted text: value, syntax, token errors
+        problem = _brief(exc)
+        if problem.startswith(("Cannot parse header", "(")):  # numpy quotes the header, tokenize a tuple
+            problem = "the header is not a Python dictionary literal"
+    if problem is None and any(d < 0 for d in shape):
+        problem = f"the header's shape {shape} has a negative dimension"
+    if problem is None and dtype.itemsize == 0:
+        problem = f"the header's dtype {dtype} has no bytes"
+    if problem is not None:
+        raise _read_error(path, invalid(problem))
+    return shape, fortran, dtype, counting.count
+
+
+def _shape_text(shape, dtype) -> str:
+    return f"shape {tuple(shape)} {dtype}"
+
 
 def _read_npy(path: Path, fmt: str) -> PointCloud:
     if _magic(path, 6) != b"\x93NUMPY":
         raise _read_error(path, "not a valid NPY file (no NumPy array header)")
-    try:
-        array = np.load(path, allow_pickle=False)
-    except Exception as exc:
-        raise _read_error(path, f"not a valid NPY file ({_one_line(exc)})") from None
-    if not isinstance(array, np.ndarray):
-        raise _read_error(path, "not a single NPY array")
+    size = path.stat().st_size
+    with open(path, "rb") as stream:
+        shape, fortran, dtype, header = _npy_header(
+            path, stream, lambda problem: f"not a valid NPY file ({problem})"
+        )
+        if dtype.hasobject:
+            raise _read_error(path, "the array holds Python objects, not numbers")
+        count = math.prod(shape)
+        needed = count * dtype.itemsize
+        if needed != size - header:
+            raise _read_error(
+                path,
+                f"the header announces an array of {_shape_text(shape, dtype)} "
+                f"({needed} bytes) after the header, the file holds {size - header}",
+            )
+        try:
+            array = np.fromfile(stream, dtype=dtype, count=count)
+        except (ValueError, OSError) as exc:
+            raise _read_error(path, f"not a valid NPY file ({_one_line(exc)})") from None
+    if array.size != count:  # the file changed while read
+        raise _read_error(path, f"truncated: {array.size} of {count} values read")
+    array = array.reshape(shape[::-1]).transpose() if fortran else array.reshape(shape)
     if array.dtype.names:
         if array.ndim != 1:
             raise _read_error(path, f"a structured array must have shape (n,), got {array.shape}")
@@ -62,18 +210,131 @@ def _read_npy(path: Path, fmt: str) -> PointCloud:
     return _cloud_from_columns(columns, path, fmt, text_colours=False)
 
 
+def _npz_members(path: Path, archive: zipfile.ZipFile, size: int) -> list:
+    """The archive's ``.npy`` members to load, checked against the file before anything is read.
+
+    Other members (``meta.json``, a README, directories) are skipped. Each member's
+    declared size is held to :data:`_MAX_RATIO` times its compressed size, the sum to
+    that many times the file's size and to the memory available.
+    """
+    members = []
+    for info in archive.infolist():
+        name = info.filename
+        if not name.endswith(".npy"):  # also directories; not is_dir(): a name may be empty
+            continue
+        if info.flag_bits & 0x1:
+            raise _read_error(path, f"member {name!r} is encrypted")
+        if info.compress_type == zipfile.ZIP_STORED and info.file_size != info.compress_size:
+            raise _read_error(
+                path,
+                f"member {name!r} is stored uncompressed in {info.compress_size} bytes "
+                f"but declares {info.file_size}",
+            )
+        if info.file_size > _MAX_RATIO * info.compress_size + _RATIO_SLACK:
+            raise _read_error(
+                path,
+                f"member {name!r} declares {_size_text(info.file_size)} uncompressed from "
+                f"{_size_text(info.compress_size)} ({info.file_size // max(info.compress_size, 1)}:1; "
+                f"at most {_MAX_RATIO}:1 is read): a zip bomb or a damaged archive",
+            )
+        members.append(info)
+    total = sum(info.file_size for info in members)
+    if total > _MAX_RATIO * size + _RATIO_SLACK:
+        raise _read_error(
+            path,
+            f"the arrays declare {_size_text(total)} uncompressed in a file of "
+            f"{_size_text(size)} (more than {_MAX_RATIO}:1; members share compressed data): "
+            "a zip bomb or a damaged archive",
+        )
+    budget = _memory_budget()
+    if budget is not None and _PEAK_FACTOR * total > budget:
+        raise _read_error(
+            path,
+            f"the arrays need {_size_text(total)} once decompressed (about "
+            f"{_size_text(_PEAK_FACTOR * total)} while read), more than the "
+            f"{_size_text(budget)} of memory available",
+        )
+    return members
+
+
+def _read_member(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo):
+    """One ``.npy`` member as an array (read a chunk at a time into it), or None if it holds objects."""
+    where = f"member {info.filename!r}"
+    try:
+        member = archive.open(info)
+    except NotImplementedError:
+        raise _read_error(
+            path, f"{where} uses compression method {info.compress_type}, which cannot be read"
+        ) from None
+    with member:
+        shape, fortran, dtype, header = _npy_header(
+            path, member, lambda problem: f"{where} is not a valid NPY array ({problem})"
+        )
+        if dtype.hasobject:
+            return None  # pickled Python objects: never loaded
+        count = math.prod(shape)
+        needed = count * dtype.itemsize
+        if needed != info.file_size - header:
+            raise _read_error(
+                path,
+                f"{where}: the header announces an array of {_shape_text(shape, dtype)} "
+                f"({needed} bytes) after the header, the archive's directory declares "
+                f"{info.file_size - header}",
+            )
+        array = np.empty(count, dtype=dtype)
+        raw = array.view(np.uint8).reshape(-1)
+        done = 0
+        while done < needed:
+            chunk = member.read(min(_CHUNK, needed - done))
+            if not chunk:
+                raise _read_error(
+                    path, f"{where} is truncated: {done} of {needed} data bytes decompressed"
+                )
+            raw[done : done + len(chunk)] = np.frombuffer(chunk, dtype=np.uint8)
+            done += len(chunk)
+        if member.read(1):  # pragma: no cover - zipfile stops at the declared size
+            raise _read_error(path, f"{where} holds more than its declared size")
+    return array.reshape(shape[::-1]).transpose() if fortran else array.reshape(shape)
+
+
 def _read_npz(path: Path, fmt: str) -> PointCloud:
     if _magic(path, 4) not in (b"PK\x03\x04", b"PK\x05\x06"):
         raise _read_error(path, "not a valid NPZ file (not a zip archive of NumPy arrays)")
+    size = path.stat().st_size
+    arrays, pickled = {}, []
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            if not hasattr(archive, "files"):
-                raise ValueError("not an NPZ archive")
-            arrays = {key: archive[key] for key in archive.files}
-    except Exception as exc:
-        raise _read_error(path, f"not a valid NPZ file ({_one_line(exc)})") from None
+        with zipfile.ZipFile(path) as archive:
+            for info in _npz_members(path, archive, size):
+                array = _read_member(path, archive, info)
+                key = info.filename[: -len(".npy")]
+                if array is None:
+                    pickled.append(key)
+                else:
+                    arrays[key] = array
+    except HeatcurvError:
+        raise
+    except zipfile.BadZipFile as exc:
+        problem = _brief(exc)
+        if problem.startswith("Bad CRC-32"):
+            problem = problem.replace("Bad CRC-32 for file", "the CRC-32 check fails for member")
+        raise _read_error(path, f"not a valid NPZ file ({problem})") from None
+    except zlib.error as exc:
+        raise _read_error(path, f"not a valid NPZ file (damaged compressed data: {_brief(exc)})") from None
+    except (EOFError, ValueError, struct.error, UnicodeError, LZMAError) as exc:
+        raise _read_error(path, f"not a valid NPZ file (damaged archive: {_brief(exc)})") from None
+    except OSError as exc:
+        if exc.errno == errno.EINVAL:  # a seek before the start of the file
+            problem = "an offset in the zip directory points outside the file"
+        elif exc.errno is None:  # bz2's damaged-data error
+            problem = f"damaged compressed data: {_brief(exc)}"
+        else:
+            raise  # a real I/O error
+        raise _read_error(path, f"not a valid NPZ file ({problem})") from None
     key = "points" if "points" in arrays else "xyz" if "xyz" in arrays else None
     if key is None:
+        held = [name for name in ("points", "xyz") if name in pickled]
+        if held:
+            raise _read_error(path, f"'{held[0]}' holds Python objects (pickled), not numbers")
         raise _read_error(
             path, f"no 'points' or 'xyz' array (arrays: {', '.join(arrays) or 'none'})"
         )

@@ -62,6 +62,30 @@ def _obj_line_number(text: str, vertex_index: int) -> int:
     return 0
 
 
+def _off_count(path: Path, tokens: list, index: int, what: str, line: int) -> int:
+    """The ``index``-th count of an OFF header (0 if absent): a non-negative integer."""
+    if len(tokens) <= index:
+        return 0
+    token = tokens[index]
+    if not re.fullmatch(r"[+-]?\d+", token):
+        raise _read_error(path, f"line {line}: {token!r} is not a {what} count (a whole number)")
+    count = int(token)
+    if count < 0:
+        raise _read_error(path, f"line {line}: the {what} count {count} is negative")
+    return count
+
+
+def _line_start(text: str, number: int) -> int:
+    """Offset in ``text`` of the start of line ``number`` (1-based; ``len(text)`` past the end)."""
+    start = 0
+    for _ in range(number - 1):
+        end = text.find("\n", start)
+        if end < 0:
+            return len(text)
+        start = end + 1
+    return start
+
+
 def _read_off(path: Path, fmt: str) -> PointCloud:
     text = _decode_text(path)
     lines = _iter_lines(text)
@@ -89,18 +113,27 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
         except StopIteration:
             raise _read_error(path, "the OFF header has no vertex count") from None
         tokens = line.split("#", 1)[0].split()
-    try:
-        n_vertices = int(tokens[0])
-    except ValueError:
-        raise _read_error(
-            path, f"line {counts_line}: {tokens[0]!r} is not a vertex count"
-        ) from None
-    if n_vertices <= 0:
+    n_vertices = _off_count(path, tokens, 0, "vertex", counts_line)
+    if n_vertices == 0:
         raise _read_error(path, "the file holds no points")
-    try:
-        n_faces = max(int(tokens[1]), 0) if len(tokens) > 1 else 0
-    except ValueError:
-        n_faces = 0
+    n_faces = _off_count(path, tokens, 1, "face", counts_line)
+    # every vertex and face takes a line: counts the file cannot hold are refused before
+    # anything is allocated for them (lines counted loosely: blank and comment lines too)
+    rest = _line_start(text, counts_line + 1)
+    available = text.count("\n", rest) + (0 if text.endswith("\n") or rest >= len(text) else 1)
+    if n_vertices > available:
+        raise _read_error(
+            path,
+            f"truncated: the header announces {n_vertices} vertices, the file has "
+            f"{available} line{'' if available == 1 else 's'} after line {counts_line}",
+        )
+    if n_faces > available - n_vertices:
+        raise _read_error(
+            path,
+            f"the header announces {n_faces} face{'' if n_faces == 1 else 's'}, the file has "
+            f"{available - n_vertices} line{'' if available - n_vertices == 1 else 's'} "
+            f"after its {n_vertices} vertices",
+        )
 
     first = None
     for number, line in lines:

@@ -67,12 +67,50 @@ def _positional_names(table: np.ndarray, ext: str) -> list:
     return names
 
 
+# a PTS count line: an integer alone on its line
+_PTS_COUNT = re.compile(r"^[ \t]*(\d+)[ \t]*$", re.MULTILINE)
+
+
+def _pts_counts(text: str) -> list:
+    """``(line_number, count)`` of every PTS count line."""
+    counts, line, last = [], 1, 0
+    for match in _PTS_COUNT.finditer(text):
+        line += text.count("\n", last, match.start())
+        last = match.start()
+        counts.append((line, int(match.group(1))))
+    return counts
+
+
+def _check_pts_counts(path: Path, text: str, counts: list, data_line: int, rows: int) -> None:
+    """Refuse a PTS file whose count lines do not match the rows that follow each of them.
+
+    ``text`` has its count lines emptied; ``rows`` is the number of rows read from
+    ``data_line`` on. Rows before the first count line belong to no count.
+    """
+    if counts[0][0] < data_line and sum(count for _, count in counts) == rows:
+        return
+    starts = [line for line, _ in counts]
+    found = [0] * len(counts)
+    scan = -1
+    for number, line in _iter_lines(text):  # a mismatch: count the rows of each scan
+        while scan + 1 < len(starts) and number >= starts[scan + 1]:
+            scan += 1
+        if scan >= 0 and number >= data_line and _strip_comment(line):
+            found[scan] += 1
+    for (line, said), got in zip(counts, found):
+        if said != got:
+            points = "point" if said == 1 else "points"
+            raise _read_error(path, f"line {line}: the count line says {said} {points}, {got} follow")
+
+
 def _read_text(path: Path, fmt: str) -> PointCloud:
     ext = "." + fmt
     text = _decode_text(path)
+    counts = []
     if ext == ".pts":
         # Leica PTS: each scan starts with a line holding its point count.
-        text = re.sub(r"(?m)^[ \t]*\d+[ \t]*$", "", text)
+        counts = _pts_counts(text)
+        text = _PTS_COUNT.sub("", text)
 
     header_line = header_content = None  # an uncommented header line
     last_comment = None  # (line number, text) of the latest comment line
@@ -133,6 +171,8 @@ def _read_text(path: Path, fmt: str) -> PointCloud:
     table = _load_table(path, text, data_line - 1, ncols, delimiter)
     if table.shape[0] == 0:
         raise _read_error(path, "the file holds no points")
+    if counts:
+        _check_pts_counts(path, text, counts, data_line, table.shape[0])
     names = _unique_names(names) if names is not None else _positional_names(table, ext)
     columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
     return _cloud_from_columns(columns, path, fmt, text_colours=True)
