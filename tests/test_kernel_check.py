@@ -56,15 +56,16 @@ def test_the_presets_pass_silently_on_their_clouds(random_sphere, fibonacci_sphe
     assert support.edge_weight == pytest.approx(np.exp(-4.0))  # alpha = 2: exp(-alpha^2)
 
 
-@pytest.mark.parametrize("alpha", [10, 20, 1000])
+@pytest.mark.parametrize("alpha", [10, 20])
 def test_a_kernel_narrower_than_its_neighbours_is_an_error(random_sphere, alpha):
     # before: alpha = 20 gave a median mean curvature of 0.56 on the unit sphere, 1000 gave 0, exit 0
+    # (alpha above 20 is now refused by the option's range, heatcurv.options)
     with pytest.raises(HeatcurvError, match=rf"alpha = {alpha}: the heat kernel is so narrow .* use alpha <= 6\.\d"):
         heatcurv.estimate(random_sphere, alpha=alpha)
 
 
 def test_a_barely_supported_kernel_warns_and_names_the_range(random_sphere):
-    with pytest.warns(HeatcurvWarning, match=r"alpha = 8: .* only 2\.\d effective neighbours.*use alpha <= 6\.\d"):
+    with pytest.warns(HeatcurvWarning, match=r"alpha = 8: .* only 2\.\d+ effective neighbours.*use alpha <= 6\.\d"):
         res = heatcurv.estimate(random_sphere, alpha=8)
     np.testing.assert_allclose(np.median(res.mean), 1.0, rtol=1e-3)  # still right, and said to be noisy
 

@@ -221,3 +221,36 @@ def test_a_sheet_seen_from_both_sides_is_flagged():
     assert np.all(np.einsum("ij,ij->i", res.normals, scanner - pts) > 0)  # each faces its scanner
     assert res.info["orientation"].ambiguous >= 0.9 * n
     assert res.reliable.mean() <= 0.1
+
+
+def test_far_outliers_are_cut_out_of_the_orientation_graph():
+    # before: three points 25 diagonals away bridged the spanning tree of a grid-sampled
+    # torus and turned 272 of its 510 normals inward (ambiguous 53, the rest "reliable")
+    sample = surfaces.Torus(0.6, 1.4).sample(500, "grid", seed=1)
+    far = np.array([
+        [61.68178366, 85.97149445, 98.02699437],
+        [-50.07109424, -117.21154607, -67.52311388],
+        [111.22988137, 88.72916014, -23.66604211],
+    ])
+    res = heatcurv.estimate(np.vstack([sample.points, far]))
+    n = len(sample.points)
+    assert res.outlier[n:].all() and not res.outlier[:n].any()
+    assert np.all(np.einsum("ij,ij->i", res.normals[:n], sample.normals) > 0)
+    assert res.info["orientation"].ambiguous == 0
+    assert np.all(res.mean[:n][res.reliable[:n]] > 0)  # a torus's mean curvature is positive
+
+
+@pytest.mark.parametrize("surface", ["sphere", "torus"])
+@pytest.mark.parametrize("distance", [5.0, 100.0, 1e4])
+def test_one_to_three_far_points_never_flip_a_closed_surface(surface, distance):
+    surf = surfaces.Sphere() if surface == "sphere" else surfaces.Torus(0.6, 1.4)
+    sample = surf.sample(1500, "fibonacci")
+    diag = np.linalg.norm(np.ptp(sample.points, axis=0))
+    rng = np.random.default_rng(int(distance))
+    for count in (1, 3):
+        d = rng.normal(size=(count, 3))
+        far = d / np.linalg.norm(d, axis=1)[:, None] * distance * diag
+        res = heatcurv.estimate(np.vstack([sample.points, far]))
+        n = len(sample.points)
+        assert res.outlier[n:].all()
+        assert np.all(np.einsum("ij,ij->i", res.normals[:n], sample.normals) > 0)

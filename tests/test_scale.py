@@ -78,3 +78,11 @@ def test_fit_level_is_the_cloud_up_to_k_fit_then_a_coarser_random_level():
     assert nb.n_points == 10 and np.all(nb.counts == 240) and nb.indices.max() < len(pts)
     assert set(nb.indices) <= set(coarse.source)
     assert coarse.rows_per_block(24_000) == 100
+
+
+def test_a_base_kernel_wider_than_the_ladder_cap_is_still_a_candidate():
+    # before: neighbours above max(1920, n // 10) left the ladder empty (IndexError)
+    pts = heatcurv.surfaces.Sphere().sample(400, "random", seed=1).points
+    res = heatcurv.estimate(pts, neighbours=398)
+    assert res.info["scale"].k == 398
+    assert np.median(res.mean) == pytest.approx(1.0, rel=0.05)  # the ball holds the whole sphere

@@ -140,3 +140,59 @@ def test_reordered_points_map_back_to_input_rows():
     np.testing.assert_array_equal(moved.first, prep.first[order])
     area = rng.random(prep.n_distinct)
     assert moved.share_among_duplicates(area[order]).sum() == pytest.approx(area.sum(), rel=1e-12)
+
+
+# ----------------------------------------------------------------- extreme coordinates
+@pytest.fixture(scope="module")
+def unit_sphere_result():
+    pts = heatcurv.surfaces.Sphere().sample(2000, "random", seed=3).points
+    return pts, heatcurv.estimate(pts)
+
+
+@pytest.mark.parametrize("exponent", [-130, -100, -60, -13, 13, 60, 100, 130])
+def test_extreme_scales_give_the_scaled_answer(unit_sphere_result, exponent):
+    # before: 1e80-1e152 gave 49 % inward normals and means off by 10 %, 1e155 crashed (SIGSEGV)
+    pts, ref = unit_sphere_result
+    s = 10.0**exponent
+    res = heatcurv.estimate(pts * s)
+    # a power-of-two unit keeps the arithmetic exact up to the one rounding of pts * s
+    assert np.allclose(res.mean * s, ref.mean, rtol=1e-9, atol=1e-12)
+    assert np.allclose(res.gaussian * s * s, ref.gaussian, rtol=1e-9, atol=1e-12)
+    assert np.allclose(res.area / (s * s), ref.area, rtol=1e-9)
+    assert np.allclose(res.spacing / s, ref.spacing, rtol=1e-9)
+    assert np.allclose(res.normals, ref.normals, atol=1e-9)
+    assert res.info["scale"].median_radius == pytest.approx(ref.info["scale"].median_radius * s, rel=1e-9)
+    assert np.array_equal(res.reliable, ref.reliable)
+
+
+@pytest.mark.parametrize("s", [1e-150, 1e150, 1e300, 1e-300])
+def test_extents_beyond_double_precision_are_refused(unit_sphere_result, s):
+    pts, _ = unit_sphere_result
+    with pytest.raises(HeatcurvError, match=r"the cloud spans .* outside the range .* rescale the coordinates"):
+        heatcurv.estimate(pts * s)
+
+
+def test_coordinates_near_the_largest_double_are_refused_not_overflowed():
+    pts = heatcurv.surfaces.Sphere().sample(200, "random", seed=3).points
+    with pytest.raises(HeatcurvError, match="outside the range"):
+        heatcurv.estimate(pts * 1.5e308)
+
+
+def test_extreme_scale_viewpoint_radius_and_laplacian_follow_the_unit():
+    pts = heatcurv.surfaces.Sphere().sample(1500, "fibonacci").points
+    s = 1e90
+    res = heatcurv.estimate(pts * s, viewpoint=[0.0, 0.0, 10 * s])
+    top = pts[:, 2] > 0.5
+    assert np.all(res.normals[top, 2] > 0)  # facing the viewpoint, read in input units
+    fixed = heatcurv.estimate(pts * s, radius=0.3 * s)
+    assert np.median(fixed.mean) * s == pytest.approx(1.0, rel=1e-3)
+    L, area = heatcurv.laplacian(pts * s)
+    L1, area1 = heatcurv.laplacian(pts)
+    assert np.allclose(area / s**2, area1, rtol=1e-9)
+    assert np.allclose((L * s**2).toarray(), L1.toarray(), rtol=1e-9, atol=1e-9 * abs(L1).max())
+
+
+def test_a_cloud_too_far_out_to_resolve_is_refused():
+    pts = heatcurv.surfaces.Sphere().sample(500, "random", seed=3).points
+    with pytest.raises(HeatcurvError, match="subtract a nearby origin"):
+        heatcurv.estimate(pts + 1e15)

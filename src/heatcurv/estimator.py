@@ -48,6 +48,7 @@ from .outliers import Outliers, find_outliers
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
 from .results import CurvatureResult
+from .sampling import geometric_keys
 from .scale import FitLevel, ScaleReport, select_form, select_scale
 from .validation import prepare_normals
 
@@ -150,7 +151,9 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         op = HeatKernelOperator.from_points(points, opts, progress)  # validate, neighbours, spacing, areas
         clock = StageClock(progress, dict(op.timings))
         with clock.stage("kernel_check"):
-            check_kernel(op.neighbourhood, op.h, opts)  # refuse a kernel that leaves nothing to fit
+            # every subset a stage draws is drawn by these keys: no result depends on the row order
+            keys = geometric_keys(op.points, op.neighbourhood)
+            check_kernel(op.neighbourhood, op.h, opts, keys)  # refuse a kernel that leaves nothing to fit
         with clock.stage("outliers"):
             outliers = find_outliers(op.points, op.neighbourhood)
         towards = _reference(op, mode, viewpoint)
@@ -158,7 +161,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()
         if opts.fit == "chord":
-            fitted = _default_fit_stages(op, nrm, normals is not None, outliers.mask, clock)
+            fitted = _default_fit_stages(op, nrm, normals is not None, outliers.mask, keys, clock)
         else:
             fitted = _paper_fit_stages(op, nrm, K, outliers.mask, clock)
         if mode == "viewpoint" and normals is None:
@@ -192,7 +195,7 @@ def _reference(op: HeatKernelOperator, mode: str, viewpoint):
         return None
     prepared = op.prepared
     v = as_viewpoint(viewpoint, prepared.n_input)
-    return (v if v.ndim == 1 else v[prepared.first]) - prepared.offset
+    return ((v if v.ndim == 1 else v[prepared.first]) - prepared.offset) / prepared.unit
 
 
 def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np.ndarray, clock: StageClock):
@@ -215,7 +218,7 @@ def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: n
     with clock.stage("normals"):
         nrm, planarity = pca_normals(X, nbhd, taper=op.options.taper)
     with clock.stage("orientation"):
-        orientation = orient(X, nrm, nbhd, np.where(outlier, 0.0, op.areas), mode=mode, towards=towards)
+        orientation = orient(X, nrm, nbhd, op.areas, mode=mode, towards=towards, excluded=outlier)
     return orientation.normals, planarity, orientation
 
 
@@ -250,7 +253,8 @@ def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, ou
 
 
 def _default_fit_stages(
-    op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, outlier: np.ndarray, clock: StageClock
+    op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, outlier: np.ndarray, keys: np.ndarray,
+    clock: StageClock,
 ) -> _Fitted:
     """The default method's chord fit: ``kernel_choice``, then the per-block stages.
 
@@ -263,6 +267,9 @@ def _default_fit_stages(
         The caller gave the normals: no refinement, and the result keeps them.
     outlier : ndarray, shape (m,), bool
         Points that get no weight in anyone's fit (:mod:`heatcurv.outliers`).
+    keys : ndarray, shape (m,)
+        Sampling keys of the kernel choice's subsample and the coarse levels
+        (:func:`heatcurv.sampling.geometric_keys`).
     clock : StageClock
 
     Returns
@@ -283,12 +290,13 @@ def _default_fit_stages(
         if fixed_radius:  # radius=: the operator's balls are the fit's; only the fit's form is chosen
             choice = select_form(
                 X, base, nrm, fit_areas, alpha=opts.alpha, n_sub=tuning.n_sub, clean_ratio=tuning.clean_ratio,
-                seed=tuning.seed,
+                seed=tuning.seed, keys=keys,
             )
         else:
             choice = select_scale(
                 X, op.tree, nrm, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
-                fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, **asdict(tuning),
+                fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, keys=keys,
+                **asdict(tuning),
             )
     scale = choice.scale
     # the operator's neighbourhood already is the kernel's when the density ball holds k points
@@ -296,7 +304,7 @@ def _default_fit_stages(
     # a kernel wider than the operator's counts its own density for the areas
     own_density = not fixed_radius and scale.k > opts.neighbours
     with clock.stage("fit_neighbourhood", report=False):
-        level = None if fixed_radius else FitLevel.for_kernel(X, op.tree, scale.k, tuning.k_fit, tuning.seed)
+        level = None if fixed_radius else FitLevel.for_kernel(X, op.tree, scale.k, tuning.k_fit, tuning.seed, keys)
     blocks = base.row_blocks(BLOCK_PAIRS) if fixed_radius else block_ranges(n, level.rows_per_block())
 
     areas, border, radius, residual = np.empty(n), np.empty(n, dtype=bool), np.empty(n), np.empty(n)
@@ -369,11 +377,14 @@ def _misfits(op: HeatKernelOperator, fitted: _Fitted, outliers: Outliers) -> np.
 
 def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: Orientation, outliers: Outliers,
             timings):
-    """The reliability flags, and every field back in the input order (a :class:`CurvatureResult`).
+    """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
-    Outliers stand for no measured surface: area 0, never reliable.
+    Outliers stand for no measured surface: area 0, never reliable. The stages
+    ran in the unit ``prepared.unit`` (a power of two, 1 for all but extreme
+    extents): lengths are multiplied by it, curvatures divided, exactly.
     """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
+    unit = prepared.unit
     areas = np.where(outliers.mask, 0.0, fitted.areas)
     reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~fitted.border
     reliable &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask & ~_misfits(op, fitted, outliers)
@@ -382,24 +393,24 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
         "outliers": outliers.count,
     }
     if fitted.scale is not None:
-        info["scale"] = fitted.scale
+        info["scale"] = fitted.scale.in_unit(unit)
     info["timings"] = timings
     back = prepared.to_input_order
     return CurvatureResult(
         normals=back(fitted.normals),
-        mean=back(fitted.mean),
-        gaussian=back(pc.gaussian),
-        k1=back(pc.k1),
-        k2=back(pc.k2),
+        mean=back(fitted.mean) / unit,
+        gaussian=back(pc.gaussian) / unit**2,
+        k1=back(pc.k1) / unit,
+        k2=back(pc.k2) / unit,
         d1=back(pc.d1),
         d2=back(pc.d2),
-        area=prepared.share_among_duplicates(areas),
+        area=prepared.share_among_duplicates(areas) * unit**2,
         outlier=back(outliers.mask),
         reliable=back(reliable),
         border=back(fitted.border),
-        spacing=back(op.h),
+        spacing=back(op.h) * unit,
         neighbours=back(nbhd.counts),
-        mean_curvature_normal=back(K),
+        mean_curvature_normal=back(K) / unit,
         options=op.options,
         info=info,
     )

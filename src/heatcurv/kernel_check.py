@@ -43,6 +43,7 @@ from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import effective_neighbours, heat_kernel_weights, tapered_heat_weights
 from .neighbourhood import Neighbourhood
 from .options import METHODS, Options
+from .sampling import key_sample
 
 __all__ = ["KernelSupport", "measure_support", "check_kernel", "SUPPORT_LIMITS"]
 
@@ -87,10 +88,17 @@ def _fit_weights(sub: Neighbourhood, h: np.ndarray, options: Options, n_points: 
     return heat_kernel_weights(sub, h, options.m)
 
 
-def _sample(nbhd: Neighbourhood, h: np.ndarray, options: Options, seed: int = 0):
-    """A random subsample of the balls the fit will use (the narrowest, for the chord fit)."""
+def _sample(nbhd: Neighbourhood, h: np.ndarray, options: Options, seed: int = 0, keys: np.ndarray | None = None):
+    """A subsample of the balls the fit will use (the narrowest, for the chord fit), drawn by ``keys``.
+
+    ``keys`` (:func:`heatcurv.sampling.geometric_keys`) make the sample independent of the row order;
+    without them a seeded random sample of the rows is drawn.
+    """
     n = nbhd.n_points
-    rows = np.sort(np.random.default_rng(seed).choice(n, min(SAMPLE, n), replace=False))
+    if keys is not None:
+        rows = key_sample(keys, SAMPLE, seed)
+    else:
+        rows = np.sort(np.random.default_rng(seed).choice(n, min(SAMPLE, n), replace=False))
     sub = nbhd.take_rows(rows)
     fixed = options.radius is None and options.scale != "auto"
     if options.fit == "chord" and fixed and int(options.scale) < int(options.neighbours):
@@ -186,7 +194,7 @@ def _options_chosen(options: Options) -> bool:
     )
 
 
-def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options) -> KernelSupport:
+def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options, keys: np.ndarray | None = None) -> KernelSupport:
     """Raise on a kernel that cannot give an answer, warn on a doubtful one (see the module docstring).
 
     Parameters
@@ -196,6 +204,9 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options) -> Kernel
     h : ndarray, shape (n,)
         The operator's spacing.
     options : Options
+    keys : ndarray, shape (n,), optional
+        Sampling keys (:func:`heatcurv.sampling.geometric_keys`); default a
+        seeded random sample of the rows.
 
     Returns
     -------
@@ -214,7 +225,7 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options) -> Kernel
     HeatcurvWarning
         When it has barely more, or the ball cuts the kernel (:data:`EDGE_WEIGHT_MAX`).
     """
-    sub, h_sub = _sample(nbhd, h, options)
+    sub, h_sub = _sample(nbhd, h, options, keys=keys)
     support = _measure(sub, h_sub, options, nbhd.n_points)
     n_eff = support.effective_neighbours
     low, few = SUPPORT_LIMITS[support.fit]

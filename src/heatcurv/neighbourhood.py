@@ -192,6 +192,25 @@ class Neighbourhood:
             augmented=near.augmented, by_distance=True,
         )
 
+    def without(self, excluded: np.ndarray) -> Neighbourhood:
+        """The pairs whose two points are both kept: rows of ``excluded`` points become empty.
+
+        Parameters
+        ----------
+        excluded : ndarray, shape (n,), bool
+            Points to cut out of the graph (e.g. outliers).
+        """
+        if not excluded.any():
+            return self
+        keep = ~excluded[self.rows] & ~excluded[self.indices]
+        counts = np.bincount(self.rows[keep], minlength=self.n_points)
+        indptr = np.zeros(self.n_points + 1, dtype=self.indptr.dtype)
+        np.cumsum(counts, out=indptr[1:])
+        return Neighbourhood(
+            indptr=indptr, indices=self.indices[keep], distances=self.distances[keep], radius=self.radius,
+            augmented=self.augmented, by_distance=self.by_distance,
+        )
+
     def _sorted_by_distance(self) -> bool:
         """Whether the distances ascend within every row."""
         step = np.diff(self.distances)

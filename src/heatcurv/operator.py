@@ -47,7 +47,9 @@ class HeatKernelOperator:
 
     Build it with :meth:`from_points` (or :func:`build_operator`); all arrays
     are over the distinct, centred points in k-d tree leaf order
-    (``prepared.to_input_order`` maps them back).
+    (``prepared.to_input_order`` maps them back), in the length unit
+    ``prepared.unit`` (1, the input's unit, unless the cloud spans less than
+    ``2**-40`` or more than ``2**40``: :data:`heatcurv.validation.UNIT_BAND`).
 
     Attributes
     ----------
@@ -191,12 +193,13 @@ def _neighbourhood_and_spacing(prepared: PreparedPoints, tree: cKDTree, options:
     """The ball neighbourhood and the spacing ``h``, each timed as its own stage."""
     X = prepared.points
     if options.radius is not None:
-        # one physical ball for every point: h = radius / alpha
+        # one physical ball for every point: h = radius / alpha (radius given in input units)
+        radius = float(options.radius) / prepared.unit
         with clock.stage("spacing"):
-            h = np.full(X.shape[0], float(options.radius) / options.alpha)
+            h = np.full(X.shape[0], radius / options.alpha)
         with clock.stage("neighbours"):
             nbhd = ball_neighbourhood(
-                X, float(options.radius), tree=tree, min_neighbours=int(options.min_neighbours),
+                X, radius, tree=tree, min_neighbours=int(options.min_neighbours),
                 workers=options.workers,
             )
     elif options.spacing == "density":
@@ -276,7 +279,8 @@ def laplacian(points, method: str = "paper", **options):
             f"points hold {op.prepared.n_input - op.prepared.n_distinct} exact duplicate(s); "
             "a Laplacian needs one row per distinct point: remove duplicates first"
         )
-    L = op.matrix()
+    unit = op.prepared.unit
+    L = op.matrix() / unit**2 if unit != 1.0 else op.matrix()  # 1/length^2, back to input units
     # distinct points are in k-d tree order; permute back to the input order
     perm = op.prepared.inverse
-    return L[perm][:, perm].tocsr(), op.areas[perm]
+    return L[perm][:, perm].tocsr(), op.areas[perm] * unit**2

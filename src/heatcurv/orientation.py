@@ -148,6 +148,7 @@ def orient(
     mode: str = "outward",
     towards=None,
     graph_neighbours: int | None = GRAPH_NEIGHBOURS,
+    excluded: np.ndarray | None = None,
 ) -> Orientation:
     """Orient unoriented normals by one of :data:`ORIENT_MODES`.
 
@@ -172,6 +173,15 @@ def orient(
         (:meth:`~heatcurv.neighbourhood.Neighbourhood.spread`), so the graph
         stays connected on anisotropic scans and costs little (on a million
         points: 13 s with 60 neighbours, 1.9 s with 10).
+    excluded : ndarray, shape (n,), bool, optional
+        Points cut out of the graph (outliers, :mod:`heatcurv.outliers`): no
+        orientation is propagated through them and they take no part in any
+        vote (each is a component of its own, oriented by its own outward
+        side). Without this, a far stray point's long edges, whose normal is
+        that of a whole distant chunk of the surface, can bridge regions of
+        the spanning tree and turn part of a closed surface inside out
+        (measured: 272 of the 510 points of a grid-sampled torus with three
+        points 25 diagonals away).
 
     Returns
     -------
@@ -182,6 +192,10 @@ def orient(
     n = points.shape[0]
     graph = nbhd if graph_neighbours is None else nbhd.spread(int(graph_neighbours))
     w = np.ones(n) if areas is None else np.abs(areas)
+    if excluded is not None:
+        excluded = np.asarray(excluded, dtype=bool)
+        graph = graph.without(excluded)
+        w = np.where(excluded, 0.0, w)
     reference = _reference_directions(points, mode, towards)
 
     tree = _spanning_forest(points, normals, graph)
@@ -334,12 +348,13 @@ def _component_signs(points, oriented, labels, n_comp, w, reference, free):
     """
     count = np.bincount(labels, weights=w, minlength=n_comp)
     centroid = np.stack([np.bincount(labels, weights=w * points[:, k], minlength=n_comp) for k in range(3)], 1)
-    centroid /= count[:, None]
+    centroid /= np.maximum(count, np.finfo(float).tiny)[:, None]  # weightless (excluded) components: 0
     radial = np.einsum("ij,ij->i", oriented, points - centroid[labels]) * w
     vote = np.bincount(labels, weights=radial, minlength=n_comp)
     strength = np.bincount(labels, weights=np.abs(radial), minlength=n_comp)
     sign = np.where(free & (vote < 0), -1.0, 1.0)
-    weak = free & (np.abs(vote) <= WEAK_VOTE * strength)
+    # a component without weight (excluded points) keeps its propagated side: nothing to decide
+    weak = free & (count > 0) & (np.abs(vote) <= WEAK_VOTE * strength)
     convention = np.zeros(n_comp, dtype=bool)
     undecided = np.zeros(n_comp, dtype=bool)
     if reference is not None:

@@ -32,7 +32,7 @@ the cost per point stays that of 240 neighbours however wide the kernel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -40,6 +40,7 @@ from scipy.spatial import cKDTree
 from .chordfit import ChordFit, chord_fit
 from .kernel import tapered_heat_weights
 from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
+from .sampling import key_sample
 
 __all__ = [
     "Scale", "ScaleChoice", "ScaleReport", "FitLevel", "fit_blocks", "fit_at_scale", "select_scale", "select_form",
@@ -125,6 +126,15 @@ class ScaleReport:
     sd: list = field(default_factory=list)
     median_radius: float = float("nan")
 
+    def in_unit(self, unit: float) -> ScaleReport:
+        """The report with its lengths multiplied by ``unit`` (the stages' unit back to the input's)."""
+        if unit == 1.0:
+            return self
+        return replace(
+            self, radius=self.radius * unit, median_h=self.median_h * unit, sigma=self.sigma * unit,
+            median_radius=self.median_radius * unit,
+        )
+
     @classmethod
     def from_choice(
         cls, choice: ScaleChoice, radius: np.ndarray, alpha: float, fixed_radius: float | None = None
@@ -194,14 +204,22 @@ class FitLevel:
     k: int
 
     @classmethod
-    def for_kernel(cls, points: np.ndarray, tree: cKDTree, k: int, k_fit: int = 240, seed: int = 0) -> FitLevel:
-        """The level of a kernel of ``k`` neighbours on the cloud ``points`` (tree ``tree``)."""
+    def for_kernel(
+        cls, points: np.ndarray, tree: cKDTree, k: int, k_fit: int = 240, seed: int = 0, keys: np.ndarray | None = None
+    ) -> FitLevel:
+        """The level of a kernel of ``k`` neighbours on the cloud ``points`` (tree ``tree``).
+
+        The coarse level is drawn by ``keys`` (:func:`heatcurv.sampling.geometric_keys`: the same
+        level whatever the row order), else at random from the rows (seeded).
+        """
         n = points.shape[0]
         if k <= k_fit:
             return cls(points, tree, None, 1.0, min(k, n - 1))
-        rng = np.random.default_rng(seed + k)
-        size = max(int(round(n * k_fit / k)), k_fit + 1)
-        coarse = np.sort(rng.choice(n, size, replace=False))
+        size = min(max(int(round(n * k_fit / k)), k_fit + 1), n)
+        if keys is not None:
+            coarse = key_sample(keys, size, seed + k)
+        else:
+            coarse = np.sort(np.random.default_rng(seed + k).choice(n, size, replace=False))
         fraction = coarse.size / n
         level_points = points[coarse]
         # the k-th neighbour in the cloud is about the (k * fraction)-th of the coarse level
@@ -234,6 +252,7 @@ def fit_blocks(
     seed: int = 0,
     workers: int = -1,
     block_pairs: int | None = None,
+    keys: np.ndarray | None = None,
 ):
     """Run the chord fit at one kernel width, one block of centres at a time.
 
@@ -270,6 +289,8 @@ def fit_blocks(
         Threads for the k-d tree queries.
     block_pairs : int, optional
         Neighbour pairs per block (default :data:`heatcurv.neighbourhood.BLOCK_PAIRS`).
+    keys : ndarray, shape (n,), optional
+        Sampling keys of the coarse level (:func:`heatcurv.sampling.geometric_keys`).
 
     Yields
     ------
@@ -283,7 +304,7 @@ def fit_blocks(
         Share of the cloud the neighbours were drawn from (1, or the coarse level's).
     """
     cidx = np.arange(points.shape[0]) if centres is None else np.asarray(centres)
-    level = FitLevel.for_kernel(points, tree, scale.k, k_fit, seed)
+    level = FitLevel.for_kernel(points, tree, scale.k, k_fit, seed, keys)
     if base is not None and (centres is not None or level.source is not None):
         raise ValueError("base neighbourhoods serve full-level fits at every point only")
     for lo, hi in block_ranges(cidx.shape[0], level.rows_per_block(block_pairs)):
@@ -310,6 +331,7 @@ def fit_at_scale(
     passes: int = 2,
     seed: int = 0,
     workers: int = -1,
+    keys: np.ndarray | None = None,
 ) -> tuple[ChordFit, np.ndarray, Neighbourhood, float]:
     """Run the chord fit at one kernel width (all blocks of :func:`fit_blocks` joined).
 
@@ -329,7 +351,7 @@ def fit_at_scale(
     fits, nbhds, fractions = [], [], [1.0]
     for _, _, nbhd, fit, fraction in fit_blocks(
         points, tree, normals, areas, scale, centres=centres, alpha=alpha, k_fit=k_fit, passes=passes, seed=seed,
-        workers=workers,
+        workers=workers, keys=keys,
     ):
         fits.append(fit)
         nbhds.append(nbhd)
@@ -355,6 +377,7 @@ def select_form(
     n_sub: int = 2000,
     clean_ratio: float = 1.6,
     seed: int = 0,
+    keys: np.ndarray | None = None,
 ) -> ScaleChoice:
     """The noise gate alone, on a neighbourhood the caller fixed (``radius=``): chord or denoised fit.
 
@@ -368,7 +391,7 @@ def select_form(
         Oriented starting normals.
     areas : ndarray, shape (n,)
         Per-point areas.
-    alpha, n_sub, clean_ratio, seed
+    alpha, n_sub, clean_ratio, seed, keys
         As :func:`select_scale` (its other tuning constants do not apply).
 
     Returns
@@ -376,8 +399,7 @@ def select_form(
     ScaleChoice
         ``scale.k`` is the median neighbour count of the balls.
     """
-    n = points.shape[0]
-    sub = np.sort(np.random.default_rng(seed).choice(n, min(n_sub, n), replace=False))
+    sub = _subsample(points.shape[0], n_sub, seed, keys)
     balls = nbhd.take_rows(sub)
     h = balls.radius / alpha
     weights = tapered_heat_weights(balls, h, areas)
@@ -408,6 +430,7 @@ def select_scale(
     fixed_k: int | None = None,
     seed: int = 0,
     workers: int = -1,
+    keys: np.ndarray | None = None,
 ) -> ScaleChoice:
     """Choose the kernel width for the whole cloud (see the module docstring).
 
@@ -460,31 +483,36 @@ def select_scale(
         Seed of the subsample and coarse levels (results are reproducible).
     workers : int, optional
         Threads for the k-d tree queries.
+    keys : ndarray, shape (n,), optional
+        Sampling keys of the subsample and the coarse levels
+        (:func:`heatcurv.sampling.geometric_keys`: the choice does not depend
+        on the row order); default seeded random samples of the rows.
 
     Returns
     -------
     ScaleChoice
     """
     n = points.shape[0]
-    rng = np.random.default_rng(seed)
-    sub = np.sort(rng.choice(n, min(n_sub, n), replace=False))
+    sub = _subsample(n, n_sub, seed, keys)
     ladder = []
     k = base_k
     if max_k is None:
         max_k = max(1920, n // 10)
-    while k <= min(max_k, max(n // 4, base_k)):
+    # at least base_k itself (a base_k above the default cap, e.g. neighbours close to n)
+    while k <= max(base_k, min(max_k, max(n // 4, base_k))):
         ladder.append(Scale(k, True))
         k *= 2
 
     # the noise gate: residuals of the chord and of the denoised fit at base_k
     chord, h, _, _ = fit_at_scale(
         points, tree, normals[sub], areas, Scale(base_k, False), centres=sub, alpha=alpha, k_fit=k_fit, seed=seed,
-        workers=workers,
+        workers=workers, keys=keys,
     )
     means, factors = [], []
     for j, sc in enumerate(ladder):
         fit, h, _, _ = fit_at_scale(
-            points, tree, normals[sub], areas, sc, centres=sub, alpha=alpha, k_fit=k_fit, seed=seed, workers=workers
+            points, tree, normals[sub], areas, sc, centres=sub, alpha=alpha, k_fit=k_fit, seed=seed, workers=workers,
+            keys=keys,
         )
         means.append(fit.principal.mean)
         factors.append(fit.mean_variance_factor)
@@ -520,3 +548,10 @@ def select_scale(
         sd=sd,
         mean_abs=float(np.mean(np.abs(means[0]))),
     )
+
+
+def _subsample(n: int, n_sub: int, seed: int, keys: np.ndarray | None) -> np.ndarray:
+    """Sorted indices of ``min(n_sub, n)`` points: by ``keys`` if given, else seeded random rows."""
+    if keys is not None:
+        return key_sample(keys, n_sub, seed)
+    return np.sort(np.random.default_rng(seed).choice(n, min(n_sub, n), replace=False))

@@ -15,7 +15,17 @@ import numpy as np
 
 from .errors import HeatcurvError
 
-__all__ = ["PreparedPoints", "prepare_points", "prepare_normals"]
+__all__ = ["PreparedPoints", "prepare_points", "prepare_normals", "EXTENT_RANGE", "UNIT_BAND"]
+
+#: Clouds whose extent (largest bounding-box side, input units) lies outside this range are
+#: refused: their areas (extent^2 / n) or Gaussian curvatures (n / extent^2) would leave the
+#: range of double precision (about 1e-308 to 1e308) on clouds of up to 1e9 points.
+EXTENT_RANGE = (1e-140, 1e140)
+#: Extents inside this band are computed in input units (``unit = 1``); outside it the points
+#: are divided by a power of two that brings the extent to about 1 (the stages square distances
+#: and raise spacings to the fourth power: measured, unscaled clouds of extent above 1e77 or
+#: below 1e-78 gave wrong normals and curvatures, above 1e155 crashed).
+UNIT_BAND = (2.0**-40, 2.0**40)
 
 
 @dataclass(frozen=True)
@@ -29,18 +39,27 @@ class PreparedPoints:
         were no duplicates, else in lexicographic order (:meth:`reordered`
         puts them in another, e.g. spatial, order).
     offset : ndarray, shape (3,)
-        What was subtracted (the centre of the bounding box).
+        What was subtracted (the centre of the bounding box), input units.
     inverse : ndarray, shape (n,), int64
         ``points[inverse]`` are the caller's points (centred), row for row:
         exact duplicates share one row and so get their twin's values.
     first : ndarray, shape (m,), int64
         For each distinct point, the first input row that holds it.
+    unit : float
+        The length unit of ``points``, in input units: ``points = (input -
+        offset) / unit``. 1 unless the cloud spans less than ``2**-40`` or more
+        than ``2**40`` input units (:data:`UNIT_BAND`); then a power of two
+        (an exact division) that brings its extent to about 1, so that no
+        square or fourth power of a distance overflows or underflows in the
+        stages. Lengths computed on ``points`` are multiplied by ``unit`` to
+        return to input units, curvatures divided by it.
     """
 
     points: np.ndarray
     offset: np.ndarray
     inverse: np.ndarray
     first: np.ndarray
+    unit: float = 1.0
 
     @property
     def n_input(self) -> int:
@@ -68,7 +87,8 @@ class PreparedPoints:
         rank = np.empty(order.shape[0], dtype=np.int64)
         rank[order] = np.arange(order.shape[0])
         return PreparedPoints(
-            points=self.points[order], offset=self.offset, inverse=rank[self.inverse], first=self.first[order]
+            points=self.points[order], offset=self.offset, inverse=rank[self.inverse], first=self.first[order],
+            unit=self.unit,
         )
 
     def to_input_order(self, values: np.ndarray) -> np.ndarray:
@@ -154,8 +174,11 @@ def prepare_points(points, min_points: int = 7) -> PreparedPoints:
     if arr.shape[0] == 0:
         raise HeatcurvError("points is empty: a point cloud needs at least a few points")
 
-    offset = 0.5 * (arr.min(axis=0) + arr.max(axis=0))
-    centred = arr - offset + 0.0  # + 0.0 turns -0.0 into 0.0: equal coordinates, equal bits
+    low, high = arr.min(axis=0), arr.max(axis=0)
+    offset = 0.5 * low + 0.5 * high  # (low + high) / 2 overflows near the largest double
+    with np.errstate(over="ignore"):  # a span beyond the largest double is inf, refused below
+        unit = _length_unit(high - low)
+    centred = (arr - offset) / unit + 0.0  # + 0.0 turns -0.0 into 0.0: equal coordinates, equal bits
     if _may_hold_duplicates(centred):
         distinct, first, inverse = np.unique(centred, axis=0, return_index=True, return_inverse=True)
         inverse = inverse.reshape(-1)
@@ -174,13 +197,49 @@ def prepare_points(points, min_points: int = 7) -> PreparedPoints:
     # Degeneracy: the cloud's extent along its second principal axis relative to the first.
     sing = np.linalg.svd(distinct - distinct.mean(axis=0), compute_uv=False)
     # rounding of the input coordinates themselves sets a floor (far-off scans)
-    rounding = 100.0 * np.finfo(np.float64).eps * float(np.abs(arr).max()) * np.sqrt(m)
+    rounding = 100.0 * np.finfo(np.float64).eps * (float(np.abs(arr).max()) / unit) * np.sqrt(m)
+    if sing[1] <= rounding and sing[1] > 1e-10 * sing[0]:
+        raise HeatcurvError(
+            f"all {m} distinct points lie on one line to within the rounding of their coordinates (they lie "
+            f"{float(np.abs(arr).max()):.3g} from the origin and span {float(np.max(high - low)):.3g}): a surface "
+            "needs points spread in two directions; if they are, subtract a nearby origin from the coordinates "
+            "first (double precision cannot resolve the spread so far out)"
+        )
     if sing[1] <= max(1e-10 * sing[0], rounding):
         raise HeatcurvError(
             f"all {m} distinct points lie on one line: a point cloud surface needs "
             "points spread in two directions"
         )
-    return PreparedPoints(points=distinct, offset=offset, inverse=inverse, first=first)
+    return PreparedPoints(points=distinct, offset=offset, inverse=inverse, first=first, unit=unit)
+
+
+def _length_unit(sides: np.ndarray) -> float:
+    """The power of two the centred points are divided by (:data:`UNIT_BAND`), or an error.
+
+    Parameters
+    ----------
+    sides : ndarray, shape (3,)
+        Bounding-box sides of the cloud, input units (inf if they overflow).
+
+    Raises
+    ------
+    HeatcurvError
+        If the extent is outside :data:`EXTENT_RANGE` (a zero extent is left
+        to the coincidence check).
+    """
+    extent = float(np.max(sides))
+    if extent == 0.0:
+        return 1.0
+    low, high = EXTENT_RANGE
+    if not low <= extent <= high:
+        raise HeatcurvError(
+            f"the cloud spans {extent:.3g} length units, outside the range heatcurv computes in "
+            f"({low:g} to {high:g}): its areas or Gaussian curvatures would not fit in double precision; "
+            "rescale the coordinates (e.g. to metres) first"
+        )
+    if UNIT_BAND[0] <= extent <= UNIT_BAND[1]:
+        return 1.0
+    return float(2.0 ** np.round(np.log2(extent)))
 
 
 def prepare_normals(normals, prepared: PreparedPoints) -> np.ndarray:

@@ -1,0 +1,83 @@
+"""Subsets of a cloud drawn from its geometry, so that no result depends on the input's point order.
+
+Some stages work on a subset of the points: the kernel check measures a
+sample of balls, the kernel choice fits a sample of centres, and kernels wider
+than ``k_fit`` neighbours are fitted against a coarser level of the cloud. A
+subset drawn with a random generator over row numbers changes when the rows
+are permuted, and the k-d tree's leaf order (the stages' row order) changes
+with any rotation or translation: results then moved by up to 1.3 % (mean
+curvature) and 5.7 % (area) under a rotation of a noisy cloud.
+
+Here every point gets a pseudo-random key computed from quantities a rigid
+motion, a uniform scaling and a permutation leave unchanged (up to rounding):
+its distance to the cloud's centroid and the sum of its distances to its
+neighbours, each relative to the cloud's largest. A subset of size ``s`` is the
+``s`` points with the smallest keys. Points with equal keys are symmetric
+images of each other (a lattice's rows, a surface of revolution's rings), so
+whichever of them a tie-break picks measures the same geometry.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .neighbourhood import Neighbourhood
+
+__all__ = ["geometric_keys", "key_sample"]
+
+#: Multiplier of the invariant features before their fractional part is taken: large enough that
+#: neighbouring points' keys are unrelated (features differ by about 1e-3 between neighbours),
+#: small enough that rounding (1e-16 relative; 1e-10 after a translation by 1e6 times the
+#: cloud's size) moves a key by far less than the gap between keys (1 / n).
+KEY_SPREAD = 2.0**12
+_GOLDEN = 0.6180339887498949
+_SILVER = 0.4142135623730951
+
+
+def geometric_keys(points: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
+    """A pseudo-random number in [0, 1) per point, from its geometry alone.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        Distinct points.
+    nbhd : Neighbourhood
+        Each point's neighbours (any fixed rule: k nearest, or a ball).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Keys invariant under permutation, rotation, translation and uniform
+        scaling of ``points`` (to rounding).
+    """
+    centred = points - points.mean(axis=0)
+    r = np.sqrt(np.einsum("ij,ij->i", centred, centred))
+    rows = np.repeat(np.arange(nbhd.n_points), nbhd.counts)
+    s = np.bincount(rows, weights=nbhd.distances, minlength=nbhd.n_points)
+    feature = _GOLDEN * r / max(float(r.max()), np.finfo(float).tiny)
+    feature += _SILVER * s / max(float(s.max()), np.finfo(float).tiny)
+    return np.modf(feature * KEY_SPREAD)[0]
+
+
+def key_sample(keys: np.ndarray, size: int, seed: int = 0) -> np.ndarray:
+    """The ``size`` points with the smallest keys (shifted by ``seed``), as sorted indices.
+
+    Parameters
+    ----------
+    keys : ndarray, shape (n,)
+        From :func:`geometric_keys`.
+    size : int
+        Points wanted (all of them if ``size >= n``).
+    seed : int, optional
+        Different seeds give different (independent-looking) subsets.
+
+    Returns
+    -------
+    ndarray of int64, shape (min(size, n),)
+        Increasing indices.
+    """
+    n = keys.shape[0]
+    if size >= n:
+        return np.arange(n)
+    shifted = np.modf(keys + _GOLDEN * (seed % 1_000_003))[0]
+    return np.sort(np.argpartition(shifted, size - 1)[:size] if size > 0 else np.empty(0, dtype=np.int64))
