@@ -316,3 +316,18 @@ def test_a_fixed_radius_still_measures_the_noise():
     assert res.info["scale"].fit == "denoised-r0.8"
     assert res.info["scale"].sigma == pytest.approx(0.01, rel=0.3)
     assert np.median(res.mean) == pytest.approx(0.5, rel=0.03)
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"neighbours": 399}, r"neighbours = 399 is too many for a cloud of 400 distinct points"),
+        ({"scale": 5000}, r"scale = 5000 is too many"),
+        ({"radius": 100.0}, r"radius = 100 is larger than the cloud"),
+    ],
+)
+def test_options_beyond_what_the_cloud_carries_are_refused(options, message):
+    # before: neighbours = n - 2 gave an IndexError, scale and radius larger than the cloud exit 0
+    pts = heatcurv.surfaces.Sphere().sample(400, "random", seed=1).points
+    with pytest.raises(heatcurv.HeatcurvError, match=message):
+        heatcurv.estimate(pts, **options)

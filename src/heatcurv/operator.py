@@ -33,7 +33,7 @@ from .kernel import heat_kernel_weights
 from .laplace_beltrami import laplace_beltrami_matrix
 from .mean_curvature import mean_curvature_normal
 from .neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
-from .options import Options, resolve_options
+from .options import Options, check_options_for_cloud, resolve_options
 from .progress import StageClock
 from .spacing import spacing as compute_spacing
 from .validation import PreparedPoints, prepare_points
@@ -186,6 +186,9 @@ def _prepare(points, options: Options) -> PreparedPoints:
     if options.radius is None and (options.spacing == "density" or options.fit == "chord"):
         need = max(need, int(options.neighbours) + 1)
     prepared = prepare_points(points, min_points=need)
+    # the limits the cloud sets (neighbour counts below its size, a radius within its extent)
+    diagonal = float(np.linalg.norm(np.ptp(prepared.points, axis=0))) * prepared.unit
+    check_options_for_cloud(options, prepared.n_distinct, diagonal)
     return prepared.reordered(cKDTree(prepared.points).indices)
 
 
