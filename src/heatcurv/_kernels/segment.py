@@ -31,6 +31,7 @@ __all__ = [
     "smallest_eigenvectors",
     "kappa_normal_sums",
     "centroid_offsets",
+    "neighbour_medians",
 ]
 
 
@@ -310,3 +311,71 @@ def _smallest_eigenvectors(row0, row1, cov, vectors, values):
             lo, mid = mid, lo
         values[i, 0], values[i, 1], values[i, 2] = lo, mid, hi
         vectors[i, 0], vectors[i, 1], vectors[i, 2] = v[0, k], v[1, k], v[2, k]
+
+
+def neighbour_medians(values, indptr, indices):
+    """Median of ``values[j]`` over each row's neighbours ``j``, shape (n,); NaN for an empty row.
+
+    The mean of the two middle values of an even row, as :func:`numpy.median`.
+    Each row is gathered into a buffer and its middle found by quickselect
+    (linear in the row's length; no sort, no allocation per row).
+    """
+    values, indptr = as_floats(values), as_pointers(indptr)
+    out = np.empty(indptr.shape[0] - 1)
+    parallel_rows(_neighbour_medians, out.shape[0], values, indptr, as_indices(indices, values.shape[0]), out)
+    return out
+
+
+@njit(cache=True)
+def _select(buffer, count, k):
+    # quickselect (Hoare partition, middle pivot): buffer[k] becomes the k-th smallest of buffer[:count],
+    # with nothing larger before it and nothing smaller after it
+    lo = 0
+    hi = count - 1
+    while lo < hi:
+        pivot = buffer[(lo + hi) // 2]
+        i = lo
+        j = hi
+        while i <= j:
+            while buffer[i] < pivot:
+                i += 1
+            while buffer[j] > pivot:
+                j -= 1
+            if i <= j:
+                tmp = buffer[i]
+                buffer[i] = buffer[j]
+                buffer[j] = tmp
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+    return buffer[k]
+
+
+@njit(**ROW_CORE)
+def _neighbour_medians(row0, row1, values, indptr, indices, out):
+    longest = 0
+    for i in range(row0, row1):
+        longest = max(longest, indptr[i + 1] - indptr[i])
+    buffer = np.empty(longest)
+    for i in range(row0, row1):
+        start = indptr[i]
+        count = indptr[i + 1] - start
+        if count == 0:
+            out[i] = np.nan
+            continue
+        for p in range(count):
+            buffer[p] = values[indices[start + p]]
+        upper = _select(buffer, count, count // 2)
+        if count % 2 == 1:
+            out[i] = upper
+        else:
+            # the lower middle is the largest of the part before the upper middle
+            lower = buffer[0]
+            for p in range(1, count // 2):
+                lower = max(lower, buffer[p])
+            out[i] = 0.5 * (lower + upper)
