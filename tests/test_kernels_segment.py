@@ -232,3 +232,13 @@ def test_neighbour_medians(cloud, ties, request):
         values = np.round(values * 4.0)  # many equal values: the quickselect's partition with duplicates
     got = compiled.neighbour_medians(values, nb.indptr, nb.indices)
     np.testing.assert_array_equal(got, reference.neighbour_medians(values, nb.indptr, nb.indices))
+
+
+@pytest.mark.parametrize("cloud", ["torus_cloud", "ball_cloud"])
+def test_orientation_conflicts(cloud, request):
+    pts, normals, nb = request.getfixturevalue(cloud)
+    signs = np.where(np.arange(len(pts)) % 3 == 0, -1.0, 1.0)[:, None]  # some neighbours point the other way
+    args = pts, normals * signs, nb.indptr, nb.indices, nb.distances, 0.5, 0.7
+    got = compiled.orientation_conflicts(*args)
+    np.testing.assert_array_equal(got, reference.orientation_conflicts(*args))
+    assert got[:, 1].sum() > 0

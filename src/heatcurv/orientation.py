@@ -238,16 +238,11 @@ def _conflicting(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood) 
     ``n_i . n_j < 0``.
     """
 
-    def block_conflicts(lo, hi, block):
-        rows = block.rows + lo
-        dot = np.einsum("ij,ij->i", normals[rows], normals[block.indices])
-        height = np.abs(np.einsum("ij,ij->i", normals[rows], points[block.indices] - points[rows]))
-        compared = (np.abs(dot) >= CONFLICT_ALIGNED) & (height <= CONFLICT_IN_PLANE * block.distances)
-        counted = block.segment_sum(compared.astype(np.float64))
-        against = block.segment_sum((compared & (dot < 0)).astype(np.float64))
-        return (against >= 2) & (against >= CONFLICT_SHARE * counted)
-
-    return graph.blockwise(block_conflicts)
+    counts = kernels.orientation_conflicts(
+        points, normals, graph.indptr, graph.indices, graph.distances, CONFLICT_IN_PLANE, CONFLICT_ALIGNED
+    )
+    compared, against = counts[:, 0], counts[:, 1]
+    return (against >= 2) & (against >= CONFLICT_SHARE * compared)
 
 
 def _reference_directions(points: np.ndarray, mode: str, towards) -> np.ndarray | None:

@@ -110,3 +110,14 @@ def neighbour_medians(values, indptr, indices):
         np.median(values[indices[indptr[i]:indptr[i + 1]]]) if indptr[i + 1] > indptr[i] else np.nan
         for i in range(len(indptr) - 1)
     ])
+
+
+def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
+    """Compared and opposed neighbours per row, shape (n, 2)."""
+    rows = _rows(indptr)
+    dot = np.einsum("ij,ij->i", normals[rows], normals[indices])
+    height = np.abs(np.einsum("ij,ij->i", normals[rows], points[indices] - points[rows]))
+    compared = (np.abs(dot) >= aligned) & (height <= in_plane * distances)
+    return np.column_stack([
+        _segment_sum(indptr, compared.astype(float)), _segment_sum(indptr, (compared & (dot < 0)).astype(float))
+    ])

@@ -32,6 +32,7 @@ __all__ = [
     "kappa_normal_sums",
     "centroid_offsets",
     "neighbour_medians",
+    "orientation_conflicts",
 ]
 
 
@@ -379,3 +380,37 @@ def _neighbour_medians(row0, row1, values, indptr, indices, out):
             for p in range(1, count // 2):
                 lower = max(lower, buffer[p])
             out[i] = 0.5 * (lower + upper)
+
+
+def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
+    """Per row, the compared neighbours and those pointing the other way (heatcurv.orientation), shape (n, 2).
+
+    Neighbour ``j`` of ``i`` is compared when ``|n_i . (xj - xi)| <= in_plane |xj - xi|``
+    and ``|n_i . n_j| >= aligned``; it points the other way when also ``n_i . n_j < 0``.
+    Column 0 counts the compared, column 1 the opposed.
+    """
+    points, normals = as_floats(points), as_floats(normals)
+    indptr, distances = as_pointers(indptr), as_floats(distances)
+    out = np.zeros((indptr.shape[0] - 1, 2))
+    args = points, normals, indptr, as_indices(indices, normals.shape[0]), distances, float(in_plane), float(aligned)
+    parallel_rows(_orientation_conflicts, out.shape[0], *args, out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _orientation_conflicts(row0, row1, points, normals, indptr, indices, distances, in_plane, aligned, out):
+    for i in range(row0, row1):
+        compared = 0.0
+        against = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            dot = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
+            height = 0.0
+            for a in range(3):
+                height += normals[i, a] * (points[j, a] - points[i, a])
+            if abs(dot) >= aligned and abs(height) <= in_plane * distances[p]:
+                compared += 1.0
+                if dot < 0.0:
+                    against += 1.0
+        out[i, 0] = compared
+        out[i, 1] = against
