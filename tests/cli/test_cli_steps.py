@@ -49,7 +49,7 @@ BAD_FILES = {
     "directory": "directory",
     "scan.e57": "unknown extension '.e57'; supported: .ply .las",
     "zero_bytes.xyz": "empty",
-    "truncated.ply": "not a valid PLY file",
+    "truncated.ply": "the header announces 3000 vertices of 24 bytes",
     "garbage.ply": "not a valid PLY file",
     "truncated.las": "not a valid LAS/LAZ file",
     "garbage.las": "not a valid LAS/LAZ file",
