@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import re
 import sys
 import time
 from collections import defaultdict
@@ -30,14 +31,10 @@ from machine import cpu_model, memory_text, table  # noqa: E402  (benchmarks/mac
 
 def machine() -> str:
     """One line naming this machine and the reader libraries' versions."""
-    import laspy
-    import lazrs
-    import numpy
-    import plyfile
+    from importlib.metadata import version
 
-    versions = (f"Python {platform.python_version()}, numpy {numpy.__version__}, plyfile "
-                f"{getattr(plyfile, '__version__', '?')}, laspy {laspy.__version__}, lazrs "
-                f"{getattr(lazrs, '__version__', '?')}")
+    versions = f"Python {platform.python_version()}, " + ", ".join(
+        f"{name} {version(name)}" for name in ("numpy", "plyfile", "laspy", "lazrs"))
     return f"{cpu_model()}, {os.cpu_count()} cores{memory_text()}; {platform.system()} {platform.release()}; {versions}"
 
 
@@ -49,7 +46,8 @@ def grouped(results) -> list:
     rows = []
     for (variant, mutator, outcome), cases in sorted(groups.items()):
         first = cases[0]
-        rows.append([variant, mutator, outcome, str(len(cases)), (first.contradiction or first.detail)[:160],
+        message = re.sub(r"/\S*/heatcurv-fuzz-[^/\s]+/", "", first.contradiction or first.detail)
+        rows.append([variant, mutator, outcome, str(len(cases)), message[:140],
                      first.reproduce])
     return rows
 

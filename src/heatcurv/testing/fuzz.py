@@ -369,7 +369,7 @@ def announced_points(family: str, data: bytes) -> set | None:
     """The point counts a file's own header announces (the read count must be one of them), or None.
 
     PLY: ``element vertex``; OFF: the vertex count; PTS: the first line's
-    count; NPY: the shape's first dimension; LAS/LAZ: the legacy count and,
+    counts (one line per scan, added up); NPY: the shape's first dimension; LAS/LAZ: the legacy count and,
     from LAS 1.4 on, the 64-bit count where it is not 0. None for formats
     without a count (XYZ, TXT, CSV, OBJ, NPZ) or a header that does not parse.
     """
@@ -382,11 +382,13 @@ def announced_points(family: str, data: bytes) -> set | None:
             if data[24:26] >= b"\x01\x04" and len(data) >= 255:
                 counts.add(struct.unpack_from("<Q", data, 247)[0])
             return (counts - {0}) or {0}
-        if family in ("off", "pts"):
+        if family == "pts":  # one count line per scan: the counts add up
+            counts = [ln.strip() for ln in data.split(b"\n") if re.fullmatch(rb"\s*[-+]?\d+\s*", ln)]
+            return {sum(int(c) for c in counts)} if counts else None
+        if family == "off":
             lines = [ln.split(b"#")[0].split() for ln in data.split(b"\n")[:4] if ln.split(b"#")[0].strip()]
-            tokens = lines[1] if family == "off" and len(lines[0]) == 1 else lines[0][1:] if family == "off" \
-                else lines[0]
-            return {int(tokens[0])} if family == "off" or len(tokens) == 1 else None
+            tokens = lines[1] if len(lines[0]) == 1 else lines[0][1:]  # "OFF" then counts, or "OFF n f e"
+            return {int(tokens[0])}
         if family == "npy":
             return {int(npy_header(data)[0]["shape"][0])}
     except (ValueError, IndexError, KeyError, TypeError, SyntaxError, struct.error, MemoryError, RecursionError):

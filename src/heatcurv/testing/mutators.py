@@ -41,6 +41,7 @@ import ast
 import io
 import re
 import struct
+import warnings
 import zipfile
 from dataclasses import dataclass
 from functools import lru_cache
@@ -418,7 +419,8 @@ def _npy_version(data, rng):
 
 def _zip(members, compression=zipfile.ZIP_STORED) -> bytes:
     buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", compression=compression) as archive:
+    with warnings.catch_warnings(), zipfile.ZipFile(buffer, "w", compression=compression) as archive:
+        warnings.simplefilter("ignore")  # duplicate member names are on purpose
         for name, content in members:
             archive.writestr(name, content)
     return buffer.getvalue()
