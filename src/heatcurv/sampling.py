@@ -10,8 +10,9 @@ curvature) and 5.7 % (area) under a rotation of a noisy cloud.
 
 Here every point gets a pseudo-random key computed from quantities a rigid
 motion, a uniform scaling and a permutation leave unchanged (up to rounding):
-its distance to the cloud's centroid and the sum of its distances to its
-neighbours, each relative to the cloud's largest. A subset of size ``s`` is the
+its distance to the cloud's centroid and the size of its neighbourhood (the
+k-th and the nearest neighbour's distances, or the count in a fixed ball), each
+relative to the cloud's largest. A subset of size ``s`` is the
 ``s`` points with the smallest keys. Points with equal keys are symmetric
 images of each other (a lattice's rows, a surface of revolution's rings), so
 whichever of them a tie-break picks measures the same geometry.
@@ -42,7 +43,8 @@ def geometric_keys(points: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
     points : ndarray, shape (n, 3)
         Distinct points.
     nbhd : Neighbourhood
-        Each point's neighbours (any fixed rule: k nearest, or a ball).
+        Each point's neighbours: the k nearest (rows sorted by distance), or
+        a ball of one radius.
 
     Returns
     -------
@@ -52,10 +54,15 @@ def geometric_keys(points: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
     """
     centred = points - points.mean(axis=0)
     r = np.sqrt(np.einsum("ij,ij->i", centred, centred))
-    rows = np.repeat(np.arange(nbhd.n_points), nbhd.counts)
-    s = np.bincount(rows, weights=nbhd.distances, minlength=nbhd.n_points)
+    counts = nbhd.counts
+    if nbhd.by_distance:
+        # k nearest: the ball radius (k-th distance) and the nearest neighbour's distance
+        local = nbhd.radius + np.where(counts > 0, nbhd.distances[np.minimum(nbhd.indptr[:-1], nbhd.n_pairs - 1)], 0.0)
+    else:
+        # one radius for all (radius=): how many neighbours the ball holds
+        local = counts.astype(np.float64)
     feature = _GOLDEN * r / max(float(r.max()), np.finfo(float).tiny)
-    feature += _SILVER * s / max(float(s.max()), np.finfo(float).tiny)
+    feature += _SILVER * local / max(float(local.max()), np.finfo(float).tiny)
     return np.modf(feature * KEY_SPREAD)[0]
 
 
