@@ -18,16 +18,56 @@ from ._common import (
     _stored_dtype,
     _write_error,
 )
+from .las_header import LasLayout, LasStructureError, check_las_file
 
 # LAS point formats without RGB -> the same format with RGB
 _LAS_WITH_RGB = {0: 2, 1: 3, 2: 2, 3: 3, 4: 5, 5: 5, 6: 7, 7: 7, 8: 8, 9: 10, 10: 10}
 
 
+def _laspy_problem(exc: BaseException, layout: LasLayout) -> str:
+    """Plain words for what laspy or lazrs raised on a file that passed the structural checks."""
+    message = _one_line(exc)
+    kind = type(exc).__name__
+    if isinstance(exc, MemoryError):
+        need = layout.point_count * layout.record_length
+        return (
+            f"not enough memory to decode {layout.point_count} points of "
+            f"{layout.record_length} bytes ({need / 1e6:.3g} MB)"
+        )
+    if "failed to fill whole buffer" in message:
+        return (
+            "the compressed point data ends before the points it announces: it is corrupt "
+            f"or truncated (lazrs: {message})"
+        )
+    if message.startswith(("Item ", "Compressor type")):
+        return f"the laszip VLR is corrupt or from an unsupported LASzip version (lazrs: {message})"
+    if kind in ("LazrsError", "PanicException"):
+        return f"the compressed point data is corrupt (lazrs: {message})"
+    if "buffer size must be a multiple of element size" in message:
+        return f"truncated inside the point records ({message})"
+    if isinstance(exc, UnicodeDecodeError):
+        return f"a text field of the header or of a VLR is not valid text ({message})"
+    if isinstance(exc, OSError):
+        return f"a position or size in the file is out of range ({message})"
+    if message == kind or message.strip("-0123456789 ()'\"") == "":
+        # a bare number or nothing: say what kind of error it was
+        message = f"{kind} {message}" if message != kind else kind
+    return f"not a valid LAS/LAZ file (laspy: {message})"
+
+
 def _read_las(path: Path, fmt: str) -> PointCloud:
+    import errno
+
     import laspy
 
     try:
-        las = laspy.read(path)
+        layout = check_las_file(path)
+    except LasStructureError as exc:
+        raise _read_error(path, str(exc)) from None
+    try:
+        # a huge fixed chunk size: the parallel decoder would allocate a whole chunk
+        backend = laspy.LazBackend.Lazrs if layout.sequential else None
+        las = laspy.read(path, laz_backend=backend)
         points = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)]).astype(
             np.float64
         )
@@ -49,10 +89,14 @@ def _read_las(path: Path, fmt: str) -> PointCloud:
                 [np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)]
             ).astype(np.uint16)
         header = las.header
-    except OSError:
+    except OSError as exc:
+        if exc.errno not in (errno.EINVAL, errno.EOVERFLOW, None):
+            raise  # the disk or the permissions, not the file's content
+        raise _read_error(path, _laspy_problem(exc, layout)) from None
+    except (KeyboardInterrupt, SystemExit):
         raise
-    except Exception as exc:  # laspy / lazrs errors on garbage or truncated data
-        raise _read_error(path, f"not a valid LAS/LAZ file ({_one_line(exc)})") from None
+    except BaseException as exc:  # laspy / lazrs errors, pyo3 panics (not Exceptions)
+        raise _read_error(path, _laspy_problem(exc, layout)) from None
 
     if points.shape[0] < header.point_count:
         raise _read_error(

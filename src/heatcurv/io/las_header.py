@@ -1,0 +1,512 @@
+"""Structural checks of a LAS/LAZ file before laspy and lazrs decode it (untrusted files).
+
+laspy and lazrs trust the sizes and counts a file declares: a VLR count of
+0xFFFFFFFF makes laspy loop for minutes, a chunk count of 0xFFFFFFFF makes
+lazrs reserve 68 GB and abort the process, a flipped byte in a layer size or
+a point count makes them allocate gigabytes for a file of a few kilobytes.
+:func:`check_las_file` reads the public header, walks the VLRs and EVLRs and,
+for LAZ, reads the laszip VLR, the chunk table and the head of every chunk,
+and checks every size and count against the file size, so that what laspy
+and lazrs allocate afterwards stays proportional to the file:
+
+- uncompressed points: ``point_count * record_length`` fits in the file;
+- LAZ: the point count is at most :data:`MAX_POINTS_PER_COMPRESSED_BYTE`
+  times the compressed bytes; the chunk count matches the point count and the
+  chunk size; the chunk table's byte counts fit in the compressed data; every
+  layer size of a layered (LAS 1.4 formats 6-10) chunk fits in its chunk;
+  a fixed chunk size far beyond the point count selects lazrs's sequential
+  decoder (the parallel one allocates a whole chunk for the last one);
+- whatever the counts, the decompressed points must fit in the machine's
+  physical memory.
+
+Layouts: ASPRS LAS 1.4 R15 (public header, VLR and EVLR headers) and the LAZ
+format as written by LASzip and lazrs (laszip VLR, chunk table, layered chunks).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import struct
+from dataclasses import dataclass
+
+# smallest public header laspy accepts for each minor version 0..5
+_HEADER_SIZE = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375, 5: 393}
+# bytes of a point record of each point format 0..10
+_FORMAT_SIZE = (20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67)
+_VLR_HEADER = 54
+_EVLR_HEADER = 60
+_LASZIP_USER_ID = b"laszip encoded"
+_LASZIP_RECORD_ID = 22204
+_VARIABLE_CHUNKS = 0xFFFFFFFF
+# layers of a layered (LAZ v3/v4) item, by item type; Byte14 has one per byte
+_LAYERS = {10: 9, 11: 1, 12: 2, 13: 1}
+_BYTE14 = 14
+
+#: The most points a LAZ file may announce per byte of compressed point data.
+#: LAZ's arithmetic coder cannot code a point in much less than ~0.01 bit: its
+#: adaptive models cap the probability of the likeliest symbol (15-bit
+#: distributions, counts halved at 2**16), and each point codes at least 4-8
+#: symbols. Measured with lazrs on the most compressible data there is (all
+#: points identical, one 10-million-point chunk): 671 points per byte (format
+#: 0), 640 (1), 388-399 (2, 3), 503 (formats 6-10, extra bytes free when
+#: constant); with the default 50 000-point chunks at most 148. 4096 is 6x the
+#: best measured and about twice a rough floor of the coder, so no real file
+#: is refused, while a flipped count byte in a 7 kB file can no longer ask for
+#: more than a few hundred megabytes.
+MAX_POINTS_PER_COMPRESSED_BYTE = 4096
+
+#: Above this, a fixed chunk size larger than the point count selects lazrs's
+#: sequential decoder: the parallel one allocates ``chunk_size * record_length``
+#: bytes for the last chunk whatever the number of points in it.
+_PARALLEL_LAST_CHUNK_BYTES = 64 << 20
+
+
+class LasStructureError(ValueError):
+    """The file contradicts itself or its size; the message says how, in plain words."""
+
+
+@dataclass(frozen=True)
+class LasLayout:
+    """What the checked header declares."""
+
+    version: tuple[int, int]
+    point_format: int
+    record_length: int
+    point_count: int
+    compressed: bool
+    #: LAZ: decode with lazrs's sequential decoder instead of the parallel one
+    sequential: bool = False
+    file_size: int = 0
+
+
+def _plural(count: int, word: str) -> str:
+    return f"{count} {word}" if count == 1 else f"{count} {word}s"
+
+
+def _size(n: int) -> str:
+    """Bytes in words: '3.1 GB', '640 kB', '12 bytes'."""
+    for unit, factor in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= factor:
+            return f"{n / factor:.3g} {unit}"
+    return _plural(n, "byte")
+
+
+def _physical_memory() -> int | None:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # not on this platform
+        return None
+
+
+class _Reader:
+    """Reads byte ranges of the open file; the ranges are checked against its size first."""
+
+    def __init__(self, stream, size: int):
+        self.stream = stream
+        self.size = size
+
+    def read(self, position: int, count: int) -> bytes:
+        self.stream.seek(position)
+        data = self.stream.read(count)
+        if len(data) != count:  # the file shrank while being read
+            raise LasStructureError(f"truncated: byte {position + count} is past the end of the file")
+        return data
+
+
+def _user_id(raw: bytes, what: str) -> str:
+    """The user id as laspy decodes it (UTF-8 up to the first NUL), or a plain error."""
+    head = raw.split(b"\0")[0]
+    try:
+        return head.decode()
+    except UnicodeDecodeError:
+        raise LasStructureError(f"the user id of {what} is not text ({head[:16]!r})") from None
+
+
+def _walk_vlrs(reader: _Reader, start: int, end: int, count: int) -> bytes | None:
+    """Check the ``count`` VLRs between ``start`` and ``end``; return the laszip VLR's data."""
+    room = (end - start) // _VLR_HEADER
+    if count > room:
+        raise LasStructureError(
+            f"the header announces {count} VLRs, the {_plural(end - start, 'byte')} between "
+            f"the header and the point data hold at most {room}"
+        )
+    laszip = None
+    position = start
+    for k in range(count):
+        what = f"VLR {k + 1} of {count}"
+        if position + _VLR_HEADER > end:
+            raise LasStructureError(
+                f"{what} would start at byte {position}, in or past the point data (byte {end})"
+            )
+        head = reader.read(position, _VLR_HEADER)
+        user_id = _user_id(head[2:18], what)
+        record_id, length = struct.unpack_from("<HH", head, 18)
+        if position + _VLR_HEADER + length > end:
+            raise LasStructureError(
+                f"{what} ({user_id!r}, record {record_id}) announces {length} bytes of data, "
+                f"running past the start of the point data (byte {end})"
+            )
+        if head[2:18].split(b"\0")[0] == _LASZIP_USER_ID and record_id == _LASZIP_RECORD_ID:
+            laszip = reader.read(position + _VLR_HEADER, length)
+        position += _VLR_HEADER + length
+    return laszip
+
+
+def _walk_evlrs(reader: _Reader, start: int, count: int) -> None:
+    room = (reader.size - start) // _EVLR_HEADER
+    if count > room:
+        raise LasStructureError(
+            f"the header announces {count} extended VLRs, the {_plural(reader.size - start, 'byte')} "
+            f"from byte {start} to the end of the file hold at most {room}"
+        )
+    position = start
+    for k in range(count):
+        what = f"extended VLR {k + 1} of {count}"
+        if position + _EVLR_HEADER > reader.size:
+            raise LasStructureError(
+                f"truncated: {what} would start at byte {position}, the file has "
+                f"{_plural(reader.size, 'byte')}"
+            )
+        head = reader.read(position, _EVLR_HEADER)
+        user_id = _user_id(head[2:18], what)
+        record_id, length = struct.unpack_from("<HQ", head, 18)
+        if position + _EVLR_HEADER + length > reader.size:
+            raise LasStructureError(
+                f"{what} ({user_id!r}, record {record_id}) announces {length} bytes of data, "
+                f"running past the end of the file ({_plural(reader.size, 'byte')})"
+            )
+        position += _EVLR_HEADER + length
+
+
+def _check_numbers(scales, offsets) -> None:
+    for axis, scale, offset in zip("XYZ", scales, offsets):
+        if scale == 0:
+            raise LasStructureError(
+                f"the {axis} scale factor is 0: every {axis} coordinate would be 0"
+            )
+        if not math.isfinite(scale):
+            raise LasStructureError(f"the {axis} scale factor is {scale}, not a finite number")
+        if not math.isfinite(offset):
+            raise LasStructureError(f"the {axis} offset is {offset}, not a finite number")
+
+
+@dataclass(frozen=True)
+class _LasZip:
+    compressor: int
+    chunk_size: int
+    items: tuple  # (type, size, version)
+    record_data: bytes
+
+
+def _parse_laszip(data: bytes | None, record_length: int) -> _LasZip:
+    if data is None:
+        raise LasStructureError(
+            "the point format says compressed (LAZ), but the laszip VLR that describes "
+            "the compression is missing"
+        )
+    if len(data) < 34:
+        raise LasStructureError(
+            f"the laszip VLR is too short ({_plural(len(data), 'byte')}, at least 34)"
+        )
+    compressor, _coder = struct.unpack_from("<HH", data, 0)
+    chunk_size = struct.unpack_from("<I", data, 12)[0]
+    num_items = struct.unpack_from("<H", data, 32)[0]
+    if len(data) != 34 + 6 * num_items:
+        raise LasStructureError(
+            f"the laszip VLR holds {_plural(len(data), 'byte')}, its {_plural(num_items, 'item')} "
+            f"need {34 + 6 * num_items}"
+        )
+    items = tuple(struct.unpack_from("<HHH", data, 34 + 6 * k) for k in range(num_items))
+    if compressor == 1:
+        raise LasStructureError(
+            "the points use the old point-wise LAZ compression (laszip compressor 1), "
+            "which lazrs cannot read"
+        )
+    if compressor not in (2, 3):
+        raise LasStructureError(f"the laszip VLR names an unknown compressor ({compressor})")
+    item_bytes = sum(size for _type, size, _version in items)
+    if item_bytes != record_length:
+        raise LasStructureError(
+            f"the laszip VLR describes points of {_plural(item_bytes, 'byte')}, "
+            f"the header says {record_length}"
+        )
+    if chunk_size == 0:
+        raise LasStructureError("the laszip VLR's chunk size is 0")
+    return _LasZip(compressor, chunk_size, items, bytes(data))
+
+
+def _read_chunk_table(reader: _Reader, start_of_points: int, laszip: _LasZip):
+    """The chunk table as lazrs reads it: [(point_count, byte_count)] per chunk."""
+    import lazrs
+
+    try:
+        vlr = lazrs.LazVlr(laszip.record_data)
+    except Exception as exc:
+        raise LasStructureError(f"the laszip VLR is corrupt (lazrs: {_first_line(exc)})") from None
+    try:
+        reader.stream.seek(start_of_points)
+        return lazrs.read_chunk_table(reader.stream, vlr)
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except BaseException as exc:  # lazrs errors, and pyo3 panics (not Exceptions)
+        raise LasStructureError(
+            f"the chunk table is corrupt or truncated (lazrs: {_first_line(exc)})"
+        ) from None
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0].strip() if lines else type(exc).__name__
+
+
+def _check_laz(
+    reader: _Reader, offset: int, end: int, point_count: int, record_length: int, laszip: _LasZip
+) -> bool:
+    """Check the compressed points between ``offset`` and ``end``; whether to decode sequentially."""
+    size = reader.size
+    if offset + 8 > end:
+        raise LasStructureError(
+            "truncated at the start of the compressed points (no room for the chunk table offset)"
+        )
+    table = struct.unpack("<q", reader.read(offset, 8))[0]
+    if table <= offset:
+        # a streaming writer could not go back: lazrs then reads the offset at the end
+        if size >= offset + 16:
+            table = struct.unpack("<q", reader.read(size - 8, 8))[0]
+        if table <= offset:
+            raise LasStructureError(
+                "the LAZ file has no chunk table (its writer could not store where the table "
+                "is); lazrs cannot read such a file"
+            )
+    if table + 8 > size:
+        raise LasStructureError(
+            f"truncated: the chunk table of the compressed points would start at byte {table}, "
+            f"the file has {_plural(size, 'byte')}"
+        )
+    if table < offset + 8 or table + 8 > end:
+        raise LasStructureError(
+            f"the chunk table of the compressed points would start at byte {table}, outside "
+            f"the point data (bytes {offset + 8} to {end})"
+        )
+    compressed = table - (offset + 8)
+    limit = MAX_POINTS_PER_COMPRESSED_BYTE * compressed
+    if point_count > limit:
+        raise LasStructureError(
+            f"the header announces {point_count} points, far more than the "
+            f"{_plural(compressed, 'byte')} of compressed points can hold (LAZ stores at most "
+            f"about 700 points per byte; allowed: {limit})"
+        )
+    number_of_chunks = struct.unpack("<I", reader.read(table + 4, 4))[0]
+    chunk_size = laszip.chunk_size
+    variable = chunk_size == _VARIABLE_CHUNKS
+    if number_of_chunks == 0:
+        raise LasStructureError(f"the chunk table lists no chunks for {point_count} points")
+    # every chunk starts with one raw point; lazrs ends variable chunks with an empty one
+    most = compressed // record_length + 1
+    if number_of_chunks > most:
+        raise LasStructureError(
+            f"the chunk table lists {number_of_chunks} chunks, the {_plural(compressed, 'byte')} "
+            f"of compressed points hold at most {most} (each chunk starts with a "
+            f"{record_length}-byte point)"
+        )
+    if variable:
+        if number_of_chunks > point_count + 1:
+            raise LasStructureError(
+                f"the chunk table lists {number_of_chunks} chunks for only {point_count} points"
+            )
+    else:
+        needed = -(-point_count // chunk_size)
+        if number_of_chunks != needed:
+            raise LasStructureError(
+                f"the chunk table lists {number_of_chunks} chunks, {point_count} points in "
+                f"chunks of {chunk_size} need {needed}"
+            )
+    entries = _read_chunk_table(reader, offset, laszip)
+    if len(entries) != number_of_chunks:
+        raise LasStructureError(
+            f"the chunk table lists {number_of_chunks} chunks but holds {len(entries)}"
+        )
+    total = sum(byte_count for _points, byte_count in entries)
+    if total > compressed:
+        raise LasStructureError(
+            f"the chunk table gives {_plural(total, 'byte')} of compressed points, "
+            f"the file holds {compressed}"
+        )
+    if variable:
+        counts = [points for points, _bytes in entries]
+        if sum(counts) != point_count:
+            raise LasStructureError(
+                f"the chunk table counts {sum(counts)} points, the header {point_count}"
+            )
+    else:
+        counts = [chunk_size] * (number_of_chunks - 1)
+        counts.append(point_count - chunk_size * (number_of_chunks - 1))
+    if laszip.compressor == 3 and all(
+        item_type in _LAYERS or item_type == _BYTE14 for item_type, _s, _v in laszip.items
+    ):
+        _check_layers(reader, offset + 8, entries, counts, record_length, laszip)
+    return not variable and chunk_size > point_count and (
+        chunk_size * record_length > _PARALLEL_LAST_CHUNK_BYTES
+    )
+
+
+def _check_layers(reader, start, entries, counts, record_length, laszip) -> None:
+    """Each layered chunk: a raw point, its point count, the layer sizes, the layers."""
+    layers = sum(
+        size if item_type == _BYTE14 else _LAYERS[item_type]
+        for item_type, size, _version in laszip.items
+    )
+    head = record_length + 4 + 4 * layers
+    position = start
+    for k, ((_points, byte_count), points) in enumerate(zip(entries, counts)):
+        what = f"chunk {k + 1} of {len(entries)}"
+        if points == 0:  # an empty chunk (lazrs ends variable-size chunks with one): not decoded
+            position += byte_count
+            continue
+        if byte_count < head:
+            raise LasStructureError(
+                f"{what} of the compressed points has {_plural(byte_count, 'byte')}, "
+                f"less than its own {head}-byte head"
+            )
+        data = reader.read(position, head)
+        stored = struct.unpack_from("<I", data, record_length)[0]
+        if stored != points:
+            raise LasStructureError(
+                f"{what} of the compressed points says it holds {stored} points, "
+                f"the chunk table and header give {points}"
+            )
+        sizes = struct.unpack_from(f"<{layers}I", data, record_length + 4)
+        if sum(sizes) > byte_count - head:
+            raise LasStructureError(
+                f"{what} of the compressed points announces layers of "
+                f"{_plural(sum(sizes), 'byte')} in {_plural(byte_count - head, 'byte')}"
+            )
+        position += byte_count
+
+
+def check_las_file(path) -> LasLayout:
+    """Check the structure of the LAS/LAZ file at ``path`` against its size.
+
+    Returns
+    -------
+    LasLayout
+
+    Raises
+    ------
+    LasStructureError
+        The file contradicts itself or its size (message in plain words).
+    OSError
+        The file cannot be opened or read.
+    """
+    with open(path, "rb") as stream:
+        size = os.fstat(stream.fileno()).st_size
+        reader = _Reader(stream, size)
+        head = stream.read(min(size, 393))
+        if head[:4] != b"LASF":
+            raise LasStructureError(
+                f"not a LAS/LAZ file: it starts with {head[:4]!r}, not 'LASF'"
+            )
+        if size < 227:
+            raise LasStructureError(
+                f"truncated inside the header ({_plural(size, 'byte')}; a LAS header takes "
+                "at least 227)"
+            )
+        major, minor = head[24], head[25]
+        if major != 1 or minor not in _HEADER_SIZE:
+            raise LasStructureError(f"unsupported LAS version {major}.{minor} (laspy reads 1.0-1.5)")
+        header_size, offset, vlr_count, raw_format, record_length, legacy_count = (
+            struct.unpack_from("<HIIBHI", head, 94)
+        )
+        needed = _HEADER_SIZE[minor]
+        if header_size < needed:
+            raise LasStructureError(
+                f"the header size field says {header_size} bytes, less than the {needed} of "
+                f"a LAS 1.{minor} header"
+            )
+        if size < header_size:
+            raise LasStructureError(
+                f"truncated inside the header (it takes {header_size} bytes, the file has {size})"
+            )
+        if offset < header_size:
+            raise LasStructureError(
+                f"the point data would start at byte {offset}, inside the {header_size}-byte header"
+            )
+        if offset > size:
+            raise LasStructureError(
+                f"truncated before the point data: it would start at byte {offset}, "
+                f"the file has {_plural(size, 'byte')}"
+            )
+        scales = struct.unpack_from("<3d", head, 131)
+        offsets = struct.unpack_from("<3d", head, 155)
+        point_count = legacy_count
+        evlr_start = evlr_count = 0
+        if minor >= 4:
+            evlr_start, evlr_count, point_count = struct.unpack_from("<QIQ", head, 235)
+            if legacy_count not in (0, point_count):
+                raise LasStructureError(
+                    f"the legacy point count ({legacy_count}) and the 64-bit point count "
+                    f"({point_count}) of the LAS 1.{minor} header disagree"
+                )
+        laszip_data = _walk_vlrs(reader, header_size, offset, vlr_count)
+
+        compressed = bool(raw_format & 0x80) and not raw_format & 0x40  # as laspy decides
+        point_format = raw_format & 0x3F
+        if point_format >= len(_FORMAT_SIZE):
+            raise LasStructureError(
+                f"unknown point format {point_format} (LAS defines formats 0 to 10)"
+            )
+        if record_length < _FORMAT_SIZE[point_format]:
+            raise LasStructureError(
+                f"the point record length ({_plural(record_length, 'byte')}) is shorter than "
+                f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format}"
+            )
+        _check_numbers(scales, offsets)
+
+        end_of_points = size
+        if minor >= 4 and evlr_count > 0:
+            if evlr_start < offset:
+                raise LasStructureError(
+                    f"the extended VLRs would start at byte {evlr_start}, before the point "
+                    f"data (byte {offset})"
+                )
+            if evlr_start > size:
+                raise LasStructureError(
+                    f"truncated: the extended VLRs would start at byte {evlr_start}, "
+                    f"the file has {_plural(size, 'byte')}"
+                )
+            _walk_evlrs(reader, evlr_start, evlr_count)
+            end_of_points = evlr_start
+
+        layout = dict(
+            version=(major, minor),
+            point_format=point_format,
+            record_length=record_length,
+            point_count=point_count,
+            compressed=compressed,
+            file_size=size,
+        )
+        if point_count == 0:
+            return LasLayout(**layout)
+        sequential = False
+        if compressed:
+            laszip = _parse_laszip(laszip_data, record_length)
+            sequential = _check_laz(
+                reader, offset, end_of_points, point_count, record_length, laszip
+            )
+        else:
+            room = (end_of_points - offset) // record_length
+            if point_count > room:
+                where = " before its extended VLRs" if end_of_points < size else ""
+                raise LasStructureError(
+                    f"truncated: the header announces {point_count} points of "
+                    f"{record_length} bytes, the file holds room for {room}{where}"
+                )
+        memory = _physical_memory()
+        if memory is not None and point_count * record_length > memory:
+            raise LasStructureError(
+                f"the header announces {point_count} points of {record_length} bytes "
+                f"({_size(point_count * record_length)} decompressed), more than the "
+                f"{_size(memory)} of memory of this machine"
+            )
+        return LasLayout(**layout, sequential=sequential)
