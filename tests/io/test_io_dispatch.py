@@ -100,8 +100,8 @@ def test_no_points(tmp_path, name, content, message):
     "name,message",
     [
         ("junk.ply", r"junk\.ply: not a valid PLY file \(it does not start with 'ply'\)"),
-        ("junk.las", r"junk\.las: not a valid LAS/LAZ file"),
-        ("junk.laz", r"junk\.laz: not a valid LAS/LAZ file"),
+        ("junk.las", r"junk\.las: not a LAS/LAZ file: it starts with .*, not .LASF."),
+        ("junk.laz", r"junk\.laz: not a LAS/LAZ file: it starts with .*, not .LASF."),
         ("junk.npz", r"junk\.npz: not a valid NPZ file"),
         ("junk.npy", r"junk\.npy: not a valid NPY file"),
         ("junk.xyz", r"junk\.xyz: binary data, not a text file"),

@@ -69,6 +69,8 @@ def _off_count(path: Path, tokens: list, index: int, what: str, line: int) -> in
     token = tokens[index]
     if not re.fullmatch(r"[+-]?\d+", token):
         raise _read_error(path, f"line {line}: {token!r} is not a {what} count (a whole number)")
+    if len(token) > 4000:  # Python refuses to convert more than 4300 digits to an int
+        raise _read_error(path, f"line {line}: the {what} count has {len(token)} digits")
     count = int(token)
     if count < 0:
         raise _read_error(path, f"line {line}: the {what} count {count} is negative")

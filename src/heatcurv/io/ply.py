@@ -128,11 +128,33 @@ def _check_ply_size(path: Path, header, header_size: int, size: int) -> None:
         )
 
 
+class _BoundedReads:
+    """A binary file whose ``read(n)`` never asks for more than the bytes left in the file.
+
+    plyfile reads a list property row by row as ``stream.read(count * itemsize)`` with the
+    count taken from the file: a corrupt count of 2**32 made the buffered reader allocate
+    16 GiB for one row before finding the end of the file (a MemoryError under a memory
+    limit, a huge allocation without one). Everything else is the file's own.
+    """
+
+    def __init__(self, stream, size: int):
+        self._stream, self._size = stream, size
+
+    def read(self, n: int = -1) -> bytes:
+        if n is not None and n >= 0:
+            n = min(n, max(self._size - self._stream.tell(), 0))
+        return self._stream.read(n)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def _read_body(path: Path, known_list_len: dict):
     """The whole file read by plyfile, and where its last element ended (binary files)."""
     import plyfile
 
-    with open(path, "rb") as stream:
+    with open(path, "rb") as raw:
+        stream = _BoundedReads(raw, path.stat().st_size)
         ply = plyfile.PlyData.read(stream, mmap="c", known_list_len=known_list_len)
         # (an ASCII file's text wrapper, gone with the read, has closed the stream)
         return ply, None if ply.text else stream.tell()

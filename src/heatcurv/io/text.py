@@ -69,15 +69,18 @@ def _positional_names(table: np.ndarray, ext: str) -> list:
 
 # a PTS count line: an integer alone on its line
 _PTS_COUNT = re.compile(r"^[ \t]*(\d+)[ \t]*$", re.MULTILINE)
+# no file holds 10**18 points; longer counts are not converted (Python refuses beyond 4300 digits)
+_MAX_COUNT_DIGITS = 18
 
 
 def _pts_counts(text: str) -> list:
-    """``(line_number, count)`` of every PTS count line."""
+    """``(line_number, count)`` of every PTS count line; a count of more than 18 digits is ``10**18``."""
     counts, line, last = [], 1, 0
     for match in _PTS_COUNT.finditer(text):
         line += text.count("\n", last, match.start())
         last = match.start()
-        counts.append((line, int(match.group(1))))
+        digits = match.group(1)
+        counts.append((line, int(digits) if len(digits) <= _MAX_COUNT_DIGITS else 10**_MAX_COUNT_DIGITS))
     return counts
 
 
@@ -100,7 +103,8 @@ def _check_pts_counts(path: Path, text: str, counts: list, data_line: int, rows:
     for (line, said), got in zip(counts, found):
         if said != got:
             points = "point" if said == 1 else "points"
-            raise _read_error(path, f"line {line}: the count line says {said} {points}, {got} follow")
+            said_text = str(said) if said < 10**_MAX_COUNT_DIGITS else f"more than 10**{_MAX_COUNT_DIGITS}"
+            raise _read_error(path, f"line {line}: the count line says {said_text} {points}, {got} follow")
 
 
 def _read_text(path: Path, fmt: str) -> PointCloud:
