@@ -558,3 +558,14 @@ def test_counts_python_cannot_convert_are_refused_in_plain_words(tmp_path):
     pts.write_text("9" * 1_000_000 + "\n" + rows + "\n")
     with pytest.raises(HeatcurvError, match=r"the count line says more than 10\*\*18 points"):
         read_points(pts)
+
+
+def test_a_long_bad_value_is_quoted_short(tmp_path):
+    # before: the whole 300-character token was quoted (a 416-character message, fuzz seed 4277590463)
+    path = tmp_path / "long.csv"
+    path.write_text("x,y,z\n0,0,0\n1,0," + "7q" * 150 + "\n")
+    with pytest.raises(HeatcurvError) as info:
+        read_points(path)
+    message = str(info.value)
+    assert re.search(r"line 3: column 3 holds '(7q){20}'\.\.\., not a number$", message), message
+    assert len(message) < 120 + len(str(path))

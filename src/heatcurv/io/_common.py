@@ -142,6 +142,11 @@ def _brief(exc: BaseException, limit: int = 100) -> str:
     return line if len(line) <= limit else line[: limit - 3].rstrip() + "..."
 
 
+def _quoted(text: str, limit: int = 40) -> str:
+    """``repr(text)``, cut to ``limit`` characters of it (``'abc'...``): file content quoted in a one-line message."""
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + "..."
+
+
 def _read_error(path, problem: str) -> HeatcurvError:
     return HeatcurvError(f"cannot read {path}: {problem}")
 

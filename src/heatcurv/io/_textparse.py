@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import _one_line, _read_error
+from ._common import _one_line, _quoted, _read_error
 
 
 def _decode_text(path: Path) -> str:
@@ -127,7 +127,7 @@ def _first_bad_line(text: str, skip: int, ncols: int, delimiter, max_rows=None):
             return number, f"expected {ncols} values, found {len(tokens)}"
         for column, token in enumerate(tokens, start=1):
             if not _is_number(token):
-                shown = repr(token) if token else "an empty value"
+                shown = _quoted(token) if token else "an empty value"  # the message stays one short line
                 return number, f"column {column} holds {shown}, not a number"
         rows += 1
         if max_rows is not None and rows >= max_rows:

@@ -44,6 +44,7 @@ from ._common import (
     _one_line,
     _ordered_columns,
     _Output,
+    _quoted,
     _read_error,
     _write_error,
 )
@@ -230,17 +231,17 @@ def _npz_members(path: Path, archive: zipfile.ZipFile, size: int) -> list:
         if not name.endswith(".npy"):  # also directories; not is_dir(): a name may be empty
             continue
         if info.flag_bits & 0x1:
-            raise _read_error(path, f"member {name!r} is encrypted")
+            raise _read_error(path, f"member {_quoted(name)} is encrypted")
         if info.compress_type == zipfile.ZIP_STORED and info.file_size != info.compress_size:
             raise _read_error(
                 path,
-                f"member {name!r} is stored uncompressed in {info.compress_size} bytes "
+                f"member {_quoted(name)} is stored uncompressed in {info.compress_size} bytes "
                 f"but declares {info.file_size}",
             )
         if info.file_size > _MAX_RATIO * info.compress_size + _RATIO_SLACK:
             raise _read_error(
                 path,
-                f"member {name!r} declares {_size_text(info.file_size)} uncompressed from "
+                f"member {_quoted(name)} declares {_size_text(info.file_size)} uncompressed from "
                 f"{_size_text(info.compress_size)} ({info.file_size // max(info.compress_size, 1)}:1; "
                 f"at most {_MAX_RATIO}:1 is read): a zip bomb or a damaged archive",
             )
@@ -266,7 +267,7 @@ def _npz_members(path: Path, archive: zipfile.ZipFile, size: int) -> list:
 
 def _read_member(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo):
     """One ``.npy`` member as an array (read a chunk at a time into it), or None if it holds objects."""
-    where = f"member {info.filename!r}"
+    where = f"member {_quoted(info.filename)}"
     try:
         member = archive.open(info)
     except NotImplementedError:
