@@ -569,3 +569,26 @@ def test_a_long_bad_value_is_quoted_short(tmp_path):
     message = str(info.value)
     assert re.search(r"line 3: column 3 holds '(7q){20}'\.\.\., not a number$", message), message
     assert len(message) < 120 + len(str(path))
+
+
+@pytest.mark.parametrize(
+    "variant, mutator, seed, expected",
+    [
+        # regressions found by benchmarks/fuzz.py (seeds 1 and 2 of 400 per format)
+        ("npy", "npy-header", 2457833082, r"not a valid NPY file \(the header is not a Python dictionary literal\)$"),
+        ("npz", "special-run", 4219308783, r"not a valid NPZ file \(unsupported zip feature: zip file version"),
+        ("ply-ascii-faces", "header-bytes", 2077071451, r"no x coordinate column \(columns: '\\x17', y, z,"),
+        ("xyz", "header-bytes", 1903873274, r"no x/y/z coordinate column \(columns: .*'\\x86'"),
+    ],
+)
+def test_fuzz_findings_read_as_one_plain_line(tmp_path, variant, mutator, seed, expected):
+    from heatcurv.testing import fuzz
+
+    seeds = fuzz.seed_files(tmp_path)
+    path = tmp_path / f"case{fuzz.VARIANTS[variant].ext}"
+    path.write_bytes(fuzz.mutate(seeds[variant].read_bytes(), mutator, seed))
+    with pytest.raises(HeatcurvError) as info:
+        read_points(path)
+    message = str(info.value)
+    assert "\n" not in message and message.isprintable() and message.startswith(f"cannot read {path}: ")
+    assert re.search(expected, message), message

@@ -226,7 +226,10 @@ def _cloud_from_columns(
             role_of[role] = name
     missing = [axis for axis in "xyz" if axis not in role_of]
     if missing:
-        names = ", ".join(columns) or "none"
+        # names as in the file, control characters escaped, at most twelve of 40 characters each
+        shown = [str(name) if str(name).isprintable() and len(str(name)) <= 40 else _quoted(str(name))
+                 for name in list(columns)[:12]]
+        names = ", ".join(shown) + (", ..." if len(columns) > 12 else "") or "none"
         raise _read_error(path, f"no {'/'.join(missing)} coordinate column (columns: {names})")
     meta = dict(meta or {})
     used = [role_of[axis] for axis in "xyz"]

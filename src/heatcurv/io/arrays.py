@@ -155,7 +155,8 @@ def _npy_header(path, stream, invalid):
         problem = "the header is not ASCII text"
     except Exception as exc:  # numpy's literal_eval of untrusted text: value, syntax, token errors
         problem = _brief(exc)
-        if problem.startswith(("Cannot parse header", "(")):  # numpy quotes the header, tokenize a tuple
+        # numpy quotes the header, tokenize a tuple, ast names its node objects
+        if problem.startswith(("Cannot parse header", "(", "malformed node or string")):
             problem = "the header is not a Python dictionary literal"
     if problem is None and any(d < 0 for d in shape):
         problem = f"the header's shape {shape} has a negative dimension"
@@ -330,6 +331,8 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
         raise _read_error(path, f"not a valid NPZ file (damaged compressed data: {_brief(exc)})") from None
     except (EOFError, ValueError, struct.error, UnicodeError, LZMAError) as exc:
         raise _read_error(path, f"not a valid NPZ file (damaged archive: {_brief(exc)})") from None
+    except NotImplementedError as exc:  # zipfile: a version or compression it cannot read
+        raise _read_error(path, f"not a valid NPZ file (unsupported zip feature: {_brief(exc)})") from None
     except OSError as exc:
         if exc.errno == errno.EINVAL:  # a seek before the start of the file
             problem = "an offset in the zip directory points outside the file"
