@@ -78,7 +78,8 @@ def main(argv=None) -> int:
     print(f"{len(campaign.results)} mutated files ({args.per_format} per variant, seed {args.seed}) in {wall:.0f} s, "
           f"{campaign.restarts} worker restarts; timeout {args.timeout:g} s, address-space headroom "
           f"{fuzz.MEMORY_LIMIT / 2**30:.1f} GiB, memory threshold {fuzz.MEMORY_FACTOR} x file + "
-          f"{fuzz.MEMORY_BASE // 2**20} MiB\n")
+          f"{fuzz.MEMORY_BASE // 2**20} MiB ("
+          + ", ".join(f"{ext} {factor} x" for ext, factor in fuzz.COMPRESSED_MEMORY_FACTOR.items()) + ")\n")
     header, rows = campaign.rows()
     print(table("Outcomes by variant", header, rows, args.markdown))
     failures = campaign.failures()

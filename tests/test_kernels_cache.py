@@ -38,7 +38,7 @@ def run_python(code: str, cache_dir, *args):
 ROW_CORES = {
     "_orientation_costs", "_tapered_heat_weights", "_taper_sums", "_weighted_covariances", "_kappa_normal_sums",
     "_centroid_offsets", "_smallest_eigenvectors", "_assemble_normal_equations", "_weighted_height_residual",
-    "_solve_normal_equations",
+    "_solve_normal_equations", "_neighbour_medians", "_orientation_conflicts",
 }
 
 

@@ -78,9 +78,10 @@ from .child import MEMORY_LIMIT, TIMEOUT, Reply, Worker
 from .mutators import MUTATORS, N_SEED, Mutator, header_end, mutate, npy_header
 
 __all__ = [
-    "Campaign", "CaseResult", "FAILURES", "MEMORY_LIMIT", "MUTATORS", "Mutator", "N_SEED", "OUTCOMES", "Reply",
-    "TIMEOUT", "VARIANTS", "Variant", "Worker", "announced_points", "classify", "estimate_summary",
-    "message_problem", "mutate", "mutators_for", "read_summary", "run_campaign", "seed_files", "warm_estimate",
+    "COMPRESSED_MEMORY_FACTOR", "Campaign", "CaseResult", "FAILURES", "MEMORY_BASE", "MEMORY_FACTOR", "MEMORY_LIMIT",
+    "MUTATORS", "Mutator", "N_SEED", "OUTCOMES", "Reply", "TIMEOUT", "VARIANTS", "Variant", "Worker",
+    "announced_points", "classify", "estimate_summary", "message_problem", "mutate", "mutators_for", "read_summary",
+    "run_campaign", "seed_files", "warm_estimate",
 ]
 
 #: A case whose peak resident memory grows by more than ``MEMORY_FACTOR * size + MEMORY_BASE`` is "memory".
