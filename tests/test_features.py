@@ -78,9 +78,24 @@ def test_otsu_splits_two_populations():
 
 def test_feature_errors():
     sample, res = fold(120)
-    with pytest.raises(HeatcurvError, match="turning angle in degrees"):
+    with pytest.raises(HeatcurvError, match=r"threshold = -1 is outside its range \[0, 180\]: a turning angle of the surface, in degrees"):
         heatcurv.sharp_features(res, threshold=-1)
     with pytest.raises(HeatcurvError, match="cannot change a result"):
         heatcurv.sharp_features(res, alpha=3.0)
     direct = heatcurv.sharp_features(sample.points)
     np.testing.assert_allclose(direct.score, heatcurv.sharp_features(res).score)
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"threshold": float("nan")}, r"^threshold must be a number in \[0, 180\], got nan$"),
+        ({"threshold": 200.0}, r"^threshold = 200 is outside its range \[0, 180\]"),
+        ({"min_angle": -1.0}, r"^min_angle = -1 is outside its range"),
+        ({"background": float("nan")}, r"^background must be a number in \[0, 1000\], got nan$"),
+    ],
+)
+def test_feature_numbers_are_range_checked(options, message):
+    pts = heatcurv.surfaces.Sphere().sample(200, "random", seed=1).points
+    with pytest.raises(heatcurv.HeatcurvError, match=message):
+        heatcurv.sharp_features(pts, **options)

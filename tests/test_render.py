@@ -210,3 +210,25 @@ def test_check_picture_path(tmp_path):
     assert path == tmp_path / "a.PNG" and ext == ".png"
     with pytest.raises(heatcurv.HeatcurvError, match="unknown picture extension"):
         render._check_picture_path(tmp_path / "a.bmpx")
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"dpi": float("nan")}, r"^dpi must be a whole number in \[10, 2400\], got nan$"),
+        ({"dpi": 1e30}, r"^dpi = 1e\+30 is outside its range \[10, 2400\]"),
+        ({"max_points": float("nan")}, r"^max_points must be a whole number"),
+        ({"views": 10**9}, r"^views = 1000000000 is outside its range \[1, 36\]"),
+        ({"point_size": -1.0}, r"^point_size = -1 is outside its range \[0.01, 1000\]"),
+        ({"size": (float("nan"), 500)}, r"^the picture size must be 100-10000 whole pixels each way"),
+        ({"size": "big"}, r"^size must be two numbers"),
+        ({"elevation": float("inf")}, r"^elevation must be a number in \[-90, 90\], got inf$"),
+        ({"seed": -3}, r"^seed = -3 is outside its range"),
+    ],
+)
+def test_every_number_of_a_picture_is_range_checked(tmp_path, options, message):
+    # before: dpi or max_points of NaN raised numpy/int() ValueErrors, views = 1e9 tried to draw them
+    pts = heatcurv.surfaces.Sphere().sample(200, "random", seed=1).points
+    with pytest.raises(heatcurv.HeatcurvError, match=message):
+        render_field(pts, pts[:, 0], tmp_path / "x.png", **options)
+    assert not list(tmp_path.iterdir())

@@ -35,9 +35,19 @@ import numpy as np
 
 from .errors import HeatcurvError
 from .estimator import estimate
+from .options import Range, range_problem
 from .results import CurvatureResult
 
-__all__ = ["FeatureResult", "feature_score", "otsu_threshold", "sharp_features"]
+__all__ = ["FEATURE_RANGES", "FeatureResult", "feature_score", "otsu_threshold", "sharp_features"]
+
+#: The documented ranges of :func:`sharp_features`'s numbers.
+FEATURE_RANGES: dict[str, Range] = {
+    "threshold": Range(0.0, 180.0, False, "a turning angle of the surface, in degrees"),
+    "min_angle": Range(0.0, 180.0, False, "a turning angle of the surface, in degrees"),
+    "background": Range(
+        0.0, 1000.0, False, "a multiple of the median score (3 by default); 0 leaves only Otsu's split and min_angle",
+    ),
+}
 
 
 @dataclass(frozen=True)
@@ -145,6 +155,10 @@ def sharp_features(
     >>> bool(feat.mask.any())
     True
     """
+    for name, value in (("min_angle", min_angle), ("background", background)):
+        problem = range_problem(name, value, FEATURE_RANGES[name])
+        if problem is not None:
+            raise HeatcurvError(problem)
     if isinstance(points_or_result, CurvatureResult):
         if options:
             raise HeatcurvError("options are for estimate(); they cannot change a result already computed")
@@ -158,7 +172,8 @@ def sharp_features(
     if threshold is None:
         thr = max(otsu_threshold(score), float(min_angle), float(background) * float(np.median(score)))
     else:
+        problem = range_problem("threshold", threshold, FEATURE_RANGES["threshold"])
+        if problem is not None:
+            raise HeatcurvError(problem)
         thr = float(threshold)
-        if not np.isfinite(thr) or thr < 0:
-            raise HeatcurvError(f"threshold is a turning angle in degrees >= 0, got {threshold}")
     return FeatureResult(score=score, mask=score > thr, threshold=thr)

@@ -40,12 +40,14 @@ backend stays as it was) and needs no display.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .errors import HeatcurvError
+from .options import Range, range_problem
 
 __all__ = [
     "FIELD_STYLES",
@@ -281,11 +283,9 @@ def camera_frames(
         On a bad ``view``, ``up`` or ``elevation``, or ``up`` parallel to ``view``.
     """
     points = np.asarray(points, dtype=np.float64)
+    _check_number("views", views)
+    _check_number("elevation", elevation)
     views = int(views)
-    if views < 1:
-        raise HeatcurvError(f"views must be at least 1, got {views}")
-    if not (np.isfinite(elevation) and -90 <= elevation <= 90):
-        raise HeatcurvError(f"elevation must be an angle in degrees in [-90, 90], got {elevation}")
     centred = points - points.mean(axis=0)
     if centred.shape[0] > 100_000:  # the principal axes of a subset are as good
         centred = centred[np.random.default_rng(0).choice(centred.shape[0], 100_000, replace=False)]
@@ -382,6 +382,26 @@ def _check_picture_path(path) -> tuple[Path, str]:
     return path, ext
 
 
+#: The documented ranges of :func:`render_field`'s numbers (the command line's flags use the same).
+PICTURE_RANGES: dict[str, Range] = {
+    "views": Range(1, 36, True, "views side by side, turned 360/N degrees apart: 36 is every 10 degrees"),
+    "dpi": Range(10, 2400, True, "the scale of the text (points per inch of the saved figure)"),
+    "max_points": Range(1, 100_000_000, True, "points drawn; a picture of at most 10000x10000 has 1e8 pixels"),
+    "point_size": Range(
+        0.01, 1000.0, False, "disc diameter in pixels; the automatic one is 1-80, a picture side at most 10000",
+    ),
+    "elevation": Range(-90.0, 90.0, False, "an angle up from the horizon, in degrees"),
+    "seed": Range(0, 2**63 - 1, True, "numpy's random generators take a non-negative 64-bit seed"),
+}
+
+
+def _check_number(name: str, value) -> None:
+    """Raise the one-line :func:`heatcurv.options.range_problem` of ``value`` against :data:`PICTURE_RANGES`."""
+    problem = range_problem(name, value, PICTURE_RANGES[name])
+    if problem is not None:
+        raise HeatcurvError(problem)
+
+
 def _check_inputs(points, values, size, dpi, max_points) -> tuple[np.ndarray, np.ndarray, int, int]:
     """``(points, values, width, height)``: the arrays and the picture size, checked."""
     points = np.asarray(points, dtype=np.float64)
@@ -390,14 +410,15 @@ def _check_inputs(points, values, size, dpi, max_points) -> tuple[np.ndarray, np
         raise HeatcurvError(f"points must have shape (n, 3), got {points.shape}")
     if values.shape != (points.shape[0],) or values.dtype.kind not in "biuf":
         raise HeatcurvError(f"values must be numbers of shape ({points.shape[0]},), got {values.dtype} {values.shape}")
-    width, height = (int(v) for v in size)
-    if not (100 <= width <= 10000 and 100 <= height <= 10000):
-        raise HeatcurvError(f"the picture size must be 100-10000 pixels each way, got {width}x{height}")
-    if not 10 <= int(dpi) <= 2400:
-        raise HeatcurvError(f"dpi must be 10-2400, got {dpi}")
-    if int(max_points) < 1:
-        raise HeatcurvError(f"max_points must be at least 1, got {max_points}")
-    return points, values, width, height
+    try:
+        width, height = (float(v) for v in size)
+    except (TypeError, ValueError):
+        raise HeatcurvError(f"size must be two numbers (width, height) in pixels, got {size!r}") from None
+    if not all(math.isfinite(v) and v.is_integer() and 100 <= v <= 10000 for v in (width, height)):
+        raise HeatcurvError(f"the picture size must be 100-10000 whole pixels each way, got {width:g}x{height:g}")
+    _check_number("dpi", dpi)
+    _check_number("max_points", max_points)
+    return points, values, int(width), int(height)
 
 
 def _drawn_subset(points: np.ndarray, values: np.ndarray, normals, max_points: int, seed: int):
@@ -688,6 +709,9 @@ def render_field(
 
     path, ext = _check_picture_path(path)
     points, values, width, height = _check_inputs(points, values, size, dpi, max_points)
+    if point_size is not None:
+        _check_number("point_size", point_size)
+    _check_number("seed", seed)
     style = field_style(field)
     low, high, kind = colour_limits(values, style.kind, percentiles=percentiles, value_range=value_range)
     keep, xyz, shown, normals = _drawn_subset(points, values, normals, max_points, seed)

@@ -6,7 +6,9 @@ import argparse
 import math
 import re
 
+from ..features import FEATURE_RANGES
 from ..options import Range, range_problem
+from ..render import PICTURE_RANGES
 
 __all__ = [
     "numbers", "point3", "pair", "percentile_pair", "picture_size", "int_at_least", "positive_float", "finite_float",
@@ -99,18 +101,10 @@ def finite_float(text: str) -> float:
 #: The documented ranges of the command line's own numeric values (the
 #: estimator's are :data:`heatcurv.options.RANGES`), with the reason for each.
 CLI_RANGES: dict[str, Range] = {
-    "views": Range(1, 36, True, "views side by side, turned 360/N degrees apart: 36 is every 10 degrees"),
-    "dpi": Range(10, 2400, True, "the scale of the text; heatcurv.render accepts 10-2400"),
-    "max_points": Range(
-        1, 100_000_000, True, "points drawn; a picture of at most 10000x10000 has 1e8 pixels",
-    ),
-    "point_size": Range(
-        0.01, 1000.0, False, "disc diameter in pixels; the automatic one is 1-80, a picture side at most 10000",
-    ),
-    "elevation": Range(-90.0, 90.0, False, "an angle up from the horizon, in degrees"),
-    "threshold": Range(0.0, 180.0, False, "a turning angle of the surface, in degrees"),
-    "feature_threshold": Range(0.0, 180.0, False, "a turning angle of the surface, in degrees"),
-    "min_angle": Range(0.0, 180.0, False, "a turning angle of the surface, in degrees"),
+    **{name: PICTURE_RANGES[name] for name in ("views", "dpi", "max_points", "point_size", "elevation")},
+    "threshold": FEATURE_RANGES["threshold"],
+    "feature_threshold": FEATURE_RANGES["threshold"],
+    "min_angle": FEATURE_RANGES["min_angle"],
     "n": Range(4, 10_000_000, True, "points of the demo's sample: the surfaces need 4; 1e7 fills gigabytes"),
     "noise": Range(0.0, 1.0, False, "a fraction of the bounding-box diagonal"),
     "seed": Range(0, 2**63 - 1, True, "numpy's random generators take a non-negative 64-bit seed"),
