@@ -78,7 +78,7 @@ def test_otsu_splits_two_populations():
 
 def test_feature_errors():
     sample, res = fold(120)
-    with pytest.raises(HeatcurvError, match=r"threshold = -1 is outside its range \[0, 180\]: a turning angle of the surface, in degrees"):
+    with pytest.raises(HeatcurvError, match=r"threshold = -1 is outside its range \[0, 180\]: a turning angle"):
         heatcurv.sharp_features(res, threshold=-1)
     with pytest.raises(HeatcurvError, match="cannot change a result"):
         heatcurv.sharp_features(res, alpha=3.0)
