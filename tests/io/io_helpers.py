@@ -43,5 +43,5 @@ def expanded(fields):
 
 
 def leftovers(directory):
-    """Files in ``directory`` (temporary files are hidden: ``.name.XXXX.ext``)."""
+    """Every file in ``directory``, hidden ones included (temporary files are ``.NAME.heatcurv-HOST-PID-RANDOM.tmp``)."""
     return sorted(os.listdir(directory))
