@@ -43,5 +43,5 @@ def expanded(fields):
 
 
 def leftovers(directory):
-    """Every file in ``directory``, hidden ones included (temporary files are ``.NAME.heatcurv-HOST-PID-RANDOM.tmp``)."""
+    """Every file in ``directory``, hidden ones too (temporaries are ``.NAME.heatcurv-HOST-PID-RANDOM.tmp``)."""
     return sorted(os.listdir(directory))
