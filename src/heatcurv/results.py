@@ -40,7 +40,8 @@ class CurvatureResult:
         point, an outlier, its normal has no consistent side
         (``info["orientation"]``), or the chord fit's residual is ten times the
         cloud's median (the ball holds more than one smooth surface: a sharp
-        edge, vegetation); everywhere if the area system did not converge (a
+        edge, vegetation); everywhere if the area system did not converge or
+        the cloud is too coarse for its curvature (``info["resolution"]``; a
         ``HeatcurvWarning`` says so).
     outlier : ndarray, shape (n,), bool
         Stray points and small islands that no surface at the kernel's scale
@@ -64,7 +65,10 @@ class CurvatureResult:
     options : Options
         The resolved options the result was computed with.
     info : dict
-        ``n_distinct`` (points after merging duplicates), ``orientation`` (a
+        ``n_distinct`` (points after merging duplicates), ``resolution`` (the
+        median point's sampling spacing in radii of curvature; above
+        :data:`heatcurv.estimator.RESOLUTION_LIMIT` the cloud is too coarse
+        and every point unreliable), ``orientation`` (a
         :class:`heatcurv.orientation.OrientationReport`: the policy used and
         how many points it could not orient), ``outliers`` (their number), ``area_solve``
         (solver, iterations, residual), ``timings`` (seconds per named stage,
