@@ -592,3 +592,18 @@ def test_fuzz_findings_read_as_one_plain_line(tmp_path, variant, mutator, seed, 
     message = str(info.value)
     assert "\n" not in message and message.isprintable() and message.startswith(f"cannot read {path}: ")
     assert re.search(expected, message), message
+
+
+def test_fields_float32_cannot_hold_stay_float64(tmp_path):
+    # before: the mean curvature of a cloud spanning 1e100 (about 1e-100) was written as 0 and its
+    # area (1e200) as inf in the default float32 PLY, silently
+    pts = np.random.default_rng(0).random((50, 3)) * 1e100
+    fields = {"mean": np.full(50, 1e-100), "area": np.full(50, 1e200), "ok": np.full(50, 0.5)}
+    write_points(tmp_path / "out.ply", pts, fields)
+    back = read_points(tmp_path / "out.ply")
+    assert back.fields["mean"].dtype == np.float64 and back.fields["mean"][0] == 1e-100
+    assert back.fields["area"][0] == 1e200
+    assert back.fields["ok"].dtype == np.float32  # the others keep the compact default
+    with pytest.raises(HeatcurvError, match=r"field 'mean' holds values float32 cannot represent"):
+        write_points(tmp_path / "strict.ply", pts, fields, dtype="float32")
+    assert not (tmp_path / "strict.ply").exists()

@@ -268,7 +268,10 @@ def write_points(
     dtype : {None, "float32", "float64"}, optional
         Type of the float ``fields`` and ``normals`` given. Default (None):
         float32 for ``.ply``, ``.las``, ``.laz`` and ``.npz``, float64 for the
-        text formats. The coordinates and the ``source``'s properties keep
+        text formats; a field float32 cannot hold (magnitudes beyond 3.4e38
+        or non-zero below 1.2e-38: the curvatures and areas of a cloud in
+        extreme units) is then written as float64, and with an explicit
+        ``"float32"`` it is an error. The coordinates and the ``source``'s properties keep
         their own types (see the notes of :mod:`heatcurv.io`).
     colors : array_like, optional
         Deprecated alias of ``colours`` (a DeprecationWarning; giving both is an error).
@@ -321,7 +324,7 @@ def write_points(
         )
     colours = renamed_keyword("write_points", "colours", colours, "colors", colors)
     float_dtype = _float_dtype(path, dtype, ext)
-    output = _output(path, points, fields, normals, colours, source, float_dtype)
+    output = _output(path, points, fields, normals, colours, source, float_dtype, explicit=dtype is not None)
     check_writable(path)
     try:
         atomic_write(path, lambda stream: writer(stream, output, path))

@@ -316,10 +316,32 @@ def _float_dtype(path, dtype, ext: str) -> np.dtype:
     return resolved
 
 
-def _computed_type(array: np.ndarray, float_dtype: np.dtype) -> np.ndarray:
-    """A given field in the type to write: floats as ``float_dtype``, 64-bit integers narrowed where they fit."""
+def _float32_loses(array: np.ndarray) -> bool:
+    """Whether float32 would turn a finite value of ``array`` into inf, or a non-zero one into 0 or a subnormal."""
+    if array.dtype.itemsize <= 4 or not array.size:
+        return False
+    magnitude = np.abs(array[np.isfinite(array)])
+    info = np.finfo(np.float32)
+    return bool(np.any(magnitude > info.max) or np.any((magnitude > 0) & (magnitude < info.tiny)))
+
+
+def _computed_type(array: np.ndarray, float_dtype: np.dtype, explicit: bool = False, path=None,
+                   name: str = "") -> np.ndarray:
+    """A given field in the type to write: floats as ``float_dtype``, 64-bit integers narrowed where they fit.
+
+    A float64 field that float32 cannot hold (values beyond 3.4e38 or below 1.2e-38: the
+    curvatures and areas of a cloud in extreme units) stays float64 when float32 is only the
+    format's default, and is an error when the caller asked for float32 (``explicit``).
+    """
     kind = array.dtype.kind
     if kind == "f":
+        if float_dtype == np.float32 and _float32_loses(array):
+            if explicit:
+                raise _write_error(
+                    path, f"field {name!r} holds values float32 cannot represent (beyond 3.4e38 or below "
+                    "1.2e-38 in magnitude); write it as float64",
+                )
+            return array
         return array.astype(float_dtype, copy=False)
     if kind in "iu" and array.dtype.itemsize > 4 and array.size:
         low, high = int(array.min()), int(array.max())
@@ -358,7 +380,7 @@ def _as_rows(path, name: str, values, n: int, *, width=None) -> np.ndarray:
     return array
 
 
-def _output(path, points, fields, normals, colours, source, float_dtype=np.float64) -> _Output:
+def _output(path, points, fields, normals, colours, source, float_dtype=np.float64, explicit=False) -> _Output:
     """Validate and arrange the arrays to write (see :func:`~heatcurv.io.write_points`).
 
     Given ``fields`` and ``normals`` get the type ``float_dtype`` (floats) or a
@@ -420,7 +442,7 @@ def _output(path, points, fields, normals, colours, source, float_dtype=np.float
     for name, values in (fields or {}).items():
         _check_name(path, name)
         original = _as_rows(path, f"field {name!r}", values, n)
-        array = _computed_type(original, float_dtype)
+        array = _computed_type(original, float_dtype, explicit, path, name)
         given_arrays[name] = array
         expanded = (
             {name: array}
