@@ -237,6 +237,7 @@ def test_far_outliers_are_cut_out_of_the_orientation_graph():
     assert res.outlier[n:].all() and not res.outlier[:n].any()
     assert np.all(np.einsum("ij,ij->i", res.normals[:n], sample.normals) > 0)
     assert res.info["orientation"].ambiguous == 0
+    assert res.info["orientation"].components == 1  # the torus; the cut-out points are not surfaces
     assert np.all(res.mean[:n][res.reliable[:n]] > 0)  # a torus's mean curvature is positive
 
 

@@ -84,7 +84,7 @@ class OrientationReport:
     mode : str
         ``"outward"``, ``"up"``, ``"viewpoint"``, or ``"given"`` (the caller's normals).
     components : int
-        Connected components of the orientation graph.
+        Connected components of the orientation graph (outliers, cut out of it, not counted).
     anchored : int
         Points whose side was read off the reference direction (``"up"``,
         ``"viewpoint"``); the others took it from their neighbours.
@@ -222,10 +222,16 @@ def orient(
 
     ambiguous = _conflicting(points, oriented, graph) | undecided[labels]
     report = OrientationReport(
-        mode=mode, components=int(n_comp), anchored=int(anchors.sum()),
+        mode=mode, components=_surface_components(labels, excluded), anchored=int(anchors.sum()),
         by_convention=int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
     )
     return Orientation(oriented, ambiguous, report)
+
+
+def _surface_components(labels: np.ndarray, excluded: np.ndarray | None) -> int:
+    """Components of the orientation graph that hold a point not excluded (each outlier is one of its own)."""
+    kept = labels if excluded is None else labels[~excluded]
+    return int(np.unique(kept).size)
 
 
 def _conflicting(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood) -> np.ndarray:
