@@ -43,7 +43,7 @@ from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import effective_neighbours, heat_kernel_weights, tapered_heat_weights
 from .neighbourhood import Neighbourhood
 from .options import METHODS, Options
-from .sampling import key_sample
+from .sampling import draw_subset
 
 __all__ = ["KernelSupport", "measure_support", "check_kernel", "SUPPORT_LIMITS"]
 
@@ -95,10 +95,7 @@ def _sample(nbhd: Neighbourhood, h: np.ndarray, options: Options, seed: int = 0,
     without them a seeded random sample of the rows is drawn.
     """
     n = nbhd.n_points
-    if keys is not None:
-        rows = key_sample(keys, SAMPLE, seed)
-    else:
-        rows = np.sort(np.random.default_rng(seed).choice(n, min(SAMPLE, n), replace=False))
+    rows = draw_subset(n, SAMPLE, seed, keys)
     sub = nbhd.take_rows(rows)
     fixed = options.radius is None and options.scale != "auto"
     if options.fit == "chord" and fixed and int(options.scale) < int(options.neighbours):

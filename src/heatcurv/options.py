@@ -30,7 +30,7 @@ from .errors import HeatcurvError
 
 __all__ = [
     "Options", "ScaleTuning", "METHODS", "DEPRECATED_ALIASES", "RANGES", "Range", "resolve_options", "option_help",
-    "rename_aliases", "range_problem", "check_options_for_cloud",
+    "rename_aliases", "range_problem", "check_options_for_cloud", "SEED_RANGE",
 ]
 
 
@@ -68,6 +68,15 @@ def _show(value) -> str:
     if isinstance(value, (int, np.integer)) and abs(int(value)) < 10**15:
         return str(int(value))
     return f"{float(value):g}"
+
+
+def _is_number(value) -> bool:
+    """A real number of a numeric type (booleans are not)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+#: numpy's random generators take a non-negative 64-bit seed (every ``seed`` option and flag).
+SEED_RANGE = Range(0, 2**63 - 1, True, "numpy's random generators take a non-negative 64-bit seed")
 
 
 def _got(value) -> str:
@@ -125,7 +134,7 @@ RANGES: dict[str, Range] = {
         "measured 0.2-1.3 on clean and 2.2-4.4 on noisy clouds: beyond, every cloud is noisy or every one clean",
     ),
     "scale_tuning.max_k": Range(20, 1_000_000, True, "the widest candidate kernel, as scale (or None)"),
-    "scale_tuning.seed": Range(0, 2**63 - 1, True, "numpy's random generators take a non-negative 64-bit seed"),
+    "scale_tuning.seed": SEED_RANGE,
 }
 
 
@@ -138,8 +147,7 @@ def range_problem(name: str, value, limits: Range | None = None) -> str | None:
     """
     limits = RANGES[name] if limits is None else limits
     kind = "a whole number" if limits.integer else "a number"
-    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not number or not math.isfinite(value) or (limits.integer and not float(value).is_integer()):
+    if not _is_number(value) or not math.isfinite(value) or (limits.integer and not float(value).is_integer()):
         return f"{name} must be {kind} in {limits.describe()}, got {_got(value)}"
     if not limits.low <= value <= limits.high:
         return f"{name} = {_show(value)} is outside its range {limits.describe()}: {limits.why}"
@@ -169,8 +177,7 @@ def _optional_positive(name: str):
     def check(value):
         if value is None:
             return None
-        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-        if not (number and math.isfinite(value) and value > 0):
+        if not (_is_number(value) and math.isfinite(value) and value > 0):
             return f"{name} must be a positive length (or None), got {_got(value)}"
         return None
 

@@ -114,10 +114,11 @@ def find_outliers(points: np.ndarray, nbhd: Neighbourhood) -> Outliers:
     spacing = np.where(counts > 0, near.radius, np.inf)
     links = nbhd.spread(LINK_NEIGHBOURS)
     # mutual: i in j's ball as well as j in i's (an augmented row's far neighbours are not in its ball)
-    mutual = (links.distances <= links.radius[links.rows]) & (links.distances <= nbhd.radius[links.indices])
+    link_rows = links.rows
+    mutual = (links.distances <= links.radius[link_rows]) & (links.distances <= nbhd.radius[links.indices])
     # the mutual pairs as CSR directly (rows stay in order): no COO sort (0.6 s -> 0.1 s on 1M points)
     indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(links.rows[mutual], minlength=n), out=indptr[1:])
+    np.cumsum(np.bincount(link_rows[mutual], minlength=n), out=indptr[1:])
     graph = sp.csr_matrix((np.ones(int(indptr[-1])), links.indices[mutual], indptr), shape=(n, n))
     n_comp, labels = csgraph.connected_components(graph, directed=False)
 

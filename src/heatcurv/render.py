@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import HeatcurvError
-from .options import Range, range_problem
+from .options import SEED_RANGE, Range, range_problem
 
 __all__ = [
     "FIELD_STYLES",
@@ -391,7 +391,7 @@ PICTURE_RANGES: dict[str, Range] = {
         0.01, 1000.0, False, "disc diameter in pixels; the automatic one is 1-80, a picture side at most 10000",
     ),
     "elevation": Range(-90.0, 90.0, False, "an angle up from the horizon, in degrees"),
-    "seed": Range(0, 2**63 - 1, True, "numpy's random generators take a non-negative 64-bit seed"),
+    "seed": SEED_RANGE,
 }
 
 

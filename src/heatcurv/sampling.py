@@ -24,7 +24,7 @@ import numpy as np
 
 from .neighbourhood import Neighbourhood
 
-__all__ = ["geometric_keys", "key_sample"]
+__all__ = ["geometric_keys", "key_sample", "draw_subset"]
 
 #: Multiplier of the invariant features before their fractional part is taken: large enough that
 #: neighbouring points' keys are unrelated (features differ by about 1e-3 between neighbours),
@@ -88,3 +88,15 @@ def key_sample(keys: np.ndarray, size: int, seed: int = 0) -> np.ndarray:
         return np.arange(n)
     shifted = np.modf(keys + _GOLDEN * (seed % 1_000_003))[0]
     return np.sort(np.argpartition(shifted, size - 1)[:size] if size > 0 else np.empty(0, dtype=np.int64))
+
+
+def draw_subset(n: int, size: int, seed: int = 0, keys: np.ndarray | None = None) -> np.ndarray:
+    """Sorted indices of ``min(size, n)`` of ``n`` points: by ``keys`` if given (:func:`key_sample`), else seeded rows.
+
+    Without keys (a caller that has no neighbourhood, e.g. the stages' public functions
+    called directly) the subset is a seeded random choice of the rows, which depends on
+    their order.
+    """
+    if keys is not None:
+        return key_sample(keys, size, seed)
+    return np.sort(np.random.default_rng(seed).choice(n, min(size, n), replace=False))

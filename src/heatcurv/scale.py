@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 from .chordfit import ChordFit, chord_fit
 from .kernel import tapered_heat_weights
 from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
-from .sampling import key_sample
+from .sampling import draw_subset
 
 __all__ = [
     "Scale", "ScaleChoice", "ScaleReport", "FitLevel", "fit_blocks", "fit_at_scale", "select_scale", "select_form",
@@ -216,10 +216,7 @@ class FitLevel:
         if k <= k_fit:
             return cls(points, tree, None, 1.0, min(k, n - 1))
         size = min(max(int(round(n * k_fit / k)), k_fit + 1), n)
-        if keys is not None:
-            coarse = key_sample(keys, size, seed + k)
-        else:
-            coarse = np.sort(np.random.default_rng(seed + k).choice(n, size, replace=False))
+        coarse = draw_subset(n, size, seed + k, keys)
         fraction = coarse.size / n
         level_points = points[coarse]
         # the k-th neighbour in the cloud is about the (k * fraction)-th of the coarse level
@@ -399,7 +396,7 @@ def select_form(
     ScaleChoice
         ``scale.k`` is the median neighbour count of the balls.
     """
-    sub = _subsample(points.shape[0], n_sub, seed, keys)
+    sub = draw_subset(points.shape[0], n_sub, seed, keys)
     balls = nbhd.take_rows(sub)
     h = balls.radius / alpha
     weights = tapered_heat_weights(balls, h, areas)
@@ -493,7 +490,7 @@ def select_scale(
     ScaleChoice
     """
     n = points.shape[0]
-    sub = _subsample(n, n_sub, seed, keys)
+    sub = draw_subset(n, n_sub, seed, keys)
     ladder = []
     k = base_k
     if max_k is None:
@@ -549,9 +546,3 @@ def select_scale(
         mean_abs=float(np.mean(np.abs(means[0]))),
     )
 
-
-def _subsample(n: int, n_sub: int, seed: int, keys: np.ndarray | None) -> np.ndarray:
-    """Sorted indices of ``min(n_sub, n)`` points: by ``keys`` if given, else seeded random rows."""
-    if keys is not None:
-        return key_sample(keys, n_sub, seed)
-    return np.sort(np.random.default_rng(seed).choice(n, min(n_sub, n), replace=False))

@@ -7,7 +7,7 @@ import math
 import re
 
 from ..features import FEATURE_RANGES
-from ..options import Range, range_problem
+from ..options import SEED_RANGE, Range, range_problem
 from ..render import PICTURE_RANGES
 
 __all__ = [
@@ -107,7 +107,7 @@ CLI_RANGES: dict[str, Range] = {
     "min_angle": FEATURE_RANGES["min_angle"],
     "n": Range(4, 10_000_000, True, "points of the demo's sample: the surfaces need 4; 1e7 fills gigabytes"),
     "noise": Range(0.0, 1.0, False, "a fraction of the bounding-box diagonal"),
-    "seed": Range(0, 2**63 - 1, True, "numpy's random generators take a non-negative 64-bit seed"),
+    "seed": SEED_RANGE,
 }
 
 
