@@ -147,6 +147,16 @@ def _quoted(text: str, limit: int = 40) -> str:
     return repr(text) if len(text) <= limit else repr(text[:limit]) + "..."
 
 
+def _size_text(nbytes: int) -> str:
+    """``3240 bytes``, ``1.5 MB``, ``3.1 GB``: a byte count in plain words."""
+    if nbytes < 10_000:
+        return f"{nbytes} bytes"
+    for unit, scale in (("kB", 1e3), ("MB", 1e6), ("GB", 1e9), ("TB", 1e12)):
+        if nbytes < scale * 1000 or unit == "TB":
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{nbytes} bytes"  # pragma: no cover
+
+
 def _read_error(path, problem: str) -> HeatcurvError:
     return HeatcurvError(f"cannot read {path}: {problem}")
 

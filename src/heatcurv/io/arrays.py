@@ -46,6 +46,7 @@ from ._common import (
     _Output,
     _quoted,
     _read_error,
+    _size_text,
     _write_error,
 )
 
@@ -71,16 +72,6 @@ _RATIO_SLACK = 1 << 16
 _PEAK_FACTOR = 3
 # bytes decompressed per read: the only memory beyond the array being filled
 _CHUNK = 1 << 20
-
-
-def _size_text(nbytes: int) -> str:
-    """``3240 bytes``, ``1.5 MB``, ``3.1 GB``: a byte count in plain words."""
-    if nbytes < 10_000:
-        return f"{nbytes} bytes"
-    for unit, scale in (("kB", 1e3), ("MB", 1e6), ("GB", 1e9), ("TB", 1e12)):
-        if nbytes < scale * 1000 or unit == "TB":
-            return f"{nbytes / scale:.3g} {unit}"
-    return f"{nbytes} bytes"  # pragma: no cover
 
 
 def _memory_budget() -> int | None:

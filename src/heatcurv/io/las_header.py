@@ -30,6 +30,8 @@ import os
 import struct
 from dataclasses import dataclass
 
+from ._common import _one_line
+
 # smallest public header laspy accepts for each minor version 0..5
 _HEADER_SIZE = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375, 5: 393}
 # bytes of a point record of each point format 0..10
@@ -243,7 +245,7 @@ def _read_chunk_table(reader: _Reader, start_of_points: int, laszip: _LasZip):
     try:
         vlr = lazrs.LazVlr(laszip.record_data)
     except Exception as exc:
-        raise LasStructureError(f"the laszip VLR is corrupt (lazrs: {_first_line(exc)})") from None
+        raise LasStructureError(f"the laszip VLR is corrupt (lazrs: {_one_line(exc)})") from None
     try:
         reader.stream.seek(start_of_points)
         return lazrs.read_chunk_table(reader.stream, vlr)
@@ -251,13 +253,8 @@ def _read_chunk_table(reader: _Reader, start_of_points: int, laszip: _LasZip):
         raise
     except BaseException as exc:  # lazrs errors, and pyo3 panics (not Exceptions)
         raise LasStructureError(
-            f"the chunk table is corrupt or truncated (lazrs: {_first_line(exc)})"
+            f"the chunk table is corrupt or truncated (lazrs: {_one_line(exc)})"
         ) from None
-
-
-def _first_line(exc: BaseException) -> str:
-    lines = str(exc).strip().splitlines()
-    return lines[0].strip() if lines else type(exc).__name__
 
 
 def _check_laz(
