@@ -1,0 +1,114 @@
+"""Compiled graph kernels: the minimum spanning forest of a CSR neighbour graph.
+
+:func:`heatcurv.orientation.orient` propagates one side of the normals over a
+minimum spanning forest of the neighbour graph. :func:`minimum_spanning_forest`
+finds it by Boruvka's algorithm: every round, each component takes its
+cheapest edge to another component, and the edges left inside a component
+are dropped. Edges are compared by ``(cost, position in the CSR arrays)``, a
+strict total order, so the forest is unique: the one SciPy's
+``csgraph.minimum_spanning_tree`` (Kruskal's algorithm over the costs sorted
+stably, i.e. equal costs in CSR order) returns, position for position.
+Measured on a million points (10 edges each): 3.9 s in SciPy, of which 2 s
+sorting the costs; Boruvka sorts nothing.
+
+Arrays in, arrays out: this module imports nothing from heatcurv.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from . import as_floats, as_indices, as_pointers
+
+__all__ = ["minimum_spanning_forest"]
+
+
+def minimum_spanning_forest(indptr, indices, cost) -> np.ndarray:
+    """The edges of the minimum spanning forest of an undirected CSR graph, as a mask over its entries.
+
+    Parameters
+    ----------
+    indptr, indices : ndarray
+        CSR graph of ``n = len(indptr) - 1`` vertices: entry ``p`` of row
+        ``i`` is the undirected edge ``{i, indices[p]}`` (both directions may be
+        stored, as two edges).
+    cost : ndarray, shape (nnz,)
+        Edge costs, finite and positive (as csgraph, which reads a zero as no edge).
+
+    Returns
+    -------
+    ndarray, shape (nnz,), bool
+        Whether each entry is an edge of the forest: the entries
+        ``scipy.sparse.csgraph.minimum_spanning_tree`` keeps, ties between
+        equal costs going to the earlier entry as in its stable sort.
+    """
+    indptr = as_pointers(indptr)
+    n = indptr.shape[0] - 1
+    cost = as_floats(cost)
+    in_tree = np.zeros(cost.shape[0], dtype=np.bool_)
+    _boruvka(n, indptr, as_indices(indices, n), cost, in_tree)
+    return in_tree
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _root(parent, v):
+    """The root of ``v`` in the union-find forest ``parent``, halving the path on the way."""
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _before(cost, e, f):
+    """Whether edge ``e`` comes before edge ``f`` (``f`` may be -1, no edge): by cost, then position."""
+    return f < 0 or cost[e] < cost[f] or (cost[e] == cost[f] and e < f)
+
+
+@njit(cache=True, nogil=True)
+def _boruvka(n, indptr, indices, cost, in_tree):
+    m = indices.shape[0]
+    source = np.empty(m, dtype=indices.dtype)
+    for i in range(n):
+        for p in range(indptr[i], indptr[i + 1]):
+            source[p] = i
+    # the edges between different components (self-loops and zero costs are no edges)
+    live = np.empty(m, dtype=np.int64)
+    count = 0
+    for p in range(m):
+        if source[p] != indices[p] and cost[p] != 0.0:
+            live[count] = p
+            count += 1
+    component = np.arange(n)  # each vertex's component: a union-find root, refreshed every round
+    parent = np.arange(n)
+    cheapest = np.full(n, -1, dtype=np.int64)
+    while count > 0:
+        # each component's cheapest edge to another component
+        for t in range(count):
+            e = live[t]
+            a, b = component[source[e]], component[indices[e]]
+            if _before(cost, e, cheapest[a]):
+                cheapest[a] = e
+            if _before(cost, e, cheapest[b]):
+                cheapest[b] = e
+        # join along them: with a strict order they form a forest (an edge two components chose is joined once)
+        for c in range(n):
+            e = cheapest[c]
+            if e < 0:
+                continue
+            cheapest[c] = -1
+            a, b = _root(parent, source[e]), _root(parent, indices[e])
+            if a != b:
+                parent[a] = b
+                in_tree[e] = True
+        for v in range(n):
+            component[v] = _root(parent, v)
+        # drop the edges now inside a component
+        kept = 0
+        for t in range(count):
+            e = live[t]
+            if component[source[e]] != component[indices[e]]:
+                live[kept] = e
+                kept += 1
+        count = kept

@@ -1,0 +1,61 @@
+"""heatcurv._kernels.graph: the compiled minimum spanning forest against SciPy's, entry for entry."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from heatcurv._kernels.graph import minimum_spanning_forest
+
+
+def scipy_forest(indptr, indices, cost):
+    """The entries ``csgraph.minimum_spanning_tree`` keeps, as a mask over the CSR entries."""
+    n = len(indptr) - 1
+    marked = sp.csr_matrix((np.arange(1.0, len(cost) + 1), indices, indptr), shape=(n, n))
+    tree = csgraph.minimum_spanning_tree(sp.csr_matrix((cost, indices, indptr), shape=(n, n)))
+    # the same pattern as the input's: which entries survived, read off a copy that numbers them
+    kept = np.zeros(len(cost), dtype=bool)
+    rows = np.repeat(np.arange(n), np.diff(tree.indptr))
+    kept[(marked[rows, tree.indices].A1 - 1).astype(np.int64)] = True
+    return kept
+
+
+def random_graph(n, k, seed, ties=False, islands=0):
+    """``k`` random neighbours per vertex (no self-loops), CSR; ``islands`` vertices at the end have none."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n - islands):
+        choice = rng.choice(n - islands - 1, size=min(k, n - islands - 1), replace=False)
+        rows.append(np.where(choice >= i, choice + 1, choice))
+    rows += [np.empty(0, dtype=np.int64)] * islands
+    indptr = np.concatenate([[0], np.cumsum([len(r) for r in rows])]).astype(np.int64)
+    indices = np.concatenate(rows).astype(np.int32)
+    cost = rng.random(len(indices)) + 0.1
+    if ties:  # a few distinct values: the order of equal costs decides
+        cost = np.round(cost, 1)
+    return indptr, indices, cost
+
+
+@pytest.mark.parametrize("ties", [False, True])
+@pytest.mark.parametrize("n, k, islands", [(2, 1, 0), (50, 3, 0), (2000, 10, 0), (3000, 2, 40), (500, 1, 0)])
+def test_same_entries_as_scipy(n, k, islands, ties):
+    indptr, indices, cost = random_graph(n, k, seed=n + k, ties=ties, islands=islands)
+    got = minimum_spanning_forest(indptr, indices, cost)
+    assert np.array_equal(got, scipy_forest(indptr, indices, cost))
+
+
+def test_both_directions_of_an_edge_the_cheaper_is_kept():
+    # 0 -> 1 (cost 2) and 1 -> 0 (cost 1): one edge, the cheaper entry; equal costs: the earlier entry
+    indptr, indices = np.array([0, 1, 2]), np.array([1, 0], dtype=np.int32)
+    assert minimum_spanning_forest(indptr, indices, np.array([2.0, 1.0])).tolist() == [False, True]
+    assert minimum_spanning_forest(indptr, indices, np.array([1.0, 1.0])).tolist() == [True, False]
+
+
+def test_empty_graph_and_components():
+    assert minimum_spanning_forest(np.zeros(4, dtype=np.int64), np.empty(0, dtype=np.int32), np.empty(0)).size == 0
+    # two triangles: two edges each
+    indptr = np.array([0, 2, 3, 4, 6, 7, 8])
+    indices = np.array([1, 2, 2, 0, 4, 5, 5, 3], dtype=np.int32)
+    cost = np.array([1.0, 3.0, 2.0, 5.0, 1.0, 3.0, 2.0, 5.0])
+    got = minimum_spanning_forest(indptr, indices, cost)
+    assert got.sum() == 4 and np.array_equal(got, scipy_forest(indptr, indices, cost))
