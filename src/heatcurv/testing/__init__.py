@@ -7,7 +7,8 @@ judge an estimate against the exact values of :mod:`heatcurv.surfaces`.
 ``errors``             error measures (eqs 4.1, 5.1, relative L1) and
                        :func:`compare` (formerly ``heatcurv.evaluation``)
 ``baseline``           the classical k-NN quadric fit, for comparison
-                       (formerly ``heatcurv.baseline``)
+                       (formerly ``heatcurv.baseline``), at every point
+                       or at chosen centres only (``centres=``)
 ``scans``              the real-scan test set: pymeshlab's sample meshes,
                        fetched (never shipped), and a mesh reader giving
                        their areas, normals and components
