@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 
-__all__ = ["threads"]
+__all__ = ["threads", "map_blocks", "SPLIT_ROWS"]
 
 
 @contextmanager
@@ -52,3 +52,43 @@ def threads(workers: int | None):
         yield
     finally:
         numba.set_num_threads(previous)
+
+
+#: Blocks of fewer rows than this run side by side (:func:`map_blocks`): the compiled kernels split
+#: one call's rows over threads only from 1024 rows on (:data:`heatcurv._kernels.MIN_ROWS_PER_CHUNK`
+#: per thread), and a wide kernel's block of a million pairs holds a few hundred rows.
+SPLIT_ROWS = 1024
+
+
+def map_blocks(function, blocks: list, rows: int):
+    """``function(block)`` for every block, in order, on the kernels' threads when the blocks are small.
+
+    Parameters
+    ----------
+    function : callable
+        Computes one block; its compiled kernels release the GIL.
+    blocks : list
+        The blocks' arguments.
+    rows : int
+        Rows of the largest block: below :data:`SPLIT_ROWS` the blocks run side by side on
+        numba's thread count of the calling thread (:func:`threads`), else one after the other
+        (each already runs on every thread).
+
+    Returns
+    -------
+    iterator
+        The results, in the order of ``blocks``. Every block is submitted at once:
+        keep what ``function`` returns small.
+    """
+    import numba
+
+    count = numba.get_num_threads() if rows < SPLIT_ROWS and len(blocks) > 1 else 1
+    if count <= 1:
+        return map(function, blocks)
+    from concurrent.futures import ThreadPoolExecutor
+
+    def run(pool_function, items):
+        with ThreadPoolExecutor(count) as pool:
+            yield from pool.map(pool_function, items)
+
+    return run(function, blocks)

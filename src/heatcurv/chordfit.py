@@ -65,12 +65,18 @@ class ChordFit:
         Variance of the fitted mean curvature per unit height-noise variance:
         ``Var(kappa_M) = sigma^2 * factor`` for independent height noise of
         standard deviation ``sigma``.
+    coefficients : ndarray, shape (n, 9)
+        The last pass's model in the frame ``tangent_frames(normals)``, in units of
+        each centre's ball radius: tensor ``a, b, d``, tilt ``t_1, t_2`` and cubic
+        ``g_0 .. g_3`` (zeros for terms not fitted); :mod:`heatcurv.anchors`
+        evaluates it away from the centre.
     """
 
     principal: PrincipalCurvatures
     normals: np.ndarray
     sigma: np.ndarray
     mean_variance_factor: np.ndarray
+    coefficients: np.ndarray | None = None
 
     @staticmethod
     def concatenate(parts: list) -> ChordFit:
@@ -85,6 +91,7 @@ class ChordFit:
             normals=cat(lambda p: p.normals),
             sigma=cat(lambda p: p.sigma),
             mean_variance_factor=cat(lambda p: p.mean_variance_factor),
+            coefficients=None if any(p.coefficients is None for p in parts) else cat(lambda p: p.coefficients),
         )
 
 
@@ -284,7 +291,19 @@ def _refined_normal(beta, e1, e2, normals, tilt: bool):
     return refined
 
 
-def _chord_fit_result(pc, well_posed, used, sigma2, var_factor, unit) -> ChordFit:
+def _model_coefficients(beta: np.ndarray, tilt: bool, cubic: bool) -> np.ndarray:
+    """The fitted shape columns as the nine of the full model (tensor, tilt, cubic), zeros where not fitted."""
+    coefficients = np.zeros((beta.shape[0], 9))
+    coefficients[:, :3] = beta[:, :3]
+    if tilt:
+        coefficients[:, 3:5] = beta[:, 3:5]
+    if cubic:
+        first = 3 + 2 * tilt
+        coefficients[:, 5:9] = beta[:, first : first + 4]
+    return coefficients
+
+
+def _chord_fit_result(pc, well_posed, used, sigma2, var_factor, unit, coefficients) -> ChordFit:
     """Assemble the :class:`ChordFit` of the last pass, back in the cloud's units."""
     principal = PrincipalCurvatures(
         k1=pc.k1, k2=pc.k2, d1=pc.d1, d2=pc.d2, mean=pc.mean, gaussian=pc.gaussian, well_posed=well_posed
@@ -293,7 +312,8 @@ def _chord_fit_result(pc, well_posed, used, sigma2, var_factor, unit) -> ChordFi
     # last tilt correction is below the measured normal error (0.001 deg on clean clouds)
     # back to the cloud's units: sigma scales with the radius, Var(kappa_M) = sigma^2 factor / R^4
     return ChordFit(
-        principal=principal, normals=used, sigma=np.sqrt(sigma2) * unit, mean_variance_factor=var_factor / unit**4
+        principal=principal, normals=used, sigma=np.sqrt(sigma2) * unit, mean_variance_factor=var_factor / unit**4,
+        coefficients=coefficients,
     )
 
 
@@ -377,7 +397,9 @@ def refine_normals(
     -------
     ndarray, shape (m, 3)
         Unit normals ``n - g_1 e_1 - g_2 e_2`` normalised, with the fitted tilt ``g``
-        (the starting normals where ``tilt`` is False).
+        (the starting normals where ``tilt`` is False). With ``denoise`` the tilt
+        is the plain height fit's: the denoised refit would move it by far less
+        than the noise, at twice the cost.
     """
     geometry = _fit_geometry(points, nbhd, weights, centres)
     nrm = np.ascontiguousarray(normals, dtype=np.float64)
@@ -419,6 +441,10 @@ def _fit_pass(base: tuple, nrm: np.ndarray, tilt: bool, cubic: bool, denoise: bo
         # 1) plain height fit: z = z0 - r^2/2 * model;
         # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2 of its heights
         height_beta = kernels.fit(kernels.HEIGHT, n_shape + 1, geometry)
+        if not final:
+            # the tilt alone: the height fit's (the refit moves it by far less than the noise: noisy
+            # spheres, ellipsoids, tori, patches and saddles gave the same errors to 0.01 points)
+            return _refined_normal(height_beta[:, :n_shape], e1, e2, nrm, tilt)
         contrast = _mean_contrast(n_shape + 1) if final else None
         fitted = kernels.fit(
             kernels.DENOISED_HEIGHT, n_shape + 1, geometry, height_beta=height_beta, contrast=contrast
@@ -431,4 +457,4 @@ def _fit_pass(base: tuple, nrm: np.ndarray, tilt: bool, cubic: bool, denoise: bo
     kernels.weighted_height_residual(*geometry, kind, height_beta, beta, sigma2)
     pc, _ = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
     # the normal this fit was done in, so that d1 x d2 = n holds exactly
-    return _chord_fit_result(pc, ok, nrm, sigma2, var_factor, unit)
+    return _chord_fit_result(pc, ok, nrm, sigma2, var_factor, unit, _model_coefficients(beta, tilt, cubic))

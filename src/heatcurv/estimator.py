@@ -32,6 +32,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from .anchors import anchor_rows, carry_fits, fit_anchors
 from .areas import ball_area_factor, cut_ball_coverage, density_areas
 from .backend import threads
 from .border import BORDER_OFFSET, border_points, centroid_offset
@@ -40,7 +41,7 @@ from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import tapered_heat_weights
 from .kernel_check import check_kernel
 from .mean_curvature import mean_curvature
-from .neighbourhood import BLOCK_PAIRS, block_ranges
+from .neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_per_block
 from .normals import pca_normals
 from .operator import HeatKernelOperator
 from .options import rename_aliases, resolve_options
@@ -50,7 +51,7 @@ from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
 from .results import CurvatureResult
 from .sampling import geometric_keys
-from .scale import FitLevel, ScaleReport, select_form, select_scale
+from .scale import ScaleReport, select_form, select_scale
 from .validation import prepare_normals
 
 __all__ = ["CurvatureResult", "estimate"]
@@ -87,6 +88,7 @@ class _Fitted:
     border: np.ndarray
     scale: ScaleReport | None = None
     residual: np.ndarray | None = None
+    radius: np.ndarray | None = None
 
 
 def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, **options):
@@ -278,7 +280,7 @@ def _default_fit_stages(
     outlier : ndarray, shape (m,), bool
         Points that get no weight in anyone's fit (:mod:`heatcurv.outliers`).
     keys : ndarray, shape (m,)
-        Sampling keys of the kernel choice's subsample and the coarse levels
+        Sampling keys of the kernel choice's subsample and the anchors
         (:func:`heatcurv.sampling.geometric_keys`).
     clock : StageClock
 
@@ -309,20 +311,24 @@ def _default_fit_stages(
                 **asdict(tuning),
             )
     scale = choice.scale
+    if not fixed_radius and (scale.denoise or scale.k > tuning.k_fit):
+        # noisy clouds, and kernels too wide to fit at every point: fitted at anchors
+        return _anchored_fit_stages(op, nrm, keep_normals, fit_areas, choice, keys, clock)
     # the operator's neighbourhood already is the kernel's when the density ball holds k points
     reuse_base = fixed_radius or (opts.spacing == "density" and scale.k == int(opts.neighbours))
     # a kernel wider than the operator's counts its own density for the areas
     own_density = not fixed_radius and scale.k > opts.neighbours
-    with clock.stage("fit_neighbourhood", report=False):
-        level = None if fixed_radius else FitLevel.for_kernel(X, op.tree, scale.k, tuning.k_fit, tuning.seed, keys)
-    blocks = base.row_blocks(BLOCK_PAIRS) if fixed_radius else block_ranges(n, level.rows_per_block())
+    k = min(scale.k, n - 1)
+    blocks = base.row_blocks(BLOCK_PAIRS) if fixed_radius else block_ranges(n, rows_per_block(k))
 
     areas, border, radius, residual = np.empty(n), np.empty(n, dtype=bool), np.empty(n), np.empty(n)
     fits = []
     for lo, hi in blocks:
         centres = X[lo:hi]
         with clock.stage("fit_neighbourhood", report=False):
-            nbhd = base.rows_slice(lo, hi) if reuse_base else level.neighbourhood(centres, opts.workers)
+            nbhd = base.rows_slice(lo, hi) if reuse_base else knn_neighbourhood(
+                X, k, tree=op.tree, queries=centres, workers=opts.workers
+            )
         with clock.stage("fit_weights", report=False):
             # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
             weights = tapered_heat_weights(nbhd, nbhd.radius / opts.alpha, fit_areas)
@@ -336,21 +342,56 @@ def _default_fit_stages(
             offset = centroid_offset(X, nbhd, fit.normals, taper=opts.taper, centres=centres)
             border[lo:hi] = offset > BORDER_OFFSET
         with clock.stage("area_correction", report=False):
-            fraction = 1.0 if level is None else level.fraction
-            areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, fraction, offset, reuse_base)
+            areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, offset, reuse_base)
         radius[lo:hi] = nbhd.radius
         residual[lo:hi] = fit.sigma
         fits.append(fit)
         clock.report("fit", hi / n)
     fit = ChordFit.concatenate(fits)
     pc = fit.principal
-    report = ScaleReport.from_choice(choice, radius, opts.alpha, opts.radius)
-    return _Fitted(fit.normals, pc.mean, pc, areas, border, report, residual)
+    report = ScaleReport.from_choice(choice, radius, opts.alpha, opts.radius, support=radius)
+    return _Fitted(fit.normals, pc.mean, pc, areas, border, report, residual, radius)
+
+
+def _anchored_fit_stages(
+    op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, fit_areas: np.ndarray, choice, keys: np.ndarray,
+    clock: StageClock,
+) -> _Fitted:
+    """The noisy cloud's fit: the wide kernel at anchors, carried to every point (:mod:`heatcurv.anchors`).
+
+    Stages ``anchor_fit``, ``carry`` and ``area_correction``; the parameters are
+    those of :func:`_default_fit_stages` (``fit_areas``: the areas weighting the
+    fit, 0 for outliers; ``choice``: the kernel choice).
+    """
+    opts, X = op.options, op.points
+    n = X.shape[0]
+    k_point = choice.k_per_point if choice.k_per_point is not None else np.full(n, choice.scale.k)
+    with clock.stage("anchor_fit", report=False):
+        index = anchor_rows(keys, k_point, opts.scale_tuning.seed)
+        anchors = fit_anchors(
+            X, op.tree, nrm, fit_areas, index, k_point[index], denoise=True, alpha=opts.alpha, taper=opts.taper,
+            refine=not keep_normals, workers=opts.workers, progress=lambda f: clock.report("fit", 0.9 * f),
+        )
+    with clock.stage("carry", report=False):
+        carried = carry_fits(X, anchors, normals=nrm if keep_normals else None, workers=opts.workers)
+    pc = carried.principal
+    with clock.stage("area_correction", report=False):
+        border = carried.offset > BORDER_OFFSET
+        areas = op.areas
+        if opts.area_method == "density":
+            # the anchors' area per point (their wide balls count a less noisy density), the ball's
+            # curved area and a border point's cut share, as for the per-point fit
+            areas = (carried.density_area * ball_area_factor(carried.radius, pc.k1, pc.k2)
+                     * cut_ball_coverage(carried.offset, BORDER_OFFSET))
+    clock.report("fit", 1.0)
+    report = ScaleReport.from_choice(choice, carried.radius, opts.alpha, support=carried.support,
+                                     anchors=index.shape[0], k=k_point)
+    return _Fitted(carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius)
 
 
 def _corrected_areas(
-    op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordFit, own_density: bool, fraction: float,
-    offset: np.ndarray, same_ball: bool,
+    op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordFit, own_density: bool, offset: np.ndarray,
+    same_ball: bool,
 ) -> np.ndarray:
     """Stage ``area_correction``: areas of points ``lo:hi`` on the fit's kernel, shape (hi - lo,).
 
@@ -365,7 +406,7 @@ def _corrected_areas(
     if op.options.area_method != "density":
         return op.areas[lo:hi]
     if own_density:
-        own, area_radius = density_areas(nbhd, fraction=fraction), nbhd.radius
+        own, area_radius = density_areas(nbhd), nbhd.radius
     else:
         own, area_radius = op.areas[lo:hi], op.neighbourhood.radius[lo:hi]
         if not same_ball:  # the density was counted on the operator's ball: its own offset
@@ -441,4 +482,5 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
         mean_curvature_normal=back(K) / unit,
         options=op.options,
         info=info,
+        fit_radius=back(nbhd.radius if fitted.radius is None else fitted.radius) * unit,
     )

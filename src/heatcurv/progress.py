@@ -19,7 +19,7 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 
-__all__ = ["STAGES", "FIT_STAGES", "PROGRESS_STAGES", "PROGRESS_WEIGHTS", "StageClock"]
+__all__ = ["STAGES", "FIT_STAGES", "ANCHOR_STAGES", "PROGRESS_STAGES", "PROGRESS_WEIGHTS", "StageClock"]
 
 #: Every stage, in the order it runs, with what it computes.
 STAGES = {
@@ -43,14 +43,18 @@ STAGES = {
     "fit_weights": "tapered heat-kernel weights of the fit (eq 2.8)",
     "normal_refinement": "a first chord fit whose tilt corrects the normals",
     "curvature_fit": "the chord fit at the refined normals: k1, k2, d1, d2, mean",
+    "anchor_fit": "noisy clouds: the fit at anchors, each with all the points of its wide ball (heatcurv.anchors)",
+    "carry": "noisy clouds: the anchors' fits carried to every point (normals, curvatures, border, areas)",
     # both
     "border": "border points of open surfaces (the offset of the ball's centroid)",
     # method "default"
     "area_correction": "areas on the fit's kernel, corrected by the fitted curvatures and the border's cut",
 }
 
-#: The default method's stages that run once per block of points.
+#: The default method's stages that run once per block of points (clean clouds).
 FIT_STAGES = ("fit_neighbourhood", "fit_weights", "normal_refinement", "curvature_fit", "border", "area_correction")
+#: The default method's fit stages on noisy clouds (the wide kernel fitted at anchors).
+ANCHOR_STAGES = ("anchor_fit", "carry", "area_correction")
 
 #: Names ``progress`` is called with, in order, per method (the fit's block stages report as ``"fit"``).
 PROGRESS_STAGES = {

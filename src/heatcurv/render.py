@@ -112,6 +112,7 @@ FIELD_STYLES: dict[str, FieldStyle] = {
     "border": FieldStyle("border point", "", "mask"),
     "spacing": FieldStyle("kernel spacing h", "{L}", "sequential"),
     "neighbours": FieldStyle("neighbours in the ball", "", "sequential"),
+    "fit_radius": FieldStyle("radius of the fitted ball (per-point scale)", "{L}", "sequential"),
     **{f"n{a}": FieldStyle(f"normal, {a} component", "", "signed") for a in "xyz"},
     **{f"d1{a}": FieldStyle(f"principal direction d1, {a} component", "", "signed") for a in "xyz"},
     **{f"d2{a}": FieldStyle(f"principal direction d2, {a} component", "", "signed") for a in "xyz"},

@@ -60,6 +60,13 @@ class CurvatureResult:
         says which.
     neighbours : ndarray, shape (n,), int
         Points in each heat-kernel ball (the point itself excluded).
+    fit_radius : ndarray, shape (n,)
+        The radius of the ball the curvatures were fitted on at each point,
+        length units: the per-point scale the kernel choice made
+        (:mod:`heatcurv.scale`; on noisy clouds the anchors' balls carried to
+        the point, :mod:`heatcurv.anchors`). The paper's method: the operator's
+        ball. ``info["scale"].support_radius`` bounds how far any point's
+        values reach.
     mean_curvature_normal : ndarray, shape (n, 3)
         ``K = L x`` of eq 2.10, approximately ``2 mean * normals``.
     options : Options
@@ -95,6 +102,7 @@ class CurvatureResult:
     mean_curvature_normal: np.ndarray
     options: Options
     info: dict = field(default_factory=dict)
+    fit_radius: np.ndarray | None = None
 
     FIELDS = ("normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area")
 

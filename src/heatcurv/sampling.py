@@ -24,7 +24,7 @@ import numpy as np
 
 from .neighbourhood import Neighbourhood
 
-__all__ = ["geometric_keys", "key_sample", "draw_subset"]
+__all__ = ["geometric_keys", "key_sample", "key_thinning", "draw_subset"]
 
 #: Multiplier of the invariant features before their fractional part is taken: large enough that
 #: neighbouring points' keys are unrelated (features differ by about 1e-3 between neighbours),
@@ -88,6 +88,27 @@ def key_sample(keys: np.ndarray, size: int, seed: int = 0) -> np.ndarray:
         return np.arange(n)
     shifted = np.modf(keys + _GOLDEN * (seed % 1_000_003))[0]
     return np.sort(np.argpartition(shifted, size - 1)[:size] if size > 0 else np.empty(0, dtype=np.int64))
+
+
+def key_thinning(keys: np.ndarray, fraction, seed: int = 0) -> np.ndarray:
+    """The points whose key (shifted by ``seed``) is below ``fraction``: a subset of local density ``fraction``.
+
+    Parameters
+    ----------
+    keys : ndarray, shape (n,)
+        From :func:`geometric_keys`.
+    fraction : float or ndarray, shape (n,)
+        Share of the points kept, per point where it varies (1: every point).
+    seed : int, optional
+        As :func:`key_sample`.
+
+    Returns
+    -------
+    ndarray of int64, shape (m,)
+        Increasing indices.
+    """
+    shifted = np.modf(keys + _GOLDEN * (seed % 1_000_003))[0]
+    return np.flatnonzero(shifted < fraction)
 
 
 def draw_subset(n: int, size: int, seed: int = 0, keys: np.ndarray | None = None) -> np.ndarray:

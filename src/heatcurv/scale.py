@@ -37,13 +37,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .backend import SPLIT_ROWS, map_blocks
 from .chordfit import ChordFit, chord_fit
 from .kernel import tapered_heat_weights
 from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
 from .sampling import draw_subset
 
 __all__ = [
-    "Scale", "ScaleChoice", "ScaleReport", "FitLevel", "fit_blocks", "fit_at_scale", "select_scale", "select_form",
+    "Scale", "ScaleChoice", "ScaleReport", "fit_blocks", "fit_at_scale", "select_scale", "select_form",
 ]
 
 
@@ -77,6 +78,8 @@ class ScaleChoice:
         Root-mean-square standard deviation of each candidate's mean curvature.
     mean_abs : float
         Mean ``|kappa_M|`` of the narrowest candidate (for scale).
+    k_per_point : ndarray of int, shape (n,), or None
+        The kernel width chosen at each point (None: ``scale.k`` everywhere).
     """
 
     scale: Scale
@@ -85,6 +88,7 @@ class ScaleChoice:
     candidates: list = field(default_factory=list)
     sd: list = field(default_factory=list)
     mean_abs: float = float("nan")
+    k_per_point: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -114,6 +118,14 @@ class ScaleReport:
         Labels of the kernels compared, narrowest first.
     sd : list of float
         Root-mean-square standard deviation of each candidate's mean curvature.
+    support_radius : float
+        The largest support radius of any point, length units: no point farther
+        than this from a point changes its fitted values (a tiled run's halo;
+        :mod:`heatcurv.anchors`). The per-point fit's is its ball radius.
+    anchors : int
+        Points the wide kernel was fitted at (0: every point has its own fit).
+    k_min, k_max : int
+        Narrowest and widest kernel chosen at any point (``k`` is the median point's).
     """
 
     k: int
@@ -125,6 +137,10 @@ class ScaleReport:
     candidates: list = field(default_factory=list)
     sd: list = field(default_factory=list)
     median_radius: float = float("nan")
+    support_radius: float = float("nan")
+    anchors: int = 0
+    k_min: int = 0
+    k_max: int = 0
 
     def in_unit(self, unit: float) -> ScaleReport:
         """The report with its lengths multiplied by ``unit`` (the stages' unit back to the input's)."""
@@ -132,22 +148,34 @@ class ScaleReport:
             return self
         return replace(
             self, radius=self.radius * unit, median_h=self.median_h * unit, sigma=self.sigma * unit,
-            median_radius=self.median_radius * unit,
+            median_radius=self.median_radius * unit, support_radius=self.support_radius * unit,
         )
 
     @classmethod
     def from_choice(
-        cls, choice: ScaleChoice, radius: np.ndarray, alpha: float, fixed_radius: float | None = None
+        cls, choice: ScaleChoice, radius: np.ndarray, alpha: float, fixed_radius: float | None = None, *,
+        support: np.ndarray | None = None, anchors: int = 0, k: np.ndarray | None = None,
     ) -> ScaleReport:
         """The report of ``choice`` fitted with ball radii ``radius`` (shape (n,)).
 
         With ``fixed_radius`` (``radius=``) the label is ``"<form>-r<radius>"``.
+        ``support`` (shape (n,)) is each point's support radius (default ``radius``),
+        ``anchors`` the anchors' count and ``k`` (shape (n,)) each point's kernel width.
         """
         label = choice.scale.label
         if fixed_radius is not None:
             label = f"{'denoised' if choice.scale.denoise else 'chord'}-r{fixed_radius:g}"
+        support = radius if support is None else support
+        finite = support[np.isfinite(support)]
+        k_median = choice.scale.k if k is None else int(np.median(k))
+        k_min = choice.scale.k if k is None else int(k.min())
+        k_max = choice.scale.k if k is None else int(k.max())
+        if k is not None:
+            label = f"{'denoised' if choice.scale.denoise else 'chord'}-{k_median}"
         return cls(
-            k=choice.scale.k,
+            support_radius=float(finite.max()) if finite.size else float("nan"), anchors=int(anchors),
+            k_min=k_min, k_max=k_max,
+            k=k_median,
             fit=label,
             radius=float(np.percentile(radius, 99)),
             median_h=float(np.median(radius / alpha)),
@@ -174,66 +202,6 @@ class ScaleReport:
         return {name: getattr(self, name) for name in self.__dataclass_fields__}
 
 
-@dataclass(frozen=True)
-class FitLevel:
-    """Where a kernel of ``k`` neighbours draws its neighbours from: the cloud, or a coarser level.
-
-    Kernels wider than ``k_fit`` neighbours are fitted against a random subset
-    holding about ``k_fit / k`` of the points (sorted indices ``source``), on
-    which the ``k``-th neighbour of the cloud is about the
-    ``k * fraction``-th: the cost per point stays that of ``k_fit`` neighbours.
-
-    Attributes
-    ----------
-    points : ndarray, shape (n_level, 3)
-        The level's points.
-    tree : scipy.spatial.cKDTree
-        Tree on ``points``.
-    source : ndarray of int, shape (n_level,), or None
-        Index of each level point in the cloud (None: the level is the cloud).
-    fraction : float
-        ``n_level / n``.
-    k : int
-        Neighbours to query on the level.
-    """
-
-    points: np.ndarray
-    tree: cKDTree
-    source: np.ndarray | None
-    fraction: float
-    k: int
-
-    @classmethod
-    def for_kernel(
-        cls, points: np.ndarray, tree: cKDTree, k: int, k_fit: int = 240, seed: int = 0, keys: np.ndarray | None = None
-    ) -> FitLevel:
-        """The level of a kernel of ``k`` neighbours on the cloud ``points`` (tree ``tree``).
-
-        The coarse level is drawn by ``keys`` (:func:`heatcurv.sampling.geometric_keys`: the same
-        level whatever the row order), else at random from the rows (seeded).
-        """
-        n = points.shape[0]
-        if k <= k_fit:
-            return cls(points, tree, None, 1.0, min(k, n - 1))
-        size = min(max(int(round(n * k_fit / k)), k_fit + 1), n)
-        coarse = draw_subset(n, size, seed + k, keys)
-        fraction = coarse.size / n
-        level_points = points[coarse]
-        # the k-th neighbour in the cloud is about the (k * fraction)-th of the coarse level
-        k_level = min(int(round(k * fraction)), coarse.size - 1)
-        return cls(level_points, cKDTree(level_points), coarse, fraction, k_level)
-
-    def rows_per_block(self, block_pairs: int | None = None) -> int:
-        """Centres per block so that a block holds at most ``block_pairs`` pairs (default the policy's)."""
-        return rows_per_block(self.k, block_pairs)
-
-    def neighbourhood(self, queries: np.ndarray, workers: int = -1) -> Neighbourhood:
-        """The ``k`` nearest level points of each query, indices into the cloud."""
-        return knn_neighbourhood(
-            self.points, self.k, tree=self.tree, queries=queries, source_index=self.source, workers=workers
-        )
-
-
 def fit_blocks(
     points: np.ndarray,
     tree: cKDTree,
@@ -244,14 +212,11 @@ def fit_blocks(
     centres: np.ndarray | None = None,
     base: Neighbourhood | None = None,
     alpha: float = 2.0,
-    k_fit: int = 240,
     passes: int = 2,
-    seed: int = 0,
     workers: int = -1,
     block_pairs: int | None = None,
-    keys: np.ndarray | None = None,
 ):
-    """Run the chord fit at one kernel width, one block of centres at a time.
+    """Run the chord fit at one kernel width, one block of centres at a time, each with its whole ball.
 
     The neighbourhood of a block exists only while the block is fitted, so
     memory stays bounded by ``block_pairs`` pairs however many points and
@@ -276,18 +241,12 @@ def fit_blocks(
         (the operator's): used instead of new queries. Only with ``centres=None``.
     alpha : float, optional
         Ball radius in units of ``h`` (``R = d_k = alpha h``).
-    k_fit : int, optional
-        Widest kernel fitted against every point; wider ones use a coarser level.
     passes : int, optional
         Fits, each refining the normal (see :func:`heatcurv.chordfit.chord_fit`).
-    seed : int, optional
-        Seed of the coarse level.
     workers : int, optional
         Threads for the k-d tree queries.
     block_pairs : int, optional
         Neighbour pairs per block (default :data:`heatcurv.neighbourhood.BLOCK_PAIRS`).
-    keys : ndarray, shape (n,), optional
-        Sampling keys of the coarse level (:func:`heatcurv.sampling.geometric_keys`).
 
     Yields
     ------
@@ -297,22 +256,28 @@ def fit_blocks(
         The block's pairs (indices into ``points``), ``hi - lo`` rows.
     fit : ChordFit
         The block's fit.
-    fraction : float
-        Share of the cloud the neighbours were drawn from (1, or the coarse level's).
     """
     cidx = np.arange(points.shape[0]) if centres is None else np.asarray(centres)
-    level = FitLevel.for_kernel(points, tree, scale.k, k_fit, seed, keys)
-    if base is not None and (centres is not None or level.source is not None):
-        raise ValueError("base neighbourhoods serve full-level fits at every point only")
-    for lo, hi in block_ranges(cidx.shape[0], level.rows_per_block(block_pairs)):
+    if base is not None and centres is not None:
+        raise ValueError("base neighbourhoods serve fits at every point only")
+    k = min(scale.k, points.shape[0] - 1)
+
+    def fit_block(bounds):
+        lo, hi = bounds
         queries = points[cidx[lo:hi]]
-        nbhd = base.rows_slice(lo, hi) if base is not None else level.neighbourhood(queries, workers)
+        nbhd = base.rows_slice(lo, hi) if base is not None else knn_neighbourhood(
+            points, k, tree=tree, queries=queries, workers=workers
+        )
         # heat kernel, t = h^2 / 4 (eq 2.8), tapered to 0 at the ball's edge
         weights = tapered_heat_weights(nbhd, nbhd.radius / alpha, areas)
-        fit = chord_fit(
-            points, nbhd, normals[lo:hi], weights, denoise=scale.denoise, centres=queries, passes=passes
-        )
-        yield lo, hi, nbhd, fit, level.fraction
+        fit = chord_fit(points, nbhd, normals[lo:hi], weights, denoise=scale.denoise, centres=queries, passes=passes)
+        return lo, hi, nbhd, fit
+
+    rows = rows_per_block(k, block_pairs)
+    if cidx.shape[0] <= rows and cidx.shape[0] < SPLIT_ROWS:
+        # one small block (a wide kernel at a few centres): halves side by side on the kernels' threads
+        rows = max(1, -(-cidx.shape[0] // 2))
+    yield from map_blocks(fit_block, list(block_ranges(cidx.shape[0], rows)), rows)
 
 
 def fit_at_scale(
@@ -324,12 +289,9 @@ def fit_at_scale(
     *,
     centres: np.ndarray | None = None,
     alpha: float = 2.0,
-    k_fit: int = 240,
     passes: int = 2,
-    seed: int = 0,
     workers: int = -1,
-    keys: np.ndarray | None = None,
-) -> tuple[ChordFit, np.ndarray, Neighbourhood, float]:
+) -> tuple[ChordFit, np.ndarray, Neighbourhood]:
     """Run the chord fit at one kernel width (all blocks of :func:`fit_blocks` joined).
 
     Parameters are those of :func:`fit_blocks`.
@@ -342,19 +304,28 @@ def fit_at_scale(
     nbhd : Neighbourhood
         The pairs fitted (indices into ``points``); for many centres use
         :func:`fit_blocks`, which does not keep them.
-    fraction : float
-        Share of the cloud the neighbours were drawn from (1, or the coarse level's).
     """
-    fits, nbhds, fractions = [], [], [1.0]
-    for _, _, nbhd, fit, fraction in fit_blocks(
-        points, tree, normals, areas, scale, centres=centres, alpha=alpha, k_fit=k_fit, passes=passes, seed=seed,
-        workers=workers, keys=keys,
+    fits, nbhds = [], []
+    for _, _, nbhd, fit in fit_blocks(
+        points, tree, normals, areas, scale, centres=centres, alpha=alpha, passes=passes, workers=workers,
     ):
         fits.append(fit)
         nbhds.append(nbhd)
-        fractions.append(fraction)
     nbhd = Neighbourhood.concatenate(nbhds)
-    return ChordFit.concatenate(fits), nbhd.radius / alpha, nbhd, fractions[-1]
+    return ChordFit.concatenate(fits), nbhd.radius / alpha, nbhd
+
+
+#: Centres each centre's Lepski test takes the median over (of ``n_sub``): the region a kernel is
+#: chosen for, about a tenth of the cloud with the default subsample.
+WINDOW = 200
+#: Neighbour pairs each candidate kernel is evaluated with: the widest ones at fewer centres.
+PAIRS_PER_LEVEL = 500_000
+#: Fewest centres a candidate is evaluated at.
+MIN_CENTRES = 100
+#: Fewest centres a median over a window takes.
+MIN_WINDOW = 50
+#: The local guard's tolerance (standard deviations): only a clear local bias narrows a region's kernel.
+TAU_LOCAL = 3.0
 
 
 def _is_clean(sigma_chord: float, sigma: float, h0: float, clean_ratio: float) -> bool:
@@ -411,6 +382,38 @@ def select_form(
     )
 
 
+def _nested_centres(sub: np.ndarray, keys: np.ndarray | None, seed: int) -> np.ndarray:
+    """The subsample ``sub`` in the order its prefixes are taken (smallest keys first, else seeded)."""
+    if keys is not None:
+        return sub[np.argsort(keys[sub], kind="stable")]
+    return sub[np.random.default_rng(seed + 1).permutation(sub.shape[0])]
+
+
+def _ladder(base_k: int, max_k: int | None, n: int) -> list:
+    """The candidate kernels ``base_k, 2 base_k, ...`` up to ``max_k`` (default a quarter of the cloud)."""
+    top = n // 4 if max_k is None else min(max_k, n // 4)
+    ladder, k = [], base_k
+    while k <= max(base_k, top):  # at least base_k itself (a base_k close to n)
+        ladder.append(Scale(k, True))
+        k *= 2
+    return ladder
+
+
+def _windows(positions: np.ndarray, at: np.ndarray, window: int, workers: int) -> np.ndarray | None:
+    """The ``window`` nearest of ``positions`` to each of ``at``, shape (q, window); None: all of them."""
+    if window >= positions.shape[0]:
+        return None
+    _, idx = cKDTree(positions).query(at, window, workers=workers)
+    return idx.reshape(at.shape[0], window)
+
+
+def _window_medians(values: np.ndarray, windows: np.ndarray | None, q: int) -> np.ndarray:
+    """Median of ``values`` (shape (m,)) over each row of ``windows`` (:func:`_windows`), shape (q,)."""
+    if windows is None:
+        return np.full(q, np.median(values))
+    return np.median(values[windows], axis=1)
+
+
 def select_scale(
     points: np.ndarray,
     tree: cKDTree,
@@ -428,8 +431,10 @@ def select_scale(
     seed: int = 0,
     workers: int = -1,
     keys: np.ndarray | None = None,
+    window: int = WINDOW,
+    pairs_per_level: int = PAIRS_PER_LEVEL,
 ) -> ScaleChoice:
-    """Choose the kernel width for the whole cloud (see the module docstring).
+    """Choose the kernel width at every point (see the module docstring).
 
     Parameters
     ----------
@@ -445,19 +450,22 @@ def select_scale(
         Narrowest kernel (neighbours).
     max_k : int, optional
         Widest kernel tried; the ladder doubles from ``base_k`` and stops at
-        ``max_k``, by default a tenth of the cloud (at least 1920). A fixed
-        neighbour count would not do: the same relative noise on a denser
-        sample of the same surface needs a kernel of the same *size*, which
-        holds proportionally more points (a million-point torus with noise
-        of 0.12 % of its diagonal chose 960 neighbours under a fixed cap of
-        1920 and its mean curvature was off by 68 %). Wide kernels cost no
-        more per point: they are fitted against a coarser level.
+        ``max_k``, by default a quarter of the cloud. A fixed neighbour count
+        would not do: the same relative noise on a denser sample of the same
+        surface needs a kernel of the same *size*, which holds proportionally
+        more points (a million-point torus with noise of 0.12 % of its
+        diagonal chose 960 neighbours under a fixed cap of 1920 and its mean
+        curvature was off by 68 %; a 30 000-point patch with 0.6 % noise was
+        best at 3840 neighbours). Wide kernels cost no more per point: they
+        are fitted at anchors (:mod:`heatcurv.anchors`).
     alpha : float, optional
         Ball radius in units of ``h``.
     k_fit : int, optional
-        Widest kernel fitted against every point.
+        Unused by the choice (every candidate is fitted with all the points of
+        its ball); kept for the signature of :class:`heatcurv.ScaleTuning`.
     n_sub : int, optional
-        Points the ladder is evaluated on.
+        Centres the ladder is evaluated on (fewer for the widest candidates:
+        ``pairs_per_level``).
     tau : float, optional
         Lepski's tolerance: the largest median change, in standard deviations
         of the narrower candidate (pure noise gives about 0.67).
@@ -477,72 +485,112 @@ def select_scale(
         Use this kernel width instead of choosing one: only the noise is
         measured, to pick the chord fit (clean) or the denoised one.
     seed : int, optional
-        Seed of the subsample and coarse levels (results are reproducible).
+        Seed of the subsample (results are reproducible).
     workers : int, optional
         Threads for the k-d tree queries.
     keys : ndarray, shape (n,), optional
-        Sampling keys of the subsample and the coarse levels
-        (:func:`heatcurv.sampling.geometric_keys`: the choice does not depend
-        on the row order); default seeded random samples of the rows.
+        Sampling keys of the subsample (:func:`heatcurv.sampling.geometric_keys`:
+        the choice does not depend on the row order); default seeded random
+        samples of the rows.
+    window : int, optional
+        Centres each point's choice looks at (:data:`WINDOW`).
+    pairs_per_level : int, optional
+        Neighbour pairs one candidate is evaluated with (:data:`PAIRS_PER_LEVEL`).
 
     Returns
     -------
     ScaleChoice
+        With ``k_per_point``, the width chosen at each point.
     """
     n = points.shape[0]
-    sub = draw_subset(n, n_sub, seed, keys)
-    ladder = []
-    k = base_k
-    if max_k is None:
-        max_k = max(1920, n // 10)
-    # at least base_k itself (a base_k above the default cap, e.g. neighbours close to n)
-    while k <= max(base_k, min(max_k, max(n // 4, base_k))):
-        ladder.append(Scale(k, True))
-        k *= 2
+    centres = _nested_centres(draw_subset(n, n_sub, seed, keys), keys, seed)
+    ladder = _ladder(base_k, max_k, n)
+    at = points[centres]
 
     # the noise gate: residuals of the chord and of the denoised fit at base_k
-    chord, h, _, _ = fit_at_scale(
-        points, tree, normals[sub], areas, Scale(base_k, False), centres=sub, alpha=alpha, k_fit=k_fit, seed=seed,
-        workers=workers, keys=keys,
+    chord, h, _ = fit_at_scale(
+        points, tree, normals[centres], areas, Scale(base_k, False), centres=centres, alpha=alpha, workers=workers,
     )
-    means, factors = [], []
-    for j, sc in enumerate(ladder):
-        fit, h, _, _ = fit_at_scale(
-            points, tree, normals[sub], areas, sc, centres=sub, alpha=alpha, k_fit=k_fit, seed=seed, workers=workers,
-            keys=keys,
+    base, h, _ = fit_at_scale(
+        points, tree, normals[centres], areas, ladder[0], centres=centres, alpha=alpha, workers=workers,
+    )
+    sigma, h0 = float(np.median(base.sigma)), float(np.median(h))
+    clean = _is_clean(float(np.median(chord.sigma)), sigma, h0, clean_ratio)
+    mean_abs = float(np.mean(np.abs(base.principal.mean)))
+    if clean or fixed_k is not None:
+        k_use = base_k if fixed_k is None else int(fixed_k)
+        return ScaleChoice(
+            scale=Scale(k_use, not clean), sigma=sigma, relative_noise=sigma / h0, candidates=ladder[:1], sd=[0.0],
+            mean_abs=mean_abs,
+        )
+    # the local noise: the denoised residual's median over each centre's window
+    q = centres.shape[0]
+    local_sigma = _window_medians(base.sigma, _windows(at, at, window, workers), q)
+    tiny = np.finfo(float).tiny
+    means = [base.principal.mean]
+    sds = [local_sigma * np.sqrt(np.maximum(base.mean_variance_factor, 0.0))]
+    sizes = [q]
+
+    def evaluate(j):
+        size = min(q, max(MIN_CENTRES, pairs_per_level // ladder[j].k))
+        fit, _, _ = fit_at_scale(
+            points, tree, normals[centres[:size]], areas, ladder[j], centres=centres[:size], alpha=alpha,
+            workers=workers,
         )
         means.append(fit.principal.mean)
-        factors.append(fit.mean_variance_factor)
-        if j == 0:
-            sigma = float(np.median(fit.sigma))
-            h0 = float(np.median(h))
-            sigma_chord = float(np.median(chord.sigma))
-            clean = _is_clean(sigma_chord, sigma, h0, clean_ratio)
-            if clean or fixed_k is not None:
-                k_use = base_k if fixed_k is None else int(fixed_k)
-                return ScaleChoice(
-                    scale=Scale(k_use, not clean), sigma=sigma, relative_noise=sigma / h0, candidates=ladder[:1],
-                    sd=[0.0], mean_abs=float(np.mean(np.abs(means[0]))),
-                )
-    sd_point = [sigma * np.sqrt(np.maximum(f, 0.0)) for f in factors]
-    sd = [float(np.sqrt(np.mean(x**2))) for x in sd_point]
-    tiny = np.finfo(float).tiny
-    chosen = 0
+        sds.append(local_sigma[:size] * np.sqrt(np.maximum(fit.mean_variance_factor, 0.0)))
+        sizes.append(size)
+
+    def changes(j):
+        """Per centre of candidate j, the change from each narrower one in that one's standard deviations."""
+        size = sizes[j]
+        return [np.abs(means[j] - means[i][:size]) / np.maximum(sds[i][:size], tiny) for i in range(j)]
+
+    # 1) regions of one noise level: centres binned by their local noise, one bin per factor of
+    #    about 2.4 (optimal widths balance a bias growing as R^2 against a standard deviation
+    #    falling as sigma / R^3, so k ~ R^2 ~ sigma^(2/5): a bin is one doubling of k)
+    reference = float(np.median(local_sigma))
+    noise_bin = np.round(0.4 * np.log2(np.maximum(local_sigma, tiny) / max(reference, tiny))).astype(np.int64)
+    # 2) Lepski's rule in each bin: the widest candidate whose median change (over the bin's
+    #    centres) from every narrower one is within tau of that one's standard deviation
+    chosen = np.zeros(q, dtype=np.int64)
+    open_bins = set(np.unique(noise_bin).tolist())
     for j in range(1, len(ladder)):
-        # per point, the change from a narrower candidate in units of that one's standard
-        # deviation; the median is robust to the few points where a fit is poor
-        agree = all(
-            np.median(np.abs(means[j] - means[i]) / np.maximum(sd_point[i], tiny)) <= tau for i in range(j)
-        )
-        if not agree:
+        evaluate(j)
+        size = sizes[j]
+        for b in sorted(open_bins):
+            members = noise_bin[:size] == b
+            if members.sum() < MIN_WINDOW:  # too few centres left at this width: stop widening
+                open_bins.discard(b)
+                continue
+            if all(np.median(c[members]) <= tau for c in changes(j)):
+                chosen[noise_bin == b] = j
+            else:
+                open_bins.discard(b)
+        if not open_bins:
             break
-        chosen = j
+    # 3) a local guard: no region goes past a candidate whose change from a narrower one is clearly
+    #    bias there (median over the region's window above TAU_LOCAL standard deviations)
+    guarded = np.full(q, len(means) - 1)
+    for j in range(1, len(means)):
+        windows = _windows(at[: sizes[j]], at, max(MIN_WINDOW, window * sizes[j] // q), workers)
+        biased = np.zeros(q, dtype=bool)
+        for change in changes(j):
+            biased |= _window_medians(change, windows, q) > TAU_LOCAL
+        guarded = np.where(biased & (guarded >= j), j - 1, guarded)
+    chosen = np.minimum(chosen, guarded)
+    evaluated = ladder[: len(means)]
+    sd = [float(np.sqrt(np.mean(x**2))) for x in sds]
+    k_centre = np.array([c.k for c in ladder])[chosen]
+    # each point takes the choice of its nearest centre
+    _, nearest = cKDTree(at).query(points, 1, workers=workers)
+    k_point = k_centre[nearest]
     return ScaleChoice(
-        scale=ladder[chosen],
+        scale=Scale(int(np.median(k_point)), True),
         sigma=sigma,
         relative_noise=sigma / h0,
-        candidates=ladder,
+        candidates=evaluated,
         sd=sd,
-        mean_abs=float(np.mean(np.abs(means[0]))),
+        mean_abs=mean_abs,
+        k_per_point=k_point,
     )
-

@@ -11,7 +11,14 @@ the normal matrices' condition numbers.
 import numpy as np
 
 from heatcurv._kernels.chordfit import MIN_DOF_FRACTION
-from heatcurv.chordfit import ChordFit, _chord_fit_result, _mean_contrast, _principal_and_refined_normal, segment_lstsq
+from heatcurv.chordfit import (
+    ChordFit,
+    _chord_fit_result,
+    _mean_contrast,
+    _model_coefficients,
+    _principal_and_refined_normal,
+    segment_lstsq,
+)
 from heatcurv.neighbourhood import Neighbourhood
 from heatcurv.normals import tangent_frames
 
@@ -71,7 +78,8 @@ def chord_fit(
     unit = nbhd.radius
     unit_pair = np.repeat(unit, nbhd.counts)
     nrm = normals
-    for _ in range(max(1, passes)):
+    for number in range(max(1, passes)):
+        last = number == max(1, passes) - 1
         x, y, z, e1, e2 = _local_coordinates(centres, points, nbhd, nrm)
         x, y, z = x / unit_pair, y / unit_pair, z / unit_pair
         cols, r = _shape_columns(x, y, tilt, cubic)
@@ -91,6 +99,9 @@ def chord_fit(
             # 1) plain height fit: z = z0 - r^2/2 * model
             design = np.concatenate([-0.5 * r2[:, None] * cols, np.ones((len(r2), 1))], 1)
             beta, rss, ok = segment_lstsq(nbhd, design, z, weights)
+            if not last:  # an earlier pass refines the normal by the height fit's tilt alone
+                _, nrm = _principal_and_refined_normal(beta[:, :-1], unit, e1, e2, nrm, tilt)
+                continue
             zhat = np.einsum("ij,ij->i", design, beta[nbhd.rows])
             z0 = beta[nbhd.rows, -1]
             # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2
@@ -103,4 +114,4 @@ def chord_fit(
             beta = beta[:, :-1]
         pc, refined = _principal_and_refined_normal(beta, unit, e1, e2, nrm, tilt)
         used, nrm = nrm, refined
-    return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit)
+    return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit, _model_coefficients(beta, tilt, cubic))

@@ -15,7 +15,7 @@ DEFAULT_FIELDS = (
 #: Fields of the sharp-feature detector.
 FEATURE_FIELDS = ("feature", "feature_score")
 #: Further fields ``--fields`` can ask for.
-EXTRA_FIELDS = ("border", "outlier", "spacing", "neighbours")
+EXTRA_FIELDS = ("border", "outlier", "spacing", "neighbours", "fit_radius")
 #: Every field heatcurv computes, in the written order.
 COMPUTED_FIELDS = DEFAULT_FIELDS + FEATURE_FIELDS + EXTRA_FIELDS
 #: Shorthands of ``--fields``.

@@ -1,0 +1,228 @@
+"""Compiled carrying of anchor fits to the points around them (:mod:`heatcurv.anchors`).
+
+Each anchor ``a`` has a chord fit in its frame ``(e1, e2, n)`` with ball radius
+``R``: tensor ``(A, B, D)``, tilt ``(t1, t2)`` and cubic ``(g0, g1, g2, g3)``
+coefficients in units of ``R`` (the columns of :mod:`heatcurv._kernels.chordfit`).
+Its model of the surface near ``a``, at tangential coordinates ``(x, y)`` (units
+of ``R``), has the height slope
+
+    s = -grad z = 1/2 (2 A x + 2 B y + t1 + 3 g0 x^2 + 2 g1 x y + g2 y^2,
+                       2 B x + 2 D y + t2 + g1 x^2 + 2 g2 x y + 3 g3 y^2)
+
+and the curvature tensor (the cubic terms are a third of the tensor's derivative
+along the chord, see :mod:`heatcurv.chordfit`)
+
+    B(x, y) = [[A + 3 g0 x + g1 y, B + g1 x + g2 y], [B + g1 x + g2 y, D + g2 x + 3 g3 y]] / R.
+
+A point ``p`` near ``a`` gets from it the normal ``sqrt(1 - |s|^2) n + s_1 e1 + s_2 e2``
+(``|s|`` is the sine of the normal's turn: exact on a circle, where the chord model
+is exact) and the tensor ``B(x, y)`` carried into the tangent plane of that normal
+by the smallest rotation taking ``n`` to it (exact on a sphere). The point's values
+are the weighted means over its nearest anchors, with weights
+``(1 - (d / d_max)^2)^2 (1 - (d / R)^2)^2`` (``d_max`` just beyond the row's farthest
+anchor): smooth as anchors enter or leave a point's list, zero outside an anchor's ball.
+
+Arrays in, arrays out: this module imports nothing from heatcurv.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
+
+__all__ = ["carry_anchor_fits", "MAX_SLOPE"]
+
+#: An anchor whose model turns the normal by more than this sine at a point (about 64 degrees)
+#: says nothing reliable there: it gets no weight.
+MAX_SLOPE = 0.9
+# the entries xx, xy, xz, yy, yz, zz of a symmetric 3 x 3 tensor
+_ROW = (0, 0, 0, 1, 1, 2)
+_COL = (0, 1, 2, 1, 2, 2)
+
+
+def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, e2, coefficients, radius, usable,
+                      scalars):
+    """Every point's normal, curvature tensor and scalars from its nearest anchors' fits.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    indptr, indices, distances : ndarray
+        CSR rows: each point's nearest anchors (indices into the anchor arrays)
+        and their distances.
+    anchors : ndarray, shape (m, 3)
+        Anchor positions.
+    normals, e1, e2 : ndarray, shape (m, 3)
+        Each anchor fit's frame.
+    coefficients : ndarray, shape (m, 9)
+        Tensor, tilt and cubic coefficients, units of ``radius``.
+    radius : ndarray, shape (m,)
+        Each anchor's ball radius.
+    usable : ndarray, shape (m,)
+        1.0 for anchors whose fit may be used, 0.0 for the others (ill-posed).
+    scalars : ndarray, shape (m, s)
+        Per-anchor values averaged with the same weights (residual, ...).
+
+    Returns
+    -------
+    normals : ndarray, shape (n, 3)
+        Weighted sums of the carried unit normals (not normalised).
+    tensor : ndarray, shape (n, 6)
+        Weighted means of the carried tensors, ``xx, xy, xz, yy, yz, zz``.
+    scalars : ndarray, shape (n, s)
+        Weighted means.
+    support : ndarray, shape (n,)
+        ``max (d + R)`` over the anchors with weight: how far the point's values reach.
+    total : ndarray, shape (n,)
+        Sum of the weights (0: no anchor applies; the nearest usable one was carried alone).
+    """
+    n = indptr.shape[0] - 1
+    scalars = as_floats(scalars)
+    out_n = np.empty((n, 3))
+    out_t = np.empty((n, 6))
+    out_s = np.empty((n, scalars.shape[1]))
+    support = np.empty(n)
+    total = np.empty(n)
+    args = (
+        as_floats(points), as_pointers(indptr), as_indices(indices, anchors.shape[0]), as_floats(distances),
+        as_floats(anchors), as_floats(normals), as_floats(e1), as_floats(e2), as_floats(coefficients),
+        as_floats(radius), as_floats(usable), scalars, out_n, out_t, out_s, support, total,
+    )
+    parallel_rows(_carry_anchor_fits, n, *args)
+    return out_n, out_t, out_s, support, total
+
+
+@njit(**ROW_CORE)
+def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v):
+    """Anchor ``a``'s normal (into ``nrm``) and tensor (into ``tensor``) at point ``i``; False if too steep.
+
+    ``u`` and ``v`` (shape (3,)) are scratch space: the anchor's frame carried to the point.
+    """
+    R = radius[a]
+    dx = points[i, 0] - anchors[a, 0]
+    dy = points[i, 1] - anchors[a, 1]
+    dz = points[i, 2] - anchors[a, 2]
+    x = (dx * e1[a, 0] + dy * e1[a, 1] + dz * e1[a, 2]) / R
+    y = (dx * e2[a, 0] + dy * e2[a, 1] + dz * e2[a, 2]) / R
+    c = coefficients[a]
+    s1 = 0.5 * (2 * c[0] * x + 2 * c[1] * y + c[3] + 3 * c[5] * x * x + 2 * c[6] * x * y + c[7] * y * y)
+    s2 = 0.5 * (2 * c[1] * x + 2 * c[2] * y + c[4] + c[6] * x * x + 2 * c[7] * x * y + 3 * c[8] * y * y)
+    slope2 = s1 * s1 + s2 * s2
+    if not slope2 < MAX_SLOPE * MAX_SLOPE:  # (also false for nan)
+        return False
+    up = math.sqrt(1.0 - slope2)
+    for k in range(3):
+        nrm[k] = up * normals[a, k] + s1 * e1[a, k] + s2 * e2[a, k]
+    b11 = (c[0] + 3 * c[5] * x + c[6] * y) / R
+    b12 = (c[1] + c[6] * x + c[7] * y) / R
+    b22 = (c[2] + c[7] * x + 3 * c[8] * y) / R
+    # smallest rotation taking the anchor's normal to the carried one: v -> v + w x v + w x (w x v) / (1 + cos)
+    w0 = normals[a, 1] * nrm[2] - normals[a, 2] * nrm[1]
+    w1 = normals[a, 2] * nrm[0] - normals[a, 0] * nrm[2]
+    w2 = normals[a, 0] * nrm[1] - normals[a, 1] * nrm[0]
+    cos = normals[a, 0] * nrm[0] + normals[a, 1] * nrm[1] + normals[a, 2] * nrm[2]
+    f = 1.0 / (1.0 + cos)
+    for which in range(2):
+        src = e1 if which == 0 else e2
+        v0, v1, v2 = src[a, 0], src[a, 1], src[a, 2]
+        c0 = w1 * v2 - w2 * v1
+        c1 = w2 * v0 - w0 * v2
+        c2 = w0 * v1 - w1 * v0
+        r0 = v0 + c0 + f * (w1 * c2 - w2 * c1)
+        r1 = v1 + c1 + f * (w2 * c0 - w0 * c2)
+        r2 = v2 + c2 + f * (w0 * c1 - w1 * c0)
+        if which == 0:
+            frame_u[0], frame_u[1], frame_u[2] = r0, r1, r2
+        else:
+            frame_v[0], frame_v[1], frame_v[2] = r0, r1, r2
+    # T = b11 u u^T + b12 (u v^T + v u^T) + b22 v v^T (u, v: the carried frame), upper triangle
+    for t in range(6):
+        r, c = _ROW[t], _COL[t]
+        tensor[t] = (b11 * frame_u[r] * frame_u[c] + b12 * (frame_u[r] * frame_v[c] + frame_v[r] * frame_u[c])
+                     + b22 * frame_v[r] * frame_v[c])
+    return True
+
+
+@njit(**ROW_CORE)
+def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, normals, e1, e2, coefficients,
+                       radius, usable, scalars, out_n, out_t, out_s, support, total):
+    nrm = np.empty(3)
+    tensor = np.empty(6)
+    frame_u = np.empty(3)
+    frame_v = np.empty(3)
+    n_scalars = scalars.shape[1]
+    for i in range(row0, row1):
+        for k in range(3):
+            out_n[i, k] = 0.0
+        for k in range(6):
+            out_t[i, k] = 0.0
+        for k in range(n_scalars):
+            out_s[i, k] = 0.0
+        support[i] = 0.0
+        lo, hi = indptr[i], indptr[i + 1]
+        d_max = 0.0
+        for p in range(lo, hi):
+            d_max = max(d_max, distances[p])
+        d_max = d_max * (1.0 + 1e-9) + 1e-300
+        wsum = 0.0
+        nearest = -1
+        for p in range(lo, hi):
+            a = indices[p]
+            if usable[a] == 0.0:
+                continue
+            if nearest < 0:
+                nearest = p
+            d = distances[p]
+            rel = d / d_max
+            q = d / radius[a]
+            if q >= 1.0:
+                continue
+            w = (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
+            if w <= 0.0 or not _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm,
+                                          tensor, frame_u, frame_v):
+                continue
+            wsum += w
+            for k in range(3):
+                out_n[i, k] += w * nrm[k]
+            for k in range(6):
+                out_t[i, k] += w * tensor[k]
+            for k in range(n_scalars):
+                out_s[i, k] += w * scalars[a, k]
+            support[i] = max(support[i], d + radius[a])
+        total[i] = wsum
+        if wsum > 0.0:
+            for k in range(6):
+                out_t[i, k] /= wsum
+            for k in range(n_scalars):
+                out_s[i, k] /= wsum
+        elif nearest >= 0:
+            # no anchor's ball reaches the point: the nearest usable anchor alone (the caller flags it)
+            a = indices[nearest]
+            if _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v):
+                for k in range(3):
+                    out_n[i, k] = nrm[k]
+                for k in range(6):
+                    out_t[i, k] = tensor[k]
+            else:  # too steep even there: the anchor's own normal and tensor, uncarried
+                for k in range(3):
+                    out_n[i, k] = normals[a, k]
+                c = coefficients[a]
+                for t in range(6):
+                    r, q = _ROW[t], _COL[t]
+                    out_t[i, t] = (c[0] * e1[a, r] * e1[a, q] + c[1] * (e1[a, r] * e2[a, q] + e2[a, r] * e1[a, q])
+                                   + c[2] * e2[a, r] * e2[a, q]) / radius[a]
+            for k in range(n_scalars):
+                out_s[i, k] = scalars[a, k]
+            support[i] = distances[nearest] + radius[a]
+        else:
+            for k in range(3):
+                out_n[i, k] = math.nan
+            for k in range(6):
+                out_t[i, k] = math.nan
+            for k in range(n_scalars):
+                out_s[i, k] = math.nan
+            support[i] = math.nan

@@ -1,0 +1,306 @@
+"""Wide kernels at flat cost: fit at anchors with every point of the ball, carry the fits to all points.
+
+Under noise the default fit (:mod:`heatcurv.chordfit`) needs kernels of hundreds
+to tens of thousands of neighbours (:mod:`heatcurv.scale`). Fitting every point
+with all of them costs ``k`` pairs per point; fitting against a thinned level of
+the cloud keeps the cost but throws away the averaging the wide kernel is for.
+
+A wide kernel only resolves the curvature field at its own scale, so it need not
+be fitted at every point. Here it is fitted, with *all* ``k`` neighbours of the
+ball, at **anchors**: a subset of the points with about :data:`ANCHORS_PER_BALL`
+anchors in each ball (a point is an anchor when its sampling key is below
+``ANCHORS_PER_BALL / k``, so the anchors of a wider kernel are sparser and the
+pair work stays about ``ANCHORS_PER_BALL`` pairs per point whatever ``k``).
+Every point then takes its :data:`CARRIED_ANCHORS` nearest anchors and carries
+their fitted models to itself (:mod:`heatcurv._kernels.anchors`): each anchor's
+tensor, tilt and cubic terms give the normal and the curvature tensor *at the
+point*, not at the anchor (first order in the offset, and exact on circles and
+spheres), and the point's values are their smooth weighted mean. The anchor
+spacing is about ``R / 2``, well inside the ball where an anchor's model is
+fitted.
+
+Every value of a point depends only on the points within its **support
+radius** ``max_a (|p - a| + R_a)`` over the anchors it uses (at most about 1.8
+ball radii): the halo a tiled run needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ._kernels import anchors as kernels
+from .areas import density_areas
+from .backend import map_blocks
+from .border import centroid_offset
+from .chordfit import ChordFit, chord_fit, refine_normals
+from .kernel import tapered_heat_weights
+from .neighbourhood import block_ranges, knn_neighbourhood, rows_per_block
+from .normals import tangent_frames
+from .principal import PrincipalCurvatures, tensor_to_principal
+from .sampling import key_thinning
+
+__all__ = [
+    "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "AnchorFits", "CarriedFit", "anchor_rows", "fit_anchors", "carry_fits",
+]
+
+#: Anchors per fitted ball: their spacing is about ``R sqrt(pi / 16) = 0.44 R``.
+ANCHORS_PER_BALL = 16
+#: Anchors each point's values are carried from (the farthest gets weight 0).
+CARRIED_ANCHORS = 8
+
+
+@dataclass(frozen=True)
+class AnchorFits:
+    """The chord fits at the anchors.
+
+    Attributes
+    ----------
+    index : ndarray of int, shape (m,)
+        The anchors' rows in the cloud, increasing.
+    k : ndarray of int, shape (m,)
+        Neighbours in each anchor's ball.
+    fit : ChordFit
+        The fits (with ``coefficients``), one row per anchor.
+    radius : ndarray, shape (m,)
+        Ball radii ``R_a``.
+    offset : ndarray, shape (m,)
+        Tangential centroid offset of each ball in ball radii (:func:`heatcurv.border.centroid_offset`).
+    density_area : ndarray, shape (m,)
+        Area per point at the anchor, from its ball's count (:func:`heatcurv.areas.density_areas`).
+    """
+
+    index: np.ndarray
+    k: np.ndarray
+    fit: ChordFit
+    radius: np.ndarray
+    offset: np.ndarray
+    density_area: np.ndarray
+
+
+@dataclass(frozen=True)
+class CarriedFit:
+    """The anchors' fits carried to every point.
+
+    Attributes
+    ----------
+    normals : ndarray, shape (n, 3)
+        Unit normals.
+    principal : PrincipalCurvatures
+        ``well_posed`` is False where no usable anchor reached the point.
+    sigma, offset, radius, density_area, mean_variance_factor : ndarray, shape (n,)
+        The anchors' residual, centroid offset, ball radius, area per point and
+        variance factor, weighted as the curvatures.
+    support : ndarray, shape (n,)
+        Support radius: no point farther than this from a point changes its values.
+    """
+
+    normals: np.ndarray
+    principal: PrincipalCurvatures
+    sigma: np.ndarray
+    offset: np.ndarray
+    radius: np.ndarray
+    density_area: np.ndarray
+    mean_variance_factor: np.ndarray
+    support: np.ndarray
+
+
+def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = ANCHORS_PER_BALL) -> np.ndarray:
+    """The anchors of kernels of ``k`` neighbours: about ``per_ball`` in each ball.
+
+    Parameters
+    ----------
+    keys : ndarray, shape (n,)
+        Sampling keys (:func:`heatcurv.sampling.geometric_keys`).
+    k : ndarray of int, shape (n,)
+        Each point's kernel width, in neighbours.
+    seed : int, optional
+        Shifts the keys (:func:`heatcurv.sampling.key_thinning`).
+    per_ball : int, optional
+
+    Returns
+    -------
+    ndarray of int, shape (m,)
+        Increasing rows; every point is an anchor where ``k <= per_ball``.
+    """
+    return key_thinning(keys, np.minimum(1.0, per_ball / np.asarray(k, dtype=np.float64)), seed)
+
+
+def fit_anchors(
+    points: np.ndarray,
+    tree: cKDTree,
+    normals: np.ndarray,
+    areas: np.ndarray,
+    index: np.ndarray,
+    k: np.ndarray,
+    *,
+    denoise: bool,
+    alpha: float = 2.0,
+    taper: bool = True,
+    refine: bool = True,
+    workers: int = -1,
+    block_pairs: int | None = None,
+    progress=None,
+) -> AnchorFits:
+    """The chord fit (two passes: normal refinement, then curvatures) at every anchor, with its whole ball.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        Distinct centred points; ``tree`` is built on them.
+    tree : scipy.spatial.cKDTree
+    normals : ndarray, shape (n, 3)
+        Oriented starting normals of every point.
+    areas : ndarray, shape (n,)
+        Fit weights' areas (0 for outliers).
+    index : ndarray of int, shape (m,)
+        The anchors (:func:`anchor_rows`).
+    k : ndarray of int, shape (m,)
+        Neighbours in each anchor's ball.
+    denoise : bool
+        The denoised height form of the fit.
+    alpha : float, optional
+        Ball radius in heat-kernel spacings (``h = R / alpha``, ``t = h^2 / 4``, eq 2.8).
+    taper : bool, optional
+        Taper the centroid offsets (border flags) as the operator's balls.
+    refine : bool, optional
+        Correct the starting normals by a first fit's tilt (False: the caller's normals are kept).
+    workers : int, optional
+        Threads of the k-d tree queries.
+    block_pairs : int, optional
+        Pairs per block (default the policy's, :data:`heatcurv.neighbourhood.BLOCK_PAIRS`).
+    progress : callable, optional
+        ``progress(fraction)`` after each block.
+
+    Returns
+    -------
+    AnchorFits
+    """
+    index, k = np.asarray(index), np.asarray(k)
+    m = index.shape[0]
+    radius, offset, density = np.empty(m), np.empty(m), np.empty(m)
+
+    def fit_block(rows: np.ndarray, width: int) -> tuple:
+        centres = points[index[rows]]
+        nbhd = knn_neighbourhood(points, width, tree=tree, queries=centres, workers=workers)
+        # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
+        weights = tapered_heat_weights(nbhd, nbhd.radius / alpha, areas)
+        start = normals[index[rows]]
+        if refine:
+            start = refine_normals(points, nbhd, start, weights, denoise=denoise, centres=centres)
+        fit = chord_fit(points, nbhd, start, weights, denoise=denoise, centres=centres, passes=1)
+        offset[rows] = centroid_offset(points, nbhd, fit.normals, taper=taper, centres=centres)
+        density[rows] = density_areas(nbhd)
+        radius[rows] = nbhd.radius
+        return rows, fit
+
+    order = np.argsort(k, kind="stable")  # one k-d tree query width per group
+    jobs = []
+    for width in np.unique(k):
+        group = order[k[order] == width]
+        blocks = block_ranges(group.shape[0], rows_per_block(int(width), block_pairs))
+        jobs += [(group[lo:hi], int(width)) for lo, hi in blocks]
+    pairs_total = max(int(k.sum()), 1)
+    pairs_done = 0
+    parts, slots = [], []
+    # a wide kernel's block holds too few anchors for the kernels' row threads: blocks run side by side
+    largest = max((rows.shape[0] for rows, _ in jobs), default=0)
+    for rows, fit in map_blocks(lambda job: fit_block(*job), jobs, largest):
+        parts.append(fit)
+        slots.append(rows)
+        pairs_done += int(k[rows].sum())
+        if progress is not None:
+            progress(pairs_done / pairs_total)
+    # the blocks ran grouped by width: back to the anchors' order
+    back = np.empty(m, dtype=np.int64)
+    back[np.concatenate(slots)] = np.arange(m)
+    fit = _take(ChordFit.concatenate(parts), back)
+    return AnchorFits(index=index, k=k, fit=fit, radius=radius, offset=offset, density_area=density)
+
+
+def _take(fit: ChordFit, rows: np.ndarray) -> ChordFit:
+    """The rows ``rows`` of a fit."""
+    pc = fit.principal
+    fields = PrincipalCurvatures.__dataclass_fields__
+    return ChordFit(
+        principal=PrincipalCurvatures(**{name: getattr(pc, name)[rows] for name in fields}),
+        normals=fit.normals[rows], sigma=fit.sigma[rows], mean_variance_factor=fit.mean_variance_factor[rows],
+        coefficients=fit.coefficients[rows],
+    )
+
+
+def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray | None = None,
+               carried: int = CARRIED_ANCHORS, workers: int = -1) -> CarriedFit:
+    """Every point's normal, curvatures and fit diagnostics from its nearest anchors (module docstring).
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        The points to evaluate at (the cloud).
+    anchors : AnchorFits
+    normals : ndarray, shape (n, 3), optional
+        Unit normals to keep (the caller's): the carried tensor is projected onto
+        their tangent planes. Default: the carried normals.
+    carried : int, optional
+        Nearest anchors per point.
+    workers : int, optional
+        Threads of the k-d tree query.
+
+    Returns
+    -------
+    CarriedFit
+    """
+    at = points[anchors.index]
+    m = at.shape[0]
+    carried = min(carried, m)
+    dist, idx = cKDTree(at).query(points, carried, workers=workers)
+    dist, idx = dist.reshape(points.shape[0], carried), idx.reshape(points.shape[0], carried)
+    fit = anchors.fit
+    a_normals = fit.normals
+    e1, e2 = tangent_frames(a_normals)
+    usable = (fit.principal.well_posed & np.all(np.isfinite(fit.coefficients), axis=1)).astype(np.float64)
+    scalars = np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area,
+                               fit.mean_variance_factor])
+    indptr = np.arange(0, idx.size + 1, carried, dtype=np.int64)
+    summed, tensor, values, support, total = kernels.carry_anchor_fits(
+        points, indptr, idx.reshape(-1), dist.reshape(-1), at, a_normals, e1, e2, fit.coefficients,
+        anchors.radius, usable, scalars,
+    )
+    length = np.linalg.norm(summed, axis=1)
+    reached = (total > 0) & (length > 0) & np.all(np.isfinite(tensor), axis=1)
+    # no usable anchor near the point at all (every nearby fit ill-posed): the nearest anchor's normal,
+    # zero curvature, and not well posed (so never reliable); never a NaN
+    lost = ~(length > 0) | ~np.all(np.isfinite(summed), axis=1) | ~np.all(np.isfinite(tensor), axis=1)
+    if lost.any():
+        summed[lost] = a_normals[idx[lost, 0]]
+        tensor[lost] = 0.0
+        length[lost] = 1.0
+    unset = ~np.all(np.isfinite(values), axis=1)
+    if unset.any():
+        values[unset] = scalars[idx[unset, 0]]
+        support[unset] = dist[unset, 0] + anchors.radius[idx[unset, 0]]
+    if normals is None:
+        normals = summed / np.where(length > 0, length, 1.0)[:, None]
+    # the tensor projected onto the tangent plane of the carried normal
+    u, v = tangent_frames(np.where(reached[:, None], normals, [[0.0, 0.0, 1.0]]))
+    b11 = _quadratic_form(tensor, u, u)
+    b12 = _quadratic_form(tensor, u, v)
+    b22 = _quadratic_form(tensor, v, v)
+    pc = tensor_to_principal(0.5 * (b11 + b22), 0.5 * (b11 - b22), b12, u, v, normals)
+    pc = PrincipalCurvatures(
+        k1=pc.k1, k2=pc.k2, d1=pc.d1, d2=pc.d2, mean=pc.mean, gaussian=pc.gaussian, well_posed=reached
+    )
+    return CarriedFit(
+        normals=normals, principal=pc, sigma=values[:, 0], offset=values[:, 1], radius=values[:, 2],
+        density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support,
+    )
+
+
+def _quadratic_form(tensor: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``u^T T v`` per row for symmetric ``T`` stored as ``xx, xy, xz, yy, yz, zz``, shape (n,)."""
+    xx, xy, xz, yy, yz, zz = tensor.T
+    return (u[:, 0] * (xx * v[:, 0] + xy * v[:, 1] + xz * v[:, 2])
+            + u[:, 1] * (xy * v[:, 0] + yy * v[:, 1] + yz * v[:, 2])
+            + u[:, 2] * (xz * v[:, 0] + yz * v[:, 1] + zz * v[:, 2]))
