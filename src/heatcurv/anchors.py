@@ -39,17 +39,27 @@ from .chordfit import ChordFit, chord_fit, refine_normals
 from .kernel import tapered_heat_weights
 from .neighbourhood import block_ranges, knn_neighbourhood, rows_per_block
 from .normals import tangent_frames
+from .orientation import Orientation, orient
 from .principal import PrincipalCurvatures, tensor_to_principal
 from .sampling import key_thinning
 
 __all__ = [
-    "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "AnchorFits", "CarriedFit", "anchor_rows", "fit_anchors", "carry_fits",
+    "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "PCA_NEIGHBOURS", "AnchorFits", "CarriedFit", "anchor_rows",
+    "anchor_normals", "fit_anchors", "carry_fits",
 ]
 
 #: Anchors per fitted ball: their spacing is about ``R sqrt(pi / 16) = 0.44 R``.
 ANCHORS_PER_BALL = 16
+#: Kernels of at most this many times :data:`ANCHORS_PER_BALL` neighbours are fitted at every point
+#: (a 60-neighbour kernel: its pair work is small, and small clouds keep their own fits).
+EVERY_POINT = 4
 #: Anchors each point's values are carried from (the farthest gets weight 0).
 CARRIED_ANCHORS = 8
+#: Most neighbours of an anchor's PCA normal (:func:`anchor_normals`): enough to average noise
+#: of several spacings (a 480-point ball is 12 spacings wide), cheap beside the fit.
+PCA_NEIGHBOURS = 480
+#: Anchors per anchor in the orientation's graph over the anchors.
+ANCHOR_GRAPH = 12
 
 
 @dataclass(frozen=True)
@@ -123,9 +133,95 @@ def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = 
     Returns
     -------
     ndarray of int, shape (m,)
-        Increasing rows; every point is an anchor where ``k <= per_ball``.
+        Increasing rows; every point is an anchor where ``k <= EVERY_POINT * per_ball``.
     """
-    return key_thinning(keys, np.minimum(1.0, per_ball / np.asarray(k, dtype=np.float64)), seed)
+    k = np.asarray(k, dtype=np.float64)
+    fraction = np.where(k <= EVERY_POINT * per_ball, 1.0, per_ball / k)
+    return key_thinning(keys, fraction, seed)
+
+
+def anchor_normals(
+    points: np.ndarray,
+    tree: cKDTree,
+    index: np.ndarray,
+    k: np.ndarray,
+    areas: np.ndarray,
+    *,
+    mode: str,
+    towards=None,
+    excluded: np.ndarray | None = None,
+    alpha: float = 2.0,
+    workers: int = -1,
+) -> Orientation:
+    """The anchors' own normals, oriented over a graph of the anchors: for noise that swamps the small balls.
+
+    When the noise is a sizeable fraction of the operator's ball (``sigma > R / 4``),
+    PCA normals of those balls are tilted by tens of degrees and their
+    orientation, propagated point to point, breaks apart (a million-point torus
+    with noise 6 spacings thick: 44 % of the normals inward). Each anchor's
+    normal is then the heat-weighted PCA normal of its own ball (at most
+    :data:`PCA_NEIGHBOURS` neighbours), and the orientation
+    (:func:`heatcurv.orientation.orient`) runs over the anchors.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    tree : scipy.spatial.cKDTree
+        Tree on ``points``.
+    index : ndarray of int, shape (m,)
+        The anchors.
+    k : ndarray of int, shape (m,)
+        Each anchor's kernel width.
+    areas : ndarray, shape (n,)
+        Weights of the points in the covariances (0 for outliers).
+    mode, towards : optional
+        The orientation policy, as :func:`heatcurv.orientation.orient`
+        (``towards``: shape (3,), or one position per point, shape (n, 3)).
+    excluded : ndarray of bool, shape (n,), optional
+        Points no anchor stands for (outliers).
+    alpha : float, optional
+        Ball radius in heat-kernel spacings.
+    workers : int, optional
+
+    Returns
+    -------
+    Orientation
+        Of the anchors (shape (m, ...)).
+    """
+    index, k = np.asarray(index), np.asarray(k)
+    m = index.shape[0]
+    normals = np.empty((m, 3))
+    width = np.minimum(k, min(PCA_NEIGHBOURS, points.shape[0] - 1))
+    for value in np.unique(width):
+        group = np.flatnonzero(width == value)
+        for lo, hi in block_ranges(group.shape[0], rows_per_block(int(value))):
+            rows = group[lo:hi]
+            nbhd = knn_neighbourhood(points, int(value), tree=tree, queries=points[index[rows]], workers=workers)
+            weights = tapered_heat_weights(nbhd, nbhd.radius / alpha, areas)
+            normals[rows] = _weighted_pca_normals(points, nbhd, weights)
+    anchors = points[index]
+    graph = knn_neighbourhood(anchors, min(ANCHOR_GRAPH, m - 1))
+    if towards is not None and np.ndim(towards) == 2:
+        towards = np.asarray(towards)[index]
+    return orient(
+        anchors, normals, graph, mode=mode, towards=towards, graph_neighbours=None,
+        excluded=None if excluded is None else np.asarray(excluded)[index],
+    )
+
+
+def _weighted_pca_normals(points: np.ndarray, nbhd, weights: np.ndarray) -> np.ndarray:
+    """Unit eigenvectors of the smallest eigenvalue of each row's weighted covariance, shape (rows, 3)."""
+    rows = nbhd.rows
+    total = np.maximum(np.bincount(rows, weights, minlength=nbhd.n_points), np.finfo(float).tiny)
+    x = points[nbhd.indices]
+    mean = np.stack([np.bincount(rows, weights * x[:, a], minlength=nbhd.n_points) for a in range(3)], 1)
+    mean /= total[:, None]
+    d = x - mean[rows]
+    cov = np.empty((nbhd.n_points, 3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            cov[:, a, b] = cov[:, b, a] = np.bincount(rows, weights * d[:, a] * d[:, b], minlength=nbhd.n_points)
+    return np.linalg.eigh(cov)[1][:, :, 0]
 
 
 def fit_anchors(
@@ -151,8 +247,8 @@ def fit_anchors(
     points : ndarray, shape (n, 3)
         Distinct centred points; ``tree`` is built on them.
     tree : scipy.spatial.cKDTree
-    normals : ndarray, shape (n, 3)
-        Oriented starting normals of every point.
+    normals : ndarray, shape (m, 3)
+        Oriented starting normals of the anchors.
     areas : ndarray, shape (n,)
         Fit weights' areas (0 for outliers).
     index : ndarray of int, shape (m,)
@@ -187,7 +283,7 @@ def fit_anchors(
         nbhd = knn_neighbourhood(points, width, tree=tree, queries=centres, workers=workers)
         # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
         weights = tapered_heat_weights(nbhd, nbhd.radius / alpha, areas)
-        start = normals[index[rows]]
+        start = normals[rows]
         if refine:
             start = refine_normals(points, nbhd, start, weights, denoise=denoise, centres=centres)
         fit = chord_fit(points, nbhd, start, weights, denoise=denoise, centres=centres, passes=1)
@@ -252,12 +348,18 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     -------
     CarriedFit
     """
+    fit = anchors.fit
+    if anchors.index.shape[0] == points.shape[0]:  # every point is an anchor: its own fit
+        return CarriedFit(
+            normals=fit.normals if normals is None else normals, principal=fit.principal, sigma=fit.sigma,
+            offset=anchors.offset, radius=anchors.radius, density_area=anchors.density_area,
+            mean_variance_factor=fit.mean_variance_factor, support=anchors.radius,
+        )
     at = points[anchors.index]
     m = at.shape[0]
     carried = min(carried, m)
     dist, idx = cKDTree(at).query(points, carried, workers=workers)
     dist, idx = dist.reshape(points.shape[0], carried), idx.reshape(points.shape[0], carried)
-    fit = anchors.fit
     a_normals = fit.normals
     e1, e2 = tangent_frames(a_normals)
     usable = (fit.principal.well_posed & np.all(np.isfinite(fit.coefficients), axis=1)).astype(np.float64)
@@ -281,7 +383,8 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     if unset.any():
         values[unset] = scalars[idx[unset, 0]]
         support[unset] = dist[unset, 0] + anchors.radius[idx[unset, 0]]
-    if normals is None:
+    keep = normals is not None
+    if not keep:
         normals = summed / np.where(length > 0, length, 1.0)[:, None]
     # the tensor projected onto the tangent plane of the carried normal
     u, v = tangent_frames(np.where(reached[:, None], normals, [[0.0, 0.0, 1.0]]))
@@ -292,6 +395,14 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     pc = PrincipalCurvatures(
         k1=pc.k1, k2=pc.k2, d1=pc.d1, d2=pc.d2, mean=pc.mean, gaussian=pc.gaussian, well_posed=reached
     )
+    # an anchor keeps its own fit (where every point is an anchor, nothing is carried)
+    own = anchors.index
+    if not keep:
+        normals[own] = fit.normals
+    for name in PrincipalCurvatures.__dataclass_fields__:
+        getattr(pc, name)[own] = getattr(fit.principal, name)
+    values[own] = scalars
+    support[own] = anchors.radius
     return CarriedFit(
         normals=normals, principal=pc, sigma=values[:, 0], offset=values[:, 1], radius=values[:, 2],
         density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support,

@@ -31,8 +31,9 @@ import warnings
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
+from scipy.spatial import cKDTree
 
-from .anchors import anchor_rows, carry_fits, fit_anchors
+from .anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
 from .areas import ball_area_factor, cut_ball_coverage, density_areas
 from .backend import threads
 from .border import BORDER_OFFSET, border_points, centroid_offset
@@ -75,6 +76,12 @@ MISFIT_FLOOR = 1e-3
 #: spheres of 150 points 0.29 (0.4 %); ellipsoids (1, 0.6, 0.3) of 150-600 points 0.24-0.48;
 #: noisy clouds of 3000-10 000 points 0.04-0.18.
 RESOLUTION_LIMIT = 0.5
+#: Noise (``sigma`` over the operator's median spacing ``h``, ``info["scale"].relative_noise``) above
+#: which the operator's balls (radius ``2 h``) are swamped: their PCA normals tilt by tens of degrees
+#: and their orientation breaks apart, so the wide kernel's anchors find and orient their own
+#: normals (:func:`heatcurv.anchors.anchor_normals`). Measured: a torus whose noise is 0.69 h had 21 %
+#: of its normals inward and a mean curvature off by 83 %; clouds at 0.04-0.3 h orient fine.
+STRONG_NOISE = 0.5
 
 
 @dataclass(frozen=True)
@@ -89,6 +96,7 @@ class _Fitted:
     scale: ScaleReport | None = None
     residual: np.ndarray | None = None
     radius: np.ndarray | None = None
+    orientation: Orientation | None = None
 
 
 def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, **options):
@@ -173,7 +181,9 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()
         if opts.fit == "chord":
-            fitted = _default_fit_stages(op, nrm, normals is not None, outliers.mask, keys, clock)
+            fitted = _default_fit_stages(op, nrm, normals is not None, outliers.mask, keys, clock, mode, towards)
+            if fitted.orientation is not None:  # oriented again over the anchors (strong noise)
+                orientation = fitted.orientation
         else:
             fitted = _paper_fit_stages(op, nrm, K, outliers.mask, clock)
         if mode == "viewpoint" and normals is None:
@@ -266,7 +276,7 @@ def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, ou
 
 def _default_fit_stages(
     op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, outlier: np.ndarray, keys: np.ndarray,
-    clock: StageClock,
+    clock: StageClock, mode: str = "outward", towards=None,
 ) -> _Fitted:
     """The default method's chord fit: ``kernel_choice``, then the per-block stages.
 
@@ -283,6 +293,9 @@ def _default_fit_stages(
         Sampling keys of the kernel choice's subsample and the anchors
         (:func:`heatcurv.sampling.geometric_keys`).
     clock : StageClock
+    mode, towards : optional
+        The orientation policy and its reference (:func:`_reference`), for
+        normals oriented again at the anchors under strong noise.
 
     Returns
     -------
@@ -313,7 +326,7 @@ def _default_fit_stages(
     scale = choice.scale
     if not fixed_radius and (scale.denoise or scale.k > tuning.k_fit):
         # noisy clouds, and kernels too wide to fit at every point: fitted at anchors
-        return _anchored_fit_stages(op, nrm, keep_normals, fit_areas, choice, keys, clock)
+        return _anchored_fit_stages(op, nrm, keep_normals, fit_areas, choice, keys, clock, mode, towards, outlier)
     # the operator's neighbourhood already is the kernel's when the density ball holds k points
     reuse_base = fixed_radius or (opts.spacing == "density" and scale.k == int(opts.neighbours))
     # a kernel wider than the operator's counts its own density for the areas
@@ -355,25 +368,42 @@ def _default_fit_stages(
 
 def _anchored_fit_stages(
     op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, fit_areas: np.ndarray, choice, keys: np.ndarray,
-    clock: StageClock,
+    clock: StageClock, mode: str, towards, outlier: np.ndarray,
 ) -> _Fitted:
     """The noisy cloud's fit: the wide kernel at anchors, carried to every point (:mod:`heatcurv.anchors`).
 
     Stages ``anchor_fit``, ``carry`` and ``area_correction``; the parameters are
     those of :func:`_default_fit_stages` (``fit_areas``: the areas weighting the
-    fit, 0 for outliers; ``choice``: the kernel choice).
+    fit, 0 for outliers; ``choice``: the kernel choice). Under noise above
+    :data:`STRONG_NOISE` the anchors start from their own PCA normals,
+    oriented over the anchors (:func:`heatcurv.anchors.anchor_normals`), and
+    the result's orientation is theirs.
     """
     opts, X = op.options, op.points
     n = X.shape[0]
     k_point = choice.k_per_point if choice.k_per_point is not None else np.full(n, choice.scale.k)
+    index = anchor_rows(keys, k_point, opts.scale_tuning.seed)
+    start, on_anchors, reoriented = nrm[index], None, None
+    if not keep_normals and choice.relative_noise > STRONG_NOISE:
+        with clock.stage("anchor_fit", report=False):
+            on_anchors = anchor_normals(
+                X, op.tree, index, k_point[index], fit_areas, mode=mode, towards=towards, excluded=outlier,
+                alpha=opts.alpha, workers=opts.workers,
+            )
+        start = on_anchors.normals
     with clock.stage("anchor_fit", report=False):
-        index = anchor_rows(keys, k_point, opts.scale_tuning.seed)
         anchors = fit_anchors(
-            X, op.tree, nrm, fit_areas, index, k_point[index], denoise=True, alpha=opts.alpha, taper=opts.taper,
+            X, op.tree, start, fit_areas, index, k_point[index], denoise=True, alpha=opts.alpha, taper=opts.taper,
             refine=not keep_normals, workers=opts.workers, progress=lambda f: clock.report("fit", 0.9 * f),
         )
     with clock.stage("carry", report=False):
         carried = carry_fits(X, anchors, normals=nrm if keep_normals else None, workers=opts.workers)
+        if on_anchors is not None:
+            # the points' side is their nearest anchor's; so is an ambiguous one
+            nearest = cKDTree(X[index]).query(X, 1, workers=opts.workers)[1]
+            ambiguous = on_anchors.ambiguous[nearest]
+            report = replace(on_anchors.report, ambiguous=int(ambiguous.sum()), on_anchors=int(index.shape[0]))
+            reoriented = Orientation(carried.normals, ambiguous, report)
     pc = carried.principal
     with clock.stage("area_correction", report=False):
         border = carried.offset > BORDER_OFFSET
@@ -386,7 +416,7 @@ def _anchored_fit_stages(
     clock.report("fit", 1.0)
     report = ScaleReport.from_choice(choice, carried.radius, opts.alpha, support=carried.support,
                                      anchors=index.shape[0], k=k_point)
-    return _Fitted(carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius)
+    return _Fitted(carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius, reoriented)
 
 
 def _corrected_areas(

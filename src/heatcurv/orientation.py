@@ -95,6 +95,11 @@ class OrientationReport:
         largest coordinate positive): right or wrong, their curvature is near 0.
     ambiguous : int
         Points with no consistent side (flagged unreliable).
+    on_anchors : int
+        0 when every point's normal was oriented over the points' graph; else
+        the noise swamped the operator's balls and the normals were oriented
+        over this many anchors of the wide kernel (:mod:`heatcurv.anchors`), the
+        counts above then being anchors, except ``ambiguous``.
     """
 
     mode: str
@@ -102,6 +107,7 @@ class OrientationReport:
     anchored: int = 0
     by_convention: int = 0
     ambiguous: int = 0
+    on_anchors: int = 0
 
     def __getitem__(self, key: str):
         return getattr(self, key)
