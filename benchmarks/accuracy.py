@@ -93,7 +93,7 @@ noise 0.05 % of the diagonal on the half x < 0 and 0.6 % on x > 0 (one set of
 normal deviates, scaled per half), heatcurv default.  Per half: the errors of
 its points (both halves in full: the points near x = 0 see both noise
 levels); ``radius med``, the median per-point kernel ball radius when the
-result has one (``result.radius``), else ``n/a``; and, for reference, the
+result has one (``result.fit_radius``), else ``n/a``; and, for reference, the
 same half's mean error and median radius of heatcurv on the same clean points
 with that half's noise everywhere (``uniform``): a per-point scale should
 bring each half close to its uniform row.
@@ -775,7 +775,7 @@ def mixed_table(bench, n: int, noises: tuple[float, float]):
         if err:
             bench.log(f"torus n={n} {label}: ERROR {err}")
         else:
-            radius = getattr(res, "radius", None)
+            radius = getattr(res, "fit_radius", None)
             bench.log(f"torus n={n} {label}: {t:.2f} s, per-point radius {'yes' if radius is not None else 'no'}")
         out[key] = (res, t, warned, err)
     rows = []
@@ -788,7 +788,7 @@ def mixed_table(bench, n: int, noises: tuple[float, float]):
             row += [f"ERROR {err[:40]}"] + ["-"] * 4
         else:
             m = measure_view(sub, view_at(res, at))
-            radius = getattr(res, "radius", None)
+            radius = getattr(res, "fit_radius", None)
             row += [fmt(m[k]) for k in ("mean", "k1", "k2", "d1")]
             row += [fmt(float(np.median(np.asarray(radius)[at]))) if radius is not None else "n/a"]
         ures, _, _, uerr = out[lvl]
@@ -796,14 +796,14 @@ def mixed_table(bench, n: int, noises: tuple[float, float]):
             row += [f"ERROR {uerr[:40]}", "-"]
         else:
             um = measure_view(subset_sample(runs[lvl], at), view_at(ures, at))
-            uradius = getattr(ures, "radius", None)
+            uradius = getattr(ures, "fit_radius", None)
             row += [fmt(um["mean"]), fmt(float(np.median(np.asarray(uradius)[at]))) if uradius is not None else "n/a"]
         row += [f"{t:.2f}" + ("*" if warned else "") if not err else "-"]
         rows.append(row)
     title = (
         f"Mixed noise (heatcurv default; torus, n = {n} random points, noise {100 * noises[0]:g} % of the diagonal "
         f"on x < 0 and {100 * noises[1]:g} % on x > 0; uniform: the same points with that half's noise everywhere; "
-        "radius: median per-point ball radius, result.radius)"
+        "radius: median per-point ball radius, result.fit_radius)"
     )
     return title, header, rows
 

@@ -203,7 +203,7 @@ def density_areas(nbhd: Neighbourhood, fraction: float = 1.0) -> np.ndarray:
     nbhd : Neighbourhood
         Ball neighbourhoods; ``nbhd.radius`` is ``R_i``.
     fraction : float, optional
-        Share of the cloud the neighbours were drawn from (a random coarse
+        Share of the cloud the neighbours were drawn from (a thinned
         level holding ``fraction`` of the points stands for all of them).
 
     Returns

@@ -353,7 +353,7 @@ def chord_fit(
         (for noisy clouds) instead of the chord curvatures.
     centres : ndarray, shape (m, 3), optional
         The points the fits are centred on (default ``points``): a subset,
-        or all points fitted against a coarser level of neighbours.
+        such as the anchors of a wide kernel (:mod:`heatcurv.anchors`).
 
     Returns
     -------

@@ -217,9 +217,10 @@ class ScaleTuning:
     Attributes
     ----------
     k_fit : int
-        Widest kernel (neighbours) fitted against every point; wider kernels
-        are fitted against a random coarser level holding about ``k_fit``
-        points per ball (240).
+        Widest kernel (neighbours) of a clean cloud fitted at every point;
+        wider kernels, and every kernel of a noisy cloud, are fitted at anchors
+        with all the points of their balls and carried to every point
+        (:mod:`heatcurv.anchors`) (240).
     n_sub : int
         Points the candidate kernels are compared on (2000).
     tau : float
@@ -229,9 +230,9 @@ class ScaleTuning:
         A cloud is clean when the chord fit's residual is at most this multiple
         of the denoised fit's (1.6; measured 0.2-1.3 clean, 2.2-4.4 noisy).
     max_k : int or None
-        Widest candidate kernel; None: a tenth of the cloud, at least 1920.
+        Widest candidate kernel; None: a quarter of the cloud.
     seed : int
-        Seed of the subsample and the coarse levels (results are reproducible).
+        Seed of the subsample and the anchors (results are reproducible).
     """
 
     k_fit: int = 240

@@ -39,7 +39,7 @@ STAGES = {
     "principal": "tensor fit of the edge curvatures (section 3, eq 3.1)",
     # method "default": the kernel, then the fit block by block
     "kernel_choice": "noise estimate and kernel width of the chord fit (heatcurv.scale)",
-    "fit_neighbourhood": "the fit kernel's own neighbours (k nearest, or a coarser level)",
+    "fit_neighbourhood": "the fit kernel's own neighbours (k nearest)",
     "fit_weights": "tapered heat-kernel weights of the fit (eq 2.8)",
     "normal_refinement": "a first chord fit whose tilt corrects the normals",
     "curvature_fit": "the chord fit at the refined normals: k1, k2, d1, d2, mean",

@@ -1,8 +1,8 @@
 """Subsets of a cloud drawn from its geometry, so that no result depends on the input's point order.
 
 Some stages work on a subset of the points: the kernel check measures a
-sample of balls, the kernel choice fits a sample of centres, and kernels wider
-than ``k_fit`` neighbours are fitted against a coarser level of the cloud. A
+sample of balls, the kernel choice fits a sample of centres, and wide kernels
+are fitted at anchors (:mod:`heatcurv.anchors`, :func:`key_thinning`). A
 subset drawn with a random generator over row numbers changes when the rows
 are permuted, and the k-d tree's leaf order (the stages' row order) changes
 with any rotation or translation: results then moved by up to 1.3 % (mean
