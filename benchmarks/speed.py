@@ -17,6 +17,21 @@ a fresh subprocess, so that its wall time and its peak resident memory
 ``heatcurv-noisy``  the same on the cloud with Gaussian noise of 0.12 % of
                 the bounding-box diagonal (the kernel then widens to hundreds
                 of neighbours; only at the sizes given by ``--noisy-sizes``);
+``laz (mm rounding)``  what a user with a LAS/LAZ file runs, at the sizes of
+                ``--laz-sizes``: the clean torus of the same size (the same
+                points as the clean row) written by laspy to a ``.laz`` file
+                (point format 6, LAS 1.4, scales 0.001 in x, y and z, offsets
+                0: coordinates rounded to the millimetre if the unit is the
+                metre, 1e-4 of the torus's diagonal of 9.7, the very-low-noise
+                band of issue 12), then, in the child,
+                :func:`heatcurv.io.read_points` (the command line's reader)
+                plus ``heatcurv.estimate(cloud.points)`` with default options.
+                The read is timed on its own (the ``read`` column) and counted
+                in the row's total, ratio and us/point; laspy and lazrs are
+                imported before the clock starts, as numba is compiled; the
+                write is not timed. The command line would orient a LAS/LAZ
+                cloud's normals up (+z); the row keeps the default options of
+                the other rows, which on a closed torus are the right ones;
 peers           where the optional extras are installed
                 (``pip install "heatcurv[peers]"``): Open3D normals, PyMeshLab
                 APSS curvature, robust-laplacian, and the project's k = 40
@@ -29,10 +44,10 @@ is reported as ``warmup``. Everything else, including validation, the
 duplicate merge and the map back to input order, is counted.
 
 Run ``python benchmarks/speed.py`` (about 15 minutes on a 2-core machine with
-the peers) or ``--sizes 100000 --peer-sizes 100000 --noisy-sizes 100000``
-for a quick look (``--noisy-sizes`` or ``--peer-sizes`` with no value skips
-those runs); ``--out docs/speed.md`` writes the tables as Markdown with the
-machine they came from.
+the peers, plus the 1M-point LAZ row) or ``--sizes 100000 --peer-sizes 100000
+--noisy-sizes 100000 --laz-sizes 100000`` for a quick look (``--noisy-sizes``,
+``--peer-sizes`` or ``--laz-sizes`` with no value skips those runs); ``--out
+docs/speed.md`` writes the tables as Markdown with the machine they came from.
 """
 
 from __future__ import annotations
@@ -89,13 +104,30 @@ def _peak_rss_gb() -> float:
 
 
 def child(path: str) -> None:
-    """Run the default pipeline on the points in ``path`` and print one JSON line."""
+    """Run the default pipeline on the points in ``path`` and print one JSON line.
+
+    An ``.npy`` file is loaded before anything is timed; a ``.laz`` file is
+    read with :func:`heatcurv.io.read_points` after the warm-up, timed as
+    ``read_seconds`` (``None`` for ``.npy``).
+    """
     import heatcurv
 
-    points = np.load(path)
+    laz = Path(path).suffix.lower() == ".laz"
+    if laz:
+        import laspy  # noqa: F401  (imported before the clock, as numba is compiled before it)
+        import lazrs  # noqa: F401
+
+        import heatcurv.io
+    else:
+        points = np.load(path)
     tic = time.perf_counter()
     heatcurv.estimate(heatcurv.surfaces.Torus().sample(2000, "random", seed=1).points)
     warmup = time.perf_counter() - tic
+    read_seconds = None
+    if laz:
+        tic = time.perf_counter()
+        points = heatcurv.io.read_points(path).points
+        read_seconds = time.perf_counter() - tic
     rss_before = _peak_rss_gb()
     tic = time.perf_counter()
     res = heatcurv.estimate(points)
@@ -105,6 +137,8 @@ def child(path: str) -> None:
         json.dumps(
             {
                 "seconds": seconds,
+                "read_seconds": read_seconds,
+                "n_read": int(points.shape[0]),
                 "warmup": warmup,
                 "peak_rss_gb": _peak_rss_gb(),
                 "rss_before_gb": rss_before,
@@ -149,6 +183,27 @@ def torus_cloud(n: int, noise: float = 0.0, seed: int = 0) -> np.ndarray:
     return pts
 
 
+#: LAS scale of the LAZ rows: a millimetre if the unit is the metre, 1e-4 of the torus's diagonal.
+LAZ_SCALE = 0.001
+
+
+def write_laz(path: Path, points: np.ndarray, scale: float = LAZ_SCALE) -> float:
+    """Write ``points`` to a LAZ file (point format 6, LAS 1.4, offsets 0), rounded to ``scale``.
+
+    Returns the largest rounding error of a coordinate (at most ``scale / 2``).
+    """
+    import laspy
+
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales = np.full(3, scale)
+    header.offsets = np.zeros(3)
+    las = laspy.LasData(header)
+    ints = np.round(points / scale).astype(np.int32)
+    las.X, las.Y, las.Z = ints[:, 0], ints[:, 1], ints[:, 2]
+    las.write(str(path), laz_backend=laspy.LazBackend.Lazrs)
+    return float(np.abs(ints * scale - points).max())
+
+
 def machine() -> str:
     """One line naming this machine and the library versions."""
     cpu = cpu_model()
@@ -173,6 +228,10 @@ def main(argv=None) -> int:
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000, 1_000_000, 5_000_000])
     ap.add_argument("--noisy-sizes", type=int, nargs="*", default=[1_000_000], help="sizes of the 0.12 %% noise run")
     ap.add_argument("--peer-sizes", type=int, nargs="*", default=[100_000, 1_000_000], help="sizes the peers run at")
+    ap.add_argument(
+        "--laz-sizes", type=int, nargs="*", default=[1_000_000],
+        help="sizes of the LAZ run (clean torus rounded to 0.001, read + estimate)",
+    )
     ap.add_argument("--peer-timeout", type=float, default=300.0, help="seconds before a peer is stopped")
     ap.add_argument("--timeout", type=float, default=3600.0, help="seconds before a heatcurv run is stopped")
     ap.add_argument("--out", help="write the tables as Markdown to this file")
@@ -183,9 +242,10 @@ def main(argv=None) -> int:
 
     main_rows, peer_rows = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        for n in sorted(set(args.sizes) | set(args.noisy_sizes) | set(args.peer_sizes)):
+        for n in sorted(set(args.sizes) | set(args.noisy_sizes) | set(args.peer_sizes) | set(args.laz_sizes)):
             path = Path(tmp) / f"torus_{n}.npy"
-            np.save(path, torus_cloud(n))
+            clean = torus_cloud(n)
+            np.save(path, clean)
             ref = peers.run_peer("knn40", str(path), timeout=args.peer_timeout)
             knn = ref.get("seconds") if ref.get("status") == "ok" else None
             print(f"n={n}: knn40 {fmt(knn)} s", flush=True)
@@ -196,12 +256,22 @@ def main(argv=None) -> int:
                 noisy = Path(tmp) / f"torus_{n}_noisy.npy"
                 np.save(noisy, torus_cloud(n, noise=0.0012))
                 runs.append(("noise 0.12 %", noisy))
+            if n in args.laz_sizes:
+                laz = Path(tmp) / f"torus_{n}.laz"
+                err = write_laz(laz, clean)
+                print(f"  wrote {laz.name}: {laz.stat().st_size / 1e6:.1f} MB, rounding up to {err:.2g}", flush=True)
+                runs.append(("laz (mm rounding)", laz))
+            del clean
             for label, p in runs:
                 r = run_heatcurv(p, args.timeout)
+                if r.get("status") == "ok" and r["n_read"] != n:
+                    r = {"status": f"failed: read {r['n_read']} points, wrote {n}"}
                 main_rows.append((n, label, knn, r))
+                read = r.get("read_seconds")
                 print(
-                    f"  heatcurv {label}: {r.get('status')} {fmt(r.get('seconds'))} s, "
-                    f"{fmt(r.get('peak_rss_gb'))} GB",
+                    f"  heatcurv {label}: {r.get('status')} {fmt(r.get('seconds'))} s"
+                    + (f" + read {fmt(read)} s" if read is not None else "")
+                    + f", {fmt(r.get('peak_rss_gb'))} GB",
                     flush=True,
                 )
             if n in args.peer_sizes:
@@ -215,28 +285,36 @@ def main(argv=None) -> int:
 
     lines = [f"Machine: {machine()}", ""]
     lines += [
-        "heatcurv, default options, random torus (times in seconds; ratio = total / knn40 in the same run)",
+        "heatcurv, default options, random torus (times in seconds; ratio = total / knn40 in the same run; "
+        "the LAZ row's total includes its read)",
         "",
-        "| n | cloud | "
+        "| n | cloud | read | "
         + " | ".join(COLUMNS)
         + " | total | us/point | knn40 | ratio | peak RSS GB | kernel | backend |",
-        "|" + "---|" * (len(COLUMNS) + 9),
+        "|" + "---|" * (len(COLUMNS) + 10),
     ]
     unknown = set()
     for n, label, knn, r in main_rows:
         if r.get("status") != "ok":
             dashes = " | ".join("-" for _ in COLUMNS)
-            lines.append(f"| {n:,} | {label} | {dashes} | {r['status']} | | {fmt(knn)} | | | | |")
+            lines.append(f"| {n:,} | {label} | - | {dashes} | {r['status']} | | {fmt(knn)} | | | | |")
             continue
         t = r["timings"]
         unknown |= set(t) - set(STAGES)
         stages = " | ".join(fmt(v) for v in column_times(t).values())
-        ratio = r["seconds"] / knn if knn else None
+        read = r.get("read_seconds")
+        total = r["seconds"] + (read or 0.0)
+        ratio = total / knn if knn else None
         lines.append(
-            f"| {n:,} | {label} | {stages} | {fmt(r['seconds'])} | {fmt(1e6 * r['seconds'] / n, 1)} | {fmt(knn)} | "
+            f"| {n:,} | {label} | {fmt(read)} | {stages} | {fmt(total)} | {fmt(1e6 * total / n, 1)} | {fmt(knn)} | "
             f"{fmt(ratio)} | {fmt(r['peak_rss_gb'])} | {r['scale']} | {r['backend']} |"
         )
     lines += ["", "fit = " + " + ".join(COLUMNS["fit"]) + " (the chord fit's per-block stages)"]
+    if any(label.startswith("laz") for _, label, _, _ in main_rows):
+        lines.append(
+            f"laz (mm rounding) = the clean torus written by laspy to LAZ with scales {LAZ_SCALE} "
+            "(1e-4 of its diagonal), read with heatcurv.io.read_points (the read column) and estimated"
+        )
     if unknown:
         lines.append("stages in no column (counted in total only): " + ", ".join(sorted(unknown)))
     if peer_rows:
