@@ -57,43 +57,93 @@ MIN_DOF_FRACTION = 0.1
 
 
 @numba.njit(cache=True)
-def _local_coordinates(points, centres, i, j, e1, e2, normals, unit):
-    """Neighbour ``j`` in centre ``i``'s frame ``(e1, e2, n)``, in units of ``unit``."""
+def _local_coordinates(points, centres, i, j, e1, e2, normals, inverse_unit):
+    """Neighbour ``j`` in centre ``i``'s frame ``(e1, e2, n)``, times ``inverse_unit`` (1 / the length unit)."""
     d0 = points[j, 0] - centres[i, 0]
     d1 = points[j, 1] - centres[i, 1]
     d2 = points[j, 2] - centres[i, 2]
-    x = (d0 * e1[i, 0] + d1 * e1[i, 1] + d2 * e1[i, 2]) / unit
-    y = (d0 * e2[i, 0] + d1 * e2[i, 1] + d2 * e2[i, 2]) / unit
-    z = (d0 * normals[i, 0] + d1 * normals[i, 1] + d2 * normals[i, 2]) / unit
+    x = (d0 * e1[i, 0] + d1 * e1[i, 1] + d2 * e1[i, 2]) * inverse_unit
+    y = (d0 * e2[i, 0] + d1 * e2[i, 1] + d2 * e2[i, 2]) * inverse_unit
+    z = (d0 * normals[i, 0] + d1 * normals[i, 1] + d2 * normals[i, 2]) * inverse_unit
     return x, y, z
 
 
 @numba.njit(cache=True)
 def _fill_shape_columns(x, y, tilt, cubic, cols):
-    """One pair's kN model columns into ``cols``; returns ``r``.
+    """One pair's kN model columns into ``cols``; returns ``r^2 = x^2 + y^2``.
 
     The order :func:`heatcurv.chordfit.chord_fit`'s coefficients follow: tensor
-    ``c^2, 2 c s, s^2``, tilt ``c / r, s / r``, cubic ``r c^3, r c^2 s, r c s^2, r s^3``.
+    ``c^2, 2 c s, s^2``, tilt ``c / r, s / r``, cubic ``r c^3, r c^2 s, r c s^2, r s^3``
+    (``c, s = x / r, y / r``). Each column is a monomial over ``r^2``
+    (``c^2 = x^2 / r^2``, ``c / r = x / r^2``, ``r c^3 = x^3 / r^2`` ...): one
+    division and no square root per pair (the same columns to rounding; the
+    square root and four divisions of the literal formulas took half the
+    assembly's time).
     """
-    r = np.sqrt(x * x + y * y)
-    if r > 0:
-        safe, c, s = r, x / r, y / r
-    else:  # the neighbour straight above the centre: direction (1, 0) by convention
-        safe, c, s = 1.0, 1.0, 0.0
-    cols[0] = c * c
-    cols[1] = 2 * c * s
-    cols[2] = s * s
+    xx, xy, yy = x * x, x * y, y * y
+    r2 = xx + yy
+    if r2 > 0:
+        inv = 1.0 / r2
+    else:  # the neighbour straight above the centre: direction (1, 0) by convention, as if r = 1
+        xx, xy, yy, x, y, inv = 1.0, 0.0, 0.0, 1.0, 0.0, 1.0
+    cols[0] = xx * inv
+    cols[1] = 2 * xy * inv
+    cols[2] = yy * inv
     k = 3
     if tilt:
-        cols[3] = c / safe
-        cols[4] = s / safe
+        cols[3] = x * inv
+        cols[4] = y * inv
         k = 5
     if cubic:
-        cols[k] = r * c**3
-        cols[k + 1] = r * c * c * s
-        cols[k + 2] = r * c * s * s
-        cols[k + 3] = r * s**3
-    return r
+        if r2 > 0:
+            cols[k] = x * xx * inv
+            cols[k + 1] = xx * y * inv
+            cols[k + 2] = x * yy * inv
+            cols[k + 3] = y * yy * inv
+        else:  # r c^3 ... at r = 0
+            cols[k] = cols[k + 1] = cols[k + 2] = cols[k + 3] = 0.0
+    return r2
+
+
+@numba.njit(cache=True, fastmath={"reassoc", "contract"})
+def _gram(At, m, out):
+    """``out = At[:, :m] At[:, :m]^T``, symmetric: the upper triangle's dot products over the pairs, mirrored.
+
+    Reassociation lets the compiler vectorise each dot product (summed in
+    another order than pair by pair: a difference of rounding); four of them
+    share each load of row ``a``. Measured 3x faster than a BLAS ``dgemm``
+    per centre, whose call overhead dominates at these sizes (60 x 9).
+    """
+    p = At.shape[0]
+    for a in range(p):
+        b = a
+        while b + 4 <= p:
+            s0 = s1 = s2 = s3 = 0.0
+            for t in range(m):
+                u = At[a, t]
+                s0 += u * At[b, t]
+                s1 += u * At[b + 1, t]
+                s2 += u * At[b + 2, t]
+                s3 += u * At[b + 3, t]
+            out[a, b], out[a, b + 1], out[a, b + 2], out[a, b + 3] = s0, s1, s2, s3
+            b += 4
+        for c in range(b, p):
+            s = 0.0
+            for t in range(m):
+                s += At[a, t] * At[c, t]
+            out[a, c] = s
+        for c in range(a + 1, p):
+            out[c, a] = out[a, c]
+
+
+@numba.njit(cache=True, fastmath={"reassoc", "contract"})
+def _times(At, v, m, out):
+    """``out = At[:, :m] v[:m]`` (as :func:`_gram`, vectorised)."""
+    for a in range(At.shape[0]):
+        s = 0.0
+        for t in range(m):
+            s += At[a, t] * v[t]
+        out[a] = s
 
 
 @numba.njit(cache=True)
@@ -138,7 +188,8 @@ def assemble_normal_equations(
     points, indptr = as_floats(points), as_pointers(indptr)
     args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights)
     args += as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2), bool(tilt), bool(cubic), int(kind)
-    parallel_rows(_assemble_normal_equations, indptr.shape[0] - 1, *args, as_floats(height_beta), G, rhs, yy, G2)
+    core = _assemble_full_model if tilt and cubic else _assemble_normal_equations
+    parallel_rows(core, indptr.shape[0] - 1, *args, as_floats(height_beta), G, rhs, yy, G2)
 
 
 @numba.njit(**ROW_CORE)
@@ -146,31 +197,53 @@ def _assemble_normal_equations(
     row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta,
     G, rhs, yy, G2
 ):
+    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+    _assemble_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, G, rhs, yy, G2)
+
+
+@numba.njit(**ROW_CORE)
+def _assemble_full_model(
+    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta,
+    G, rhs, yy, G2
+):
+    # the full model (tilt and cubic terms, every fit the estimator runs): with the flags constants
+    # the compiler drops their branches and fixes the columns' places (1.5x faster than the general
+    # core, which compiles only when a fit without them runs)
+    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+    _assemble_rows(row0, row1, geometry, True, True, kind, height_beta, G, rhs, yy, G2)
+
+
+@numba.njit(cache=True, inline="always")
+def _assemble_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, G, rhs, yy, G2):
+    points, centres, indptr, indices, weights, unit, normals, e1, e2 = geometry
     p = rhs.shape[1]
     n_shape = 3 + 2 * tilt + 4 * cubic
     with_g2 = G2.shape[0] > 0
+    longest = 0
+    for i in range(row0, row1):
+        longest = max(longest, indptr[i + 1] - indptr[i])
+    cols = np.empty(n_shape)
+    X = np.empty(p)
+    # the columns sqrt(w) X_ij (and w S_ij X_ij) of one centre, pair by pair: the sums are then
+    # dot products of these rows, G = A^T A (_gram)
+    At = np.empty((p, longest))
+    b = np.empty(longest)
+    St = np.empty((p if with_g2 else 0, longest))
     for i in range(row0, row1):
         lo, hi = indptr[i], indptr[i + 1]
         m = hi - lo
-        cols = np.empty(n_shape)
-        X = np.empty(p)
-        # the rows sqrt(w) X_ij (and w S_ij X_ij): the sums are then small matrix
-        # products, G = A^T A, done by BLAS (2.6x faster than rank-1 updates at p = 10)
-        A = np.empty((m, p))
-        b = np.empty(m)
-        S = np.empty((m if with_g2 else 0, p))
+        inverse_unit = 1.0 / unit[i]
         yyi = 0.0
         for t in range(m):
             k = lo + t
-            x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, unit[i])
-            r = _fill_shape_columns(x, y, tilt, cubic, cols)
-            r2 = r * r
+            x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, inverse_unit)
+            r2 = _fill_shape_columns(x, y, tilt, cubic, cols)
             if kind == CHORD:
                 D2 = r2 + z * z
                 if D2 > 0:
-                    response = -2.0 * z / D2
                     # a height error eps moves kN by 2 eps / D^2
                     noise = 2.0 / D2
+                    response = -z * noise
                 else:
                     response = 0.0
                     noise = 0.0
@@ -190,28 +263,16 @@ def _assemble_normal_equations(
             yyi += w * response * response
             sw = np.sqrt(w)
             for a in range(p):
-                A[t, a] = sw * X[a]
+                At[a, t] = sw * X[a]
             b[t] = sw * response
             if with_g2:
                 sn = w * noise
                 for a in range(p):
-                    S[t, a] = sn * X[a]
-        if m == 0:
-            G[i] = 0.0
-            rhs[i] = 0.0
-            if with_g2:
-                G2[i] = 0.0
-        else:
-            # into G[i] directly: assigning an array to G[i] compiles numba's general
-            # broadcasting setitem, 5 s per call site
-            np.dot(A.T, A, G[i])
-            for a in range(p):  # A^T b summed in row order, as numba's parallel np.dot(A.T, b) did
-                s = 0.0
-                for t in range(m):
-                    s += A[t, a] * b[t]
-                rhs[i, a] = s
-            if with_g2:
-                np.dot(S.T, S, G2[i])
+                    St[a, t] = sn * X[a]
+        _gram(At, m, G[i])
+        _times(At, b, m, rhs[i])
+        if with_g2:
+            _gram(St, m, G2[i])
         yy[i] = yyi
 
 
@@ -248,7 +309,8 @@ def weighted_height_residual(
     args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights)
     args += as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2), bool(tilt), bool(cubic), int(kind)
     args += as_floats(height_beta), as_floats(beta), sigma2
-    parallel_rows(_weighted_height_residual, indptr.shape[0] - 1, *args)
+    core = _residual_full_model if tilt and cubic else _weighted_height_residual
+    parallel_rows(core, indptr.shape[0] - 1, *args)
 
 
 @numba.njit(**ROW_CORE)
@@ -256,20 +318,37 @@ def _weighted_height_residual(
     row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, beta,
     sigma2
 ):
+    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+    _residual_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, sigma2)
+
+
+@numba.njit(**ROW_CORE)
+def _residual_full_model(
+    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, beta,
+    sigma2
+):
+    # the full model's flags as constants (as _assemble_full_model)
+    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+    _residual_rows(row0, row1, geometry, True, True, kind, height_beta, beta, sigma2)
+
+
+@numba.njit(cache=True, inline="always")
+def _residual_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, sigma2):
+    points, centres, indptr, indices, weights, unit, normals, e1, e2 = geometry
     p = beta.shape[1]
     n_shape = 3 + 2 * tilt + 4 * cubic
+    cols = np.empty(n_shape)
     for i in range(row0, row1):
-        cols = np.empty(n_shape)
         weighted_sq = 0.0
         total_weight = 0.0
         total_sq_weight = 0.0
+        inverse_unit = 1.0 / unit[i]
         for k in range(indptr[i], indptr[i + 1]):
-            x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, unit[i])
-            r = _fill_shape_columns(x, y, tilt, cubic, cols)
-            r2 = r * r
+            x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, inverse_unit)
+            r2 = _fill_shape_columns(x, y, tilt, cubic, cols)
             if kind == CHORD:
                 D2 = r2 + z * z
-                kN = -2.0 * z / D2 if D2 > 0 else 0.0
+                kN = -z * (2.0 / D2) if D2 > 0 else 0.0  # as the fit's response
                 fitted = 0.0
                 for a in range(p):
                     fitted += cols[a] * beta[i, a]
@@ -357,11 +436,11 @@ def _solve_normal_equations(
     ``kappa <= trace(G) trace(G^-1) <= p^2 kappa``.
     """
     p = rhs.shape[1]
+    A = np.empty((p, p))  # (work arrays allocated once per range of rows, as in every core)
+    L = np.empty((p, p))
+    work = np.empty(p)
+    x = np.empty(p)
     for i in range(row0, row1):
-        A = np.empty((p, p))
-        L = np.empty((p, p))
-        work = np.empty(p)
-        x = np.empty(p)
         trace = 0.0
         for a in range(p):
             trace += G[i, a, a]
