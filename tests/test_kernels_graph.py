@@ -1,11 +1,11 @@
-"""heatcurv._kernels.graph: the compiled minimum spanning forest against SciPy's, entry for entry."""
+"""heatcurv._kernels.graph: the compiled spanning forest and components against SciPy's, entry for entry."""
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from heatcurv._kernels.graph import minimum_spanning_forest
+from heatcurv._kernels.graph import connected_components, minimum_spanning_forest
 
 
 def scipy_forest(indptr, indices, cost):
@@ -59,3 +59,17 @@ def test_empty_graph_and_components():
     cost = np.array([1.0, 3.0, 2.0, 5.0, 1.0, 3.0, 2.0, 5.0])
     got = minimum_spanning_forest(indptr, indices, cost)
     assert got.sum() == 4 and np.array_equal(got, scipy_forest(indptr, indices, cost))
+
+
+@pytest.mark.parametrize("n, k, islands", [(1, 0, 1), (50, 1, 0), (3000, 1, 40), (3000, 2, 0), (2000, 10, 5)])
+def test_components_labelled_as_scipy(n, k, islands):
+    indptr, indices, cost = random_graph(n, k, seed=n + k, islands=islands) if k else (np.zeros(n + 1, np.int64),
+                                                                                      np.empty(0, np.int32), None)
+    kept = np.random.default_rng(n).random(len(indices)) < 0.7  # a subset of the entries
+    for mask in (None, kept):
+        weights = np.ones(len(indices)) if mask is None else mask.astype(float)
+        graph = sp.csr_matrix((weights, indices.copy(), indptr.copy()), shape=(n, n))
+        graph.eliminate_zeros()  # (in place: on copies of the arrays)
+        want = csgraph.connected_components(graph, directed=False)
+        got = connected_components(indptr, indices, mask)
+        assert got[0] == want[0] and np.array_equal(got[1], want[1])

@@ -23,7 +23,7 @@ from heatcurv.kernel import TAPER_START, ball_taper, heat_kernel_weights, tapere
 from heatcurv.mean_curvature import mean_curvature_normal
 from heatcurv.neighbourhood import Neighbourhood, knn_neighbourhood
 from heatcurv.normals import orient_normals, pca_normals
-from heatcurv.outliers import find_outliers
+from heatcurv.outliers import find_outliers, neighbour_medians
 from reference import chordfit as reference_chordfit
 from reference import segment as reference
 
@@ -161,6 +161,7 @@ def test_stages_give_the_same_with_the_references(torus_cloud, monkeypatch):
             offset=centroid_offset(pts, nb, normals, taper=True),
             oriented=orient_normals(pts, scrambled, nb),
             outliers=find_outliers(pts, nb).mask,
+            medians=neighbour_medians(areas, nb),  # (find_outliers needs medians only for rows it cannot count)
             offset_centres=centroid_offset(pts, nb.rows_slice(10, 60), normals[10:60], centres=pts[10:60] + 0.01),
         )
 
@@ -177,6 +178,7 @@ def test_stages_give_the_same_with_the_references(torus_cloud, monkeypatch):
     expected = np.exp(-(nb.distances**2) / np.repeat(h, 40) ** 2) * ball_taper(nb) * areas[nb.indices]
     np.testing.assert_allclose(a["fit_weights"], expected, rtol=1e-13)
     assert np.array_equal(a["oriented"], b["oriented"])
+    assert np.array_equal(a["outliers"], b["outliers"]) and np.array_equal(a["medians"], b["medians"])
     for key in ("K", "K_given", "offset", "offset_centres", "fit_weights"):
         np.testing.assert_allclose(b[key], a[key], rtol=1e-10, atol=1e-12 * np.abs(a[key]).max())
     # the taper used by the kernels is ball_taper's
@@ -203,8 +205,9 @@ def test_estimate_same_with_the_references(noise, monkeypatch):
     with monkeypatch.context() as patch:
         calls = with_references(patch, fit=True)
         a = heatcurv.estimate(pts)
-    # the default estimate runs every kernel, and the chord fit
-    assert set(calls) == set(compiled.__all__) | {"chord_fit"}, calls
+    # the default estimate runs every kernel, and the chord fit (neighbour_medians only where the
+    # outliers' counts leave a point undecided, which may be none)
+    assert set(calls) | {"neighbour_medians"} == set(compiled.__all__) | {"chord_fit"}, calls
     assert a.info["scale"]["fit"] == b.info["scale"]["fit"]
     for name in ("mean", "gaussian", "k1", "k2", "area", "spacing", "mean_curvature_normal"):
         ref = getattr(a, name)
@@ -232,6 +235,19 @@ def test_neighbour_medians(cloud, ties, request):
         values = np.round(values * 4.0)  # many equal values: the quickselect's partition with duplicates
     got = compiled.neighbour_medians(values, nb.indptr, nb.indices)
     np.testing.assert_array_equal(got, reference.neighbour_medians(values, nb.indptr, nb.indices))
+
+
+@pytest.mark.parametrize("cloud", ["torus_cloud", "ball_cloud"])
+def test_counts_below_and_same_label_counts(cloud, request):
+    pts, _, nb = request.getfixturevalue(cloud)
+    values = np.round(4.0 * (pts[:, 0] + 2.0 * pts[:, 1]))  # ties: equal products are not below
+    for factor in (1.0, 3.0):
+        got = compiled.counts_below(values, factor, values, nb.indptr, nb.indices)
+        assert got.dtype == np.int64
+        np.testing.assert_array_equal(got, reference.counts_below(values, factor, values, nb.indptr, nb.indices))
+    labels = (values % 5).astype(np.int64)
+    np.testing.assert_array_equal(compiled.same_label_counts(labels, nb.indptr, nb.indices),
+                                  reference.same_label_counts(labels, nb.indptr, nb.indices))
 
 
 @pytest.mark.parametrize("cloud", ["torus_cloud", "ball_cloud"])

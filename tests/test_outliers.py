@@ -6,7 +6,7 @@ import pytest
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.neighbourhood import Neighbourhood, knn_neighbourhood
-from heatcurv.outliers import find_outliers, neighbour_medians
+from heatcurv.outliers import exceeds_neighbour_median, find_outliers, neighbour_medians
 
 
 def _sphere_with_strays(seed=0):
@@ -90,3 +90,18 @@ def test_neighbour_medians_match_numpy():
     uniform = knn_neighbourhood(rng.random((200, 3)), 7)  # rows of one length: the reshape path
     want = [np.median(values[uniform.indices[a:b]]) for a, b in zip(uniform.indptr[:-1], uniform.indptr[1:])]
     np.testing.assert_allclose(neighbour_medians(values, uniform), want)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_exceeding_the_neighbour_median_without_the_median(seed):
+    # rows of 0-9 neighbours (odd, even, empty), many ties and values on both sides of 3x the median
+    rng = np.random.default_rng(seed)
+    values = np.round(rng.lognormal(sigma=0.8, size=400) * 4.0) / 4.0 + 0.25
+    counts = rng.integers(0, 10, 400)
+    indptr = np.r_[0, np.cumsum(counts)]
+    nbhd = Neighbourhood(indptr=indptr, indices=rng.integers(0, 400, indptr[-1]).astype(np.int32),
+                         distances=rng.random(indptr[-1]), radius=np.ones(400), augmented=np.zeros(400, bool))
+    for factor in (1.0, 2.0, 3.0):
+        want = values > factor * neighbour_medians(values, nbhd)
+        assert np.array_equal(exceeds_neighbour_median(values, factor, nbhd), want)
+        assert 0 < want.sum() < 400

@@ -39,13 +39,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse import csgraph
 
+from ._kernels import graph as graph_kernels
 from ._kernels import segment as kernels
 from .neighbourhood import Neighbourhood
 
-__all__ = ["ISOLATION_FACTOR", "BALL_RATIO_MAX", "SPARSE_FACTOR", "Outliers", "find_outliers", "neighbour_medians"]
+__all__ = [
+    "ISOLATION_FACTOR", "BALL_RATIO_MAX", "SPARSE_FACTOR", "Outliers", "find_outliers", "neighbour_medians",
+    "exceeds_neighbour_median",
+]
 
 #: Neighbours per point in the mutual-neighbour graph.
 LINK_NEIGHBOURS = 10
@@ -107,35 +109,50 @@ def find_outliers(points: np.ndarray, nbhd: Neighbourhood) -> Outliers:
     -------
     Outliers
     """
-    n = points.shape[0]
     near = nbhd.nearest(SPACING_RANK)
     counts = near.counts
     # d_6, or the farthest neighbour a sparser row has
     spacing = np.where(counts > 0, near.radius, np.inf)
     links = nbhd.spread(LINK_NEIGHBOURS)
     # mutual: i in j's ball as well as j in i's (an augmented row's far neighbours are not in its ball)
-    link_rows = links.rows
-    mutual = (links.distances <= links.radius[link_rows]) & (links.distances <= nbhd.radius[links.indices])
-    # the mutual pairs as CSR directly (rows stay in order): no COO sort (0.6 s -> 0.1 s on 1M points)
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(link_rows[mutual], minlength=n), out=indptr[1:])
-    graph = sp.csr_matrix((np.ones(int(indptr[-1])), links.indices[mutual], indptr), shape=(n, n))
-    n_comp, labels = csgraph.connected_components(graph, directed=False)
-
-    def own_share(lo, hi, block):
-        same = labels[block.indices] == np.repeat(labels[lo:hi], block.counts)
-        return block.segment_sum(same.astype(np.float64)) / np.maximum(block.counts, 1)
+    mutual = (links.distances <= links.radius[links.rows]) & (links.distances <= nbhd.radius[links.indices])
+    # components over the mutual pairs, compiled (a union-find over the CSR entries: no graph copy)
+    n_comp, labels = graph_kernels.connected_components(links.indptr, links.indices, mutual)
 
     ball_counts = nbhd.counts
     # a component smaller than a typical ball cannot fill its own kernel
     too_small = np.bincount(labels, minlength=n_comp)[labels] < np.median(ball_counts)
-    detached = too_small | (nbhd.blockwise(own_share) < OWN_SHARE)
+    own_share = kernels.same_label_counts(labels, nbhd.indptr, nbhd.indices) / np.maximum(ball_counts, 1)
+    detached = too_small | (own_share < OWN_SHARE)
     with np.errstate(divide="ignore", invalid="ignore"):
         sparse = (nbhd.radius / spacing) ** 2 > SPARSE_FACTOR * ball_counts / SPACING_RANK
     sparse &= ball_counts > SPACING_RANK
-    isolated = spacing > ISOLATION_FACTOR * neighbour_medians(spacing, nbhd)
-    isolated |= nbhd.radius > BALL_RATIO_MAX * neighbour_medians(nbhd.radius, nbhd)
+    isolated = exceeds_neighbour_median(spacing, ISOLATION_FACTOR, nbhd)
+    isolated |= exceeds_neighbour_median(nbhd.radius, BALL_RATIO_MAX, nbhd)
     return Outliers(detached | isolated | sparse, detached, isolated, sparse, int(n_comp))
+
+
+def exceeds_neighbour_median(values: np.ndarray, factor: float, nbhd: Neighbourhood) -> np.ndarray:
+    """``values > factor * neighbour_medians(values, nbhd)``, shape (n,), bool, mostly without a median.
+
+    With ``u_j = factor * values[j]`` (rounded, so still in the order of the
+    values) and ``k = c // 2`` for a row of ``c`` neighbours: the value exceeds
+    ``factor`` times the median when more than ``k`` of the ``u_j`` lie below
+    it (the upper middle does), and does not when fewer than ``k`` do (the
+    lower middle does not). Only an even row with exactly ``k`` below, its
+    value between the two middles, needs the median itself. The same answer
+    as through :func:`neighbour_medians` (two selections per point: 1.6 s on
+    a million points; the counts 0.1 s); false for a row without neighbours.
+    """
+    counts = nbhd.counts
+    below = kernels.counts_below(values, factor, values, nbhd.indptr, nbhd.indices)
+    half = counts // 2
+    exceeds = below > half
+    undecided = np.flatnonzero((counts % 2 == 0) & (counts > 0) & (below == half))
+    if undecided.size:
+        median = neighbour_medians(values, nbhd.take_rows(undecided))
+        exceeds[undecided] = values[undecided] > factor * median
+    return exceeds
 
 
 def neighbour_medians(values: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:

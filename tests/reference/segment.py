@@ -112,6 +112,16 @@ def neighbour_medians(values, indptr, indices):
     ])
 
 
+def counts_below(values, factor, limits, indptr, indices):
+    """Neighbours with ``factor * values[j] < limits[i]`` per row."""
+    return _segment_sum(indptr, (factor * values[indices] < limits[_rows(indptr)]).astype(float)).astype(np.int64)
+
+
+def same_label_counts(labels, indptr, indices):
+    """Neighbours with ``labels[j] == labels[i]`` per row."""
+    return _segment_sum(indptr, (labels[indices] == labels[_rows(indptr)]).astype(float)).astype(np.int64)
+
+
 def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
     """Compared and opposed neighbours per row, shape (n, 2)."""
     rows = _rows(indptr)

@@ -1,4 +1,4 @@
-"""Compiled graph kernels: the minimum spanning forest of a CSR neighbour graph.
+"""Compiled graph kernels: minimum spanning forest and connected components of a CSR neighbour graph.
 
 :func:`heatcurv.orientation.orient` propagates one side of the normals over a
 minimum spanning forest of the neighbour graph. :func:`minimum_spanning_forest`
@@ -11,6 +11,11 @@ stably, i.e. equal costs in CSR order) returns, position for position.
 Measured on a million points (10 edges each): 3.9 s in SciPy, of which 2 s
 sorting the costs; Boruvka sorts nothing.
 
+:func:`connected_components` (the outliers' mutual-neighbour graph) joins the
+edges' ends in a union-find and numbers the components as SciPy's
+``csgraph.connected_components`` does, in the order of their first vertex,
+without the symmetric copy of the graph SciPy builds.
+
 Arrays in, arrays out: this module imports nothing from heatcurv.
 """
 
@@ -21,7 +26,7 @@ from numba import njit
 
 from . import as_floats, as_indices, as_pointers
 
-__all__ = ["minimum_spanning_forest"]
+__all__ = ["minimum_spanning_forest", "connected_components"]
 
 
 def minimum_spanning_forest(indptr, indices, cost) -> np.ndarray:
@@ -112,3 +117,53 @@ def _boruvka(n, indptr, indices, cost, in_tree):
                 live[kept] = e
                 kept += 1
         count = kept
+
+
+def connected_components(indptr, indices, kept=None):
+    """Connected components of an undirected CSR graph, labelled as ``scipy.sparse.csgraph.connected_components``.
+
+    Parameters
+    ----------
+    indptr, indices : ndarray
+        CSR graph of ``n = len(indptr) - 1`` vertices; entry ``p`` of row
+        ``i`` is the undirected edge ``{i, indices[p]}``.
+    kept : ndarray, shape (nnz,), bool, optional
+        The entries that are edges (default: all).
+
+    Returns
+    -------
+    n_components : int
+    labels : ndarray, shape (n,), int64
+        Component of each vertex, numbered ``0, 1, ...`` in the order of each
+        component's first vertex (SciPy's numbering for undirected graphs).
+    """
+    indptr = as_pointers(indptr)
+    n = indptr.shape[0] - 1
+    indices = as_indices(indices, n)
+    kept = np.ones(indices.shape[0], dtype=np.bool_) if kept is None else np.ascontiguousarray(kept, dtype=np.bool_)
+    labels = np.empty(n, dtype=np.int64)
+    count = _components(n, indptr, indices, kept, labels)
+    return int(count), labels
+
+
+@njit(cache=True, nogil=True)
+def _components(n, indptr, indices, kept, labels):
+    parent = np.arange(n)
+    for i in range(n):
+        for p in range(indptr[i], indptr[i + 1]):
+            if kept[p]:
+                a, b = _root(parent, i), _root(parent, indices[p])
+                if a != b:  # the larger root under the smaller: every root is its component's first vertex
+                    if a < b:
+                        parent[b] = a
+                    else:
+                        parent[a] = b
+    count = 0
+    for v in range(n):  # roots come first in their component: label them in order, then the rest after them
+        root = _root(parent, v)
+        if root == v:
+            labels[v] = count
+            count += 1
+        else:
+            labels[v] = labels[root]
+    return count

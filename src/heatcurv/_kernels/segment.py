@@ -32,6 +32,8 @@ __all__ = [
     "kappa_normal_sums",
     "centroid_offsets",
     "neighbour_medians",
+    "counts_below",
+    "same_label_counts",
     "orientation_conflicts",
 ]
 
@@ -380,6 +382,46 @@ def _neighbour_medians(row0, row1, values, indptr, indices, out):
             for p in range(1, count // 2):
                 lower = max(lower, buffer[p])
             out[i] = 0.5 * (lower + upper)
+
+
+def counts_below(values, factor, limits, indptr, indices):
+    """Per row ``i``, how many of its neighbours ``j`` have ``factor * values[j] < limits[i]``, shape (n,), int64.
+
+    With ``limits = values`` this decides ``values[i] > factor * median`` for
+    most rows without a median (:func:`heatcurv.outliers.exceeds_neighbour_median`):
+    a branch-free count instead of a selection.
+    """
+    values, indptr = as_floats(values), as_pointers(indptr)
+    out = np.empty(indptr.shape[0] - 1, dtype=np.int64)
+    args = values, float(factor), as_floats(limits), indptr, as_indices(indices, values.shape[0]), out
+    parallel_rows(_counts_below, out.shape[0], *args)
+    return out
+
+
+@njit(**ROW_CORE)
+def _counts_below(row0, row1, values, factor, limits, indptr, indices, out):
+    for i in range(row0, row1):
+        count = 0
+        for p in range(indptr[i], indptr[i + 1]):
+            count += factor * values[indices[p]] < limits[i]
+        out[i] = count
+
+
+def same_label_counts(labels, indptr, indices):
+    """Per row ``i``, how many of its neighbours ``j`` have ``labels[j] == labels[i]``, shape (n,), int64."""
+    labels, indptr = np.ascontiguousarray(labels, dtype=np.int64), as_pointers(indptr)
+    out = np.empty(indptr.shape[0] - 1, dtype=np.int64)
+    parallel_rows(_same_label_counts, out.shape[0], labels, indptr, as_indices(indices, labels.shape[0]), out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _same_label_counts(row0, row1, labels, indptr, indices, out):
+    for i in range(row0, row1):
+        count = 0
+        for p in range(indptr[i], indptr[i + 1]):
+            count += labels[indices[p]] == labels[i]
+        out[i] = count
 
 
 def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
