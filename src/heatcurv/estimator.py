@@ -397,7 +397,12 @@ def _anchored_fit_stages(
             refine=not keep_normals, workers=opts.workers, progress=lambda f: clock.report("fit", 0.9 * f),
         )
     with clock.stage("carry", report=False):
-        carried = carry_fits(X, anchors, normals=nrm if keep_normals else None, workers=opts.workers)
+        # the points' own normals keep each point to anchors on its side of a thin part (not under
+        # strong noise, where they are what the anchors replace)
+        carried = carry_fits(
+            X, anchors, normals=nrm if keep_normals else None, reference=nrm if on_anchors is None else None,
+            workers=opts.workers,
+        )
         if on_anchors is not None:
             # the points' side is their nearest anchor's; so is an ambiguous one
             nearest = cKDTree(X[index]).query(X, 1, workers=opts.workers)[1]

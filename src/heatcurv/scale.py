@@ -15,8 +15,8 @@ grows with ``R^2``). :func:`select_scale` picks the width per cloud:
    (exact on circles, no averaging needed). Under even slight noise its
    near-neighbour chords ``2 z / |x_i - x_j|^2`` amplify the noise and it
    loses to the denoised fit;
-2. otherwise fit the ladder ``k = 60, 120, 240, ...`` (up to a quarter of the
-   cloud) of denoised fits, each with every point of its ball (the widest at
+2. otherwise fit the ladder ``k = 60, 120, 240, ...`` (up to a quarter of
+   the cloud) of denoised fits, each with every point of its ball (the widest at
    fewer centres: :data:`PAIRS_PER_LEVEL`), and compute each one's standard
    deviation of the mean curvature from the local noise (least-squares
    sandwich formula; the noise is the larger of the 60-neighbour residual and
@@ -338,6 +338,17 @@ PAIRS_PER_LEVEL = 500_000
 MIN_CENTRES = 100
 #: Fewest centres a median over a window takes.
 MIN_WINDOW = 50
+#: Candidates (doublings of the narrowest: up to 960 neighbours) whose residual counts in the noise
+#: estimate, while each doubling raises the median residual by less than :data:`NOISE_GROWTH`
+#: (noise being uncovered; bias grows as R^2, a factor 2 per doubling). A 100 000-point torus
+#: with noise of 0.6 % of its diagonal (2 spacings) needed them up to 960 to choose 3840
+#: neighbours (mean error 5.4 %; with the 60-neighbour residual alone, 960 and 26.6 %); a LiDAR
+#: tile's residuals, bias from 480 on, would have widened its kernel and hidden its tree crowns.
+NOISE_LEVELS = 4
+NOISE_GROWTH = 1.5
+#: Smallest share of the centres a noise region of its own must hold (a LiDAR tile's tree crowns,
+#: 4 % of its points, would otherwise have been fitted as a noisier surface and passed as reliable).
+MIN_REGION = 0.1
 #: The local guard's tolerance (standard deviations): only a clear local bias narrows a region's kernel.
 TAU_LOCAL = 3.0
 
@@ -404,7 +415,7 @@ def _nested_centres(sub: np.ndarray, keys: np.ndarray | None, seed: int) -> np.n
 
 
 def _ladder(base_k: int, max_k: int | None, n: int) -> list:
-    """The candidate kernels ``base_k, 2 base_k, ...`` up to ``max_k`` (default a quarter of the cloud)."""
+    """The candidate kernels ``base_k, 2 base_k, ...`` up to ``max_k`` (default and at most a quarter of the cloud)."""
     top = n // 4 if max_k is None else min(max_k, n // 4)
     ladder, k = [], base_k
     while k <= max(base_k, top):  # at least base_k itself (a base_k close to n)
@@ -470,8 +481,9 @@ def select_scale(
         more points (a million-point torus with noise of 0.12 % of its
         diagonal chose 960 neighbours under a fixed cap of 1920 and its mean
         curvature was off by 68 %; a 30 000-point patch with 0.6 % noise was
-        best at 3840 neighbours). Wide kernels cost no more per point: they
-        are fitted at anchors (:mod:`heatcurv.anchors`).
+        best at 3840 neighbours, 10.1 % against 14.7 % at 1920, a 20 000-point
+        sphere at 3840, 1.0 % against 2.4 %). Wide kernels cost no more per
+        point: they are fitted at anchors (:mod:`heatcurv.anchors`).
     alpha : float, optional
         Ball radius in units of ``h``.
     k_fit : int, optional
@@ -537,13 +549,19 @@ def select_scale(
             scale=Scale(k_use, not clean), sigma=sigma, relative_noise=sigma / h0, candidates=ladder[:1], sd=[0.0],
             mean_abs=mean_abs,
         )
-    # the local noise: the denoised residual's median over each centre's window
+    # the local noise: the denoised residual's median over each centre's window; a narrow fit absorbs
+    # part of strong noise (at sigma about 2 spacings the 60-neighbour residual was half the true
+    # sigma), so the noise is the largest of the narrow candidates' (up to NOISE_LEVELS doublings:
+    # wider ones' residuals hold their bias, which on thin parts would widen the kernel further)
     q = centres.shape[0]
-    local_sigma = _window_medians(base.sigma, _windows(at, at, window, workers), q)
+    noise = _window_medians(base.sigma, _windows(at, at, window, workers), q)
     tiny = np.finfo(float).tiny
     means = [base.principal.mean]
-    sds = [local_sigma * np.sqrt(np.maximum(base.mean_variance_factor, 0.0))]
+    factors = [np.sqrt(np.maximum(base.mean_variance_factor, 0.0))]
     sizes = [q]
+    sds = []
+    residuals = [float(np.median(base.sigma))]
+    growing = [True]  # the residual still grows like noise being uncovered, not like bias
 
     def evaluate(j):
         size = min(q, max(MIN_CENTRES, pairs_per_level // ladder[j].k))
@@ -552,14 +570,26 @@ def select_scale(
             workers=workers,
         )
         means.append(fit.principal.mean)
-        # the noise as this width measures it: a narrow fit absorbs part of strong noise (at sigma
-        # about 2 spacings the 60-neighbour residual was half the true sigma), a wider one less
-        mine = at[:size]
-        own_windows = _windows(mine, mine, max(MIN_WINDOW, window * size // q), workers)
-        level_sigma = _window_medians(fit.sigma, own_windows, size)
-        sigma_j = np.maximum(local_sigma[:size], level_sigma)
-        sds.append(sigma_j * np.sqrt(np.maximum(fit.mean_variance_factor, 0.0)))
+        factors.append(np.sqrt(np.maximum(fit.mean_variance_factor, 0.0)))
         sizes.append(size)
+        residual = float(np.median(fit.sigma))
+        if j <= NOISE_LEVELS and growing[0] and residual < NOISE_GROWTH * residuals[-1]:
+            mine = at[:size]
+            own_windows = _windows(mine, mine, max(MIN_WINDOW, window * size // q), workers)
+            own = _window_medians(fit.sigma, own_windows, size)
+            noise[:size] = np.maximum(noise[:size], own)
+            sds.clear()  # the standard deviations follow the noise
+        else:
+            growing[0] = False
+        residuals.append(residual)
+        while len(sds) < len(means):
+            i = len(sds)
+            sds.append(noise[: sizes[i]] * factors[i])
+
+    if len(ladder) > 1:
+        evaluate(1)
+    for i in range(len(sds), len(means)):
+        sds.append(noise[: sizes[i]] * factors[i])
 
     def changes(j):
         """Per centre of candidate j, the change from each narrower one in that one's standard deviations."""
@@ -569,14 +599,21 @@ def select_scale(
     # 1) regions of one noise level: centres binned by their local noise, one bin per factor of
     #    about 2.4 (optimal widths balance a bias growing as R^2 against a standard deviation
     #    falling as sigma / R^3, so k ~ R^2 ~ sigma^(2/5): a bin is one doubling of k)
-    reference = float(np.median(local_sigma))
-    noise_bin = np.round(0.4 * np.log2(np.maximum(local_sigma, tiny) / max(reference, tiny))).astype(np.int64)
+    reference = float(np.median(noise))
+    noise_bin = np.round(0.4 * np.log2(np.maximum(noise, tiny) / max(reference, tiny))).astype(np.int64)
+    # a region of its own noise must be a sizeable part of the cloud: a few per cent of "noisier"
+    # centres are vegetation, edges or stray parts, which the fit must not widen for (their
+    # residual is what flags them), so small bins join the largest
+    labels, counts = np.unique(noise_bin, return_counts=True)
+    small = labels[counts < MIN_REGION * q]
+    noise_bin[np.isin(noise_bin, small)] = labels[np.argmax(counts)]
     # 2) Lepski's rule in each bin: the widest candidate whose median change (over the bin's
     #    centres) from every narrower one is within tau of that one's standard deviation
     chosen = np.zeros(q, dtype=np.int64)
     open_bins = set(np.unique(noise_bin).tolist())
     for j in range(1, len(ladder)):
-        evaluate(j)
+        if j >= len(means):
+            evaluate(j)
         size = sizes[j]
         for b in sorted(open_bins):
             members = noise_bin[:size] == b

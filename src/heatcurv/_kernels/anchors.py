@@ -34,18 +34,20 @@ from numba import njit
 
 from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
 
-__all__ = ["carry_anchor_fits", "MAX_SLOPE"]
+__all__ = ["carry_anchor_fits", "MAX_SLOPE", "MIN_AGREEMENT"]
 
 #: An anchor whose model turns the normal by more than this sine at a point (about 64 degrees)
 #: says nothing reliable there: it gets no weight.
 MAX_SLOPE = 0.9
+#: Least cosine between an anchor's normal and a point's own for the anchor to be carried to it.
+MIN_AGREEMENT = 0.5
 # the entries xx, xy, xz, yy, yz, zz of a symmetric 3 x 3 tensor
 _ROW = (0, 0, 0, 1, 1, 2)
 _COL = (0, 1, 2, 1, 2, 2)
 
 
 def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, e2, coefficients, radius, usable,
-                      scalars):
+                      scalars, reference=None):
     """Every point's normal, curvature tensor and scalars from its nearest anchors' fits.
 
     Parameters
@@ -65,7 +67,13 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
     usable : ndarray, shape (m,)
         1.0 for anchors whose fit may be used, 0.0 for the others (ill-posed).
     scalars : ndarray, shape (m, s)
-        Per-anchor values averaged with the same weights (residual, ...).
+        Per-anchor values averaged with the same weights, except the first
+        (the fit's residual), which is the most-weighted anchor's: averaging
+        would dilute a tree crown's large residuals with the ground's around it.
+    reference : ndarray, shape (n, 3), optional
+        Each point's own oriented normal: an anchor whose normal is more than
+        60 degrees from it (:data:`MIN_AGREEMENT`; the other side of a part
+        thinner than the ball) is not carried to the point.
 
     Returns
     -------
@@ -74,7 +82,7 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
     tensor : ndarray, shape (n, 6)
         Weighted means of the carried tensors, ``xx, xy, xz, yy, yz, zz``.
     scalars : ndarray, shape (n, s)
-        Weighted means.
+        Weighted means (the first column: the most-weighted anchor's).
     support : ndarray, shape (n,)
         ``max (d + R)`` over the anchors with weight: how far the point's values reach.
     total : ndarray, shape (n,)
@@ -82,6 +90,8 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
     """
     n = indptr.shape[0] - 1
     scalars = as_floats(scalars)
+    check = reference is not None
+    reference = as_floats(reference) if check else np.zeros((1, 3))
     out_n = np.empty((n, 3))
     out_t = np.empty((n, 6))
     out_s = np.empty((n, scalars.shape[1]))
@@ -90,7 +100,7 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
     args = (
         as_floats(points), as_pointers(indptr), as_indices(indices, anchors.shape[0]), as_floats(distances),
         as_floats(anchors), as_floats(normals), as_floats(e1), as_floats(e2), as_floats(coefficients),
-        as_floats(radius), as_floats(usable), scalars, out_n, out_t, out_s, support, total,
+        as_floats(radius), as_floats(usable), scalars, reference, check, out_n, out_t, out_s, support, total,
     )
     parallel_rows(_carry_anchor_fits, n, *args)
     return out_n, out_t, out_s, support, total
@@ -149,7 +159,7 @@ def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm
 
 @njit(**ROW_CORE)
 def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, normals, e1, e2, coefficients,
-                       radius, usable, scalars, out_n, out_t, out_s, support, total):
+                       radius, usable, scalars, reference, check, out_n, out_t, out_s, support, total):
     nrm = np.empty(3)
     tensor = np.empty(6)
     frame_u = np.empty(3)
@@ -169,6 +179,7 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
             d_max = max(d_max, distances[p])
         d_max = d_max * (1.0 + 1e-9) + 1e-300
         wsum = 0.0
+        best = 0.0
         nearest = -1
         for p in range(lo, hi):
             a = indices[p]
@@ -181,6 +192,12 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
             q = d / radius[a]
             if q >= 1.0:
                 continue
+            if check:
+                agreement = 0.0
+                for k in range(3):
+                    agreement += normals[a, k] * reference[i, k]
+                if agreement < MIN_AGREEMENT:
+                    continue
             w = (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
             if w <= 0.0 or not _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm,
                                           tensor, frame_u, frame_v):
@@ -190,14 +207,17 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
                 out_n[i, k] += w * nrm[k]
             for k in range(6):
                 out_t[i, k] += w * tensor[k]
-            for k in range(n_scalars):
+            if w > best:  # the residual is the most-weighted (nearest) anchor's
+                best = w
+                out_s[i, 0] = scalars[a, 0]
+            for k in range(1, n_scalars):
                 out_s[i, k] += w * scalars[a, k]
             support[i] = max(support[i], d + radius[a])
         total[i] = wsum
         if wsum > 0.0:
             for k in range(6):
                 out_t[i, k] /= wsum
-            for k in range(n_scalars):
+            for k in range(1, n_scalars):
                 out_s[i, k] /= wsum
         elif nearest >= 0:
             # no anchor's ball reaches the point: the nearest usable anchor alone (the caller flags it)
