@@ -160,6 +160,20 @@ def test_verbose_prints_stage_timings_and_the_kernel(workdir, sphere_ply):
     assert "chord-fit kernel: chord-60 (60 neighbours" in out.stdout
 
 
+def test_a_noisy_cloud_writes_its_per_point_kernel_radius(tmp_path):
+    # issue 12: the chosen radius per point as an output field, the anchors and support in --verbose
+    sample = heatcurv.surfaces.Torus().sample(5000, "random", noise=0.003, seed=1)
+    path = tmp_path / "noisy.npy"
+    np.save(path, sample.points)
+    out = run("-v", "compute", path, "-o", tmp_path / "out.ply", "--fields", "mean,fit_radius")
+    assert out.returncode == 0, out.stderr
+    assert re.search(r"wide kernel: .*fitted at \d+ anchors .* support radius", out.stdout), out.stdout
+    back = io.read_points(tmp_path / "out.ply")
+    res = heatcurv.estimate(sample.points)
+    np.testing.assert_allclose(back.fields["fit_radius"], res.fit_radius, rtol=1e-6)
+    assert res.info["scale"].median_radius == pytest.approx(np.median(res.fit_radius), rel=1e-9)
+
+
 def test_ply_mesh_keeps_its_faces_and_other_formats_warn(tmp_path):
     import plyfile
 

@@ -206,6 +206,10 @@ def _report_details(res, log: Log) -> None:
             f"cloud's unit; spacing h {scale.median_h:.4g}); "
             f"noise sigma {scale.sigma:.3g} ({scale.relative_noise:.3g} h)"
         )
+        if scale.anchors:
+            widths = f"{scale.k_min}-{scale.k_max} neighbours by region; " if scale.k_min != scale.k_max else ""
+            log.detail(f"  wide kernel: {widths}fitted at {scale.anchors} anchors and carried to every point; "
+                       f"support radius {scale.support_radius:.4g} (no point farther changes a point's values)")
     orientation = res.info.get("orientation")
     if orientation is not None and orientation.mode != "given":
         log.detail(f"  orientation: {orientation.mode}; {orientation.components} component(s); "
