@@ -135,6 +135,10 @@ def weighted_covariances(points, indptr, indices, distances, radius, start, use_
 
 @njit(**ROW_CORE)
 def _weighted_covariances(row0, row1, points, indptr, indices, distances, radius, start, use_taper, cov):
+    longest = 0
+    for i in range(row0, row1):
+        longest = max(longest, indptr[i + 1] - indptr[i])
+    weight = np.empty(longest)  # a row's weights, for its second pass (one cosine per pair, not two)
     for i in range(row0, row1):
         lo, hi = indptr[i], indptr[i + 1]
         inv = 1.0 / radius[i]
@@ -142,6 +146,7 @@ def _weighted_covariances(row0, row1, points, indptr, indices, distances, radius
         m0, m1, m2 = points[i, 0], points[i, 1], points[i, 2]
         for p in range(lo, hi):
             w = _flat_top(distances[p] * inv, start) if use_taper else 1.0
+            weight[p - lo] = w
             j = indices[p]
             total += w
             m0 += w * points[j, 0]
@@ -153,7 +158,7 @@ def _weighted_covariances(row0, row1, points, indptr, indices, distances, radius
         d0, d1, d2 = points[i, 0] - m0, points[i, 1] - m1, points[i, 2] - m2
         c00, c01, c02, c11, c12, c22 = d0 * d0, d0 * d1, d0 * d2, d1 * d1, d1 * d2, d2 * d2
         for p in range(lo, hi):
-            w = _flat_top(distances[p] * inv, start) if use_taper else 1.0
+            w = weight[p - lo]
             j = indices[p]
             d0, d1, d2 = points[j, 0] - m0, points[j, 1] - m1, points[j, 2] - m2
             c00 += w * d0 * d0
