@@ -299,9 +299,12 @@ def smallest_eigenvectors(cov):
 
 @njit(**ROW_CORE)
 def _smallest_eigenvectors(row0, row1, cov, vectors, values):
+    a = np.empty((3, 3))  # (allocated once per range of rows, not per matrix)
+    v = np.empty((3, 3))
     for i in range(row0, row1):
-        a = cov[i].copy()
-        v = np.empty((3, 3))
+        for r in range(3):
+            for c in range(3):
+                a[r, c] = cov[i, r, c]
         _jacobi_eigen3(a, v)
         l0, l1, l2 = a[0, 0], a[1, 1], a[2, 2]
         k = 0
