@@ -289,11 +289,9 @@ def _spanning_forest(points: np.ndarray, normals: np.ndarray, graph: Neighbourho
     """
     n = points.shape[0]
     cost = kernels.orientation_costs(points, normals, graph.indptr, graph.indices, graph.distances, graph.radius)
-    in_tree = graph_kernels.minimum_spanning_forest(graph.indptr, graph.indices, cost)
-    # the kept entries as CSR, rows in order: each row's start is the count of kept entries before it
-    kept_before = np.zeros(in_tree.shape[0] + 1, dtype=np.int64)
-    np.cumsum(in_tree, out=kept_before[1:])
-    tree = sp.csr_matrix((cost[in_tree], graph.indices[in_tree], kept_before[graph.indptr]), shape=(n, n))
+    kept = np.flatnonzero(graph_kernels.minimum_spanning_forest(graph.indptr, graph.indices, cost))
+    # the kept entries as CSR, rows in order: each row starts after the kept entries before its first
+    tree = sp.csr_matrix((cost[kept], graph.indices[kept], np.searchsorted(kept, graph.indptr)), shape=(n, n))
     return (tree + tree.T).tocsr()
 
 
