@@ -79,12 +79,16 @@ COLUMNS = {
     "neighbours": ("neighbours",),
     "spacing": ("spacing",),
     "areas": ("areas",),
+    "kernel_check": ("kernel_check",),
+    "outliers": ("outliers",),
     "normals": ("normals",),
     "orientation": ("orientation",),
     "mean_curvature_normal": ("mean_curvature_normal",),
     "kernel_choice": ("kernel_choice",),
     "fit": ("fit_neighbourhood", "fit_weights", "normal_refinement", "curvature_fit", "area_correction"),
     "border": ("border",),
+    "anchor_fit": ("anchor_fit",),
+    "carry": ("carry",),
 }
 STAGES = tuple(s for stages in COLUMNS.values() for s in stages)
 
