@@ -8,7 +8,8 @@ a numba kernel, with no per-pair temporaries:
                taper sums, tapered heat weights, mean-curvature-normal sums,
                centroid offsets (border flags)
 ``chordfit``   the chord fit's normal equations, residuals and Cholesky solve
-``graph``      the orientation's minimum spanning forest (Boruvka; serial)
+``graph``      minimum spanning forest (orientation) and connected components
+               (outliers), serial
 =============  ==============================================================
 
 The kernels take and return plain arrays and import nothing from the rest of
