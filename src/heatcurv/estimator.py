@@ -97,6 +97,7 @@ class _Fitted:
     residual: np.ndarray | None = None
     radius: np.ndarray | None = None
     orientation: Orientation | None = None
+    width: np.ndarray | None = None
 
 
 def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, **options):
@@ -421,7 +422,9 @@ def _anchored_fit_stages(
     clock.report("fit", 1.0)
     report = ScaleReport.from_choice(choice, carried.radius, opts.alpha, support=carried.support,
                                      anchors=index.shape[0], k=k_point)
-    return _Fitted(carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius, reoriented)
+    return _Fitted(
+        carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius, reoriented, k_point
+    )
 
 
 def _corrected_areas(
@@ -456,9 +459,17 @@ def _misfits(op: HeatKernelOperator, fitted: _Fitted, outliers: Outliers) -> np.
     if fitted.residual is None:
         return np.zeros(op.points.shape[0], dtype=bool)
     relative = fitted.residual / op.h
-    surface = relative[~outliers.mask]
-    baseline = max(float(np.median(surface)) if surface.size else 0.0, MISFIT_FLOOR)
-    return relative > MISFIT_FACTOR * baseline
+    width = np.zeros(relative.shape[0], dtype=np.int64) if fitted.width is None else fitted.width
+    misfit = np.zeros(relative.shape[0], dtype=bool)
+    # against the median of the points fitted at the same width (a wider kernel's residual holds
+    # more of the surface's shape: a low-poly bone with regions at 60 and 120 neighbours had 18 %
+    # of its points "misfits" against one median, 2 % with one median per width)
+    for k in np.unique(width):
+        same = width == k
+        surface = relative[same & ~outliers.mask]
+        baseline = max(float(np.median(surface)) if surface.size else 0.0, MISFIT_FLOOR)
+        misfit[same] = relative[same] > MISFIT_FACTOR * baseline
+    return misfit
 
 
 def _resolution(nbhd, pc: PrincipalCurvatures, outlier: np.ndarray) -> float:
