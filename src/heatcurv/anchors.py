@@ -35,13 +35,14 @@ from ._kernels import anchors as kernels
 from .areas import density_areas
 from .backend import map_blocks
 from .border import centroid_offset
-from .chordfit import ChordFit, chord_fit, refine_normals
+from .chordfit import ChordFit
 from .kernel import tapered_heat_weights
 from .neighbourhood import block_ranges, knn_neighbourhood, rows_per_block
 from .normals import tangent_frames
 from .orientation import Orientation, orient
 from .principal import PrincipalCurvatures, tensor_to_principal
 from .sampling import key_thinning
+from .scale import Scale, fit_balls
 
 __all__ = [
     "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "PCA_NEIGHBOURS", "AnchorFits", "CarriedFit", "anchor_rows",
@@ -281,15 +282,12 @@ def fit_anchors(
     radius, offset, density = np.empty(m), np.empty(m), np.empty(m)
 
     def fit_block(rows: np.ndarray, width: int) -> tuple:
-        centres = points[index[rows]]
-        nbhd = knn_neighbourhood(points, width, tree=tree, queries=centres, workers=workers)
-        # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
-        weights = tapered_heat_weights(nbhd, nbhd.radius / alpha, areas)
-        start = normals[rows]
-        if refine:
-            start = refine_normals(points, nbhd, start, weights, denoise=denoise, centres=centres)
-        fit = chord_fit(points, nbhd, start, weights, denoise=denoise, centres=centres, passes=1)
-        offset[rows] = centroid_offset(points, nbhd, fit.normals, taper=taper, centres=centres)
+        # two passes (a tilt-refined normal, then the curvatures) unless the normals are the caller's
+        nbhd, fit = fit_balls(
+            points, tree, index[rows], normals[rows], areas, Scale(width, denoise), alpha=alpha,
+            passes=2 if refine else 1, workers=workers,
+        )
+        offset[rows] = centroid_offset(points, nbhd, fit.normals, taper=taper, centres=points[index[rows]])
         density[rows] = density_areas(nbhd)
         radius[rows] = nbhd.radius
         return rows, fit
@@ -314,19 +312,8 @@ def fit_anchors(
     # the blocks ran grouped by width: back to the anchors' order
     back = np.empty(m, dtype=np.int64)
     back[np.concatenate(slots)] = np.arange(m)
-    fit = _take(ChordFit.concatenate(parts), back)
+    fit = ChordFit.concatenate(parts).take(back)
     return AnchorFits(index=index, k=k, fit=fit, radius=radius, offset=offset, density_area=density)
-
-
-def _take(fit: ChordFit, rows: np.ndarray) -> ChordFit:
-    """The rows ``rows`` of a fit."""
-    pc = fit.principal
-    fields = PrincipalCurvatures.__dataclass_fields__
-    return ChordFit(
-        principal=PrincipalCurvatures(**{name: getattr(pc, name)[rows] for name in fields}),
-        normals=fit.normals[rows], sigma=fit.sigma[rows], mean_variance_factor=fit.mean_variance_factor[rows],
-        coefficients=fit.coefficients[rows],
-    )
 
 
 def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray | None = None,

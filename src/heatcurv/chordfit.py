@@ -78,6 +78,16 @@ class ChordFit:
     mean_variance_factor: np.ndarray
     coefficients: np.ndarray | None = None
 
+    def take(self, rows: np.ndarray) -> ChordFit:
+        """The fit at the centres ``rows`` (indices, or a mask), in their order."""
+        pc = self.principal
+        fields = PrincipalCurvatures.__dataclass_fields__
+        return ChordFit(
+            principal=PrincipalCurvatures(**{name: getattr(pc, name)[rows] for name in fields}),
+            normals=self.normals[rows], sigma=self.sigma[rows], mean_variance_factor=self.mean_variance_factor[rows],
+            coefficients=None if self.coefficients is None else self.coefficients[rows],
+        )
+
     @staticmethod
     def concatenate(parts: list) -> ChordFit:
         """Join the fits of consecutive blocks of centres into one."""

@@ -58,7 +58,7 @@ from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_
 from .sampling import draw_subset
 
 __all__ = [
-    "Scale", "ScaleChoice", "ScaleReport", "fit_blocks", "fit_at_scale", "select_scale", "select_form",
+    "Scale", "ScaleChoice", "ScaleReport", "fit_balls", "fit_blocks", "fit_at_scale", "select_scale", "select_form",
 ]
 
 
@@ -216,6 +216,55 @@ class ScaleReport:
         return {name: getattr(self, name) for name in self.__dataclass_fields__}
 
 
+def fit_balls(
+    points: np.ndarray,
+    tree: cKDTree,
+    centres: np.ndarray,
+    normals: np.ndarray,
+    areas: np.ndarray,
+    scale: Scale,
+    *,
+    alpha: float = 2.0,
+    passes: int = 2,
+    workers: int = -1,
+    nbhd: Neighbourhood | None = None,
+) -> tuple[Neighbourhood, ChordFit]:
+    """The chord fit at ``centres``, each with the whole ball of its ``scale.k`` nearest neighbours.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        Distinct centred points; ``tree`` is built on them.
+    tree : scipy.spatial.cKDTree
+    centres : ndarray of int, shape (m,)
+        The points fitted at.
+    normals : ndarray, shape (m, 3)
+        Their oriented starting normals.
+    areas : ndarray, shape (n,)
+        Per-point areas (fit weights ``W_ij A_j``).
+    scale : Scale
+        Neighbour count and fit form.
+    alpha, passes, workers : optional
+        As :func:`fit_blocks`.
+    nbhd : Neighbourhood, optional
+        The centres' balls, already computed (else queried).
+
+    Returns
+    -------
+    nbhd : Neighbourhood
+        The balls (indices into ``points``), one row per centre.
+    fit : ChordFit
+    """
+    queries = points[centres]
+    if nbhd is None:
+        nbhd = knn_neighbourhood(points, min(scale.k, points.shape[0] - 1), tree=tree, queries=queries,
+                                 workers=workers)
+    # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
+    weights = tapered_heat_weights(nbhd, nbhd.radius / alpha, areas)
+    fit = chord_fit(points, nbhd, normals, weights, denoise=scale.denoise, centres=queries, passes=passes)
+    return nbhd, fit
+
+
 def fit_blocks(
     points: np.ndarray,
     tree: cKDTree,
@@ -278,13 +327,10 @@ def fit_blocks(
 
     def fit_block(bounds):
         lo, hi = bounds
-        queries = points[cidx[lo:hi]]
-        nbhd = base.rows_slice(lo, hi) if base is not None else knn_neighbourhood(
-            points, k, tree=tree, queries=queries, workers=workers
+        nbhd, fit = fit_balls(
+            points, tree, cidx[lo:hi], normals[lo:hi], areas, scale, alpha=alpha, passes=passes, workers=workers,
+            nbhd=None if base is None else base.rows_slice(lo, hi),
         )
-        # heat kernel, t = h^2 / 4 (eq 2.8), tapered to 0 at the ball's edge
-        weights = tapered_heat_weights(nbhd, nbhd.radius / alpha, areas)
-        fit = chord_fit(points, nbhd, normals[lo:hi], weights, denoise=scale.denoise, centres=queries, passes=passes)
         return lo, hi, nbhd, fit
 
     rows = rows_per_block(k, block_pairs)
