@@ -108,6 +108,8 @@ class CarriedFit:
         the curvatures).
     support : ndarray, shape (n,)
         Support radius: no point farther than this from a point changes its values.
+    nearest : ndarray of int, shape (n,)
+        Each point's nearest anchor (position in ``AnchorFits.index``).
     """
 
     normals: np.ndarray
@@ -118,6 +120,7 @@ class CarriedFit:
     density_area: np.ndarray
     mean_variance_factor: np.ndarray
     support: np.ndarray
+    nearest: np.ndarray
 
 
 def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = ANCHORS_PER_BALL) -> np.ndarray:
@@ -349,6 +352,7 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
             normals=fit.normals if normals is None else normals, principal=fit.principal, sigma=fit.sigma,
             offset=anchors.offset, radius=anchors.radius, density_area=anchors.density_area,
             mean_variance_factor=fit.mean_variance_factor, support=anchors.radius,
+            nearest=np.argsort(anchors.index),
         )
     at = points[anchors.index]
     m = at.shape[0]
@@ -404,7 +408,7 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     support[own] = anchors.radius
     return CarriedFit(
         normals=normals, principal=pc, sigma=values[:, 0], offset=values[:, 1], radius=values[:, 2],
-        density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support,
+        density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support, nearest=idx[:, 0],
     )
 
 

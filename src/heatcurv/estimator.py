@@ -31,7 +31,6 @@ import warnings
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
 from .areas import ball_area_factor, cut_ball_coverage, density_areas
@@ -383,7 +382,8 @@ def _anchored_fit_stages(
     opts, X = op.options, op.points
     n = X.shape[0]
     k_point = choice.k_per_point if choice.k_per_point is not None else np.full(n, choice.scale.k)
-    index = anchor_rows(keys, k_point, opts.scale_tuning.seed)
+    with clock.stage("anchor_fit", report=False):
+        index = anchor_rows(keys, k_point, opts.scale_tuning.seed)
     start, on_anchors, reoriented = nrm[index], None, None
     if not keep_normals and choice.relative_noise > STRONG_NOISE:
         with clock.stage("anchor_fit", report=False):
@@ -406,8 +406,7 @@ def _anchored_fit_stages(
         )
         if on_anchors is not None:
             # the points' side is their nearest anchor's; so is an ambiguous one
-            nearest = cKDTree(X[index]).query(X, 1, workers=opts.workers)[1]
-            ambiguous = on_anchors.ambiguous[nearest]
+            ambiguous = on_anchors.ambiguous[carried.nearest]
             report = replace(on_anchors.report, ambiguous=int(ambiguous.sum()), on_anchors=int(index.shape[0]))
             reoriented = Orientation(carried.normals, ambiguous, report)
     pc = carried.principal
