@@ -1,4 +1,4 @@
-"""The package's shape: one-way imports, a core free of io/cli/render/surfaces/testing, short modules."""
+"""The package's shape: one-way imports, a core free of io/cli/render/surfaces/testing/tiles, short modules."""
 
 import ast
 from pathlib import Path
@@ -9,7 +9,7 @@ import heatcurv
 
 PACKAGE = Path(heatcurv.__file__).parent
 #: Packages and modules around the numerical core; the core imports none of them.
-OUTER = ("io", "cli", "render", "surfaces", "testing", "data")
+OUTER = ("io", "cli", "render", "surfaces", "testing", "data", "tiles")
 #: Modules that are the package's facades or deprecated aliases, not the core.
 FACADES = ("__init__", "__main__", "pipeline", "evaluation", "baseline")
 MAX_LINES = 900
