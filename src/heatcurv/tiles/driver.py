@@ -1,0 +1,513 @@
+"""The driver of a tiled run: plan, survey, compute the tiles, orient, write. One loop for every executor.
+
+:func:`compute_file` runs these phases (each timed in the report):
+
+1. ``stats``, ``tiling``, ``scatter``: three streaming passes over the input
+   (:mod:`.plan`): statistics, the tiles, the points in tile order in scratch.
+2. ``survey``: :func:`.tasks.run_survey` on every tile, merged by
+   :func:`.compute.merge_surveys` into the context every tile gets (the halo).
+3. ``tiles``: :func:`.tasks.run_tile` on every tile not done yet, at most
+   ``2 x slots`` in flight; each finished tile is copied into the
+   index-addressed ``results.rec``.
+4. ``orientation``: for ``outward``, the flip bits (:mod:`.orient`).
+5. ``write``: the output in input order, atomically (:mod:`.output`).
+
+Scratch and resume
+------------------
+Scratch files live in ``<scratch>/.<output name>.heatcurv-tiles/``
+(``scratch`` defaults to the output's directory): ``plan.json`` (source
+identity, options hash, tiling, statistics), ``context.pkl``, ``points.f8``,
+``rows.i8``, ``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
+tile: its done marker). A run whose scratch directory holds a plan with the
+same source file (path, size, modification time), options and tile size
+resumes: finished tiles are not recomputed (``resume=None``, the default;
+``True`` requires such a plan, ``False`` starts afresh). A successful run
+removes its scratch directory. A failed run or Ctrl-C removes the temporary
+files and ``results.rec``; if tiles were finished, it keeps them with the plan
+for a resume (the message says where), otherwise it removes the directory.
+
+Faults
+------
+An exception in a tile fails the run with one :class:`~heatcurv.errors.HeatcurvError`
+naming the tile; no output file is written. A worker process that dies (out
+of memory, killed) breaks a process pool: the pool is restarted and the
+unfinished tiles resubmitted, at most :data:`RETRIES` times per tile. Dask
+replaces dead workers and retries their tasks itself.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import os
+import pickle
+import resource
+import shutil
+import sys
+import time
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import HeatcurvError
+from . import compute
+from .executors import SCHEDULERS, kill_workers, open_executor
+from .output import DEFAULT_FIELDS, RECORD, TILED_FIELDS, TILED_WRITE, create_results, store_tile, write_output
+from .plan import (
+    BYTES_PER_POINT,
+    CloudStats,
+    Tiling,
+    check_disk,
+    default_budget,
+    default_tile_size,
+    make_tiling,
+    options_hash,
+    parse_size,
+    plan_workers,
+    scan_stats,
+    scatter,
+    size_text,
+    worker_memory,
+)
+from .progressbar import TileProgress
+from .sources import TILED_READ, open_source
+from .tasks import load_plan, run_survey, run_tile, tile_path
+
+__all__ = ["compute_file", "TiledReport", "RETRIES", "DRIVER_MEMORY", "estimator_options"]
+
+#: Times a tile is resubmitted after its worker process died.
+RETRIES = 2
+#: Memory the driver keeps for itself out of the budget (chunks of the streaming passes), bytes.
+DRIVER_MEMORY = 600 * 2**20
+#: Plan file version: a plan of another version is never resumed.
+PLAN_VERSION = 1
+
+
+@dataclass
+class TiledReport:
+    """What a tiled run did (returned by :func:`compute_file`).
+
+    Attributes
+    ----------
+    source, output : str
+        The files read and written.
+    points : int
+        Rows of the input (and of the output).
+    computed : int
+        Points computed (the finite ones).
+    tiles : int
+        Tiles.
+    tile_size : int
+        Largest number of core points a tile was to hold.
+    halo : float
+        Halo width from the survey, length units (``widened`` tiles used more).
+    widened : int
+        Tiles whose certificate failed and which were computed again with a wider halo.
+    resumed : int
+        Tiles found finished in the scratch directory and not recomputed.
+    scheduler : str
+        The executor used.
+    workers : int
+        Tiles computed at once.
+    budget : int
+        The memory budget, bytes.
+    peak_memory : dict
+        ``driver`` (this process's peak resident memory), ``worker`` (the largest
+        peak of a worker process), ``estimate`` (``driver + workers x worker``), bytes.
+    timings : dict
+        Seconds per phase: ``stats tiling scatter survey tiles orientation write``.
+    context : dict
+        The global choices every tile got (:func:`.compute.merge_surveys`).
+    orientation : dict or None
+        The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`).
+    parameters : dict
+        Everything written into the output's VLR / PLY comment.
+    scratch : str
+        The scratch directory (removed after a successful run unless kept).
+    """
+
+    source: str
+    output: str
+    points: int
+    computed: int
+    tiles: int
+    tile_size: int
+    halo: float
+    widened: int
+    resumed: int
+    scheduler: str
+    workers: int
+    budget: int
+    peak_memory: dict
+    timings: dict
+    context: dict
+    orientation: dict | None
+    parameters: dict
+    scratch: str
+    tile_seconds: list = field(default_factory=list)
+
+
+def estimator_options(method: str, viewpoint, options: dict, source_kind: str) -> dict:
+    """The estimator keywords every tile gets, validated; ``orient="auto"`` on LAS/LAZ is ``"up"`` (as the CLI)."""
+    from ..options import resolve_options
+
+    resolve_options(method, **options)  # bad values fail before any pass over the file
+    out = dict(options, method=method)
+    if viewpoint is not None:
+        v = np.asarray(viewpoint, dtype=float)
+        if v.shape != (3,) or not np.isfinite(v).all():
+            raise HeatcurvError(f"a tiled run takes one viewpoint (x, y, z), got an array of shape {v.shape}")
+        out["viewpoint"] = v.tolist()
+    if out.get("orient") in (None, "auto") and viewpoint is None and source_kind == "las":
+        out["orient"] = "up"
+    return out
+
+
+def _outward(options: dict) -> bool:
+    orient = options.get("orient") or "auto"
+    return orient == "outward" or (orient == "auto" and options.get("viewpoint") is None)
+
+
+def _write_json(path, data) -> None:
+    import json
+
+    temporary = f"{path}.{os.getpid()}.tmp"
+    with open(temporary, "w") as stream:
+        json.dump(data, stream, default=repr)
+    os.replace(temporary, path)
+
+
+def _identity(src: Path) -> dict:
+    stat = src.stat()
+    return {"path": str(src.resolve()), "size": stat.st_size, "mtime_ns": stat.st_mtime_ns}
+
+
+def _halo_points(tiling: Tiling, stats: CloudStats, halo: float) -> list[int]:
+    """Estimated core + halo points of each tile (uniform density inside each tile's box)."""
+    lo_c, hi_c = np.asarray(stats.low), np.asarray(stats.high)
+    out = []
+    for t, count in enumerate(tiling.counts):
+        low, high = tiling.box(t)
+        low, high = np.maximum(low, lo_c), np.minimum(high, hi_c)
+        side = high - low
+        wide = np.minimum(high + halo, hi_c) - np.maximum(low - halo, lo_c)
+        ratio = np.prod(np.where(side > 0, wide / np.where(side > 0, side, 1), 1.0))
+        out.append(int(count * ratio))
+    return out
+
+
+def _cleanup(work: Path, keep_done: bool) -> str:
+    """Remove temporaries (and everything unless finished tiles are kept); say what is left."""
+    tiles = work / "tiles"
+    done = sorted(tiles.glob("tile_*.npz")) if tiles.exists() else []
+    for stray in (tiles.glob("*.tmp.npz") if tiles.exists() else []):
+        stray.unlink(missing_ok=True)
+    if keep_done and done:
+        (work / "results.rec").unlink(missing_ok=True)
+        return f"{len(done)} finished tile(s) are kept in {work}: run the same command again to resume, or delete it"
+    shutil.rmtree(work, ignore_errors=True)
+    return ""
+
+
+def _peak() -> int:
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+def compute_file(
+    src, dst, *, method: str = "default", viewpoint=None, max_memory=None, tile_size=None, tile_workers=None,
+    scheduler="processes", scratch=None, resume=None, fields=None, dtype=None, skip_nonfinite: bool = False,
+    keep_scratch: bool = False, progress=None, log=None, **options,
+) -> TiledReport:
+    """Every curvature field of a point-cloud file of any size, computed in tiles, written in input order.
+
+    Parameters
+    ----------
+    src : str or os.PathLike
+        ``.las``, ``.laz``, binary ``.ply`` or ``.npy`` (streamed, never read whole).
+    dst : str or os.PathLike
+        ``.las``, ``.laz`` or ``.ply`` (:mod:`heatcurv.tiles.output`), written atomically.
+    method, viewpoint, **options
+        As :func:`heatcurv.estimate` (one viewpoint, shape (3,)); ``workers``
+        is the threads of a tile computed in this process (serial runs).
+        ``orient`` defaults to ``"up"`` for LAS/LAZ, as on the command line.
+    max_memory : int or str, optional
+        Budget of the whole run, all workers together (``"3G"``, ``"500M"``,
+        bytes); default 60 % of the memory available.
+    tile_size : int, optional
+        Core points per tile (default: what the budget holds, at most 2M).
+    tile_workers : int, optional
+        Tiles computed at once (-1 or None: every core, as many as the budget holds).
+    scheduler : str or dask.distributed.Client, optional
+        ``"processes"`` (default), ``"threads"``, ``"dask"`` (a local Dask
+        cluster), ``"serial"``, ``"tcp://host:port"`` (a Dask scheduler) or a
+        Dask ``Client`` (:mod:`heatcurv.tiles.executors`). A run of one tile
+        runs in this process.
+    scratch : str or os.PathLike, optional
+        Directory for the scratch files (default: the output's directory).
+    resume : bool or None, optional
+        None: resume when the scratch directory holds a matching plan; True:
+        require one; False: start afresh.
+    fields : iterable of str, optional
+        Fields to write (:data:`heatcurv.tiles.output.TILED_FIELDS`); default
+        those of ``heatcurv compute``.
+    dtype : {None, "float32", "float64"}, optional
+        Type of the written float fields (default float32).
+    skip_nonfinite : bool, optional
+        Rows with NaN/inf coordinates get NaN (else they are an error).
+    keep_scratch : bool, optional
+        Keep the scratch directory after a successful run.
+    progress : bool or None, optional
+        A progress bar on stderr (None: when stderr is a terminal).
+    log : callable, optional
+        Called with one-line messages about the run.
+
+    Returns
+    -------
+    TiledReport
+
+    Raises
+    ------
+    HeatcurvError
+        On bad options or input, too little memory or disk, a failed tile.
+    """
+    from ..io.atomic import atomic_write, check_writable
+
+    tic_all = time.perf_counter()
+    say = log or (lambda text: None)
+    src, dst = Path(src), Path(dst)
+    if dst.suffix.lower() not in TILED_WRITE:
+        raise HeatcurvError(f"cannot write {dst}: a tiled run writes {' '.join(TILED_WRITE)}")
+    if src.suffix.lower() not in TILED_READ:
+        open_source(src)  # the message that says what to convert it to
+    check_writable(dst)
+    if dst.exists() and src.exists() and os.path.samefile(src, dst):
+        raise HeatcurvError(f"cannot write {dst}: it is the input file")
+    wanted = tuple(fields) if fields is not None else DEFAULT_FIELDS
+    unknown = [n for n in wanted if n not in TILED_FIELDS]
+    if unknown:
+        raise HeatcurvError(f"a tiled run cannot write the field(s) {', '.join(unknown)} (sharp features are "
+                            f"computed in memory only); choose from {', '.join(TILED_FIELDS)}")
+    if dtype not in (None, "float32", "float64"):
+        raise HeatcurvError(f"dtype must be float32 or float64, got {dtype!r}")
+    if isinstance(scheduler, str) and scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
+        raise HeatcurvError(f"unknown scheduler {scheduler!r}; choose {', '.join(SCHEDULERS)} or tcp://host:port")
+    budget = parse_size(max_memory) if max_memory is not None else default_budget()
+    source = open_source(src)
+    threads = options.pop("workers", -1)
+    est = estimator_options(method, viewpoint, options, source.kind)
+    identity = {"version": PLAN_VERSION, "source": _identity(src), "options": options_hash(est),
+                "skip_nonfinite": bool(skip_nonfinite)}
+    if tile_size is not None:
+        identity["tile_size"] = int(tile_size)
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    requested = cpus if tile_workers in (None, -1) else int(tile_workers)
+    if requested < 1:
+        raise HeatcurvError(f"tile_workers must be -1 or at least 1, got {tile_workers}")
+
+    root = Path(scratch) if scratch is not None else dst.parent
+    if not root.is_dir():
+        raise HeatcurvError(f"the scratch directory {root} does not exist")
+    work = root / f".{dst.name}.heatcurv-tiles"
+    timings = {k: 0.0 for k in ("stats", "tiling", "scatter", "survey", "tiles", "orientation", "write")}
+    plan = None
+    if (work / "plan.json").exists() and resume is not False:
+        old = load_plan(work)
+        if old.get("identity") == identity or (
+            tile_size is None and {k: v for k, v in old.get("identity", {}).items() if k != "tile_size"} == identity
+        ):
+            plan = old
+    if resume and plan is None:
+        raise HeatcurvError(f"nothing to resume: {work} holds no plan of this input with these options")
+    if plan is None and work.exists():
+        shutil.rmtree(work)
+    work.mkdir(exist_ok=True)
+    (work / "tiles").mkdir(exist_ok=True)
+    bar = TileProgress(sys.stderr.isatty() if progress is None else bool(progress), 1, 1)
+    try:
+        if plan is None:
+            bar.stage("statistics")
+            tic = time.perf_counter()
+            stats = scan_stats(source, skip_nonfinite)
+            timings["stats"] = time.perf_counter() - tic
+            if tile_size is None:
+                tile_size = default_tile_size(max(budget - DRIVER_MEMORY, 0), requested)
+            need = stats.finite * (32 + 2 * RECORD.itemsize + 48)
+            check_disk(work, need, f"the scratch files of {stats.finite} points")
+            if os.stat(work).st_dev == os.stat(dst.parent).st_dev:
+                need += stats.count * 100
+            check_disk(dst.parent, need if dst.parent == root else stats.count * 100, f"the output {dst.name}")
+            bar.stage("tiling")
+            tic = time.perf_counter()
+            tiling = make_tiling(source, stats, int(tile_size))
+            timings["tiling"] = time.perf_counter() - tic
+            bar.stage("scattering")
+            tic = time.perf_counter()
+            scatter(source, tiling, work)
+            timings["scatter"] = time.perf_counter() - tic
+            plan = {"identity": identity, "tiling": tiling.to_json(), "stats": stats.__dict__,
+                    "tile_size": int(tile_size)}
+            _write_json(work / "plan.json", plan)
+            say(f"tiled {src.name}: {stats.count} points in {len(tiling.counts)} tiles of at most {tile_size} "
+                f"points (budget {size_text(budget)})")
+        stats = CloudStats(**{k: tuple(v) if isinstance(v, list) else v for k, v in plan["stats"].items()})
+        tiling = Tiling.from_json(plan["tiling"])
+        tile_size = plan["tile_size"]
+        n_tiles = len(tiling.counts)
+        task_options = dict(est, workers=threads if n_tiles == 1 or scheduler == "serial" else 1)
+        sched = "serial" if n_tiles == 1 and isinstance(scheduler, str) else scheduler
+        workers = max(1, min(requested, n_tiles))
+
+        def executor(w):
+            return open_executor(sched, w, max(budget - DRIVER_MEMORY, 1))
+
+        context_file = work / "context.pkl"
+        if context_file.exists():
+            with open(context_file, "rb") as stream:
+                context = pickle.load(stream)
+        else:
+            bar.stage("survey")
+            tic = time.perf_counter()
+            specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options}
+                     for t in range(n_tiles)}
+            surveys = {}
+            _run(executor, workers, run_survey, specs, lambda t, r: surveys.__setitem__(t, r), say, "survey of tile")
+            context = compute.merge_surveys([surveys[t] for t in range(n_tiles)], stats, est)
+            with open(f"{context_file}.tmp", "wb") as stream:
+                pickle.dump(context, stream)
+            os.replace(f"{context_file}.tmp", context_file)
+            timings["survey"] = time.perf_counter() - tic
+        halo = float(context["halo"]) if isinstance(context, dict) and "halo" in context else float("nan")
+        largest = max(_halo_points(tiling, stats, halo if np.isfinite(halo) else 0.0))
+        fit = plan_workers(max(budget - DRIVER_MEMORY, 0), requested, largest, cpus)
+        if fit < 1:
+            raise HeatcurvError(
+                f"a tile of about {largest} points (core and halo) needs about {size_text(worker_memory(largest))}, "
+                f"more than the budget of {size_text(budget)} leaves for one worker; pass a smaller --tile-size "
+                f"(now {tile_size}) or a larger --max-memory"
+            )
+        workers = max(1, min(fit, n_tiles))
+
+        results_path = work / "results.rec"
+        create_results(results_path, stats.count)
+        done = {t for t in range(n_tiles) if os.path.exists(tile_path(work, t))}
+        for t in sorted(done):
+            store_tile(results_path, tile_path(work, t), t)
+        resumed = len(done)
+        if resumed:
+            say(f"resuming: {resumed} of {n_tiles} tiles already computed in {work}")
+        bar.close()
+        bar = TileProgress(sys.stderr.isatty() if progress is None else bool(progress), stats.finite, n_tiles)
+        bar.skip(sum(tiling.counts[t] for t in done), resumed)
+        tile_results = {}
+
+        def finished(t, result):
+            store_tile(results_path, tile_path(work, t), t)
+            tile_results[t] = result
+            bar(result["points"])
+
+        tic = time.perf_counter()
+        specs = {t: {"scratch": str(work), "tile": t, "context": context, "options": task_options}
+                 for t in range(n_tiles) if t not in done}
+        name = _run(executor, workers, run_tile, specs, finished, say, "tile")
+        timings["tiles"] = time.perf_counter() - tic
+
+        flips, orientation = None, None
+        if _outward(est):
+            from .orient import seam_flips
+
+            bar.stage("orientation")
+            tic = time.perf_counter()
+            keys, flip, orientation = seam_flips({t: tile_path(work, t) for t in range(n_tiles)}, results_path)
+            flips = (keys, flip)
+            timings["orientation"] = time.perf_counter() - tic
+        parameters = {
+            "heatcurv": _version(), "tiled": True, "options": est, "tile_size": tile_size, "tiles": n_tiles,
+            "halo": halo, "context": context if isinstance(context, dict) else repr(context), "source": src.name,
+        }
+        bar.stage("writing")
+        tic = time.perf_counter()
+        atomic_write(dst, lambda stream: write_output(stream, dst, source, stats, results_path, wanted,
+                                                      dtype or "float32", flips, parameters))
+        timings["write"] = time.perf_counter() - tic
+    except BaseException as exc:
+        bar.close()
+        left = _cleanup(work, keep_done=True)
+        if left:
+            say(left)
+        if isinstance(exc, (HeatcurvError, KeyboardInterrupt, SystemExit)):
+            raise
+        raise HeatcurvError(f"tiled run of {src} failed: {type(exc).__name__}: {exc}") from exc
+    bar.close()
+    if not keep_scratch:
+        shutil.rmtree(work, ignore_errors=True)
+    timings["total"] = time.perf_counter() - tic_all
+    worker_peak = max([r["peak"] for r in tile_results.values()], default=0)
+    driver_peak = _peak()
+    widened = sum(1 for r in tile_results.values() if r["widened"])
+    say(f"computed {stats.finite} points in {n_tiles} tiles ({name}, {workers} at once) in "
+        f"{timings['total']:.1f} s; wrote {dst}")
+    return TiledReport(
+        source=str(src), output=str(dst), points=stats.count, computed=stats.finite, tiles=n_tiles,
+        tile_size=int(tile_size), halo=halo, widened=widened, resumed=resumed, scheduler=name, workers=workers,
+        budget=budget, peak_memory={"driver": driver_peak, "worker": worker_peak,
+                                    "estimate": driver_peak + workers * worker_peak},
+        timings=timings, context=context if isinstance(context, dict) else {"context": repr(context)},
+        orientation=orientation, parameters=parameters, scratch=str(work),
+        tile_seconds=[tile_results[t]["seconds"] for t in sorted(tile_results)],
+    )
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__
+
+
+def _run(executor, workers: int, fn, specs: dict, on_done, say, what: str) -> str:
+    """Run ``fn(spec)`` for every spec, at most ``2 x slots`` in flight; ``on_done(key, result)`` in this process.
+
+    A worker process that dies breaks the pool: a new pool takes the unfinished
+    specs, at most :data:`RETRIES` times for a spec that was running. Any other
+    exception ends the run with one message naming the tile.
+    """
+    pending = dict(specs)
+    attempts = dict.fromkeys(specs, 0)
+    name = "serial"
+    while pending:
+        inflight, current = {}, None
+        try:
+            with executor(workers) as (ex, slots, name):
+                queue = list(pending)
+                try:
+                    while queue or inflight:
+                        while queue and len(inflight) < 2 * slots:
+                            key = queue.pop(0)
+                            inflight[ex.submit(fn, pending[key])] = key
+                        done, _ = cf.wait(list(inflight), return_when=cf.FIRST_COMPLETED)
+                        for future in done:
+                            key = current = inflight.pop(future)
+                            result = future.result()
+                            on_done(key, result)
+                            del pending[key]
+                except BrokenProcessPool:
+                    raise
+                except BaseException as exc:
+                    kill_workers(ex)
+                    if isinstance(exc, (KeyboardInterrupt, SystemExit)):
+                        raise
+                    where = f"{what} {current} of {len(specs)}" if current is not None else what
+                    message = str(exc) if isinstance(exc, HeatcurvError) else f"{type(exc).__name__}: {exc}"
+                    raise HeatcurvError(f"{where} failed: {message}") from exc
+        except BrokenProcessPool:
+            running = list(inflight.values()) + ([current] if current is not None and current in pending else [])
+            for key in running:
+                attempts[key] += 1
+            worst = max(running, key=lambda k: attempts[k], default=None)
+            if worst is not None and attempts[worst] > RETRIES:
+                raise HeatcurvError(
+                    f"{what} {worst}: a worker process died computing it {attempts[worst]} times (out of memory? "
+                    f"estimated {BYTES_PER_POINT} bytes per point); pass a smaller --tile-size or --max-memory"
+                ) from None
+            say(f"a worker process died; restarting the pool for {len(pending)} unfinished {what}(s)")
+    return name

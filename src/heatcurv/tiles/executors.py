@@ -1,0 +1,145 @@
+"""The executors a tiled run submits its tasks to, all behind the ``concurrent.futures`` interface.
+
+==================  ==========================================================
+``scheduler``       executor
+==================  ==========================================================
+``"serial"``        :class:`SerialExecutor`: in this process, one task at a time
+                    (chosen for a run of one tile; the kernels keep their
+                    threads)
+``"processes"``     :class:`concurrent.futures.ProcessPoolExecutor` (spawned
+                    processes: numba's threads do not survive a fork)
+``"threads"``       :class:`concurrent.futures.ThreadPoolExecutor`
+``"dask"``          a local Dask cluster: ``LocalCluster(n_workers,
+                    threads_per_worker=1, processes=True, memory_limit=budget /
+                    n_workers, dashboard_address=None)``
+``"tcp://h:p"``     an existing Dask scheduler (workers started with ``dask
+                    worker``; every worker must see the scratch directory)
+a Dask ``Client``   that client's cluster
+==================  ==========================================================
+
+Dask is optional (``pip install "heatcurv[dask]"``) and imported only for the
+last three. Dask's executor is ``Client.get_executor(pure=False)``; a worker
+killed while computing a tile is replaced and the tile retried by Dask itself
+(``distributed.scheduler.allowed-failures``, 3 by default). Every worker runs
+single-threaded kernels (``workers=1`` in the estimator options; the BLAS and
+OpenMP thread variables set to 1 in the processes started here).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+import os
+from contextlib import contextmanager
+
+from ..errors import HeatcurvError
+
+__all__ = ["SerialExecutor", "SCHEDULERS", "open_executor", "single_threaded_environment"]
+
+#: The scheduler names (besides ``tcp://host:port`` addresses and Dask clients).
+SCHEDULERS = ("processes", "threads", "dask", "serial")
+_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+class SerialExecutor(cf.Executor):
+    """Runs each task when it is submitted, in this process; returns a finished future."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        future = cf.Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:
+            if isinstance(exc, (KeyboardInterrupt, SystemExit)):
+                raise
+            future.set_exception(exc)
+        return future
+
+
+@contextmanager
+def single_threaded_environment():
+    """Processes started inside the block run one BLAS/OpenMP/numba thread (this process is unchanged)."""
+    previous = {name: os.environ.get(name) for name in _THREAD_VARIABLES}
+    os.environ.update({name: "1" for name in _THREAD_VARIABLES})
+    try:
+        yield
+    finally:
+        for name, value in previous.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def _dask():
+    try:
+        import distributed
+    except ImportError:
+        raise HeatcurvError(
+            "the dask schedulers need Dask: pip install \"heatcurv[dask]\" (dask[distributed])"
+        ) from None
+    return distributed
+
+
+def dask_slots(client) -> int:
+    """Tasks a Dask cluster runs at once: its workers' threads."""
+    return max(1, sum(client.nthreads().values()))
+
+
+@contextmanager
+def open_executor(scheduler, workers: int, budget: int):
+    """Yield ``(executor, slots, name)`` for ``scheduler`` with ``workers`` local workers and ``budget`` bytes.
+
+    ``slots`` is how many tasks run at once (a remote cluster's thread count).
+    The executor, and a cluster started here, are shut down on leaving.
+    """
+    if not isinstance(scheduler, str):  # a dask Client
+        with scheduler.get_executor(pure=False) as executor:
+            yield executor, dask_slots(scheduler), "dask client"
+        return
+    if scheduler == "serial":
+        yield SerialExecutor(), 1, "serial"
+    elif scheduler == "threads":
+        with cf.ThreadPoolExecutor(max_workers=workers) as executor:
+            yield executor, workers, "threads"
+    elif scheduler == "processes":
+        with single_threaded_environment():
+            executor = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        try:
+            yield executor, workers, "processes"
+        finally:
+            executor.shutdown(wait=True, cancel_futures=True)
+    elif scheduler == "dask":
+        distributed = _dask()
+        with single_threaded_environment():
+            cluster = distributed.LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, memory_limit=max(1, budget // workers),
+                dashboard_address=None,
+            )
+        try:
+            with distributed.Client(cluster) as client, client.get_executor(pure=False) as executor:
+                yield executor, workers, "dask"
+        finally:
+            cluster.close()
+    elif scheduler.startswith("tcp://"):
+        distributed = _dask()
+        try:
+            client = distributed.Client(scheduler, timeout="20s")
+        except OSError as exc:
+            raise HeatcurvError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        try:
+            with client.get_executor(pure=False) as executor:
+                yield executor, dask_slots(client), f"dask at {scheduler}"
+        finally:
+            client.close()
+    else:
+        raise HeatcurvError(f"unknown scheduler {scheduler!r}; choose {', '.join(SCHEDULERS)} or tcp://host:port")
+
+
+def kill_workers(executor) -> None:
+    """End a process pool's worker processes (those this run started) at once: Ctrl-C must not wait for tiles."""
+    processes = getattr(executor, "_processes", None) or {}
+    for process in list(processes.values()):
+        try:
+            process.terminate()
+        except (OSError, AttributeError):
+            pass

@@ -1,0 +1,276 @@
+"""Results of a tiled run: an index-addressed scratch file, then the output written in input order.
+
+Each finished tile's core rows are copied into ``results.rec`` at their input
+rows (one record of :data:`RECORD` per input row, a memory map opened for one
+tile at a time). The final pass reads ``results.rec`` and the input together,
+a chunk of rows at a time and in input order, applies the orientation flips
+(:mod:`.orient`), and writes the output through
+:func:`heatcurv.io.atomic.atomic_write`: there is never a partial output file.
+
+Output formats
+--------------
+``.las`` ``.laz``
+    From a LAS/LAZ input: every input dimension and the raw integer
+    coordinates, unchanged (point format, scales, offsets, VLRs and CRS kept),
+    plus the results as extra dimensions (float32, or float64 with
+    ``dtype="float64"``; masks uint8, ``neighbours`` int32). From PLY or NPY:
+    LAS 1.4 point format 6 with the scales of :func:`heatcurv.io.write_points`
+    and the input's properties as extra dimensions. The run's parameters are a
+    VLR (user id ``heatcurv``, record id 13) holding JSON.
+``.ply``
+    Binary little endian: ``x y z`` (as stored in a PLY input, else double),
+    the input's other properties, the results; the elements after the
+    vertices of a little-endian PLY input (faces) are copied; a ``comment
+    heatcurv-tiles {...}`` line holds the run's parameters.
+
+Field names are those of ``heatcurv compute`` (:mod:`heatcurv.cli.fields`):
+``nx ny nz mean gaussian k1 k2 d1x d1y d1z d2x d2y d2z area reliable`` by
+default; ``border outlier spacing neighbours fit_radius`` on request.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from ..errors import HeatcurvError
+from .compute import RESULT_FIELDS
+from .sources import CHUNK_POINTS, Source
+
+__all__ = [
+    "RECORD", "DEFAULT_FIELDS", "EXTRA_FIELDS", "TILED_FIELDS", "TILED_WRITE", "create_results", "store_tile",
+    "read_results", "output_columns", "write_output",
+]
+
+#: One record per input row of ``results.rec``: every result field, the patch key, whether it was computed.
+RECORD = np.dtype(
+    [(name, "u1" if dt is np.bool_ else np.dtype(dt).str, (cols,)) if cols > 1
+     else (name, "u1" if dt is np.bool_ else np.dtype(dt).str) for name, (cols, dt) in RESULT_FIELDS.items()]
+    + [("patch", "<i8"), ("computed", "u1")]
+)
+#: The fields written by default, in the order of ``heatcurv compute`` (heatcurv.cli.fields.DEFAULT_FIELDS).
+DEFAULT_FIELDS = (
+    "nx", "ny", "nz", "mean", "gaussian", "k1", "k2",
+    "d1x", "d1y", "d1z", "d2x", "d2y", "d2z", "area", "reliable",
+)
+#: Further fields a tiled run can write (heatcurv.cli.fields.EXTRA_FIELDS).
+EXTRA_FIELDS = ("border", "outlier", "spacing", "neighbours", "fit_radius")
+#: Every field a tiled run writes, in the written order (the features are not computed in tiles).
+TILED_FIELDS = DEFAULT_FIELDS + EXTRA_FIELDS
+#: Output extensions of a tiled run.
+TILED_WRITE = (".las", ".laz", ".ply")
+#: Patch key of a tile's patch: ``tile << PATCH_SHIFT | label``.
+PATCH_SHIFT = 32
+
+_PLY_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int", "u4": "uint",
+              "f4": "float", "f8": "double"}
+
+
+def create_results(path, count: int) -> None:
+    """An all-zero ``results.rec`` of ``count`` records (a sparse file)."""
+    with open(path, "wb") as stream:
+        stream.truncate(count * RECORD.itemsize)
+
+
+def store_tile(path, tile_file, tile: int) -> int:
+    """Copy a finished tile's core rows into ``results.rec`` at their input rows; return the row count."""
+    with np.load(tile_file) as data:
+        rows = data["rows"]
+        block = np.zeros(len(rows), dtype=RECORD)
+        for name in RESULT_FIELDS:
+            block[name] = data[name]
+        block["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"]
+        block["computed"] = 1
+    order = np.argsort(rows)
+    results = np.memmap(path, dtype=RECORD, mode="r+")
+    try:
+        results[rows[order]] = block[order]
+        results.flush()
+    finally:
+        del results
+    return len(rows)
+
+
+def read_results(path, start: int, stop: int) -> np.ndarray:
+    """Records of input rows ``[start, stop)`` (a plain read: no map stays in memory)."""
+    return np.fromfile(path, dtype=RECORD, count=stop - start, offset=start * RECORD.itemsize)
+
+
+def _flipped(block: np.ndarray, flip: np.ndarray) -> np.ndarray:
+    """The records seen from the other side where ``flip``: heatcurv.principal.PrincipalCurvatures.flipped."""
+    from ..principal import PrincipalCurvatures
+
+    if not flip.any():
+        return block
+    pc = PrincipalCurvatures(k1=block["k1"], k2=block["k2"], d1=block["d1"], d2=block["d2"], mean=block["mean"],
+                             gaussian=block["gaussian"], well_posed=np.ones(len(block), bool)).flipped(flip)
+    block = block.copy()
+    for name in ("k1", "k2", "d1", "d2", "mean", "gaussian"):
+        block[name] = getattr(pc, name)
+    block["normals"] = np.where(flip[:, None], -block["normals"], block["normals"])
+    return block
+
+
+def output_columns(block: np.ndarray, wanted, dtype) -> dict:
+    """The written fields of a chunk of records, by written name (rows not computed: NaN, or 0 in masks)."""
+    missing = block["computed"] == 0
+    out = {}
+    for name in TILED_FIELDS:
+        if name not in wanted:
+            continue
+        if name in ("nx", "ny", "nz"):
+            values = block["normals"][:, "xyz".index(name[1])]
+        elif name[:2] in ("d1", "d2") and len(name) == 3:
+            values = block[name[:2]][:, "xyz".index(name[2])]
+        else:
+            values = block[name]
+        kind = RESULT_FIELDS.get(name, (1, np.float64))[1] if name in RESULT_FIELDS else np.float64
+        if kind is np.bool_:
+            values = values.astype(np.uint8)
+        elif kind is np.int64:
+            values = values.astype(np.int32)
+        else:
+            values = values.astype(dtype)
+            if missing.any():
+                values[missing] = np.nan
+        out[name] = values
+    return out
+
+
+def _results_chunks(results_path, count: int, flips, size: int = CHUNK_POINTS):
+    for start in range(0, count, size):
+        stop = min(count, start + size)
+        block = read_results(results_path, start, stop)
+        if flips is not None:
+            keys, flipped = flips
+            if len(keys):
+                at = np.clip(np.searchsorted(keys, block["patch"]), 0, len(keys) - 1)
+                flip = (keys[at] == block["patch"]) & flipped[at] & (block["computed"] == 1)
+                block = _flipped(block, flip)
+        yield start, block
+
+
+def write_output(stream, dst, source: Source, stats, results_path, wanted, dtype, flips, parameters: dict) -> None:
+    """Write the output file to ``stream`` (see the module's table), a chunk of rows at a time, input order."""
+    ext = os.path.splitext(str(dst))[1].lower()
+    chunks = _results_chunks(results_path, source.count, flips)
+    if ext in (".las", ".laz"):
+        _write_las(stream, ext == ".laz", source, stats, chunks, wanted, np.dtype(dtype), parameters)
+    elif ext == ".ply":
+        _write_ply(stream, source, chunks, wanted, np.dtype(dtype), parameters)
+    else:
+        raise HeatcurvError(f"cannot write {dst}: a tiled run writes {' '.join(TILED_WRITE)}")
+
+
+def _las_header(laspy, source: Source, stats, wanted, dtype, parameters):
+    from ..io.las import _las_scales_offsets
+
+    computed = [n for n in TILED_FIELDS if n in wanted]
+    if source.las_header is not None:
+        header = source.las_header.copy()
+        clash = [n for n in header.point_format.extra_dimension_names if n in computed]
+        if clash:
+            header.remove_extra_dims(clash)
+        header.partial_reset()
+        carried = []
+    else:
+        header = laspy.LasHeader(point_format=6, version="1.4")
+        corners = np.array([stats.low, stats.high])
+        header.scales, header.offsets = _las_scales_offsets(corners)
+        standard = set(header.point_format.dimension_names)
+        carried = [n for n in source.columns if n not in computed and n not in standard and len(n.encode()) <= 32]
+    header.generating_software = "heatcurv"
+    params = []
+    sample = next(source.chunks(1, coordinates_only=False))[2] if carried else None
+    for name in carried:
+        values = np.asarray(source.properties(sample)[name])
+        params.append(laspy.ExtraBytesParams(name=name, type=np.uint8 if values.dtype.kind == "b" else values.dtype))
+    for name in computed:
+        kind = RESULT_FIELDS.get(name, (1, np.float64))[1]
+        stored = np.uint8 if kind is np.bool_ else np.int32 if kind is np.int64 else dtype
+        params.append(laspy.ExtraBytesParams(name=name, type=np.dtype(stored)))
+    header.add_extra_dims(params)
+    header.vlrs = [v for v in header.vlrs if getattr(v, "user_id", "") != "heatcurv"]
+    header.vlrs.append(laspy.VLR(user_id="heatcurv", record_id=13, description="tiled run parameters",
+                                 record_data=json.dumps(parameters, sort_keys=True, default=repr).encode()))
+    return header, carried
+
+
+def _write_las(stream, compress, source, stats, chunks, wanted, dtype, parameters):
+    import laspy
+
+    header, carried = _las_header(laspy, source, stats, wanted, dtype, parameters)
+    backend = laspy.LazBackend.Lazrs if compress else None
+    with laspy.open(stream, mode="w", header=header, do_compress=compress, closefd=False,
+                    laz_backend=backend) as writer:
+        reader = source.chunks(CHUNK_POINTS, coordinates_only=False)
+        for (_, points, records), (_, block) in zip(reader, chunks):
+            record = laspy.ScaleAwarePointRecord.zeros(len(points), header=header)
+            if source.kind == "las":
+                record.copy_fields_from(records)
+            else:
+                record.x, record.y, record.z = points[:, 0], points[:, 1], points[:, 2]
+                properties = source.properties(records)
+                for name in carried:
+                    record[name] = properties[name]
+            for name, values in output_columns(block, wanted, dtype).items():
+                record[name] = values
+            writer.write_points(record)
+
+
+def _write_ply(stream, source, chunks, wanted, dtype, parameters):
+    computed = [n for n in TILED_FIELDS if n in wanted]
+    xyz_dtype = np.dtype(np.float64)
+    if source.kind == "ply":
+        stored = source.meta["dtype"]
+        kinds = {stored[name].kind + str(stored[name].itemsize) for name in source.meta["xyz"]}
+        xyz_dtype = np.dtype("<f4") if kinds == {"f4"} else xyz_dtype
+    sample = next(source.chunks(1, coordinates_only=False))[2]
+    props = {n: v for n, v in source.properties(sample).items() if n not in computed}
+    layout = [(a, xyz_dtype.newbyteorder("<")) for a in "xyz"]
+    for name, values in props.items():
+        kind = values.dtype
+        if kind.kind == "b":
+            kind = np.dtype("u1")
+        elif kind.itemsize == 8 and kind.kind in "iu":
+            kind = np.dtype("f8")  # PLY has no 64-bit integers
+        layout.append((name, kind.newbyteorder("<")))
+    for name in computed:
+        kind = RESULT_FIELDS.get(name, (1, np.float64))[1]
+        layout.append((name, np.dtype("u1" if kind is np.bool_ else "<i4" if kind is np.int64 else dtype)
+                       .newbyteorder("<")))
+    record = np.dtype(layout)
+    tail_header = ""
+    if source.kind == "ply" and source.meta.get("tail"):
+        tail_header = "".join(element.header + "\n" for element in source.meta["tail_elements"])
+    comments = [c for c in source.meta.get("comments", []) if not c.startswith("heatcurv-tiles ")]
+    lines = ["ply", "format binary_little_endian 1.0"]
+    lines += [f"comment {c}" for c in comments]
+    lines.append("comment heatcurv-tiles " + json.dumps(parameters, sort_keys=True, default=repr))
+    lines += [f"obj_info {c}" for c in source.meta.get("obj_info", [])]
+    lines.append(f"element vertex {source.count}")
+    lines += [f"property {_PLY_NAMES[record[name].kind + str(record[name].itemsize)]} {name}" for name in record.names]
+    stream.write(("\n".join(lines) + "\n" + tail_header + "end_header\n").encode("ascii"))
+    reader = source.chunks(CHUNK_POINTS, coordinates_only=False)
+    for (_, points, records), (_, block) in zip(reader, chunks):
+        rows = np.empty(len(points), dtype=record)
+        for k, axis in enumerate("xyz"):
+            rows[axis] = records[source.meta["xyz"][k]] if source.kind == "ply" else points[:, k]
+        properties = source.properties(records)
+        for name in props:
+            rows[name] = properties[name]
+        for name, values in output_columns(block, wanted, dtype).items():
+            rows[name] = values
+        stream.write(rows.tobytes())
+    if source.kind == "ply" and source.meta.get("tail"):
+        begin, end = source.meta["tail"]
+        with open(source.path, "rb") as raw:
+            raw.seek(begin)
+            while begin < end:
+                data = raw.read(min(1 << 24, end - begin))
+                if not data:
+                    break
+                stream.write(data)
+                begin += len(data)

@@ -1,0 +1,370 @@
+"""The plan of a tiled run: streaming statistics, the tiles, the memory budget, the scratch files.
+
+Tiling
+------
+One streaming pass gives the :class:`CloudStats` (count, bounding box,
+centroid), a second the histogram of the points over a fine grid of the
+bounding box (at most :data:`FINE_CELLS` cells, at most 256 along an axis).
+The tiles are boxes of whole fine cells found by a k-d split of that
+histogram: a box holding more than ``tile_size`` points is cut across its
+longest side where the count is halved, so tiles hold about the same number
+of points whatever the density. A third pass scatters each point's float64
+coordinates and its row number into two scratch files, tile after tile (a
+counting sort, SCALE.md decision 3), so that a tile's core is one contiguous
+slice ``[start, stop)`` of them; within a tile the points keep the input order.
+
+Halos are not stored: a tile reads the slices of the tiles whose boxes meet
+its box widened by the halo and keeps the points inside it. So a tile whose
+certificate fails can widen its halo without re-tiling, and the scratch holds
+each point once (24 + 8 bytes), whatever the halo.
+
+Memory
+------
+The estimator needs about :data:`BYTES_PER_POINT` bytes per point (measured,
+see docs/tiles.md) plus a fixed :data:`WORKER_OVERHEAD` per process. The budget
+(``max_memory``) is for the whole run, all workers together; by default
+:data:`BUDGET_FRACTION` of the memory available (``MemAvailable`` of
+``/proc/meminfo``; elsewhere psutil if installed, else the free pages).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..errors import HeatcurvError
+from .sources import CHUNK_POINTS, Source
+
+__all__ = [
+    "CloudStats", "Tiling", "BYTES_PER_POINT", "WORKER_OVERHEAD", "BUDGET_FRACTION", "FINE_CELLS",
+    "available_memory", "default_budget", "parse_size", "size_text", "scan_stats", "make_tiling", "scatter",
+    "options_hash", "check_disk", "read_rows",
+]
+
+#: Estimator memory per point of a tile (core + halo), bytes: measured 1.18 kB per point at 1M points of
+#: a torus (1.3 kB at 0.4M), above the process's own.
+BYTES_PER_POINT = 1300
+#: Memory of a worker process before it computes anything (interpreter, numpy, numba, heatcurv), bytes.
+WORKER_OVERHEAD = 400 * 2**20
+#: The default budget: this share of the memory available when the run starts.
+BUDGET_FRACTION = 0.6
+#: Cells of the fine histogram grid the tiles are made of.
+FINE_CELLS = 1 << 21
+
+
+@dataclass(frozen=True)
+class CloudStats:
+    """Streaming statistics of the whole cloud, one pass.
+
+    Attributes
+    ----------
+    count : int
+        Rows of the file.
+    finite : int
+        Rows with finite coordinates (the others are not computed).
+    low, high : tuple of float, length 3
+        Bounding box of the finite points.
+    centroid : tuple of float, length 3
+        Their mean.
+    """
+
+    count: int
+    finite: int
+    low: tuple
+    high: tuple
+    centroid: tuple
+
+    @property
+    def diagonal(self) -> float:
+        """Length of the bounding box's diagonal."""
+        return float(np.linalg.norm(np.subtract(self.high, self.low)))
+
+
+def available_memory() -> int:
+    """Bytes of memory available now (Linux ``MemAvailable``; psutil or free pages elsewhere)."""
+    try:
+        with open("/proc/meminfo") as stream:
+            for line in stream:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        import psutil
+
+        return int(psutil.virtual_memory().available)
+    except ImportError:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+
+
+def default_budget() -> int:
+    """The default ``max_memory``: :data:`BUDGET_FRACTION` of :func:`available_memory`."""
+    return int(BUDGET_FRACTION * available_memory())
+
+
+_UNITS = {"": 1, "B": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+
+def parse_size(value) -> int:
+    """``"3G"``, ``"500M"``, ``"1.5 GB"``, ``"2GiB"`` or a byte count -> bytes (binary units)."""
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        size = int(value)
+    else:
+        match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([KMGT]?)(I?B)?\s*", str(value).upper())
+        if match is None:
+            raise HeatcurvError(f"expected a memory size such as 3G, 500M or 2000000000, got {value!r}")
+        size = int(float(match[1]) * _UNITS[match[2]])
+    if size <= 0:
+        raise HeatcurvError(f"a memory size must be positive, got {value!r}")
+    return size
+
+
+def size_text(nbytes: float) -> str:
+    """Bytes in plain words: ``1.5 GB``, ``300 MB``."""
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{int(nbytes)} bytes"
+
+
+def scan_stats(source: Source, skip_nonfinite: bool = False) -> CloudStats:
+    """One streaming pass: count, bounding box and centroid of the finite points.
+
+    Raises
+    ------
+    HeatcurvError
+        On non-finite coordinates unless ``skip_nonfinite``, and on fewer than
+        two finite points.
+    """
+    low, high = np.full(3, np.inf), np.full(3, -np.inf)
+    total, count, finite, bad = np.zeros(3), 0, 0, []
+    for start, points, _ in source.chunks():
+        ok = np.isfinite(points).all(axis=1)
+        count += len(points)
+        if not ok.all():
+            if not skip_nonfinite:
+                rows = start + np.flatnonzero(~ok)[:5]
+                raise HeatcurvError(
+                    f"{source.path}: points have NaN or infinite coordinates (rows {', '.join(map(str, rows))}, "
+                    "counted from 0); remove them or pass --skip-nonfinite"
+                )
+            bad.append(int((~ok).sum()))
+            points = points[ok]
+        if len(points):
+            finite += len(points)
+            low, high = np.minimum(low, points.min(axis=0)), np.maximum(high, points.max(axis=0))
+            total += points.sum(axis=0)
+    if finite < 2:
+        raise HeatcurvError(f"{source.path}: fewer than two points with finite coordinates")
+    return CloudStats(count, finite, tuple(low.tolist()), tuple(high.tolist()), tuple((total / finite).tolist()))
+
+
+@dataclass(frozen=True)
+class Tiling:
+    """Tiles as boxes of a fine grid, and where each tile's core lies in the scratch files.
+
+    Attributes
+    ----------
+    origin : tuple of float, length 3
+        Corner of the fine grid (the bounding box's low corner).
+    cell : tuple of float, length 3
+        Size of a fine cell along each axis.
+    shape : tuple of int, length 3
+        Fine cells along each axis.
+    cells : list of tuple
+        Each tile's cell-index box ``(i0, j0, k0, i1, j1, k1)`` (upper bounds excluded).
+    counts : list of int
+        Core points of each tile.
+    """
+
+    origin: tuple
+    cell: tuple
+    shape: tuple
+    cells: list
+    counts: list
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """Start of each tile's slice in the scratch files, shape (T + 1,)."""
+        return np.concatenate([[0], np.cumsum(self.counts, dtype=np.int64)])
+
+    def box(self, t: int) -> tuple[np.ndarray, np.ndarray]:
+        """Tile ``t``'s core box ``(low, high)`` in input coordinates, shape (3,) each."""
+        c = np.asarray(self.cells[t], dtype=float)
+        origin, cell = np.asarray(self.origin), np.asarray(self.cell)
+        return origin + c[:3] * cell, origin + c[3:] * cell
+
+    def cell_of(self, points: np.ndarray) -> np.ndarray:
+        """Fine-cell number of each point, shape (k,) int64 (points outside: the nearest cell)."""
+        idx = np.floor((points - np.asarray(self.origin)) / np.asarray(self.cell)).astype(np.int64)
+        np.clip(idx, 0, np.asarray(self.shape) - 1, out=idx)
+        return np.ravel_multi_index(idx.T, self.shape)
+
+    def lookup(self) -> np.ndarray:
+        """Tile number of every fine cell, shape (prod(shape),) int32."""
+        table = np.full(self.shape, -1, dtype=np.int32)
+        for t, (i0, j0, k0, i1, j1, k1) in enumerate(self.cells):
+            table[i0:i1, j0:j1, k0:k1] = t
+        return table.ravel()
+
+    def overlapping(self, low: np.ndarray, high: np.ndarray) -> list[int]:
+        """Tiles whose core boxes meet the box ``[low, high]``."""
+        out = []
+        for t in range(len(self.cells)):
+            a, b = self.box(t)
+            if np.all(a <= high) and np.all(b >= low):
+                out.append(t)
+        return out
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, data: dict) -> Tiling:
+        return cls(tuple(data["origin"]), tuple(data["cell"]), tuple(data["shape"]),
+                   [tuple(c) for c in data["cells"]], list(data["counts"]))
+
+
+def _fine_grid(stats: CloudStats):
+    extent = np.maximum(np.subtract(stats.high, stats.low), 0.0)
+    longest = float(extent.max()) or 1.0
+    # cubic cells: at most 256 along the longest side and FINE_CELLS in all
+    side = max(longest / 256, float(np.prod(np.maximum(extent, longest * 1e-9)) / FINE_CELLS) ** (1 / 3))
+    shape = np.maximum(1, np.ceil(extent / side)).astype(int)
+    while shape.prod() > FINE_CELLS:
+        side *= 1.1
+        shape = np.maximum(1, np.ceil(extent / side)).astype(int)
+    cell = np.where(extent > 0, extent / shape, 1.0) * (1 + 1e-12)
+    return np.asarray(stats.low), cell, tuple(int(s) for s in shape)
+
+
+def make_tiling(source: Source, stats: CloudStats, tile_size: int) -> Tiling:
+    """The second pass: a histogram over the fine grid, cut into tiles of at most ``tile_size`` points.
+
+    A box is cut across its longest side (in length units) at the cell boundary
+    nearest half its count; a single cell holding more than ``tile_size`` points
+    stays one tile (the memory check says whether it fits).
+    """
+    origin, cell, shape = _fine_grid(stats)
+    hist = np.zeros(int(np.prod(shape)), dtype=np.int64)
+    grid = Tiling(tuple(origin.tolist()), tuple(cell.tolist()), shape, [], [])
+    for _, points, _ in source.chunks():
+        points = points[np.isfinite(points).all(axis=1)]
+        hist += np.bincount(grid.cell_of(points), minlength=hist.size)
+    hist = hist.reshape(shape)
+    boxes, counts, stack = [], [], [(0, 0, 0) + shape]
+    while stack:
+        box = stack.pop()
+        sub = hist[box[0]:box[3], box[1]:box[4], box[2]:box[5]]
+        total = int(sub.sum())
+        if total == 0:
+            continue
+        sizes = np.array(box[3:]) - np.array(box[:3])
+        if total <= tile_size or sizes.max() == 1:
+            boxes.append(box)
+            counts.append(total)
+            continue
+        lengths = np.where(sizes > 1, sizes * cell, -1.0)
+        axis = int(np.argmax(lengths))
+        profile = np.cumsum(sub.sum(axis=tuple(a for a in range(3) if a != axis)))
+        cut = int(np.clip(np.searchsorted(profile, total / 2), 0, sizes[axis] - 2)) + 1
+        low, high = list(box), list(box)
+        high[3 + axis] = low[axis] = box[axis] + cut
+        stack += [tuple(high), tuple(low)]
+    order = sorted(range(len(boxes)), key=lambda t: boxes[t])  # a deterministic, spatially coherent order
+    return Tiling(grid.origin, grid.cell, shape, [boxes[t] for t in order], [counts[t] for t in order])
+
+
+def scatter(source: Source, tiling: Tiling, directory) -> None:
+    """The third pass: coordinates and row numbers into ``points.f8`` and ``rows.i8``, tile after tile.
+
+    Files: ``points.f8`` (N, 3) float64 and ``rows.i8`` (N,) int64, N the finite
+    points, written with positioned writes (no memory map grows the process).
+    """
+    lookup = tiling.lookup()
+    cursor = tiling.offsets[:-1].copy()
+    points_path, rows_path = os.path.join(directory, "points.f8"), os.path.join(directory, "rows.i8")
+    with open(points_path, "wb") as pf, open(rows_path, "wb") as rf:
+        total = int(tiling.offsets[-1])
+        pf.truncate(total * 24)
+        rf.truncate(total * 8)
+        for start, points, _ in source.chunks():
+            rows = start + np.arange(len(points), dtype=np.int64)
+            ok = np.isfinite(points).all(axis=1)
+            if not ok.all():
+                points, rows = points[ok], rows[ok]
+            tiles = lookup[tiling.cell_of(points)]
+            order = np.argsort(tiles, kind="stable")
+            tiles, points, rows = tiles[order], np.ascontiguousarray(points[order]), rows[order]
+            bounds = np.flatnonzero(np.diff(tiles)) + 1
+            for a, b in zip(np.concatenate([[0], bounds]), np.concatenate([bounds, [len(tiles)]])):
+                t = int(tiles[a])
+                at = int(cursor[t])
+                os.pwrite(pf.fileno(), points[a:b].tobytes(), at * 24)
+                os.pwrite(rf.fileno(), rows[a:b].tobytes(), at * 8)
+                cursor[t] += b - a
+    if not np.array_equal(cursor, tiling.offsets[1:]):
+        raise HeatcurvError(f"cannot tile {source.path}: the file changed while it was read (point counts differ)")
+
+
+def read_rows(directory, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates (k, 3) and row numbers (k,) of scratch slice ``[start, stop)``."""
+    k = stop - start
+    points = np.fromfile(os.path.join(directory, "points.f8"), dtype=np.float64, count=3 * k, offset=24 * start)
+    rows = np.fromfile(os.path.join(directory, "rows.i8"), dtype=np.int64, count=k, offset=8 * start)
+    return points.reshape(k, 3), rows
+
+
+def options_hash(options: dict) -> str:
+    """A stable hash of the estimator options (and anything else JSON can hold)."""
+    text = json.dumps(options, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def check_disk(directory, needed: int, what: str) -> None:
+    """Fail before the run if ``directory``'s file system has less than ``needed`` bytes free."""
+    free = shutil.disk_usage(directory).free
+    if free < needed:
+        raise HeatcurvError(
+            f"not enough disk space for {what} in {directory}: about {size_text(needed)} needed, "
+            f"{size_text(free)} free; choose another directory with --scratch (scratch=...)"
+        )
+
+
+def worker_memory(points: int) -> int:
+    """Estimated peak memory of one worker computing a tile of ``points`` points (core + halo), bytes."""
+    return WORKER_OVERHEAD + BYTES_PER_POINT * int(points)
+
+
+def plan_workers(budget: int, requested: int | None, tile_points: int, cpus: int) -> int:
+    """How many tiles can be computed at once: the cores asked for, as many as the budget holds."""
+    want = cpus if requested in (None, -1) else int(requested)
+    fit = budget // worker_memory(tile_points)
+    return int(max(0, min(want, fit)))
+
+
+def default_tile_size(budget: int, workers: int, halo_share: float = 1.0) -> int:
+    """Core points per tile: what ``budget / workers`` holds with a halo of ``halo_share`` x the core, at most 2M."""
+    per = budget / max(workers, 1) - WORKER_OVERHEAD
+    return int(max(10_000, min(2_000_000, per / (BYTES_PER_POINT * (1 + halo_share)))))
+
+
+def n_tiles_text(count: int) -> str:
+    return f"{count} tile{'s' if count != 1 else ''}"
+
+
+def chunk_rows(total: int, size: int = CHUNK_POINTS):
+    """``(start, stop)`` ranges of at most ``size`` rows covering ``[0, total)``."""
+    for start in range(0, total, size):
+        yield start, min(total, start + size)
+
+
+def ceil_div(a: int, b: int) -> int:
+    return -(-a // b) if b else 0
+

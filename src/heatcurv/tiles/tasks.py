@@ -1,0 +1,201 @@
+"""The tasks a tiled run submits: module-level functions of a small spec, importable by any worker.
+
+A spec is a dict of plain values (the scratch directory, a tile number, the
+global context, the estimator options): the task reads its points from the
+scratch files itself (the cluster contract: every worker sees the same file
+system), computes through :mod:`.compute`, checks the certificate and writes
+its core rows to ``tiles/tile_NNNNN.npz`` atomically (a temporary file moved
+into place), which is also the tile's done marker. It returns a few numbers.
+
+Certificate (SCALE.md decision 4): a core point's values depend on no point
+farther than ``DEPTH x support`` (its support radius, which
+:func:`.compute.compute_tile` returns). The tile had every point of the cloud
+inside its halo box; so each core point's dependency ball must lie inside that
+box, except across a side where the box already reaches past the cloud's
+bounding box. Otherwise the tile widens its halo to what the failing points
+need (x :data:`.compute.HALO_MARGIN`) and computes again, at most
+:data:`WIDENINGS` times, then fails with a message: never silently wrong.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import time
+
+import numpy as np
+
+from ..errors import HeatcurvError
+from . import compute
+from .plan import Tiling, read_rows
+
+__all__ = ["run_survey", "run_tile", "tile_points", "certificate", "tile_path", "WIDENINGS", "SURVEY_POINTS"]
+
+#: Times a tile may widen its halo before the run fails.
+WIDENINGS = 3
+#: Points of a tile's survey window (the points nearest the tile's middle).
+SURVEY_POINTS = 100_000
+#: Environment variable of the fault-injection hook the tests use: ``fail:T`` raises in tile T,
+#: ``kill:T:FILE`` ends the worker process at tile T once (FILE records that it did).
+FAULT_VARIABLE = "HEATCURV_TILES_FAULT"
+
+
+def tile_path(scratch, tile: int) -> str:
+    """The result file of tile ``tile`` (its existence marks the tile done)."""
+    return os.path.join(scratch, "tiles", f"tile_{tile:05d}.npz")
+
+
+def load_plan(scratch) -> dict:
+    """The plan file of a scratch directory (``plan.json``)."""
+    with open(os.path.join(scratch, "plan.json")) as stream:
+        return json.load(stream)
+
+
+def tile_points(scratch, tiling: Tiling, tile: int, halo: float):
+    """Core and halo points of a tile: the core slice, then the neighbours' points inside the widened box.
+
+    Returns
+    -------
+    points : ndarray, shape (m, 3)
+    rows : ndarray, shape (m,), int64
+        Input row of each point.
+    core : ndarray, shape (m,), bool
+        The first ``counts[tile]`` rows.
+    low, high : ndarray, shape (3,)
+        The halo box.
+    """
+    offsets = tiling.offsets
+    points, rows = read_rows(scratch, int(offsets[tile]), int(offsets[tile + 1]))
+    low, high = tiling.box(tile)
+    low, high = low - halo, high + halo
+    parts, part_rows = [points], [rows]
+    for other in tiling.overlapping(low, high):
+        if other == tile:
+            continue
+        p, r = read_rows(scratch, int(offsets[other]), int(offsets[other + 1]))
+        inside = np.all((p >= low) & (p <= high), axis=1)
+        parts.append(p[inside])
+        part_rows.append(r[inside])
+    core = np.zeros(sum(len(p) for p in parts), dtype=bool)
+    core[: len(points)] = True
+    return np.concatenate(parts), np.concatenate(part_rows), core, low, high
+
+
+def certificate(points: np.ndarray, support: np.ndarray, box: tuple, halo_box: tuple, cloud: tuple) -> float:
+    """The halo a tile's core points need: 0 if every dependency ball lies inside what the tile had.
+
+    Parameters
+    ----------
+    points : ndarray, shape (c, 3)
+        Core points.
+    support : ndarray, shape (c,)
+        Their support radii; the dependency radius is ``DEPTH x support``.
+    box, halo_box, cloud : tuple of ndarray, shape (3,)
+        ``(low, high)`` of the core box, the halo box and the cloud's bounding box.
+
+    Returns
+    -------
+    float
+        The largest distance a dependency ball reaches beyond the core box on
+        a side where the halo box is inside the cloud (the halo needed), or 0
+        when every ball lies inside the halo box.
+    """
+    reach = compute.DEPTH * np.asarray(support, dtype=float)[:, None]
+    low, high = box
+    open_low = halo_box[0] > cloud[0]  # sides where points beyond the halo box exist
+    open_high = halo_box[1] < cloud[1]
+    beyond = np.concatenate([
+        np.where(open_low, reach - (points - low), -np.inf), np.where(open_high, reach - (high - points), -np.inf)
+    ], axis=1)
+    need = float(np.max(beyond, initial=-np.inf)) if len(points) else -np.inf
+    halo = float(np.min(np.concatenate([low - halo_box[0], halo_box[1] - high])))
+    return need if need > halo else 0.0
+
+
+def _fault(tile: int) -> None:
+    """The tests' fault-injection hook (see :data:`FAULT_VARIABLE`)."""
+    fault = os.environ.get(FAULT_VARIABLE)
+    if not fault:
+        return
+    parts = fault.split(":", 2)
+    if int(parts[1]) != tile:
+        return
+    if parts[0] == "fail":
+        raise RuntimeError(f"injected failure in tile {tile}")
+    if parts[0] == "kill" and not os.path.exists(parts[2]):
+        open(parts[2], "w").close()
+        os._exit(17)
+
+
+def _peak_bytes() -> int:
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+def run_survey(spec: dict) -> dict:
+    """Survey one tile: the :data:`SURVEY_POINTS` points nearest its middle, edge rows excluded from ``core``."""
+    scratch, tile = spec["scratch"], spec["tile"]
+    tiling = Tiling.from_json(load_plan(scratch)["tiling"])
+    offsets = tiling.offsets
+    points, _ = read_rows(scratch, int(offsets[tile]), int(offsets[tile + 1]))
+    middle = points[np.argmin(np.sum((points - points.mean(axis=0)) ** 2, axis=1))]
+    d2 = np.sum((points - middle) ** 2, axis=1)
+    if len(points) > spec.get("window", SURVEY_POINTS):
+        keep = np.argpartition(d2, spec.get("window", SURVEY_POINTS))[: spec.get("window", SURVEY_POINTS)]
+        points, d2 = points[keep], d2[keep]
+    core = d2 <= 0.5 * d2.max()  # inside 0.7 of the window's radius: balls not cut by its edge
+    return compute.survey_tile(points, core, spec["stats"], spec["options"])
+
+
+def run_tile(spec: dict) -> dict:
+    """Compute one tile, check its certificate (widening the halo if needed) and write its result file.
+
+    Returns
+    -------
+    dict
+        ``tile``, ``points`` (core), ``halo_points``, ``halo`` (width used),
+        ``widened`` (times), ``volumes`` (patch label -> signed volume term),
+        ``seconds``, ``peak`` (the worker process's peak memory, bytes).
+    """
+    tic = time.perf_counter()
+    scratch, tile, context, options = spec["scratch"], spec["tile"], spec["context"], spec["options"]
+    _fault(tile)
+    plan = load_plan(scratch)
+    tiling = Tiling.from_json(plan["tiling"])
+    cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
+    centroid = np.asarray(plan["stats"]["centroid"])
+    halo = float(spec.get("halo", context["halo"]))
+    for widened in range(WIDENINGS + 1):
+        points, rows, core, low, high = tile_points(scratch, tiling, tile, halo)
+        out = compute.compute_tile(points, core, context, options)
+        need = certificate(points[core], out["support"], tiling.box(tile), (low, high), cloud)
+        if need == 0.0:
+            break
+        if widened == WIDENINGS:
+            raise HeatcurvError(
+                f"tile {tile}: the certificate failed after {WIDENINGS} widenings of the halo (last {halo:.6g}, "
+                f"needed {need:.6g}): some point's values depend on points farther than the halo; "
+                "pass a smaller tile size or report this"
+            )
+        halo = need * compute.HALO_MARGIN
+    c = int(core.sum())
+    patch = np.asarray(out["patch"], dtype=np.int64)
+    labels, inverse = np.unique(patch[core], return_inverse=True)
+    terms = out["area"] * np.einsum("ij,ij->i", points[core] - centroid, out["normals"])
+    volumes = np.bincount(inverse, weights=np.nan_to_num(terms), minlength=len(labels))
+    arrays = {name: np.asarray(out[name]) for name in compute.RESULT_FIELDS}
+    path = tile_path(scratch, tile)
+    temporary = f"{path}.{os.getpid()}.tmp.npz"
+    try:
+        np.savez(temporary, rows=rows[core], patch=patch[core], halo_rows=rows[~core],
+                 halo_normals=np.asarray(out["halo_normals"]), halo_patch=patch[~core],
+                 volume_labels=labels, volumes=volumes, **arrays)
+        os.replace(temporary, path)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        raise
+    return {
+        "tile": tile, "points": c, "halo_points": int(len(points) - c), "halo": halo, "widened": widened,
+        "seconds": time.perf_counter() - tic, "peak": _peak_bytes(),
+    }
