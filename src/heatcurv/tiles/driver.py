@@ -296,7 +296,7 @@ def compute_file(
     source = open_source(src)
     threads = options.pop("workers", -1)
     est = estimator_options(method, viewpoint, options, source.kind)
-    identity = {"version": PLAN_VERSION, "source": _identity(src), "options": options_hash(est),
+    identity = {"version": PLAN_VERSION, "heatcurv": _version(), "source": _identity(src), "options": options_hash(est),
                 "skip_nonfinite": bool(skip_nonfinite)}
     if tile_size is not None:
         identity["tile_size"] = int(tile_size)

@@ -4,7 +4,8 @@
 format             how it is streamed
 =================  ===========================================================
 ``.las`` ``.laz``  laspy's ``chunk_iterator``; passes that need only the
-                   coordinates decode only XYZ (``DecompressionSelection.base()``)
+                   coordinates decode only XYZ (``DecompressionSelection.base()
+                   | Z``: ``base()`` alone does not decode z)
 ``.ply``           binary (little or big endian): the ``vertex`` element
                    memory-mapped; ASCII PLY is refused (convert it)
 ``.npy``           memory-mapped (``np.load(mmap_mode="r")``): ``(n, >=3)`` or
@@ -79,7 +80,9 @@ class Source:
         if self.kind == "las":
             import laspy
 
-            selection = laspy.DecompressionSelection.base() if coordinates_only else laspy.DecompressionSelection.all()
+            # base() alone leaves z undecoded: ask for Z too
+            select = laspy.DecompressionSelection
+            selection = select.base() | select.Z if coordinates_only else select.all()
             start = 0
             try:
                 with laspy.open(self.path, decompression_selection=selection) as reader:
