@@ -27,7 +27,6 @@ only one block at a time; its stages report progress together as ``"fit"``.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -36,8 +35,9 @@ from .anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
 from .areas import ball_area_factor, cut_ball_coverage, density_areas
 from .backend import threads
 from .border import BORDER_OFFSET, border_points, centroid_offset
+from .choices import frame_of
 from .chordfit import ChordFit, chord_fit, refine_normals
-from .errors import HeatcurvError, HeatcurvWarning
+from .errors import HeatcurvError
 from .kernel import tapered_heat_weights
 from .kernel_check import check_kernel
 from .mean_curvature import mean_curvature
@@ -49,6 +49,7 @@ from .orientation import Orientation, OrientationReport, as_viewpoint, orient
 from .outliers import Outliers, find_outliers
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
+from .reliability import ReliabilityInputs, cloud_flags
 from .results import CurvatureResult
 from .sampling import geometric_keys
 from .scale import ScaleReport, select_form, select_scale
@@ -58,23 +59,6 @@ __all__ = ["CurvatureResult", "estimate"]
 
 #: PCA planarity below which a neighbourhood is not treated as a surface patch.
 PLANARITY_MIN = 0.05
-#: A point whose chord-fit residual (in units of its spacing) exceeds this multiple of the
-#: cloud's median is not explained by one smooth surface at the kernel's scale: a sharp edge
-#: inside the ball, vegetation, a veil. Measured (residual / median): noisy tori at most 1.4,
-#: a CAD part's faces 0.1 and the band of a ball's width along its edges 3-450, a LiDAR tile's
-#: ground 0.8-7 and its tree crowns 20-36.
-MISFIT_FACTOR = 10.0
-#: Floor of the median residual (in spacings) a clean cloud's misfits are measured against.
-MISFIT_FLOOR = 1e-3
-#: A cloud whose median point has a sampling spacing ``s = R sqrt(pi / count)`` (its ball's radius
-#: ``R`` holding ``count`` neighbours) more than this many radii of curvature ``1 / max(|k1|, |k2|)``
-#: (fewer than about 12 points around an osculating circle) does not resolve its surface: its
-#: balls wrap around it. Measured (median, random samples): tori (r 0.6, R 1.4) of 150, 200 and
-#: 300 points 0.63, 0.62 and 0.53, with 45 and 53 inward normals among the "reliable" points of
-#: the first two and mean errors of 5.5-24 % of the largest curvature; 600 points 0.38 (2.9 %);
-#: spheres of 150 points 0.29 (0.4 %); ellipsoids (1, 0.6, 0.3) of 150-600 points 0.24-0.48;
-#: noisy clouds of 3000-10 000 points 0.04-0.18.
-RESOLUTION_LIMIT = 0.5
 #: Noise (``sigma`` over the operator's median spacing ``h``, ``info["scale"].relative_noise``) above
 #: which the operator's balls (radius ``2 h``) are swamped: their PCA normals tilt by tens of degrees
 #: and their orientation breaks apart, so the wide kernel's anchors find and orient their own
@@ -97,9 +81,10 @@ class _Fitted:
     radius: np.ndarray | None = None
     orientation: Orientation | None = None
     width: np.ndarray | None = None
+    support: np.ndarray | None = None
 
 
-def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, **options):
+def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, choices=None, **options):
     """Normals, mean, Gaussian and principal curvatures, directions and areas of a point cloud.
 
     Parameters
@@ -126,6 +111,11 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     progress : callable, optional
         Called as ``progress(stage, fraction)`` as the stages run
         (:mod:`heatcurv.progress`); the command line's progress bars use it.
+    choices : heatcurv.choices.CloudChoices, optional
+        When ``points`` are a part of a larger cloud (a tile with its halo,
+        :mod:`heatcurv.tiles`): the whole cloud's frame and kernel widths, so
+        that the part's points get the values the whole cloud would give them.
+        Default: made from ``points``.
     **options
         Any field of :class:`heatcurv.Options`, where each is documented once:
         ``alpha`` (ball radius ``r = alpha h``; paper 4, default 2), ``m``
@@ -168,11 +158,13 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     if viewpoint is not None:
         as_viewpoint(viewpoint, len(points) if hasattr(points, "__len__") else None)  # fail before the work
     with threads(opts.workers):
-        op = HeatKernelOperator.from_points(points, opts, progress)  # validate, neighbours, spacing, areas
+        frame = None if choices is None else choices.frame
+        op = HeatKernelOperator.from_points(points, opts, progress, frame)  # validate, neighbours, spacing, areas
         clock = StageClock(progress, dict(op.timings))
         with clock.stage("kernel_check"):
+            frame = frame_of(op.prepared) if frame is None else frame
             # every subset a stage draws is drawn by these keys: no result depends on the row order
-            keys = geometric_keys(op.points, op.neighbourhood)
+            keys = geometric_keys(op.points, op.neighbourhood, frame)
             check_kernel(op.neighbourhood, op.h, opts, keys)  # refuse a kernel that leaves nothing to fit
         with clock.stage("outliers"):
             outliers = find_outliers(op.points, op.neighbourhood)
@@ -181,7 +173,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()
         if opts.fit == "chord":
-            fitted = _default_fit_stages(op, nrm, normals is not None, outliers.mask, keys, clock, mode, towards)
+            scale = None if choices is None else choices.scale
+            fitted = _default_fit_stages(
+                op, nrm, normals is not None, outliers.mask, keys, clock, mode, towards, frame.n_points, scale
+            )
             if fitted.orientation is not None:  # oriented again over the anchors (strong noise)
                 orientation = fitted.orientation
         else:
@@ -189,7 +184,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         if mode == "viewpoint" and normals is None:
             # a scanner sees only surfaces facing it: the fit's refined normals must too
             fitted = _facing_viewpoint(fitted, op.points, towards)
-    return _result(op, fitted, planarity, K, orientation, outliers, clock.timings)
+    return _result(op, fitted, planarity, K, orientation, outliers, clock.timings, whole_cloud=choices is None)
 
 
 def _orientation_mode(orient_option: str, normals, viewpoint) -> str:
@@ -276,7 +271,7 @@ def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, ou
 
 def _default_fit_stages(
     op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, outlier: np.ndarray, keys: np.ndarray,
-    clock: StageClock, mode: str = "outward", towards=None,
+    clock: StageClock, mode: str = "outward", towards=None, n_cloud: int | None = None, chosen=None,
 ) -> _Fitted:
     """The default method's chord fit: ``kernel_choice``, then the per-block stages.
 
@@ -296,6 +291,11 @@ def _default_fit_stages(
     mode, towards : optional
         The orientation policy and its reference (:func:`_reference`), for
         normals oriented again at the anchors under strong noise.
+    n_cloud : int, optional
+        Rows of the whole cloud (default: the points at hand).
+    chosen : heatcurv.scale.ScaleChoice, optional
+        The whole cloud's kernel widths (a tile's :class:`heatcurv.choices.CloudChoices`);
+        default: chosen here.
 
     Returns
     -------
@@ -317,11 +317,13 @@ def _default_fit_stages(
                 X, base, nrm, fit_areas, alpha=opts.alpha, n_sub=tuning.n_sub, clean_ratio=tuning.clean_ratio,
                 seed=tuning.seed, keys=keys,
             )
+        elif chosen is not None:
+            choice = chosen.at_points(X, opts.workers)
         else:
             choice = select_scale(
                 X, op.tree, nrm, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
                 fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, keys=keys,
-                **asdict(tuning),
+                n_cloud=n_cloud, **asdict(tuning),
             )
     scale = choice.scale
     if not fixed_radius and (scale.denoise or scale.k > tuning.k_fit):
@@ -363,7 +365,7 @@ def _default_fit_stages(
     fit = ChordFit.concatenate(fits)
     pc = fit.principal
     report = ScaleReport.from_choice(choice, radius, opts.alpha, opts.radius, support=radius)
-    return _Fitted(fit.normals, pc.mean, pc, areas, border, report, residual, radius)
+    return _Fitted(fit.normals, pc.mean, pc, areas, border, report, residual, radius, support=radius)
 
 
 def _anchored_fit_stages(
@@ -422,7 +424,8 @@ def _anchored_fit_stages(
     report = ScaleReport.from_choice(choice, carried.radius, opts.alpha, support=carried.support,
                                      anchors=index.shape[0], k=k_point)
     return _Fitted(
-        carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius, reoriented, k_point
+        carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius, reoriented, k_point,
+        carried.support,
     )
 
 
@@ -453,63 +456,60 @@ def _corrected_areas(
     return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2) * coverage
 
 
-def _misfits(op: HeatKernelOperator, fitted: _Fitted, outliers: Outliers) -> np.ndarray:
-    """Points the chord fit does not explain (:data:`MISFIT_FACTOR`), shape (m,), bool; none for the paper's fit."""
-    if fitted.residual is None:
-        return np.zeros(op.points.shape[0], dtype=bool)
-    relative = fitted.residual / op.h
-    width = np.zeros(relative.shape[0], dtype=np.int64) if fitted.width is None else fitted.width
-    misfit = np.zeros(relative.shape[0], dtype=bool)
-    # against the median of the points fitted at the same width (a wider kernel's residual holds
-    # more of the surface's shape: a low-poly bone with regions at 60 and 120 neighbours had 18 %
-    # of its points "misfits" against one median, 2 % with one median per width)
-    for k in np.unique(width):
-        same = width == k
-        surface = relative[same & ~outliers.mask]
-        baseline = max(float(np.median(surface)) if surface.size else 0.0, MISFIT_FLOOR)
-        misfit[same] = relative[same] > MISFIT_FACTOR * baseline
-    return misfit
-
-
-def _resolution(nbhd, pc: PrincipalCurvatures, outlier: np.ndarray) -> float:
-    """The median point's sampling spacing in radii of curvature (:data:`RESOLUTION_LIMIT`); 0 if no point counts."""
+def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, planarity, orientation: Orientation,
+                        outliers: Outliers, areas: np.ndarray) -> ReliabilityInputs:
+    """Each distinct point's contribution to ``reliable`` (:mod:`heatcurv.reliability`), shape (m,) each."""
+    nbhd, pc = op.neighbourhood, fitted.principal
+    local = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~fitted.border
+    local &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask
+    m = op.points.shape[0]
+    width = np.zeros(m, dtype=np.int64) if fitted.width is None else np.asarray(fitted.width, dtype=np.int64)
+    # the median point's sampling spacing s = R sqrt(pi / count) in radii of curvature
     counts = np.maximum(nbhd.counts, 1)
-    spacing = nbhd.radius * np.sqrt(np.pi / counts)
-    rho = spacing * np.maximum(np.abs(pc.k1), np.abs(pc.k2))
-    rho = rho[~outlier & np.isfinite(rho)]
-    return float(np.median(rho)) if rho.size else 0.0
+    with np.errstate(invalid="ignore", over="ignore"):
+        rho = nbhd.radius * np.sqrt(np.pi / counts) * np.maximum(np.abs(pc.k1), np.abs(pc.k2))
+    residual = None if fitted.residual is None else fitted.residual / op.h
+    return ReliabilityInputs(local, residual, width, rho, ~outliers.mask)
 
 
 def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: Orientation, outliers: Outliers,
-            timings):
+            timings, whole_cloud: bool = True):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
     Outliers stand for no measured surface: area 0, never reliable. The stages
     ran in the unit ``prepared.unit`` (a power of two, 1 for all but extreme
-    extents): lengths are multiplied by it, curvatures divided, exactly.
+    extents): lengths are multiplied by it, curvatures divided, exactly. When
+    the points are only a part of the cloud (``whole_cloud`` False), the flags
+    that compare with the whole cloud's medians are left out of ``reliable``
+    and their inputs returned in ``info["reliability"]`` (input order).
     """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     unit = prepared.unit
     areas = np.where(outliers.mask, 0.0, fitted.areas)
-    reliable = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~fitted.border
-    reliable &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask & ~_misfits(op, fitted, outliers)
-    resolution = _resolution(nbhd, pc, outliers.mask)
-    if resolution > RESOLUTION_LIMIT:
-        warnings.warn(
-            f"the cloud is too coarse for its curvature: a median point's spacing is {resolution:.2g} radii of "
-            f"curvature (at most {RESOLUTION_LIMIT:g}: about 12 points around a curve), so its neighbourhoods "
-            "wrap around the surface; every value is marked unreliable. Sample it more densely.",
-            HeatcurvWarning, stacklevel=3,
-        )
-        reliable[:] = False
+    inputs = _reliability_inputs(op, fitted, planarity, orientation, outliers, areas)
+    back = prepared.to_input_order
+    if whole_cloud:
+        reliable, resolution = cloud_flags(inputs, stacklevel=3)
+        extra = {}
+    else:
+        reliable, resolution = inputs.local, float("nan")
+        first = np.zeros(prepared.n_input, dtype=bool)
+        first[prepared.first] = True  # medians count one row per set of duplicates
+        extra = {"reliability": ReliabilityInputs(
+            back(inputs.local), None if inputs.residual is None else back(inputs.residual), back(inputs.width),
+            back(inputs.rho), back(inputs.counted) & first,
+        )}
+        # how far each point's values reach: its fit's support, then the neighbours' normals and
+        # areas it weighs (one operator ball further), input units
+        support = nbhd.radius if fitted.support is None else fitted.support
+        extra["reach"] = back(support + nbhd.radius) * unit
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
-        "outliers": outliers.count, "resolution": resolution,
+        "outliers": outliers.count, "resolution": resolution, **extra,
     }
     if fitted.scale is not None:
         info["scale"] = fitted.scale.in_unit(unit)
     info["timings"] = timings
-    back = prepared.to_input_order
     return CurvatureResult(
         normals=back(fitted.normals),
         mean=back(fitted.mean) / unit,

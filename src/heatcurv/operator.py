@@ -82,7 +82,7 @@ class HeatKernelOperator:
 
     @classmethod
     def from_points(
-        cls, points, options: Options | None = None, progress=None, **overrides
+        cls, points, options: Options | None = None, progress=None, frame=None, **overrides
     ) -> HeatKernelOperator:
         """Run validation, neighbourhood, spacing and areas once.
 
@@ -94,6 +94,8 @@ class HeatKernelOperator:
             Resolved options; if omitted, ``resolve_options(**overrides)``.
         progress : callable, optional
             ``progress(stage, fraction)`` (:mod:`heatcurv.progress`).
+        frame : heatcurv.choices.CloudFrame, optional
+            The whole cloud's frame when ``points`` are a part of it (a tile).
         **overrides
             ``method`` and any :class:`~heatcurv.options.Options` field.
 
@@ -112,7 +114,7 @@ class HeatKernelOperator:
         clock = StageClock(progress)
         with threads(options.workers):
             with clock.stage("validate"):
-                prepared = _prepare(points, options)
+                prepared = _prepare(points, options, frame)
                 tree = cKDTree(prepared.points)
             nbhd, h = _neighbourhood_and_spacing(prepared, tree, options, clock)
             with clock.stage("areas"):
@@ -180,12 +182,12 @@ class HeatKernelOperator:
         return mean_curvature_normal(self.points, self.neighbourhood, self._weights, self.areas, self.h, self.m)
 
 
-def _prepare(points, options: Options) -> PreparedPoints:
+def _prepare(points, options: Options, frame=None) -> PreparedPoints:
     """Validated, centred, distinct points in k-d tree leaf order (cache-friendly gathers)."""
     need = int(options.min_neighbours) + 1
     if options.radius is None and (options.spacing == "density" or options.fit == "chord"):
         need = max(need, int(options.neighbours) + 1)
-    prepared = prepare_points(points, min_points=need)
+    prepared = prepare_points(points, min_points=need, frame=frame)
     # the limits the cloud sets (neighbour counts below its size, a radius within its extent)
     diagonal = float(np.linalg.norm(np.ptp(prepared.points, axis=0))) * prepared.unit
     check_options_for_cloud(options, prepared.n_distinct, diagonal)

@@ -230,7 +230,8 @@ class ScaleTuning:
         A cloud is clean when the chord fit's residual is at most this multiple
         of the denoised fit's (1.6; measured 0.2-1.3 clean, 2.2-4.4 noisy).
     max_k : int or None
-        Widest candidate kernel; None: a quarter of the cloud.
+        Widest candidate kernel; None: a quarter of the cloud, at most
+        :data:`heatcurv.scale.WIDEST_KERNEL`.
     seed : int
         Seed of the subsample and the anchors (results are reproducible).
     """

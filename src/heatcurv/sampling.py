@@ -11,8 +11,9 @@ curvature) and 5.7 % (area) under a rotation of a noisy cloud.
 Here every point gets a pseudo-random key computed from quantities a rigid
 motion, a uniform scaling and a permutation leave unchanged (up to rounding):
 its distance to the cloud's centroid and the size of its neighbourhood (the
-k-th and the nearest neighbour's distances, or the count in a fixed ball), each
-relative to the cloud's largest. A subset of size ``s`` is the
+k-th and the nearest neighbour's distances, or the count in a fixed ball), the
+lengths relative to the cloud's root-mean-square radius (a quantity a tiled
+run knows before it reads any tile, :mod:`heatcurv.choices`). A subset of size ``s`` is the
 ``s`` points with the smallest keys. Points with equal keys are symmetric
 images of each other (a lattice's rows, a surface of revolution's rings), so
 whichever of them a tie-break picks measures the same geometry.
@@ -24,7 +25,7 @@ import numpy as np
 
 from .neighbourhood import Neighbourhood
 
-__all__ = ["geometric_keys", "key_sample", "key_thinning", "draw_subset"]
+__all__ = ["geometric_keys", "key_sample", "key_spread", "key_thinning", "draw_subset", "shifted_keys"]
 
 #: Multiplier of the invariant features before their fractional part is taken: large enough that
 #: neighbouring points' keys are unrelated (features differ by about 1e-3 between neighbours),
@@ -35,7 +36,7 @@ _GOLDEN = 0.6180339887498949
 _SILVER = 0.4142135623730951
 
 
-def geometric_keys(points: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
+def geometric_keys(points: np.ndarray, nbhd: Neighbourhood, frame=None) -> np.ndarray:
     """A pseudo-random number in [0, 1) per point, from its geometry alone.
 
     Parameters
@@ -45,6 +46,10 @@ def geometric_keys(points: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
     nbhd : Neighbourhood
         Each point's neighbours: the k nearest (rows sorted by distance), or
         a ball of one radius.
+    frame : heatcurv.choices.CloudFrame, optional
+        The whole cloud's frame (its centroid, root-mean-square radius and
+        size) when ``points`` are a part of it: a point gets the same key in
+        every part that holds it. Default: the frame of ``points`` itself.
 
     Returns
     -------
@@ -52,18 +57,35 @@ def geometric_keys(points: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
         Keys invariant under permutation, rotation, translation and uniform
         scaling of ``points`` (to rounding).
     """
-    centred = points - points.mean(axis=0)
+    if frame is None:
+        centre = points.mean(axis=0)
+        d = points - centre
+        scale = float(np.sqrt(np.mean(np.einsum("ij,ij->i", d, d))))
+        n_cloud = points.shape[0]
+    else:
+        centre, scale, n_cloud = np.asarray(frame.centroid), float(frame.rms_radius), int(frame.n_points)
+    centred = points - centre
     r = np.sqrt(np.einsum("ij,ij->i", centred, centred))
     counts = nbhd.counts
     if nbhd.by_distance:
         # k nearest: the ball radius (k-th distance) and the nearest neighbour's distance
         local = nbhd.radius + np.where(counts > 0, nbhd.distances[np.minimum(nbhd.indptr[:-1], nbhd.n_pairs - 1)], 0.0)
+        local = local / max(scale, np.finfo(float).tiny)
     else:
-        # one radius for all (radius=): how many neighbours the ball holds
-        local = counts.astype(np.float64)
-    feature = _GOLDEN * r / max(float(r.max()), np.finfo(float).tiny)
-    feature += _SILVER * local / max(float(local.max()), np.finfo(float).tiny)
-    return np.modf(feature * KEY_SPREAD)[0]
+        # one radius for all (radius=): how many neighbours the ball holds (a number: no unit to divide)
+        local = counts * 1e-3
+    feature = _GOLDEN * r / max(scale, np.finfo(float).tiny) + _SILVER * local
+    return np.modf(feature * key_spread(n_cloud))[0]
+
+
+def key_spread(n_points: int) -> float:
+    """The multiplier of the features for a cloud of ``n_points`` (:data:`KEY_SPREAD`, growing as sqrt(n) past 1e6).
+
+    Neighbouring points' features differ by about a spacing over the cloud's
+    radius, which shrinks as ``n^-1/2``: the multiplier grows with it so that
+    neighbours' keys stay unrelated on clouds of 1e8 points and more.
+    """
+    return KEY_SPREAD * max(1.0, float(np.sqrt(n_points / 1e6)))
 
 
 def key_sample(keys: np.ndarray, size: int, seed: int = 0) -> np.ndarray:
@@ -86,8 +108,13 @@ def key_sample(keys: np.ndarray, size: int, seed: int = 0) -> np.ndarray:
     n = keys.shape[0]
     if size >= n:
         return np.arange(n)
-    shifted = np.modf(keys + _GOLDEN * (seed % 1_000_003))[0]
+    shifted = shifted_keys(keys, seed)
     return np.sort(np.argpartition(shifted, size - 1)[:size] if size > 0 else np.empty(0, dtype=np.int64))
+
+
+def shifted_keys(keys: np.ndarray, seed: int = 0) -> np.ndarray:
+    """``keys`` shifted by ``seed`` (mod 1): the order :func:`key_sample` draws in, shape as ``keys``."""
+    return np.modf(keys + _GOLDEN * (seed % 1_000_003))[0]
 
 
 def key_thinning(keys: np.ndarray, fraction, seed: int = 0) -> np.ndarray:
@@ -107,8 +134,7 @@ def key_thinning(keys: np.ndarray, fraction, seed: int = 0) -> np.ndarray:
     ndarray of int64, shape (m,)
         Increasing indices.
     """
-    shifted = np.modf(keys + _GOLDEN * (seed % 1_000_003))[0]
-    return np.flatnonzero(shifted < fraction)
+    return np.flatnonzero(shifted_keys(keys, seed) < fraction)
 
 
 def draw_subset(n: int, size: int, seed: int = 0, keys: np.ndarray | None = None) -> np.ndarray:

@@ -55,10 +55,11 @@ from .backend import SPLIT_ROWS, map_blocks
 from .chordfit import ChordFit, chord_fit
 from .kernel import tapered_heat_weights
 from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
-from .sampling import draw_subset
+from .sampling import draw_subset, shifted_keys
 
 __all__ = [
-    "Scale", "ScaleChoice", "ScaleReport", "fit_balls", "fit_blocks", "fit_at_scale", "select_scale", "select_form",
+    "CentreFits", "CentreFitter", "Scale", "ScaleChoice", "ScaleReport", "decide_scale", "fit_balls", "fit_blocks",
+    "fit_at_scale", "level_sizes", "select_scale", "select_form",
 ]
 
 
@@ -94,6 +95,11 @@ class ScaleChoice:
         Mean ``|kappa_M|`` of the narrowest candidate (for scale).
     k_per_point : ndarray of int, shape (n,), or None
         The kernel width chosen at each point (None: ``scale.k`` everywhere).
+    centres : ndarray, shape (q, 3), or None
+        The sample centres the widths were chosen at (stages' frame); None
+        when one width serves the whole cloud.
+    k_centre : ndarray of int, shape (q,), or None
+        The width chosen at each centre; a point takes its nearest centre's.
     """
 
     scale: Scale
@@ -103,6 +109,20 @@ class ScaleChoice:
     sd: list = field(default_factory=list)
     mean_abs: float = float("nan")
     k_per_point: np.ndarray | None = None
+    centres: np.ndarray | None = None
+    k_centre: np.ndarray | None = None
+
+    def at_points(self, points: np.ndarray, workers: int = -1) -> ScaleChoice:
+        """The choice with ``k_per_point`` for ``points`` (shape (n, 3)): each takes its nearest centre's width.
+
+        ``scale.k`` becomes the median point's width. Without centres (one
+        width for all) the choice is returned as it is.
+        """
+        if self.centres is None:
+            return self
+        _, nearest = cKDTree(self.centres).query(points, 1, workers=workers)
+        k_point = self.k_centre[nearest]
+        return replace(self, scale=Scale(int(np.median(k_point)), True), k_per_point=k_point)
 
 
 @dataclass(frozen=True)
@@ -457,14 +477,21 @@ def select_form(
 
 def _nested_centres(sub: np.ndarray, keys: np.ndarray | None, seed: int) -> np.ndarray:
     """The subsample ``sub`` in the order its prefixes are taken (smallest keys first, else seeded)."""
-    if keys is not None:
-        return sub[np.argsort(keys[sub], kind="stable")]
+    if keys is not None:  # by the shifted keys the subsample was drawn by: a tile's prefixes hold the cloud's
+        return sub[np.argsort(shifted_keys(keys[sub], seed), kind="stable")]
     return sub[np.random.default_rng(seed + 1).permutation(sub.shape[0])]
 
 
+#: Widest candidate kernel (neighbours) on any cloud: a tiled run measures every candidate at sample
+#: centres tile by tile, so the widest ball must fit in a tile's halo. Measured: the widest chosen on
+#: our noisy clouds was 7680 (a million-point LAZ with millimetre rounding); a 100 000-point torus
+#: with 0.6 % noise chose 3840.
+WIDEST_KERNEL = 15360
+
+
 def _ladder(base_k: int, max_k: int | None, n: int) -> list:
-    """The candidate kernels ``base_k, 2 base_k, ...`` up to ``max_k`` (default and at most a quarter of the cloud)."""
-    top = n // 4 if max_k is None else min(max_k, n // 4)
+    """The candidates ``base_k, 2 base_k, ...`` up to ``max_k`` (default :data:`WIDEST_KERNEL`) and ``n / 4``."""
+    top = min(WIDEST_KERNEL if max_k is None else max_k, n // 4)
     ladder, k = [], base_k
     while k <= max(base_k, top):  # at least base_k itself (a base_k close to n)
         ladder.append(Scale(k, True))
@@ -506,6 +533,7 @@ def select_scale(
     keys: np.ndarray | None = None,
     window: int = WINDOW,
     pairs_per_level: int = PAIRS_PER_LEVEL,
+    n_cloud: int | None = None,
 ) -> ScaleChoice:
     """Choose the kernel width at every point (see the module docstring).
 
@@ -570,6 +598,9 @@ def select_scale(
         Centres each point's choice looks at (:data:`WINDOW`).
     pairs_per_level : int, optional
         Neighbour pairs one candidate is evaluated with (:data:`PAIRS_PER_LEVEL`).
+    n_cloud : int, optional
+        Rows of the whole cloud (:class:`heatcurv.choices.CloudFrame`), which
+        set the widest candidate; default ``len(points)``.
 
     Returns
     -------
@@ -578,19 +609,125 @@ def select_scale(
     """
     n = points.shape[0]
     centres = _nested_centres(draw_subset(n, n_sub, seed, keys), keys, seed)
-    ladder = _ladder(base_k, max_k, n)
-    at = points[centres]
+    fitter = CentreFitter(points, tree, normals[centres], areas, centres, alpha=alpha, workers=workers)
+    choice = decide_scale(
+        fitter, points[centres], n if n_cloud is None else n_cloud, base_k=base_k, max_k=max_k, tau=tau,
+        clean_ratio=clean_ratio, fixed_k=fixed_k, window=window, pairs_per_level=pairs_per_level, workers=workers,
+    )
+    return choice.at_points(points, workers)
+
+
+@dataclass(frozen=True)
+class CentreFits:
+    """One candidate kernel's fit at the first sample centres (what Lepski's rule compares).
+
+    Attributes
+    ----------
+    mean : ndarray, shape (s,)
+        Fitted mean curvature (its sign follows the centre's normal; only
+        differences at one centre and magnitudes are used).
+    factor : ndarray, shape (s,)
+        Standard deviation of ``mean`` per unit height noise
+        (``sqrt(ChordFit.mean_variance_factor)``).
+    sigma : ndarray, shape (s,)
+        The fit's residual, length units.
+    h : ndarray, shape (s,)
+        Kernel spacing ``h = R / alpha`` at each centre.
+    """
+
+    mean: np.ndarray
+    factor: np.ndarray
+    sigma: np.ndarray
+    h: np.ndarray
+
+    @classmethod
+    def of(cls, fit: ChordFit, h: np.ndarray) -> CentreFits:
+        """From a :class:`ChordFit` and its spacings."""
+        return cls(fit.principal.mean, np.sqrt(np.maximum(fit.mean_variance_factor, 0.0)), fit.sigma, h)
+
+
+class CentreFitter:
+    """Fits candidate kernels at the nested sample centres of a cloud held in memory.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    tree : scipy.spatial.cKDTree
+    normals : ndarray, shape (q, 3)
+        Starting normals of the centres.
+    areas : ndarray, shape (n,)
+    centres : ndarray of int, shape (q,)
+        The centres, in the order their prefixes are taken.
+    alpha, workers : optional
+        As :func:`fit_at_scale`.
+
+    Calling it with ``(scale, size)`` fits ``scale`` at the first ``size``
+    centres (a :class:`CentreFits`); :mod:`heatcurv.survey` has the same
+    interface for centres measured tile by tile.
+    """
+
+    def __init__(self, points, tree, normals, areas, centres, *, alpha: float = 2.0, workers: int = -1):
+        self.points, self.tree, self.normals, self.areas = points, tree, normals, areas
+        self.centres, self.alpha, self.workers = centres, alpha, workers
+
+    def __call__(self, scale: Scale, size: int) -> CentreFits:
+        fit, h, _ = fit_at_scale(
+            self.points, self.tree, self.normals[:size], self.areas, scale, centres=self.centres[:size],
+            alpha=self.alpha, workers=self.workers,
+        )
+        return CentreFits.of(fit, h)
+
+
+def level_sizes(ladder: list, q: int, pairs_per_level: int = PAIRS_PER_LEVEL) -> list:
+    """Centres each candidate of ``ladder`` is fitted at (of ``q``): the widest at fewer, >= :data:`MIN_CENTRES`."""
+    return [q] + [min(q, max(MIN_CENTRES, pairs_per_level // c.k)) for c in ladder[1:]]
+
+
+def decide_scale(
+    fits,
+    at: np.ndarray,
+    n_cloud: int,
+    *,
+    base_k: int = 60,
+    max_k: int | None = None,
+    tau: float = 1.0,
+    clean_ratio: float = 1.6,
+    fixed_k: int | None = None,
+    window: int = WINDOW,
+    pairs_per_level: int = PAIRS_PER_LEVEL,
+    workers: int = -1,
+) -> ScaleChoice:
+    """The noise gate, the noise regions and Lepski's rule on fits at sample centres (steps 1-4 of the module).
+
+    Parameters
+    ----------
+    fits : callable
+        ``fits(scale, size)`` -> :class:`CentreFits` at the first ``size``
+        centres (:class:`CentreFitter`, or a tiled run's survey).
+    at : ndarray, shape (q, 3)
+        The centres' positions, in the order their prefixes are taken.
+    n_cloud : int
+        Points of the whole cloud (the ladder stops at a quarter of it).
+    base_k, max_k, tau, clean_ratio, fixed_k, window, pairs_per_level, workers
+        As :func:`select_scale`.
+
+    Returns
+    -------
+    ScaleChoice
+        With ``centres`` and ``k_centre`` (each point then takes its nearest
+        centre's width: :meth:`ScaleChoice.at_points`).
+    """
+    q = at.shape[0]
+    ladder = _ladder(base_k, max_k, n_cloud)
+    sizes_all = level_sizes(ladder, q, pairs_per_level)
+    k_all = np.array([c.k for c in ladder])
 
     # the noise gate: residuals of the chord and of the denoised fit at base_k
-    chord, h, _ = fit_at_scale(
-        points, tree, normals[centres], areas, Scale(base_k, False), centres=centres, alpha=alpha, workers=workers,
-    )
-    base, h, _ = fit_at_scale(
-        points, tree, normals[centres], areas, ladder[0], centres=centres, alpha=alpha, workers=workers,
-    )
-    sigma, h0 = float(np.median(base.sigma)), float(np.median(h))
+    chord = fits(Scale(base_k, False), q)
+    base = fits(ladder[0], q)
+    sigma, h0 = float(np.median(base.sigma)), float(np.median(base.h))
     clean = _is_clean(float(np.median(chord.sigma)), sigma, h0, clean_ratio)
-    mean_abs = float(np.mean(np.abs(base.principal.mean)))
+    mean_abs = float(np.mean(np.abs(base.mean)))
     if clean or fixed_k is not None:
         k_use = base_k if fixed_k is None else int(fixed_k)
         return ScaleChoice(
@@ -601,24 +738,20 @@ def select_scale(
     # part of strong noise (at sigma about 2 spacings the 60-neighbour residual was half the true
     # sigma), so the noise is the largest of the narrow candidates' (up to NOISE_LEVELS doublings:
     # wider ones' residuals hold their bias, which on thin parts would widen the kernel further)
-    q = centres.shape[0]
     noise = _window_medians(base.sigma, _windows(at, at, window, workers), q)
     tiny = np.finfo(float).tiny
-    means = [base.principal.mean]
-    factors = [np.sqrt(np.maximum(base.mean_variance_factor, 0.0))]
+    means = [base.mean]
+    factors = [base.factor]
     sizes = [q]
     sds = []
     residuals = [float(np.median(base.sigma))]
     growing = [True]  # the residual still grows like noise being uncovered, not like bias
 
     def evaluate(j):
-        size = min(q, max(MIN_CENTRES, pairs_per_level // ladder[j].k))
-        fit, _, _ = fit_at_scale(
-            points, tree, normals[centres[:size]], areas, ladder[j], centres=centres[:size], alpha=alpha,
-            workers=workers,
-        )
-        means.append(fit.principal.mean)
-        factors.append(np.sqrt(np.maximum(fit.mean_variance_factor, 0.0)))
+        size = sizes_all[j]
+        fit = fits(ladder[j], size)
+        means.append(fit.mean)
+        factors.append(fit.factor)
         sizes.append(size)
         residual = float(np.median(fit.sigma))
         if j <= NOISE_LEVELS and growing[0] and residual < NOISE_GROWTH * residuals[-1]:
@@ -686,16 +819,14 @@ def select_scale(
     chosen = np.minimum(chosen, guarded)
     evaluated = ladder[: len(means)]
     sd = [float(np.sqrt(np.mean(x**2))) for x in sds]
-    k_centre = np.array([c.k for c in ladder])[chosen]
-    # each point takes the choice of its nearest centre
-    _, nearest = cKDTree(at).query(points, 1, workers=workers)
-    k_point = k_centre[nearest]
+    k_centre = k_all[chosen]
     return ScaleChoice(
-        scale=Scale(int(np.median(k_point)), True),
+        scale=Scale(int(np.median(k_centre)), True),
         sigma=sigma,
         relative_noise=sigma / h0,
         candidates=evaluated,
         sd=sd,
         mean_abs=mean_abs,
-        k_per_point=k_point,
+        centres=at,
+        k_centre=k_centre,
     )

@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import HeatcurvError
 
-__all__ = ["PreparedPoints", "prepare_points", "prepare_normals", "EXTENT_RANGE", "UNIT_BAND"]
+__all__ = ["PreparedPoints", "bounding_box_frame", "prepare_points", "prepare_normals", "EXTENT_RANGE", "UNIT_BAND"]
 
 #: Clouds whose extent (largest bounding-box side, input units) lies outside this range are
 #: refused: their areas (extent^2 / n) or Gaussian curvatures (n / extent^2) would leave the
@@ -136,7 +136,29 @@ def _may_hold_duplicates(points: np.ndarray) -> bool:
     return bool(np.any(key[1:] == key[:-1]))
 
 
-def prepare_points(points, min_points: int = 7) -> PreparedPoints:
+def bounding_box_frame(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, float]:
+    """The centring origin and length unit of a cloud with bounding box ``low``, ``high`` (shape (3,) each).
+
+    Returns
+    -------
+    offset : ndarray, shape (3,)
+        The box's centre, input units.
+    unit : float
+        The stages' length unit (:data:`UNIT_BAND`).
+
+    Raises
+    ------
+    HeatcurvError
+        If the extent is outside :data:`EXTENT_RANGE`.
+    """
+    low, high = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64)
+    offset = 0.5 * low + 0.5 * high  # (low + high) / 2 overflows near the largest double
+    with np.errstate(over="ignore"):  # a span beyond the largest double is inf, refused below
+        unit = _length_unit(high - low)
+    return offset, unit
+
+
+def prepare_points(points, min_points: int = 7, frame=None) -> PreparedPoints:
     """Validate ``points``, centre them and merge exact duplicates.
 
     Parameters
@@ -146,6 +168,10 @@ def prepare_points(points, min_points: int = 7) -> PreparedPoints:
     min_points : int, optional
         The fewest distinct points the pipeline can work with (one point and
         the neighbours its fit needs).
+    frame : heatcurv.choices.CloudFrame, optional
+        The whole cloud's frame, when ``points`` are a part of it (a tile): its
+        origin and unit are used instead of this part's bounding box, so every
+        part computes in the same coordinates.
 
     Returns
     -------
@@ -176,9 +202,10 @@ def prepare_points(points, min_points: int = 7) -> PreparedPoints:
         raise HeatcurvError("points is empty: a point cloud needs at least a few points")
 
     low, high = arr.min(axis=0), arr.max(axis=0)
-    offset = 0.5 * low + 0.5 * high  # (low + high) / 2 overflows near the largest double
-    with np.errstate(over="ignore"):  # a span beyond the largest double is inf, refused below
-        unit = _length_unit(high - low)
+    if frame is None:
+        offset, unit = bounding_box_frame(low, high)
+    else:
+        offset, unit = np.asarray(frame.offset, dtype=np.float64), float(frame.unit)
     centred = (arr - offset) / unit + 0.0  # + 0.0 turns -0.0 into 0.0: equal coordinates, equal bits
     if _may_hold_duplicates(centred):
         distinct, first, inverse = np.unique(centred, axis=0, return_index=True, return_inverse=True)
