@@ -60,10 +60,8 @@ def compare_fields(tiled: dict, memory: dict, rtol: float = 1e-6) -> dict:
             err = (a != b).astype(float)
             ok = err == 0
         elif name in VECTOR_FIELDS:
-            dot = np.einsum("ij,ij->i", a, b)
-            if name != "normals":
-                dot = np.abs(dot)
-            err = np.linalg.norm(a - np.sign(dot)[:, None] * b if name != "normals" else a - b, axis=1)
+            sign = np.where(np.einsum("ij,ij->i", a, b) < 0, -1.0, 1.0) if name != "normals" else 1.0
+            err = np.linalg.norm(a - np.reshape(sign, (-1, 1)) * b, axis=1)
             ok = err <= rtol
         else:
             floor = max(float(np.median(np.abs(b[np.isfinite(b)]))) * 1e-3, np.finfo(float).tiny) if b.size else 1.0

@@ -52,7 +52,7 @@ import numpy as np
 
 from ..errors import HeatcurvError
 from . import compute
-from .executors import SCHEDULERS, kill_workers, open_executor
+from .executors import SCHEDULERS, SerialExecutor, kill_workers, open_executor
 from .output import DEFAULT_FIELDS, RECORD, TILED_FIELDS, TILED_WRITE, create_results, store_tile, write_output
 from .plan import (
     BYTES_PER_POINT,
@@ -195,6 +195,19 @@ def _halo_points(tiling: Tiling, stats: CloudStats, halo: float) -> list[int]:
         ratio = np.prod(np.where(side > 0, wide / np.where(side > 0, side, 1), 1.0))
         out.append(int(count * ratio))
     return out
+
+
+def _fitting_workers(tiling, stats, halo: float, budget: int, requested: int, cpus: int, tile_size: int) -> int:
+    """Tiles the budget lets run at once with this halo; an error if not even one fits."""
+    largest = max(_halo_points(tiling, stats, halo if np.isfinite(halo) else 0.0))
+    fit = plan_workers(max(budget - DRIVER_MEMORY, 0), requested, largest, cpus)
+    if fit < 1:
+        raise HeatcurvError(
+            f"a tile of about {largest} points (core and halo) needs about {size_text(worker_memory(largest))}, "
+            f"more than the budget of {size_text(budget)} leaves for one worker; pass a smaller --tile-size "
+            f"(now {tile_size}) or a larger --max-memory"
+        )
+    return fit
 
 
 def _cleanup(work: Path, keep_done: bool) -> str:
@@ -361,6 +374,7 @@ def compute_file(
         def executor(w):
             return open_executor(sched, w, max(budget - DRIVER_MEMORY, 1))
 
+        _fitting_workers(tiling, stats, 0.0, budget, requested, cpus, tile_size)  # the cores alone, before the survey
         context_file = work / "context.pkl"
         if context_file.exists():
             with open(context_file, "rb") as stream:
@@ -371,22 +385,14 @@ def compute_file(
             specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options}
                      for t in range(n_tiles)}
             surveys = {}
-            _run(executor, workers, run_survey, specs, lambda t, r: surveys.__setitem__(t, r), say, "survey of tile")
+            _run(executor, workers, run_survey, specs, surveys.__setitem__, say, "survey of tile", n_tiles)
             context = compute.merge_surveys([surveys[t] for t in range(n_tiles)], stats, est)
             with open(f"{context_file}.tmp", "wb") as stream:
                 pickle.dump(context, stream)
             os.replace(f"{context_file}.tmp", context_file)
             timings["survey"] = time.perf_counter() - tic
         halo = float(context["halo"]) if isinstance(context, dict) and "halo" in context else float("nan")
-        largest = max(_halo_points(tiling, stats, halo if np.isfinite(halo) else 0.0))
-        fit = plan_workers(max(budget - DRIVER_MEMORY, 0), requested, largest, cpus)
-        if fit < 1:
-            raise HeatcurvError(
-                f"a tile of about {largest} points (core and halo) needs about {size_text(worker_memory(largest))}, "
-                f"more than the budget of {size_text(budget)} leaves for one worker; pass a smaller --tile-size "
-                f"(now {tile_size}) or a larger --max-memory"
-            )
-        workers = max(1, min(fit, n_tiles))
+        workers = max(1, min(_fitting_workers(tiling, stats, halo, budget, requested, cpus, tile_size), n_tiles))
 
         results_path = work / "results.rec"
         create_results(results_path, stats.count)
@@ -409,7 +415,7 @@ def compute_file(
         tic = time.perf_counter()
         specs = {t: {"scratch": str(work), "tile": t, "context": context, "options": task_options}
                  for t in range(n_tiles) if t not in done}
-        name = _run(executor, workers, run_tile, specs, finished, say, "tile")
+        name = _run(executor, workers, run_tile, specs, finished, say, "tile", n_tiles)
         timings["tiles"] = time.perf_counter() - tic
 
         flips, orientation = None, None
@@ -464,7 +470,7 @@ def _version() -> str:
     return __version__
 
 
-def _run(executor, workers: int, fn, specs: dict, on_done, say, what: str) -> str:
+def _run(executor, workers: int, fn, specs: dict, on_done, say, what: str, total: int) -> str:
     """Run ``fn(spec)`` for every spec, at most ``2 x slots`` in flight; ``on_done(key, result)`` in this process.
 
     A worker process that dies breaks the pool: a new pool takes the unfinished
@@ -479,9 +485,10 @@ def _run(executor, workers: int, fn, specs: dict, on_done, say, what: str) -> st
         try:
             with executor(workers) as (ex, slots, name):
                 queue = list(pending)
+                limit = 1 if isinstance(ex, SerialExecutor) else 2 * slots  # a serial submit runs the task
                 try:
                     while queue or inflight:
-                        while queue and len(inflight) < 2 * slots:
+                        while queue and len(inflight) < limit:
                             key = queue.pop(0)
                             inflight[ex.submit(fn, pending[key])] = key
                         done, _ = cf.wait(list(inflight), return_when=cf.FIRST_COMPLETED)
@@ -496,7 +503,7 @@ def _run(executor, workers: int, fn, specs: dict, on_done, say, what: str) -> st
                     kill_workers(ex)
                     if isinstance(exc, (KeyboardInterrupt, SystemExit)):
                         raise
-                    where = f"{what} {current} of {len(specs)}" if current is not None else what
+                    where = f"{what} {current} of {total}" if current is not None else what
                     message = str(exc) if isinstance(exc, HeatcurvError) else f"{type(exc).__name__}: {exc}"
                     raise HeatcurvError(f"{where} failed: {message}") from exc
         except BrokenProcessPool:

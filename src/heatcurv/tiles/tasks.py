@@ -37,7 +37,8 @@ WIDENINGS = 3
 #: Points of a tile's survey window (the points nearest the tile's middle).
 SURVEY_POINTS = 100_000
 #: Environment variable of the fault-injection hook the tests use: ``fail:T`` raises in tile T,
-#: ``kill:T:FILE`` ends the worker process at tile T once (FILE records that it did).
+#: ``interrupt:T`` raises KeyboardInterrupt there (Ctrl-C in a serial run), ``kill:T:FILE`` ends the
+#: worker process at tile T once (FILE records that it did).
 FAULT_VARIABLE = "HEATCURV_TILES_FAULT"
 
 
@@ -123,6 +124,8 @@ def _fault(tile: int) -> None:
         return
     if parts[0] == "fail":
         raise RuntimeError(f"injected failure in tile {tile}")
+    if parts[0] == "interrupt":
+        raise KeyboardInterrupt
     if parts[0] == "kill" and not os.path.exists(parts[2]):
         open(parts[2], "w").close()
         os._exit(17)

@@ -1,0 +1,138 @@
+"""compute_file end to end: tiles equal the in-memory result, input order, outward across seams, faults, resume."""
+
+import os
+
+import numpy as np
+import pytest
+
+import heatcurv
+from conftest import ALL_FIELDS, read_fields
+from heatcurv.errors import HeatcurvError
+from heatcurv.testing.tiles import compare_fields, result_columns, tiled_agreement
+from heatcurv.tiles import compute_file
+from heatcurv.tiles.tasks import FAULT_VARIABLE
+
+
+def test_tiled_torus_equals_in_memory(torus_threads, torus_memory):
+    path, report = torus_threads
+    assert report.tiles == 8 and report.points == 12000 and report.widened == 0
+    # measured: every field within 1e-10 relative (the tiles centre the points elsewhere: rounding);
+    # the issue's target is 1e-6 on 99.99 % of the points
+    agreement = tiled_agreement(path, torus_memory, rtol=1e-6)
+    assert set(agreement) >= {"normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area", "reliable", "spacing",
+                              "neighbours", "fit_radius", "border", "outlier"}
+    assert {name: a["share"] for name, a in agreement.items()} == dict.fromkeys(agreement, 1.0)
+
+
+def test_rows_are_in_input_order(torus_threads, torus_file):
+    columns = read_fields(torus_threads[0])
+    points = np.column_stack([columns[a] for a in "xyz"])
+    assert np.array_equal(points, torus_file[1].points)  # float64 coordinates of an NPY input, same rows
+
+
+def test_outward_across_seams(torus_threads, torus_file):
+    """Every normal of the closed torus points outward, although each tile oriented only its own piece."""
+    columns = read_fields(torus_threads[0])
+    normals = np.column_stack([columns[a] for a in ("nx", "ny", "nz")])
+    exact = torus_file[1].normals  # outward
+    assert np.all(np.einsum("ij,ij->i", normals, exact) > 0.9)
+    orientation = torus_threads[1].orientation
+    assert orientation["objects"] == 1 and orientation["patches"] >= 6
+
+
+def test_outward_sphere(tmp_path):
+    sample = heatcurv.surfaces.Sphere(radius=2.0).sample(8000, "random", seed=5)
+    src = tmp_path / "sphere.npy"
+    np.save(src, sample.points)
+    report = compute_file(src, tmp_path / "sphere.ply", tile_size=1500, tile_workers=2, scheduler="threads")
+    assert report.tiles >= 6
+    columns = read_fields(tmp_path / "sphere.ply")
+    normals = np.column_stack([columns[a] for a in ("nx", "ny", "nz")])
+    assert np.all(np.einsum("ij,ij->i", normals, sample.points / 2.0) > 0.9)
+    # outward: positive mean curvature 1/R (float32 output; the estimator's error on 8000 random points)
+    assert abs(np.median(columns["mean"]) - 0.5) < 0.01
+
+
+def test_a_failing_tile_fails_the_run_without_output(torus_file, tmp_path, monkeypatch):
+    out = tmp_path / "failed.ply"
+    monkeypatch.setenv(FAULT_VARIABLE, "fail:2")
+    with pytest.raises(HeatcurvError, match=r"^tile 2 of 8 failed: RuntimeError: injected failure in tile 2$"):
+        compute_file(torus_file[0], out, tile_size=2500, scheduler="serial")
+    assert os.listdir(tmp_path) == [".failed.ply.heatcurv-tiles"]  # no output, no temporary output
+    kept = sorted(os.listdir(tmp_path / ".failed.ply.heatcurv-tiles" / "tiles"))
+    assert kept == ["tile_00000.npz", "tile_00001.npz"]  # the finished tiles, for a resume
+    # resume: the two finished tiles are not computed again, and the output is the same as in one go
+    monkeypatch.delenv(FAULT_VARIABLE)
+    report = compute_file(torus_file[0], out, tile_size=2500, scheduler="serial", dtype="float64",
+                          fields=ALL_FIELDS)
+    assert report.resumed == 2 and len(report.tile_seconds) == 6
+    assert os.listdir(tmp_path) == ["failed.ply"]  # the scratch directory is gone
+    whole = compute_file(torus_file[0], tmp_path / "whole.ply", tile_size=2500, scheduler="serial",
+                         dtype="float64", fields=ALL_FIELDS)
+    assert whole.resumed == 0
+    a, b = read_fields(out), read_fields(tmp_path / "whole.ply")
+    assert all(np.array_equal(a[k], b[k]) for k in b)
+
+
+def test_resume_requires_a_plan(torus_file, tmp_path):
+    with pytest.raises(HeatcurvError, match="nothing to resume"):
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=2500, resume=True)
+
+
+def test_ctrl_c_removes_temporaries_and_keeps_finished_tiles(torus_file, tmp_path, monkeypatch):
+    monkeypatch.setenv(FAULT_VARIABLE, "interrupt:1")
+    with pytest.raises(KeyboardInterrupt):
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=2500, scheduler="serial")
+    work = tmp_path / ".out.ply.heatcurv-tiles"
+    assert sorted(os.listdir(work / "tiles")) == ["tile_00000.npz"]
+    assert not (work / "results.rec").exists() and not (tmp_path / "out.ply").exists()
+    # interrupted before any tile finished: nothing is kept
+    monkeypatch.setenv(FAULT_VARIABLE, "interrupt:0")
+    with pytest.raises(KeyboardInterrupt):
+        compute_file(torus_file[0], tmp_path / "other.ply", tile_size=2500, scheduler="serial")
+    assert not (tmp_path / ".other.ply.heatcurv-tiles").exists()
+
+
+def test_not_enough_disk_is_found_before_the_run(torus_file, tmp_path, monkeypatch):
+    import shutil
+
+    from heatcurv.tiles import plan
+
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(plan.shutil, "disk_usage", lambda path: usage._replace(free=100_000))
+    with pytest.raises(HeatcurvError, match=r"not enough disk space for the scratch files of 12000 points in .*"
+                                            r"about \d+\.\d+ MB needed, 100 kB free"):
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=2500)
+    assert os.listdir(tmp_path) == []
+
+
+def test_budget_too_small_for_a_tile(torus_file, tmp_path):
+    with pytest.raises(HeatcurvError, match="more than the budget .* leaves for one worker; pass a smaller"):
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=2500, max_memory="700M")
+    assert not (tmp_path / "out.ply").exists()
+
+
+def test_bad_arguments(torus_file, tmp_path):
+    with pytest.raises(HeatcurvError, match="a tiled run writes .las .laz .ply"):
+        compute_file(torus_file[0], tmp_path / "out.xyz")
+    with pytest.raises(HeatcurvError, match="cannot write the field.* feature"):
+        compute_file(torus_file[0], tmp_path / "out.ply", fields=("mean", "feature"))
+    with pytest.raises(HeatcurvError, match="unknown scheduler 'mpi'"):
+        compute_file(torus_file[0], tmp_path / "out.ply", scheduler="mpi")
+    with pytest.raises(HeatcurvError, match="alpha"):
+        compute_file(torus_file[0], tmp_path / "out.ply", alpha=-1.0)
+    text = tmp_path / "cloud.xyz"
+    text.write_text("0 0 0\n1 0 0\n0 1 0\n")
+    with pytest.raises(HeatcurvError, match=r"cannot tile .*cloud\.xyz: \.xyz files are read whole"):
+        compute_file(text, tmp_path / "out.ply")
+
+
+def test_harness_finds_differences(torus_memory):
+    columns = result_columns(torus_memory)
+    changed = {k: v.copy() for k, v in columns.items()}
+    changed["mean"][:3] *= 1 + 1e-5
+    changed["normals"][0] *= -1
+    changed["d1"][1] *= -1  # a direction's sign is arbitrary: not a difference
+    report = compare_fields(changed, columns)
+    assert report["mean"]["bad"] == 3 and report["normals"]["bad"] == 1 and report["d1"]["bad"] == 0
+    assert report["area"] == {"share": 1.0, "bad": 0, "worst": 0.0}
