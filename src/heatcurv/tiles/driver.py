@@ -81,7 +81,7 @@ RETRIES = 2
 #: Memory the driver keeps for itself out of the budget (chunks of the streaming passes), bytes.
 DRIVER_MEMORY = 600 * 2**20
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 1
+PLAN_VERSION = 2
 
 
 @dataclass

@@ -38,6 +38,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..choices import FrameStats
 from ..errors import HeatcurvError
 from .sources import CHUNK_POINTS, Source
 
@@ -72,6 +73,9 @@ class CloudStats:
         Bounding box of the finite points.
     centroid : tuple of float, length 3
         Their mean.
+    rms_radius : float
+        Root-mean-square distance of the finite points from ``centroid`` (with
+        the centroid: the sampling keys' frame, :class:`heatcurv.choices.CloudFrame`).
     """
 
     count: int
@@ -79,6 +83,7 @@ class CloudStats:
     low: tuple
     high: tuple
     centroid: tuple
+    rms_radius: float = float("nan")
 
     @property
     def diagonal(self) -> float:
@@ -142,8 +147,10 @@ def scan_stats(source: Source, skip_nonfinite: bool = False) -> CloudStats:
         On non-finite coordinates unless ``skip_nonfinite``, and on fewer than
         two finite points.
     """
-    low, high = np.full(3, np.inf), np.full(3, -np.inf)
-    total, count, finite, bad = np.zeros(3), 0, 0, []
+    # the moments as heatcurv.choices.FrameStats sums them (about the first row: UTM coordinates
+    # keep their precision), so the tiles' frame is the in-memory one to rounding
+    frame = FrameStats()
+    count, bad = 0, []
     for start, points, _ in source.chunks():
         ok = np.isfinite(points).all(axis=1)
         count += len(points)
@@ -156,13 +163,13 @@ def scan_stats(source: Source, skip_nonfinite: bool = False) -> CloudStats:
                 )
             bad.append(int((~ok).sum()))
             points = points[ok]
-        if len(points):
-            finite += len(points)
-            low, high = np.minimum(low, points.min(axis=0)), np.maximum(high, points.max(axis=0))
-            total += points.sum(axis=0)
-    if finite < 2:
+        frame.add(points)
+    if frame.n < 2:
         raise HeatcurvError(f"{source.path}: fewer than two points with finite coordinates")
-    return CloudStats(count, finite, tuple(low.tolist()), tuple(high.tolist()), tuple((total / finite).tolist()))
+    whole = frame.frame()
+    centroid = whole.centroid * whole.unit + whole.offset
+    return CloudStats(count, frame.n, tuple(frame.low.tolist()), tuple(frame.high.tolist()), tuple(centroid.tolist()),
+                      whole.rms_radius * whole.unit)
 
 
 @dataclass(frozen=True)
