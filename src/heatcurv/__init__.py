@@ -29,6 +29,7 @@ Around the core, which imports none of them:
 
 =====================  ======================================================
 ``io``                 scan formats: PLY, LAS/LAZ, text, meshes, NumPy arrays
+``tiles``              out-of-core and Dask runs: :func:`compute_file`
 ``cli``                the ``heatcurv`` command
 ``render``             pictures of a field
 ``surfaces``           analytic surfaces with exact values, samplers, simulated scans
@@ -52,6 +53,17 @@ from .results import CurvatureResult
 from .spacing import global_spacing, local_spacing
 
 __version__ = "0.1.0"
+
+
+def compute_file(src, dst, **options):
+    """Every curvature field of a point-cloud file of any size, in tiles: :func:`heatcurv.tiles.compute_file`.
+
+    Imported on first use (the tiled machinery is not needed by :func:`estimate`).
+    """
+    from .tiles import compute_file as tiled
+
+    return tiled(src, dst, **options)
+
 __all__ = [
     "CurvatureResult",
     "FeatureResult",
@@ -64,6 +76,7 @@ __all__ = [
     "ScaleTuning",
     "ball_neighbourhood",
     "build_operator",
+    "compute_file",
     "estimate",
     "global_spacing",
     "laplace_beltrami_matrix",
