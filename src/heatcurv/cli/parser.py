@@ -17,6 +17,7 @@ from . import compute, demo, features, info, picture
 from .argtypes import in_range, pair, percentile_pair, picture_size, point3
 from .fields import COMPUTED_FIELDS, field_list
 from .options import add_estimator_options
+from .tiled import add_tile_options
 
 __all__ = ["UsageError", "build_parser", "join_negative_values"]
 
@@ -149,6 +150,7 @@ def _add_compute(add, read_exts: str, write_exts: str) -> None:
     parser.add_argument("--feature-threshold", type=in_range("feature_threshold"), metavar="DEGREES",
                         help="turning angle above which a point is a feature, 0-180 (default: automatic)")
     add_estimator_options(parser)
+    add_tile_options(parser)
     _add_global_options(parser, suppress=True)
     parser.set_defaults(run=compute.run)
 

@@ -45,7 +45,7 @@ from .sources import CHUNK_POINTS, Source
 __all__ = [
     "CloudStats", "Tiling", "BYTES_PER_POINT", "WORKER_OVERHEAD", "BUDGET_FRACTION", "FINE_CELLS",
     "available_memory", "default_budget", "parse_size", "size_text", "scan_stats", "make_tiling", "scatter",
-    "options_hash", "check_disk", "read_rows",
+    "options_hash", "check_disk", "read_rows", "in_memory_bytes",
 ]
 
 #: Estimator memory per point of a tile (core + halo), bytes: measured 1.18 kB per point at 1M points of
@@ -375,3 +375,27 @@ def chunk_rows(total: int, size: int = CHUNK_POINTS):
 def ceil_div(a: int, b: int) -> int:
     return -(-a // b) if b else 0
 
+
+
+#: Bytes per point an in-memory ``heatcurv compute`` needs beyond the estimate: the file as read and the written copy.
+READ_BYTES_PER_POINT = 200
+#: Bytes of a text file per point, to guess a text cloud's size from the file's (a line of x y z and a few fields).
+TEXT_BYTES_PER_POINT = 30
+
+
+def in_memory_bytes(path) -> tuple[int, int]:
+    """``(points, bytes)``: the point count (from the header; text: guessed from the size) and the memory an
+    in-memory run of the file would need."""
+    from pathlib import Path
+
+    from .sources import TILED_READ, open_source
+
+    path = Path(path)
+    try:
+        if path.suffix.lower() in TILED_READ:
+            count = open_source(path).count
+        else:
+            count = path.stat().st_size // TEXT_BYTES_PER_POINT
+    except (HeatcurvError, OSError):
+        return 0, 0  # the in-memory reader says what is wrong with the file
+    return count, WORKER_OVERHEAD + (BYTES_PER_POINT + READ_BYTES_PER_POINT) * count
