@@ -30,7 +30,7 @@ from ..survey import survey_part, tile_options
 from ..validation import bounding_box_frame
 
 __all__ = [
-    "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame",
+    "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame", "describe",
     "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS", "DEPTH", "HALO_MARGIN",
 ]
 
@@ -123,25 +123,23 @@ def merge_surveys(surveys: list, stats, options: dict) -> dict:
     -------
     dict
         ``choices``: :class:`heatcurv.choices.CloudChoices`; ``halo``: twice the
-        widest chosen ball plus the widest operator ball the survey met, input
-        units (each tile's certificate then checks every point); ``support``:
-        the widest chosen ball.
+        widest chosen ball plus the narrowest candidate's ball (the operator's),
+        the largest the survey measured, input units: a first guess, which each
+        tile's certificate checks point by point; ``support``: the widest chosen ball.
     """
     frame = cloud_frame(stats)
+    opts = tile_options(_estimate_options(options))
     choices = merge_centre_surveys(surveys, frame, **_estimate_options(options))
     scale = choices.scale
-    label = scale.scale.label if scale.k_centre is None else None
-    widest_k = int(scale.scale.k if scale.k_centre is None else scale.k_centre.max())
-    radius, base = 0.0, 0.0
-    for survey in surveys:
-        for name, fits in survey.fits.items():
-            k = int(name.rsplit("-", 1)[1])
-            if (label is None and k == widest_k) or name == label:
-                radius = max(radius, float(np.max(fits.h, initial=0.0)))
-        base = max(base, float(np.max(survey.reach, initial=0.0)) if survey.reach.size else 0.0)
-    alpha = tile_options(_estimate_options(options)).alpha
-    ball = alpha * radius * frame.unit
-    return {"choices": choices, "halo": 2.0 * ball * HALO_MARGIN, "support": ball}
+    widest = int(scale.scale.k if scale.k_centre is None else scale.k_centre.max())
+
+    def ball(k: int) -> float:
+        """The largest ball of ``k`` neighbours at any surveyed centre, input units (0 if none was fitted)."""
+        h = [fits.h for s in surveys for label, fits in s.fits.items() if label.endswith(f"-{k}")]
+        return opts.alpha * float(max((x.max() for x in h if x.size), default=0.0)) * frame.unit
+
+    chosen, operator = ball(widest), ball(int(opts.neighbours))
+    return {"choices": choices, "halo": (2.0 * chosen + operator) * HALO_MARGIN, "support": chosen}
 
 
 def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: dict) -> dict:
@@ -207,6 +205,22 @@ def finish_reliability(columns, medians=None) -> tuple[np.ndarray, float]:
     )
     baselines, rho = (None, None) if medians is None else medians
     return cloud_flags(inputs, baselines, rho, stacklevel=3)
+
+
+def describe(context: dict) -> dict:
+    """The choices of :func:`merge_surveys` as plain numbers (for the output file's parameters and the report)."""
+    choices = context["choices"]
+    frame, scale = choices.frame, choices.scale
+    out = {
+        "halo": float(context["halo"]), "support": float(context["support"]),
+        "offset": frame.offset.tolist(), "unit": frame.unit, "points": frame.n_points,
+        "centroid": (frame.centroid * frame.unit + frame.offset).tolist(), "rms_radius": frame.rms_radius * frame.unit,
+        "kernel": scale.scale.label, "sigma": scale.sigma * frame.unit, "relative_noise": scale.relative_noise,
+    }
+    if scale.k_centre is not None:
+        widths, counts = np.unique(scale.k_centre, return_counts=True)
+        out["widths"] = {str(int(k)): int(c) for k, c in zip(widths, counts)}  # centres choosing each width
+    return out
 
 
 def _outward(options: dict) -> bool:

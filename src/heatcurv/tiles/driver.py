@@ -53,6 +53,7 @@ import numpy as np
 from ..errors import HeatcurvError
 from . import compute
 from .executors import SCHEDULERS, SerialExecutor, kill_workers, open_executor
+from .medians import apply_cloud_flags
 from .output import DEFAULT_FIELDS, RECORD, TILED_FIELDS, TILED_WRITE, create_results, store_tile, write_output
 from .plan import (
     BYTES_PER_POINT,
@@ -417,6 +418,10 @@ def compute_file(
                  for t in range(n_tiles) if t not in done}
         name = _run(executor, workers, run_tile, specs, finished, say, "tile", n_tiles)
         timings["tiles"] = time.perf_counter() - tic
+        # the flags that compare each point with the whole cloud's medians, once every tile is in
+        tic = time.perf_counter()
+        medians = apply_cloud_flags(results_path, stats.count)
+        timings["reliability"] = time.perf_counter() - tic
 
         flips, orientation = None, None
         if _outward(est):
@@ -429,7 +434,7 @@ def compute_file(
             timings["orientation"] = time.perf_counter() - tic
         parameters = {
             "heatcurv": _version(), "tiled": True, "options": est, "tile_size": tile_size, "tiles": n_tiles,
-            "halo": halo, "context": context if isinstance(context, dict) else repr(context), "source": src.name,
+            "halo": halo, "context": compute.describe(context), "medians": medians, "source": src.name,
         }
         bar.stage("writing")
         tic = time.perf_counter()
@@ -458,7 +463,7 @@ def compute_file(
         tile_size=int(tile_size), halo=halo, widened=widened, resumed=resumed, scheduler=name, workers=workers,
         budget=budget, peak_memory={"driver": driver_peak, "worker": worker_peak,
                                     "estimate": driver_peak + workers * worker_peak},
-        timings=timings, context=context if isinstance(context, dict) else {"context": repr(context)},
+        timings=timings, context=compute.describe(context),
         orientation=orientation, parameters=parameters, scratch=str(work),
         tile_seconds=[tile_results[t]["seconds"] for t in sorted(tile_results)],
     )

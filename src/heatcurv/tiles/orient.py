@@ -124,12 +124,14 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
     total = np.bincount(obj, weights=signed, minlength=len(objects))
     flip = bits ^ (total[obj] < 0)
     disagreeing = 0
-    if len(margins):
-        fa = flip[np.searchsorted(keys, edges[:, 0])]
-        fb = flip[np.searchsorted(keys, edges[:, 1])]
-        agree = margins + against  # (+1 votes) - (-1 votes) + (-1 votes)
+    # a halo piece with no core point of its own tile has no flip bit (a wide halo reaches one)
+    known = np.isin(edges, keys).all(axis=1) if len(margins) else np.zeros(0, dtype=bool)
+    if known.any():
+        fa = flip[np.searchsorted(keys, edges[known, 0])]
+        fb = flip[np.searchsorted(keys, edges[known, 1])]
+        agree = margins[known] + against[known]  # (+1 votes) - (-1 votes) + (-1 votes)
         # votes against the final bits: on an edge whose patches flip alike, the -1 votes; else the +1 votes
-        disagreeing = int(np.sum(np.where(fa == fb, against, agree)))
+        disagreeing = int(np.sum(np.where(fa == fb, against[known], agree)))
     report = {"patches": int(len(keys)), "seams": int(len(edges)), "objects": int(len(objects)),
               "disagreeing": disagreeing, "shared": int(shared)}
     return keys, flip, report

@@ -135,19 +135,33 @@ def _peak_bytes() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
-def run_survey(spec: dict) -> dict:
-    """Survey one tile: the :data:`SURVEY_POINTS` points nearest its middle, edge rows excluded from ``core``."""
-    scratch, tile = spec["scratch"], spec["tile"]
-    tiling = Tiling.from_json(load_plan(scratch)["tiling"])
+def run_survey(spec: dict):
+    """Survey one tile: fit the candidate kernels at its sample centres (:func:`.compute.survey_tile`).
+
+    The tile's core and a halo as wide as the widest candidate's ball; the
+    certificate checks every centre's reach and widens the halo as
+    :func:`run_tile` does.
+    """
+    scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
+    plan = load_plan(scratch)
+    tiling = Tiling.from_json(plan["tiling"])
+    cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     offsets = tiling.offsets
-    points, _ = read_rows(scratch, int(offsets[tile]), int(offsets[tile + 1]))
-    middle = points[np.argmin(np.sum((points - points.mean(axis=0)) ** 2, axis=1))]
-    d2 = np.sum((points - middle) ** 2, axis=1)
-    if len(points) > spec.get("window", SURVEY_POINTS):
-        keep = np.argpartition(d2, spec.get("window", SURVEY_POINTS))[: spec.get("window", SURVEY_POINTS)]
-        points, d2 = points[keep], d2[keep]
-    core = d2 <= 0.5 * d2.max()  # inside 0.7 of the window's radius: balls not cut by its edge
-    return compute.survey_tile(points, core, spec["stats"], spec["options"])
+    core_points, _ = read_rows(scratch, int(offsets[tile]), int(offsets[tile + 1]))
+    halo = compute.survey_halo(core_points, stats, options)
+    for widened in range(WIDENINGS + 1):
+        points, _, core, low, high = tile_points(scratch, tiling, tile, halo)
+        survey = compute.survey_tile(points, core, stats, options)
+        centres, reach = compute.survey_reach(survey, stats)
+        need = certificate(centres, reach / compute.DEPTH, tiling.box(tile), (low, high), cloud)
+        if need == 0.0:
+            return survey
+        if widened == WIDENINGS:
+            raise HeatcurvError(
+                f"survey of tile {tile}: the certificate failed after {WIDENINGS} widenings of the halo (last "
+                f"{halo:.6g}, needed {need:.6g}); pass a larger tile size or report this"
+            )
+        halo = need * compute.HALO_MARGIN
 
 
 def run_tile(spec: dict) -> dict:

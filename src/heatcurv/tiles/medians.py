@@ -1,0 +1,139 @@
+"""Exact medians of columns too long to hold: two streaming passes over ``results.rec``.
+
+The reliability flags compare each point with medians over the whole cloud
+(:mod:`heatcurv.reliability`): the median residual of each kernel width and
+the median resolution. ``np.median`` would need the whole column in memory
+(800 MB per 1e8 points); here a first pass counts the values of each group
+in bins of their float64 bit pattern (the top 16 bits: sign, exponent and 4
+bits of mantissa, 1/16 of an octave; for non-negative numbers the bit
+pattern orders as the value), a second gathers the values of the bin that
+holds the middle rank, which :func:`numpy.partition` then finishes. The
+result is exactly ``np.median`` of the group (the mean of the two middle
+values for an even count).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["streaming_medians"]
+
+#: Bits of the float64 pattern the first pass bins by.
+BIN_BITS = 16
+_SHIFT = np.uint64(64 - BIN_BITS)
+
+
+def _bins(values: np.ndarray) -> np.ndarray:
+    values = np.ascontiguousarray(values, dtype=np.float64) + 0.0  # -0.0 becomes 0.0: the pattern orders as the value
+    return (values.view(np.uint64) >> _SHIFT).astype(np.int64)
+
+
+def streaming_medians(chunks) -> dict:
+    """``{group: median}`` of non-negative values given chunk by chunk.
+
+    Parameters
+    ----------
+    chunks : callable
+        ``chunks()`` yields ``(groups, values)`` pairs of equal-length arrays
+        (int group labels, non-negative finite floats; NaN is skipped), the
+        same sequence each time it is called (it is called twice).
+
+    Returns
+    -------
+    dict
+        The exact median of each group's values (groups with no value absent).
+    """
+    counts: dict = {}
+    for groups, values in chunks():
+        ok = np.isfinite(values)
+        groups, values = groups[ok], values[ok]
+        for g in np.unique(groups):
+            hist = np.bincount(_bins(values[groups == g]), minlength=1 << BIN_BITS)
+            counts[int(g)] = counts.get(int(g), 0) + hist
+    wanted = {}
+    for g, hist in counts.items():
+        n = int(hist.sum())
+        ranks = (n // 2,) if n % 2 else (n // 2 - 1, n // 2)
+        cumulative = np.cumsum(hist)
+        bins = [int(np.searchsorted(cumulative, r, side="right")) for r in ranks]
+        below = [int(cumulative[b - 1]) if b else 0 for b in bins]
+        wanted[g] = (bins, [r - b for r, b in zip(ranks, below)])
+    gathered: dict = {g: [] for g in wanted}
+    for groups, values in chunks():
+        ok = np.isfinite(values)
+        groups, values = groups[ok], values[ok]
+        for g, (bins, _) in wanted.items():
+            mine = values[groups == g]
+            gathered[g].append(mine[np.isin(_bins(mine), bins)])
+    medians = {}
+    for g, (bins, offsets) in wanted.items():
+        values = np.concatenate(gathered[g]) if gathered[g] else np.empty(0)
+        picked = []
+        for b, offset in zip(bins, offsets):
+            in_bin = np.sort(values[_bins(values) == b])
+            picked.append(in_bin[offset])
+        medians[g] = float(np.mean(picked))
+    return medians
+
+
+def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
+    """Add the cloud-wide reliability flags to ``results.rec`` (its ``reliable`` column holds the local ones).
+
+    The medians (each kernel width's residual, the resolution) are taken over
+    every computed, counted row (:func:`streaming_medians`), exactly as
+    :func:`heatcurv.reliability.cloud_flags` takes them in memory; then each
+    chunk's ``reliable`` is rewritten in place.
+
+    Returns
+    -------
+    dict
+        ``baselines`` (width -> median residual, floored) and ``resolution``.
+
+    Warns
+    -----
+    HeatcurvWarning
+        When the cloud is too coarse for its curvature (every row unreliable).
+    """
+    import warnings
+
+    from ..errors import HeatcurvWarning
+    from ..reliability import MISFIT_FLOOR, RESOLUTION_LIMIT, misfits
+    from .output import RECORD, read_results
+
+    def blocks():
+        for start in range(0, count, chunk):
+            block = read_results(results_path, start, min(count, start + chunk))
+            yield start, block, (block["computed"] == 1) & (block["counted"] == 1)
+
+    def residuals():
+        for _, block, ok in blocks():
+            yield block["fit_width"][ok], block["misfit_residual"][ok]
+
+    def resolutions():
+        for _, block, ok in blocks():
+            yield np.zeros(int(ok.sum()), dtype=np.int64), block["resolution_rho"][ok]
+
+    baselines = {k: max(v, MISFIT_FLOOR) for k, v in streaming_medians(residuals).items()}
+    resolution = streaming_medians(resolutions).get(0, 0.0)
+    coarse = resolution > RESOLUTION_LIMIT
+    if coarse:
+        warnings.warn(
+            f"the cloud is too coarse for its curvature: a median point's spacing is {resolution:.2g} radii of "
+            f"curvature (at most {RESOLUTION_LIMIT:g}: about 12 points around a curve), so its neighbourhoods "
+            "wrap around the surface; every value is marked unreliable. Sample it more densely.",
+            HeatcurvWarning, stacklevel=3,
+        )
+    results = np.memmap(results_path, dtype=RECORD, mode="r+")
+    try:
+        for start, block, _ in blocks():
+            width = block["fit_width"]
+            for k in np.unique(width).tolist():
+                baselines.setdefault(int(k), MISFIT_FLOOR)  # a width with no counted row: the floor
+            local = block["reliable"] == 1
+            bad = misfits(block["misfit_residual"], width, baselines)
+            reliable = local & ~bad & ~coarse
+            results["reliable"][start:start + len(block)] = reliable.astype(np.uint8)
+        results.flush()
+    finally:
+        del results
+    return {"baselines": baselines, "resolution": resolution}
