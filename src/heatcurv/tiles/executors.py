@@ -38,6 +38,8 @@ __all__ = ["SerialExecutor", "SCHEDULERS", "open_executor", "single_threaded_env
 
 #: The scheduler names (besides ``tcp://host:port`` addresses and Dask clients).
 SCHEDULERS = ("processes", "threads", "dask", "serial")
+#: How long to try reaching a Dask scheduler (``tcp://``) before giving up.
+CONNECT_TIMEOUT = "20s"
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 
@@ -123,7 +125,7 @@ def open_executor(scheduler, workers: int, budget: int):
     elif scheduler.startswith("tcp://"):
         distributed = _dask()
         try:
-            client = distributed.Client(scheduler, timeout="20s")
+            client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT)
         except OSError as exc:
             raise HeatcurvError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
         try:

@@ -1,0 +1,107 @@
+"""The executors: a process pool (with a killed worker), a Dask cluster in process, and `dask scheduler` + workers."""
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import distributed  # the test extra installs dask[distributed]: these tests never skip
+import numpy as np
+import pytest
+
+from conftest import ALL_FIELDS, read_fields
+from heatcurv.errors import HeatcurvError
+from heatcurv.tiles import compute_file, executors
+from heatcurv.tiles.executors import SerialExecutor, open_executor
+from heatcurv.tiles.tasks import FAULT_VARIABLE
+
+
+def _same_output(a, b):
+    fa, fb = read_fields(a), read_fields(b)
+    assert list(fa) == list(fb)
+    for name in fb:
+        assert np.array_equal(fa[name], fb[name], equal_nan=True), name
+
+
+def test_processes_retry_a_killed_worker_and_match_threads(torus_file, torus_threads, tmp_path, monkeypatch):
+    marker = tmp_path / "killed"
+    monkeypatch.setenv(FAULT_VARIABLE, f"kill:3:{marker}")  # the worker computing tile 3 dies once
+    messages = []
+    out = tmp_path / "processes.ply"
+    report = compute_file(torus_file[0], out, tile_size=2500, tile_workers=2, scheduler="processes",
+                          dtype="float64", fields=ALL_FIELDS, max_memory="4G", log=messages.append)
+    assert marker.exists() and report.scheduler == "processes" and report.workers == 2
+    assert any("a worker process died; restarting the pool" in m for m in messages)
+    _same_output(out, torus_threads[0])
+
+
+def test_dask_client_in_process(torus_file, torus_threads, tmp_path):
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None)
+    out = tmp_path / "dask.ply"
+    with cluster, distributed.Client(cluster) as client:
+        report = compute_file(torus_file[0], out, tile_size=2500, scheduler=client, dtype="float64",
+                              fields=ALL_FIELDS, max_memory="4G")
+    assert report.scheduler == "dask client" and report.tiles == torus_threads[1].tiles
+    _same_output(out, torus_threads[0])
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_dask_scheduler_and_two_workers(torus_file, torus_threads, tmp_path):
+    """`dask scheduler` and two `dask worker` processes on 127.0.0.1, as on a cluster (shared file system)."""
+    dask = str(Path(sys.executable).parent / "dask")
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1")
+    logs = open(tmp_path / "dask.log", "w")
+    started = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+                                stdout=logs, stderr=subprocess.STDOUT, env=env)]
+    try:
+        for _ in range(2):
+            started.append(subprocess.Popen(
+                [dask, "worker", address, "--nthreads", "1", "--memory-limit", "2GB", "--no-dashboard",
+                 "--host", "127.0.0.1"], stdout=logs, stderr=subprocess.STDOUT, env=env))
+        with distributed.Client(address, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=60)
+        out = tmp_path / "cluster.ply"
+        report = compute_file(torus_file[0], out, tile_size=2500, scheduler=address, dtype="float64",
+                              fields=ALL_FIELDS, max_memory="4G")
+        assert report.scheduler == f"dask at {address}" and report.workers >= 1
+        _same_output(out, torus_threads[0])
+    finally:
+        for process in reversed(started):  # only the processes this test started, by their handles
+            process.terminate()
+        deadline = time.monotonic() + 20
+        for process in started:
+            try:
+                process.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                process.kill()
+        logs.close()
+
+
+def test_serial_executor_and_errors(monkeypatch):
+    future = SerialExecutor().submit(divmod, 7, 2)
+    assert future.done() and future.result() == (3, 1)
+    failed = SerialExecutor().submit(divmod, 1, 0)
+    assert isinstance(failed.exception(), ZeroDivisionError)
+    with pytest.raises(HeatcurvError, match="unknown scheduler 'mpi'"):
+        with open_executor("mpi", 1, 1 << 30):
+            pass
+    monkeypatch.setattr(executors, "CONNECT_TIMEOUT", "2s")
+    with pytest.raises(HeatcurvError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:"):
+        with open_executor(f"tcp://127.0.0.1:{_free_port()}", 1, 1 << 30):
+            pass
+
+
+def test_missing_dask_says_how_to_install(monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    with pytest.raises(HeatcurvError, match=r'pip install "heatcurv\[dask\]"'):
+        with open_executor("dask", 1, 1 << 30):
+            pass

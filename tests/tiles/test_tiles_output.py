@@ -1,0 +1,99 @@
+"""Output of tiled runs: LAS/LAZ keeps every input dimension and the raw integers, PLY keeps the properties."""
+
+import json
+
+import laspy
+import numpy as np
+import pytest
+
+import heatcurv
+from conftest import read_fields
+from heatcurv.cli.fields import DEFAULT_FIELDS, EXTRA_FIELDS
+from heatcurv.io import read_points, write_points
+from heatcurv.testing.tiles import tiled_agreement
+from heatcurv.tiles import compute_file
+from heatcurv.tiles import output as tiled_output
+
+
+@pytest.fixture(scope="module")
+def terrain_laz(tmp_path_factory):
+    """Smooth LiDAR-like terrain (a tilt, a hill, a valley) of 16000 points with intensity and classes, LAZ."""
+    rng = np.random.default_rng(7)
+    x = 500000.0 + rng.uniform(-30, 30, 16000)
+    y = 5000000.0 + rng.uniform(-30, 30, 16000)
+    z = heatcurv.surfaces.lidar_terrain(x, y)
+    path = tmp_path_factory.mktemp("terrain") / "terrain.laz"
+    write_points(path, np.column_stack([x, y, z]), {"intensity": rng.integers(0, 4000, 16000).astype(np.uint16),
+                                                     "classification": np.full(16000, 2, np.uint8)})
+    return path
+
+
+def test_field_names_are_those_of_compute():
+    assert tiled_output.DEFAULT_FIELDS == DEFAULT_FIELDS and tiled_output.EXTRA_FIELDS == EXTRA_FIELDS
+
+
+def test_las_keeps_dimensions_raw_integers_and_records_the_run(terrain_laz, tmp_path):
+    out = tmp_path / "out.laz"
+    report = compute_file(terrain_laz, out, tile_size=3000, tile_workers=2, scheduler="threads", dtype="float64")
+    assert report.tiles >= 6 and report.parameters["options"]["orient"] == "up"  # LAS: up, as the CLI
+    source, written = laspy.read(terrain_laz), laspy.read(out)
+    for name in source.point_format.dimension_names:  # every input dimension, raw integers included
+        assert np.array_equal(np.asarray(source[name]), np.asarray(written[name])), name
+    assert np.array_equal(written.header.scales, source.header.scales)
+    assert np.array_equal(written.header.offsets, source.header.offsets)
+    extra = list(written.point_format.extra_dimension_names)
+    assert extra == ["nx", "ny", "nz", "mean", "gaussian", "k1", "k2", "d1x", "d1y", "d1z", "d2x", "d2y", "d2z",
+                     "area", "reliable"]
+    assert written.point_format.dimension_by_name("reliable").dtype == np.uint8
+    vlr = [v for v in written.header.vlrs if v.user_id == "heatcurv"]
+    assert len(vlr) == 1 and vlr[0].record_id == 13
+    parameters = json.loads(vlr[0].record_data)
+    assert parameters["tiles"] == report.tiles and parameters["halo"] == pytest.approx(report.halo)
+    assert parameters["options"] == {"method": "default", "orient": "up"} and parameters["heatcurv"]
+    # every normal up, and every field as in memory (measured: all within 1e-6 on this smooth terrain)
+    assert np.all(np.asarray(written.nz) > 0)
+    res = heatcurv.estimate(read_points(terrain_laz).points, orient="up")
+    agreement = tiled_agreement(out, res, rtol=1e-6)
+    assert {k: a["share"] for k, a in agreement.items()} == dict.fromkeys(agreement, 1.0)
+
+
+def test_float32_by_default_and_nan_rows_skipped(tmp_path):
+    sample = heatcurv.surfaces.Sphere().sample(6000, "random", seed=2)
+    rows = np.array(sample.points)
+    rows[[5, 77]] = np.nan
+    src = tmp_path / "holes.npy"
+    np.save(src, rows)
+    with pytest.raises(heatcurv.HeatcurvError, match=r"rows 5, 77, counted from 0\); remove them or pass"):
+        compute_file(src, tmp_path / "out.ply", tile_size=2000)
+    report = compute_file(src, tmp_path / "out.ply", tile_size=2000, skip_nonfinite=True, scheduler="threads",
+                          fields=("mean", "reliable", "neighbours"))
+    assert report.points == 6000 and report.computed == 5998
+    cloud = read_points(tmp_path / "out.ply")
+    assert cloud.fields["mean"].dtype == np.float32 and cloud.fields["neighbours"].dtype == np.int32
+    assert np.isnan(cloud.fields["mean"][[5, 77]]).all() and cloud.fields["reliable"][[5, 77]].tolist() == [0, 0]
+    assert np.isfinite(np.delete(cloud.fields["mean"], [5, 77])).all()
+
+
+def test_ply_keeps_properties_faces_and_records_the_run(tmp_path):
+    sample = heatcurv.surfaces.Sphere().sample(5000, "fibonacci")
+    src = tmp_path / "mesh.ply"
+    faces = np.array([(0, 1, 2), (2, 3, 4)])
+    import plyfile
+
+    vertices = np.empty(5000, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("quality", "<f4")])
+    for k, a in enumerate("xyz"):
+        vertices[a] = sample.points[:, k]
+    vertices["quality"] = np.arange(5000)
+    face = np.empty(2, dtype=[("vertex_indices", "i4", (3,))])
+    face["vertex_indices"] = faces
+    plyfile.PlyData([plyfile.PlyElement.describe(vertices, "vertex"), plyfile.PlyElement.describe(face, "face")],
+                    text=False, byte_order="<").write(str(src))
+    compute_file(src, tmp_path / "out.ply", tile_size=2000, scheduler="threads", fields=("mean",))
+    written = plyfile.PlyData.read(str(tmp_path / "out.ply"))
+    assert written["vertex"].data.dtype.names == ("x", "y", "z", "quality", "mean")
+    assert written["vertex"].data["x"].dtype == np.float32  # stored as the source stored them
+    assert np.array_equal(written["vertex"].data["quality"], vertices["quality"])
+    assert np.array_equal(np.stack(written["face"].data["vertex_indices"]), faces)
+    comments = [c for c in written.comments if c.startswith("heatcurv-tiles ")]
+    assert len(comments) == 1 and json.loads(comments[0].split(" ", 1)[1])["tiles"] >= 3
+    assert read_fields(tmp_path / "out.ply")["mean"].shape == (5000,)
