@@ -1,0 +1,67 @@
+"""Streaming readers: chunks give exactly the coordinates read_points gives; formats that cannot stream are refused."""
+
+import numpy as np
+import plyfile
+import pytest
+
+from heatcurv.errors import HeatcurvError
+from heatcurv.io import read_points, write_points
+from heatcurv.tiles.sources import open_source
+
+
+def _streamed(path, size):
+    source = open_source(path)
+    chunks = list(source.chunks(size))
+    assert [start for start, _, _ in chunks] == list(range(0, source.count, size))
+    return source, np.concatenate([points for _, points, _ in chunks])
+
+
+@pytest.fixture(scope="module")
+def points():
+    rng = np.random.default_rng(1)
+    return np.column_stack([500000 + rng.uniform(0, 50, 2500), 5e6 + rng.uniform(0, 50, 2500),
+                            200 + rng.uniform(0, 5, 2500)])
+
+
+@pytest.mark.parametrize("ext", [".las", ".laz", ".ply", ".npy"])
+def test_chunks_equal_read_points(points, tmp_path, ext):
+    path = tmp_path / f"cloud{ext}"
+    if ext == ".npy":
+        np.save(path, points)
+    else:
+        write_points(path, points, {"intensity": np.arange(2500) % 700})
+    source, streamed = _streamed(path, 1000)
+    assert source.count == 2500
+    assert np.array_equal(streamed, read_points(path).points)  # z included: LAS decodes Z in coordinate passes
+    if ext != ".npy":
+        records = next(source.chunks(1000, coordinates_only=False))[2]
+        assert np.array_equal(source.properties(records)["intensity"], np.arange(1000) % 700)
+
+
+def test_big_endian_ply_and_structured_npy(points, tmp_path):
+    vertices = np.empty(2500, dtype=[("x", ">f8"), ("y", ">f8"), ("z", ">f8"), ("q", ">i2")])
+    for k, a in enumerate("xyz"):
+        vertices[a] = points[:, k]
+    vertices["q"] = -np.arange(2500)
+    plyfile.PlyData([plyfile.PlyElement.describe(vertices, "vertex")], byte_order=">").write(str(tmp_path / "b.ply"))
+    source, streamed = _streamed(tmp_path / "b.ply", 999)
+    assert np.array_equal(streamed, points)
+    records = next(source.chunks(10, coordinates_only=False))[2]
+    assert source.properties(records)["q"].tolist() == list(range(0, -10, -1))
+    np.save(tmp_path / "s.npy", vertices.astype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("q", "<i2")]))
+    assert np.array_equal(_streamed(tmp_path / "s.npy", 700)[1], points)
+
+
+def test_refused_formats(points, tmp_path):
+    write_points(tmp_path / "a.xyz", points)
+    with pytest.raises(HeatcurvError, match=r"cannot tile .*a\.xyz: \.xyz files are read whole; a tiled run streams"):
+        open_source(tmp_path / "a.xyz")
+    vertices = np.zeros(3, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    plyfile.PlyData([plyfile.PlyElement.describe(vertices, "vertex")], text=True).write(str(tmp_path / "t.ply"))
+    with pytest.raises(HeatcurvError, match="ASCII PLY is read whole; convert it to binary PLY or LAZ"):
+        open_source(tmp_path / "t.ply")
+    np.save(tmp_path / "bad.npy", np.zeros((4, 2)))
+    with pytest.raises(HeatcurvError, match=r"expected an \(n, >=3\) array of numbers, got shape \(4, 2\)"):
+        open_source(tmp_path / "bad.npy")
+    with pytest.raises(HeatcurvError, match="no such file"):
+        open_source(tmp_path / "missing.laz")
