@@ -115,7 +115,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         When ``points`` are a part of a larger cloud (a tile with its halo,
         :mod:`heatcurv.tiles`): the whole cloud's frame and kernel widths, so
         that the part's points get the values the whole cloud would give them.
-        Default: made from ``points``.
+        ``reliable`` then leaves out the two flags that compare a point with
+        medians over the whole cloud (:mod:`heatcurv.reliability`):
+        ``info["reliability"]`` holds their inputs and ``info["reach"]`` how
+        far each point's values reach (input units). Default: made from ``points``.
     **options
         Any field of :class:`heatcurv.Options`, where each is documented once:
         ``alpha`` (ball radius ``r = alpha h``; paper 4, default 2), ``m``
