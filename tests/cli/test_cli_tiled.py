@@ -1,0 +1,63 @@
+"""``heatcurv compute`` in tiles: the flags, the automatic choice, the same fields as in memory."""
+
+import argparse
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import heatcurv
+from heatcurv.cli import tiled
+from heatcurv.cli.console import Log
+from heatcurv.io import read_points
+
+
+def _run(*args):
+    return subprocess.run([sys.executable, "-m", "heatcurv", *map(str, args)], capture_output=True, text=True,
+                           timeout=300)
+
+
+def test_compute_in_tiles_writes_the_in_memory_fields(tmp_path):
+    sample = heatcurv.surfaces.Sphere().sample(6000, "random", seed=9)
+    np.save(tmp_path / "sphere.npy", sample.points)
+    out = _run("compute", tmp_path / "sphere.npy", "-o", tmp_path / "tiled.ply", "--tile-size", "2000", "-j", "2",
+               "--scheduler", "threads", "-v")
+    assert out.returncode == 0, out.stderr
+    assert "tiled sphere.npy: 6000 points in " in out.stdout + out.stderr
+    memory = _run("compute", tmp_path / "sphere.npy", "-o", tmp_path / "memory.ply")
+    assert memory.returncode == 0, memory.stderr
+    a, b = read_points(tmp_path / "tiled.ply"), read_points(tmp_path / "memory.ply")
+    assert list(a.fields) == list(b.fields) == ["mean", "gaussian", "k1", "k2", "d1x", "d1y", "d1z", "d2x", "d2y",
+                                                "d2z", "area", "reliable"]
+    # float32 output: the tiles give the in-memory values to float32's rounding on this clean sphere
+    assert np.allclose(a.normals, b.normals, atol=1e-6)
+    assert np.allclose(a.fields["mean"], b.fields["mean"], rtol=1e-5)
+
+
+def test_features_are_refused_in_tiles(tmp_path):
+    np.save(tmp_path / "c.npy", heatcurv.surfaces.Sphere().sample(3000, "random", seed=1).points)
+    out = _run("compute", tmp_path / "c.npy", "-o", tmp_path / "o.ply", "--tile-size", "1000", "--features")
+    assert out.returncode != 0 and "sharp features are computed in memory only" in out.stderr
+    assert not (tmp_path / "o.ply").exists()
+    out = _run("compute", tmp_path / "c.npy", "-o", tmp_path / "o.ply", "--max-memory", "3X")
+    assert out.returncode == 2 and "expected a memory size such as 3G" in out.stderr
+
+
+def test_tiles_when_the_cloud_does_not_fit(monkeypatch, tmp_path):
+    from heatcurv.tiles import plan
+
+    args = argparse.Namespace(input=tmp_path / "big.laz", tile_size=None, scheduler=None, scratch=None, resume=False,
+                              max_memory=3 * 2**30)
+    monkeypatch.setattr(plan, "in_memory_bytes", lambda path: (12_000_000, 17 * 10**9))
+    assert tiled.wants_tiles(args, Log(quiet=True))
+    monkeypatch.setattr(plan, "in_memory_bytes", lambda path: (1_000_000, 2 * 10**9))
+    assert not tiled.wants_tiles(args, Log(quiet=True))
+    assert tiled.wants_tiles(argparse.Namespace(**{**vars(args), "scheduler": "threads"}), Log(quiet=True))
+
+
+@pytest.mark.parametrize("flag, value, problem", [("--tile-size", "10", "a tile must hold at least 1000 points"),
+                                                  ("--scheduler", "mpi", "choose processes, threads, dask, serial")])
+def test_bad_tile_flags(flag, value, problem, tmp_path):
+    out = _run("compute", tmp_path / "c.npy", "-o", tmp_path / "o.ply", flag, value)
+    assert out.returncode == 2 and problem in out.stderr
