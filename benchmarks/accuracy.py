@@ -75,7 +75,10 @@ is small for k = 3840), so the default ladder gives a weak oracle there.  The ``
 default row is PASS when its mean, k1, k2 and d1 errors are each at most the
 oracle's (issue 12: "at least as accurate as the best fixed-k quadric fit
 chosen with hindsight for that cloud, for the mean curvature, k1/k2 and
-directions"); the columns it fails are listed.
+directions"); the columns it fails are listed.  A second verdict compares
+with the single k best for the cloud as a whole (the smallest sum over mean,
+k1, k2 and d1 of the error over that column's best): the issue's own table
+quotes its oracle that way, one k per cloud; the per-column one is stricter.
 
 Very-low-noise table (issue 12, bullet 3).  heatcurv default on sphere, torus
 and saddle, n = 20000 random points, with noise 0, 1e-5, 3e-5 and 1e-4 of the
@@ -594,7 +597,20 @@ def run_oracle(sample, rows: np.ndarray, sub, log, max_k: int = ORACLE_KS[-1]) -
     for key in NOISE_KEYS:
         vals = [(m[key], k) for k, m in per_k.items() if np.isfinite(m[key])]
         best[key], best_k[key] = min(vals) if vals else (float("nan"), None)
-    return {"best": best, "k": best_k, "seconds": seconds, "per_k": per_k, "error": error}
+    return {"best": best, "k": best_k, "seconds": seconds, "per_k": per_k, "error": error, "one_k": one_k(per_k, best)}
+
+
+def one_k(per_k: dict, best: dict):
+    """The one k best for the cloud as a whole: the smallest sum over the judged columns of error / column's best.
+
+    The issue's own table reports the oracle this way (one k per cloud); the
+    per-column best (``best``) is the stricter oracle the verdict uses first.
+    """
+    def score(m):
+        parts = [m[c] / best[c] for c in ORACLE_JUDGED if np.isfinite(m[c]) and np.isfinite(best[c]) and best[c] > 0]
+        return sum(parts) if parts else float("inf")
+
+    return min(per_k, key=lambda k: score(per_k[k]), default=None)
 
 
 def oracle_verdict(m: dict, oracle: dict) -> str:
@@ -671,8 +687,11 @@ def noise_table(bench, args, estimators, clouds, eval_points: int):
         if default_metrics is not None:
             if oracle["per_k"]:
                 v = oracle_verdict(default_metrics, oracle)
-                default_row[-1] = v
+                k1 = oracle["one_k"]
+                v1 = oracle_verdict(default_metrics, {"best": oracle["per_k"][k1]})
+                default_row[-1] = f"{v}; one k ({k1}): {v1}"
                 bench.oracle_passes[0 if v == "PASS" else 1] += 1
+                bench.one_k_passes[0 if v1 == "PASS" else 1] += 1
             else:
                 default_row[-1] = "ERROR"
         ks_tried = oracle_ks(len(sample), args.oracle_max_k)
@@ -688,7 +707,8 @@ def noise_table(bench, args, estimators, clouds, eval_points: int):
         f"Noise (random sampler; noise = std / bounding-box diagonal; errors at up to {eval_points} interior "
         "evaluation points; oracle: fixed-k quadric fit, best k per column with hindsight, k in row (k), "
         "+: the widest k tried; "
-        "oracle verdict: default <= oracle on mean, k1, k2, d1)"
+        "oracle verdict: default <= oracle on mean, k1, k2, d1; then the same against the one k best for the cloud "
+        "as a whole, the smallest sum of error / column's best)"
     )
     return title, header, rows
 
@@ -817,6 +837,7 @@ class Bench:
     calls: int = 0
     oracle_calls: int = 0
     oracle_passes: list = field(default_factory=lambda: [0, 0])
+    one_k_passes: list = field(default_factory=lambda: [0, 0])
     lownoise_passes: list = field(default_factory=lambda: [0, 0])
 
 
@@ -997,6 +1018,8 @@ def main(argv=None) -> int:
     summary = [f"{est}: {p[0]} PASS, {p[1]} FAIL" for est, p in bench.passes.items()]
     if "noise" in which:
         summary.append(f"default vs oracle: {bench.oracle_passes[0]} PASS, {bench.oracle_passes[1]} FAIL")
+        one_pass, one_fail = bench.one_k_passes
+        summary.append(f"default vs oracle, one k per cloud: {one_pass} PASS, {one_fail} FAIL")
     if "lownoise" in which:
         summary.append(f"low noise: {bench.lownoise_passes[0]} PASS, {bench.lownoise_passes[1]} FAIL")
     targets = (
