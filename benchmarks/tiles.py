@@ -1,0 +1,245 @@
+"""Tiled runs (issue 13): time and peak memory against the in-memory estimate, workers, Dask's overhead.
+
+Generates LiDAR-like terrain (the smooth ground of :func:`heatcurv.surfaces.lidar_terrain`,
+uniform in x and y, 1 cm of height noise, quantised to 1 mm as a LAS file stores it) as a
+LAZ file in a temporary directory, a chunk at a time, and prints tables:
+
+1. in memory: :func:`heatcurv.estimate` on the 1M-point file, one thread and all cores;
+2. tiled within a budget (default 3 GB), 1 and 2 process workers, 1M and 12M points;
+3. the same with ``--scheduler dask`` (a local cluster of 2 workers): Dask's overhead per tile;
+4. ``--huge``: 100M points, generated on the fly (about 45 GB of scratch and files).
+
+Peak memory is the resident memory summed over this process and its children
+(workers, Dask nannies), sampled every 0.2 s with psutil. Every run is a fresh
+subprocess, so one run's caches do not help the next.
+
+    python benchmarks/tiles.py                # 1M rows of every table
+    python benchmarks/tiles.py --sizes 1e6 12e6
+    python benchmarks/tiles.py --huge --dir /big/scratch
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+SIDE_PER_MILLION = 250.0  # metres of terrain side per million points: 16 points per square metre
+
+
+def generate(path: Path, n: int, seed: int = 0, chunk: int = 2_000_000) -> None:
+    """A LAZ of ``n`` points of terrain, written a chunk at a time (bounded memory)."""
+    import laspy
+
+    from heatcurv.surfaces import lidar_terrain
+
+    side = SIDE_PER_MILLION * np.sqrt(n / 1e6)
+    origin = (500000.0, 5000000.0, 200.0)
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales = np.array([0.001, 0.001, 0.001])
+    header.offsets = np.array([origin[0] - side / 2, origin[1] - side / 2, 0.0])
+    rng = np.random.default_rng(seed)
+    with laspy.open(path, mode="w", header=header, do_compress=True) as writer:
+        for start in range(0, n, chunk):
+            k = min(chunk, n - start)
+            x = origin[0] + rng.uniform(-side / 2, side / 2, k)
+            y = origin[1] + rng.uniform(-side / 2, side / 2, k)
+            # the terrain's hill and valley are 30 m wide: repeat them every 60 m so every tile has relief
+            lx = (x - origin[0] + 30) % 60 - 30 + origin[0]
+            ly = (y - origin[1] + 30) % 60 - 30 + origin[1]
+            z = lidar_terrain(lx, ly, origin) + rng.normal(0, 0.01, k) + 0.002 * (x - origin[0])
+            record = laspy.ScaleAwarePointRecord.zeros(k, header=header)
+            record.x, record.y, record.z = x, y, z
+            record.intensity = rng.integers(0, 4000, k).astype(np.uint16)
+            writer.write_points(record)
+
+
+class PeakSampler:
+    """Resident memory of a process and its children, summed, sampled in a thread."""
+
+    def __init__(self, pid: int, every: float = 0.2):
+        import psutil
+
+        self.process, self.every, self.peak, self._stop = psutil.Process(pid), every, 0, threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        import psutil
+
+        while not self._stop.is_set():
+            try:
+                procs = [self.process] + self.process.children(recursive=True)
+                total = 0
+                for p in procs:
+                    try:
+                        total += p.memory_info().rss
+                    except psutil.Error:
+                        pass
+                self.peak = max(self.peak, total)
+            except psutil.Error:
+                pass
+            time.sleep(self.every)
+
+    def stop(self) -> int:
+        self._stop.set()
+        self.thread.join()
+        return self.peak
+
+
+CHILD = r"""
+import json, sys, time
+import numpy as np
+kind, src, dst, arg = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys.argv[4])
+if __name__ == "__main__":
+    tic = time.perf_counter()
+    if kind == "memory":
+        import heatcurv
+        from heatcurv.io import read_points
+        cloud = read_points(src)
+        res = heatcurv.estimate(cloud.points, orient="up", workers=arg["workers"])
+        out = {"seconds": time.perf_counter() - tic, "points": len(res)}
+    else:
+        from heatcurv.tiles import compute_file
+        report = compute_file(src, dst, progress=False, **arg)
+        out = {"seconds": time.perf_counter() - tic, "points": report.points, "tiles": report.tiles,
+               "tile_size": report.tile_size, "workers": report.workers, "halo": report.halo,
+               "timings": report.timings, "peak": report.peak_memory, "scheduler": report.scheduler,
+               "tile_seconds": report.tile_seconds}
+    print("RESULT " + json.dumps(out))
+"""
+
+
+def measure(kind: str, src, dst, arg: dict, scratch_dir: Path | None = None) -> dict:
+    """Run one measurement in a fresh process; its time, report and sampled peak memory."""
+    script = Path(tempfile.gettempdir()) / "heatcurv_tiles_bench_child.py"
+    script.write_text(CHILD)
+    process = subprocess.Popen([sys.executable, str(script), kind, str(src), str(dst), json.dumps(arg)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    sampler = PeakSampler(process.pid)
+    scratch_peak = 0
+    while process.poll() is None:
+        if scratch_dir is not None:
+            scratch_peak = max(scratch_peak, _tree_size(scratch_dir))
+        time.sleep(1.0)
+    out, err = process.communicate()
+    peak = sampler.stop()
+    lines = [line for line in out.splitlines() if line.startswith("RESULT ")]
+    if process.returncode != 0 or not lines:
+        raise RuntimeError(f"{kind} run failed ({process.returncode}): {err.strip()[-2000:]}")
+    result = json.loads(lines[-1][7:])
+    result["sampled_peak"] = peak
+    result["scratch_peak"] = scratch_peak
+    return result
+
+
+def _tree_size(path: Path) -> int:
+    total = 0
+    for root, _, files in os.walk(path):
+        for name in files:
+            try:
+                total += os.stat(os.path.join(root, name)).st_blocks * 512
+            except OSError:
+                pass
+    return total
+
+
+def _gb(x) -> str:
+    return f"{x / 1e9:.2f}"
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--sizes", nargs="+", type=float, default=[1e6], help="points of the tiled runs (1e6 12e6)")
+    parser.add_argument("--budget", default="3G", help="memory budget of the tiled runs (default 3G)")
+    parser.add_argument("--workers", nargs="+", type=int, default=[1, 2], help="process workers to compare")
+    parser.add_argument("--no-memory", action="store_true", help="skip the in-memory runs")
+    parser.add_argument("--no-dask", action="store_true", help="skip the Dask runs")
+    parser.add_argument("--huge", action="store_true", help="also 100M points, 2 workers (long: hours)")
+    parser.add_argument("--dir", default=None, help="directory for the files and the scratch (default: a temp dir)")
+    args = parser.parse_args(argv)
+
+    import platform
+
+    import heatcurv
+
+    work = Path(args.dir or tempfile.mkdtemp(prefix="heatcurv_tiles_bench_"))
+    work.mkdir(parents=True, exist_ok=True)
+    print(f"heatcurv {heatcurv.__version__}; {platform.processor() or platform.machine()}, "
+          f"{os.cpu_count()} cores; files in {work}", flush=True)
+    sizes = [int(s) for s in args.sizes] + ([100_000_000] if args.huge else [])
+    rows = []
+    for n in sizes:
+        src = work / f"terrain_{n // 1_000_000}M.laz"
+        if not src.exists():
+            tic = time.perf_counter()
+            generate(src, n)
+            print(f"generated {src.name}: {n} points, {src.stat().st_size / 1e6:.0f} MB in "
+                  f"{time.perf_counter() - tic:.0f} s", flush=True)
+        if n <= 1_000_000 and not args.no_memory:
+            for threads in (1, -1):
+                r = measure("memory", src, "-", {"workers": threads})
+                rows.append(("in memory", n, f"{threads if threads > 0 else os.cpu_count()} thr", "-", r))
+                _print_row(*rows[-1])
+        for w in (args.workers if n < 100_000_000 else [max(args.workers)]):
+            dst = work / f"out_{n}_{w}.laz"
+            r = measure("tiled", src, dst, {"max_memory": args.budget, "tile_workers": w, "scratch": str(work)},
+                        work / f".{dst.name}.heatcurv-tiles")
+            rows.append(("tiled", n, f"{w} proc", args.budget, r))
+            _print_row(*rows[-1])
+            dst.unlink(missing_ok=True)
+        if not args.no_dask and n <= 1_000_000:
+            dst = work / f"out_{n}_dask.laz"
+            r = measure("tiled", src, dst, {"max_memory": args.budget, "tile_workers": 2, "scheduler": "dask",
+                                            "scratch": str(work)})
+            rows.append(("tiled dask", n, "2 dask", args.budget, r))
+            _print_row(*rows[-1])
+            dst.unlink(missing_ok=True)
+        if n >= 100_000_000:
+            src.unlink(missing_ok=True)
+    _summary(rows)
+
+
+def _print_row(what, n, workers, budget, r):
+    per = r["seconds"] / n * 1e6
+    extra = ""
+    if "tiles" in r:
+        t = r["timings"]
+        extra = (f" tiles {r['tiles']:3d} of <= {r['tile_size']} pts, halo {r['halo']:.2f} m; passes "
+                 f"{t['stats'] + t['tiling'] + t['scatter']:.0f} s, survey {t['survey']:.0f} s, "
+                 f"tiles {t['tiles']:.0f} s, write {t['write']:.0f} s; scratch peak {_gb(r['scratch_peak'])} GB")
+    print(f"| {what:10s} | {n:>11,d} | {workers:7s} | {budget:>4s} | {r['seconds']:8.1f} s | {per:6.1f} us/pt | "
+          f"peak {_gb(r['sampled_peak'])} GB |{extra}", flush=True)
+
+
+def _summary(rows):
+    memory = [r for r in rows if r[0] == "in memory"]
+    tiled = {(r[1], r[2]): r[4] for r in rows if r[0] == "tiled"}
+    dask = [r for r in rows if r[0] == "tiled dask"]
+    if memory:
+        one = [r for r in memory if r[2].startswith("1 ")]
+        if one:
+            print(f"in-memory time per point (1 thread, 1M): {one[0][4]['seconds'] / one[0][1] * 1e6:.1f} us")
+    for (n, w), r in sorted(tiled.items()):
+        base = tiled.get((n, "1 proc"))
+        if base is not None and w != "1 proc":
+            print(f"{n:,d} points: speed-up {w} vs 1 proc: {base['seconds'] / r['seconds']:.2f}x")
+    for row in dask:
+        proc = tiled.get((row[1], "2 proc"))
+        if proc is not None:
+            overhead = (row[4]["seconds"] - proc["seconds"]) / row[4]["tiles"]
+            print(f"{row[1]:,d} points: Dask (local cluster, 2 workers) {row[4]['seconds']:.1f} s vs processes "
+                  f"{proc['seconds']:.1f} s: {overhead:+.2f} s per tile ({row[4]['tiles']} tiles, cluster start "
+                  "included)")
+
+
+if __name__ == "__main__":
+    main()
