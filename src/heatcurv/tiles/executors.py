@@ -138,7 +138,17 @@ def open_executor(scheduler, workers: int, budget: int):
 
 
 def kill_workers(executor) -> None:
-    """End a process pool's worker processes (those this run started) at once: Ctrl-C must not wait for tiles."""
+    """Stop what an executor runs, at once: Ctrl-C or a failed tile must not wait for the other tiles.
+
+    A process pool's worker processes (those this run started) are terminated;
+    a Dask executor's futures are cancelled (its workers stay up).
+    """
+    client, futures = getattr(executor, "_client", None), getattr(executor, "_futures", None)
+    if client is not None and futures:
+        try:
+            client.cancel(list(futures))
+        except Exception:  # a client already closing: nothing left to cancel
+            pass
     processes = getattr(executor, "_processes", None) or {}
     for process in list(processes.values()):
         try:
