@@ -11,6 +11,8 @@ building blocks (see the module of each). The numerical core:
 ``kernel``             heat-kernel weights, t = m h^2 (eq 2.8)
 ``areas``              per-point areas from H A = 1 (section 2.2) or density
 ``laplace_beltrami``   the Laplace-Beltrami matrix (eq 2.9)
+``point_laplacian``    the default Laplacian: accurate on any sampling, with
+                       eigenpairs and heat diffusion (:class:`PointCloudLaplacian`)
 ``operator``           the shared heat-kernel operator (the stages above)
 ``mean_curvature``     mean-curvature normal and mean curvature (eqs 2.10-2.12)
 ``normals``            PCA normals and their orientation
@@ -48,6 +50,7 @@ from .neighbourhood import Neighbourhood, ball_neighbourhood
 from .normals import orient_normals, pca_normals
 from .operator import HeatKernelOperator, build_operator, laplacian
 from .options import METHODS, Options, ScaleTuning, resolve_options
+from .point_laplacian import PointCloudLaplacian, point_cloud_laplacian
 from .principal import principal_fit
 from .results import CurvatureResult
 from .spacing import global_spacing, local_spacing
@@ -73,6 +76,7 @@ __all__ = [
     "METHODS",
     "Neighbourhood",
     "Options",
+    "PointCloudLaplacian",
     "ScaleTuning",
     "ball_neighbourhood",
     "build_operator",
@@ -86,6 +90,7 @@ __all__ = [
     "mean_curvature_normal",
     "orient_normals",
     "pca_normals",
+    "point_cloud_laplacian",
     "point_areas",
     "principal_fit",
     "resolve_options",
