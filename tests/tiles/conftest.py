@@ -2,13 +2,10 @@
 
 import numpy as np
 import pytest
+from tiles_helpers import ALL_FIELDS
 
 import heatcurv
 from heatcurv.tiles import compute_file
-
-#: Every field a tiled run writes (float64 so that the comparison sees the computation, not float32).
-ALL_FIELDS = ("nx", "ny", "nz", "mean", "gaussian", "k1", "k2", "d1x", "d1y", "d1z", "d2x", "d2y", "d2z", "area",
-              "reliable", "border", "outlier", "spacing", "neighbours", "fit_radius")
 
 
 @pytest.fixture(scope="session")
@@ -33,15 +30,3 @@ def torus_threads(torus_file, tmp_path_factory):
     report = compute_file(torus_file[0], out, tile_size=2500, tile_workers=2, scheduler="threads",
                           dtype="float64", fields=ALL_FIELDS, max_memory="4G")
     return out, report
-
-
-def read_fields(path):
-    """Every column of an output file, by name (x y z too)."""
-    from heatcurv.io import read_points
-
-    cloud = read_points(path)
-    columns = {a: cloud.points[:, k] for k, a in enumerate("xyz")}
-    if cloud.normals is not None:
-        columns.update({a: cloud.normals[:, k] for k, a in enumerate(("nx", "ny", "nz"))})
-    columns.update(cloud.fields)
-    return columns

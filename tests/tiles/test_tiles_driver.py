@@ -4,9 +4,9 @@ import os
 
 import numpy as np
 import pytest
+from tiles_helpers import ALL_FIELDS, read_fields
 
 import heatcurv
-from conftest import ALL_FIELDS, read_fields
 from heatcurv.errors import HeatcurvError
 from heatcurv.testing.tiles import compare_fields, result_columns, tiled_agreement
 from heatcurv.tiles import compute_file

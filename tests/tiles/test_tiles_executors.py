@@ -10,8 +10,8 @@ from pathlib import Path
 import distributed  # the test extra installs dask[distributed]: these tests never skip
 import numpy as np
 import pytest
+from tiles_helpers import ALL_FIELDS, read_fields
 
-from conftest import ALL_FIELDS, read_fields
 from heatcurv.errors import HeatcurvError
 from heatcurv.tiles import compute_file, executors
 from heatcurv.tiles.executors import SerialExecutor, open_executor

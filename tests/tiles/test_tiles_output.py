@@ -5,9 +5,9 @@ import json
 import laspy
 import numpy as np
 import pytest
+from tiles_helpers import read_fields
 
 import heatcurv
-from conftest import read_fields
 from heatcurv.cli.fields import DEFAULT_FIELDS, EXTRA_FIELDS
 from heatcurv.io import read_points, write_points
 from heatcurv.testing.tiles import tiled_agreement
