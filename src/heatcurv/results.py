@@ -68,7 +68,12 @@ class CurvatureResult:
         ball. ``info["scale"].support_radius`` bounds how far any point's
         values reach.
     mean_curvature_normal : ndarray, shape (n, 3)
-        ``K = L x`` of eq 2.10, approximately ``2 mean * normals``.
+        ``K = L x`` of eq 2.10, approximately ``2 mean * normals``, with ``L``
+        the heat-kernel operator of :class:`heatcurv.HeatKernelOperator`
+        (eq 2.9 over the method's areas), *not* the default of
+        :func:`heatcurv.laplacian` (:class:`heatcurv.PointCloudLaplacian`,
+        whose ``mean_curvature_normal()`` gives its own; docs/laplacian.md
+        compares both against ``2 H n``).
     options : Options
         The resolved options the result was computed with.
     info : dict
