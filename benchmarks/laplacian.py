@@ -1,0 +1,220 @@
+"""Benchmark of the point-cloud Laplacians: heatcurv's default, the paper's eq 2.9, robust-laplacian.
+
+Prints markdown tables (docs/laplacian.md carries them):
+
+1. spectra against exact values (or a fine cotangent mesh for the torus),
+   generalised problem ``S v = lam diag(area) v`` (robust-laplacian: ``L v = lam M v``):
+   mean relative error per sphere degree l = 1..5, or over the first eigenvalues;
+2. pointwise residuals: ``|L Y - lam Y| / |lam Y|`` for spherical harmonics and
+   ``|L x - 2 H n| / |2 H n|`` (the mean-curvature normal, eq 2.10, heatcurv's
+   positive convention), including ``heatcurv.estimate(points).mean_curvature_normal``;
+3. time and peak memory (each run in a fresh child process) at 10k, 100k, 1M points.
+
+Run:  python benchmarks/laplacian.py  [--quick] [--sizes 10000,100000,1000000]
+Needs the ``peers`` extra (robust-laplacian) and psutil.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+import heatcurv
+from heatcurv import surfaces
+from heatcurv.testing.mesh_laplacian import torus_reference_eigenvalues
+
+
+def robust(points):
+    """robust-laplacian's (L, M) as (stiffness, area)."""
+    import robust_laplacian
+
+    L, M = robust_laplacian.point_cloud_laplacian(np.asarray(points, dtype=np.float64))
+    return L.tocsr(), np.asarray(M.diagonal()).ravel()
+
+
+def smallest(stiffness, area, k):
+    """The k smallest eigenvalues of stiffness v = lam diag(area) v (symmetric, area > 0)."""
+    M = sp.diags(area).tocsc()
+    sigma = -1e-3 * float(np.median(stiffness.diagonal() / area))
+    lu = spla.splu((stiffness - sigma * M).tocsc(), permc_spec="MMD_AT_PLUS_A")
+    op = spla.LinearOperator(stiffness.shape, matvec=lu.solve, dtype=np.float64)
+    return np.sort(spla.eigsh(stiffness, k=k, M=M, sigma=sigma, OPinv=op, which="LM", return_eigenvectors=False))
+
+
+def spectrum(method, points, k):
+    """(eigenvalues, seconds) of one method; eigenvalues None where the method fails."""
+    start = time.perf_counter()
+    try:
+        if method == "default":
+            values = heatcurv.PointCloudLaplacian(points).eigenpairs(k)[0]
+        elif method == "robust":
+            values = smallest(*robust(points), k)
+        else:  # the paper's L is not symmetric and its areas may be negative: non-symmetric shift-invert
+            L, _ = heatcurv.laplacian(points, method="paper")
+            sigma = -1e-3 * float(np.median(L.diagonal()))
+            values = np.sort(spla.eigs(L.tocsc(), k=k, sigma=sigma, which="LM", return_eigenvectors=False).real)
+    except Exception as exc:  # a failing method is a row of the table, not the end of the run
+        return None, f"{type(exc).__name__}"
+    return values, time.perf_counter() - start
+
+
+def clouds(quick):
+    n = 4000 if quick else 10000
+    sphere = surfaces.Sphere()
+    ls = np.concatenate([[d * (d + 1)] * (2 * d + 1) for d in range(1, 6)]).astype(float)
+    rng = np.random.default_rng(7)
+    dense = sphere.sample(3 * n, "random", seed=5).points
+    keep = rng.random(len(dense)) < (0.1 + 0.9 * (dense[:, 2] + 1) / 2) * 0.6  # 10:1 from pole to pole
+    square = np.sort([np.pi**2 * (i * i + j * j) / 4 for i in range(8) for j in range(8)])[:31].astype(float)
+    torus_n = 8000 if quick else 20000
+    out = [
+        ("sphere random", sphere.sample(n, "random", seed=1).points, ls, "sphere"),
+        ("sphere Fibonacci", sphere.sample(n, "fibonacci").points, ls, "sphere"),
+        ("sphere jittered", sphere.sample(n, "jittered", seed=1).points, ls, "sphere"),
+        ("sphere density 10:1", dense[keep], ls, "sphere"),
+        ("torus random (0.6, 1.4)", surfaces.Torus(0.6, 1.4).sample(torus_n, "random", seed=1).points,
+         torus_reference_eigenvalues(0.6, 1.4, 31, 128 if quick else 256)[1:], "first 30"),
+        ("square random (Neumann)", surfaces.Plane(1.0).sample(n, "random", seed=1).points, square[1:], "first 30"),
+        ("square jittered (Neumann)", surfaces.Plane(1.0).sample(n, "jittered", seed=1).points, square[1:],
+         "first 30"),
+        # a simulated scan can hit one spot twice: a Laplacian needs distinct points
+        ("square scan (Neumann)", np.unique(surfaces.Plane(1.0).sample(n, "scan", seed=1).points, axis=0), square[1:],
+         "first 30"),
+    ]
+    return out
+
+
+def spectra_table(quick):
+    print("## Spectra: mean relative eigenvalue error (%)\n")
+    print("| cloud | n | method | l=1 | l=2 | l=3 | l=4 | l=5 | all | seconds |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name, pts, exact, kind in clouds(quick):
+        for method in ("default", "paper", "robust"):
+            values, secs = spectrum(method, pts, exact.size + 1)
+            if values is None:
+                print(f"| {name} | {len(pts)} | {method} | failed ({secs}) | | | | | | |", flush=True)
+                continue
+            err = np.abs(values[1:] - exact) / exact * 100
+            if kind == "sphere":
+                cells = [f"{err[d * d - 1:(d + 1) ** 2 - 1].mean():.2f}" for d in range(1, 6)]
+            else:
+                cells = ["", "", "", "", ""]
+            print(f"| {name} | {len(pts)} | {method} | " + " | ".join(cells) + f" | {err.mean():.2f} | {secs:.1f} |",
+                  flush=True)
+    print()
+
+
+def residual_table(quick):
+    n = 4000 if quick else 10000
+    print("## Pointwise residuals (relative 2-norm, %)\n")
+    print("| cloud | operator | L z - 2 z | L xy - 6 xy | L x - 2 H n |")
+    print("|---|---|---|---|---|")
+    cases = [("sphere random", surfaces.Sphere().sample(n, "random", seed=1)),
+             ("sphere Fibonacci", surfaces.Sphere().sample(n, "fibonacci")),
+             ("torus random", surfaces.Torus(0.6, 1.4).sample(n, "random", seed=1))]
+    for name, sample in cases:
+        pts = sample.points
+        target = 2 * sample.mean[:, None] * sample.normals
+        ops = {}
+        ops["default"] = heatcurv.laplacian(pts)[0]
+        ops["paper"] = heatcurv.laplacian(pts, method="paper")[0]
+        S, A = robust(pts)
+        ops["robust"] = sp.diags(1 / A) @ S
+        for label, L in ops.items():
+            cells = []
+            if name.startswith("sphere"):
+                x, y, z = pts.T
+                for f, lam in ((z, 2.0), (x * y, 6.0)):
+                    cells.append(f"{np.linalg.norm(L @ f - lam * f) / np.linalg.norm(lam * f) * 100:.1f}")
+            else:
+                cells += ["", ""]
+            K = L @ (pts - pts.mean(axis=0))
+            cells.append(f"{np.linalg.norm(K - target) / np.linalg.norm(target) * 100:.1f}")
+            print(f"| {name} | {label} | " + " | ".join(cells) + " |", flush=True)
+        K = heatcurv.estimate(pts).mean_curvature_normal
+        print(f"| {name} | estimate().mean_curvature_normal | | | "
+              f"{np.linalg.norm(K - target) / np.linalg.norm(target) * 100:.1f} |", flush=True)
+    print()
+
+
+def one_timing(method, n, eig):
+    """Run in a child: build (and eigensolve) one method on n random torus points; print JSON."""
+    import psutil
+
+    pts = surfaces.Torus(0.6, 1.4).sample(n, "random", seed=2).points
+    base = psutil.Process().memory_info().rss
+    start = time.perf_counter()
+    if method == "default":
+        lap = heatcurv.PointCloudLaplacian(pts)
+        if eig:
+            _ = lap.stiffness  # the assembled second-order matrix, as heatcurv.laplacian returns it
+        build = time.perf_counter() - start
+        if eig:
+            lap.eigenpairs(10)
+    else:
+        S, A = robust(pts)
+        build = time.perf_counter() - start
+        if eig:
+            smallest(S, A, 10)
+    total = time.perf_counter() - start
+    import resource
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    print(json.dumps({"build": build, "total": total, "peak_gb": peak / 1e9, "base_gb": base / 1e9}))
+
+
+def timing_table(sizes):
+    print("## Time and peak memory (random torus points, fresh process each)\n")
+    print("| n | method | build s | with 10 eigenpairs s | peak RSS GB |")
+    print("|---|---|---|---|---|")
+    for n in sizes:
+        eig = n <= 100_000
+        for method in ("default", "robust"):
+            cmd = [sys.executable, __file__, "--one", method, str(n), "1" if eig else "0"]
+            try:
+                out = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=True).stdout
+                r = json.loads(out.strip().splitlines()[-1])
+                total = f"{r['total']:.1f}" if eig else "not run"
+                print(f"| {n} | {method} | {r['build']:.1f} | {total} | {r['peak_gb']:.2f} |", flush=True)
+            except Exception as exc:  # report, go on
+                print(f"| {n} | {method} | failed ({type(exc).__name__}) | | |", flush=True)
+    print()
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller clouds")
+    parser.add_argument("--sizes", default="10000,100000,1000000")
+    parser.add_argument("--only", default="spectra,residuals,timing")
+    parser.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.one:
+        one_timing(args.one[0], int(args.one[1]), args.one[2] == "1")
+        return
+    import os
+
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from machine import cpu_model, memory_text  # benchmarks/machine.py
+
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    print(f"Machine: {cpu_model()}, {os.cpu_count()} cores{memory_text()}; load average "
+          f"{os.getloadavg()[0]:.1f} at the start; heatcurv {heatcurv.__version__} at commit {commit or '?'}\n")
+    start = time.perf_counter()
+    if "spectra" in args.only:
+        spectra_table(args.quick)
+    if "residuals" in args.only:
+        residual_table(args.quick)
+    if "timing" in args.only:
+        timing_table([int(s) for s in args.sizes.split(",")])
+    print(f"Whole run: {time.perf_counter() - start:.0f} s, load average {os.getloadavg()[0]:.1f} at the end")
+
+
+if __name__ == "__main__":
+    main()
