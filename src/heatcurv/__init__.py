@@ -48,9 +48,9 @@ from .laplace_beltrami import laplace_beltrami_matrix
 from .mean_curvature import mean_curvature, mean_curvature_normal
 from .neighbourhood import Neighbourhood, ball_neighbourhood
 from .normals import orient_normals, pca_normals
-from .operator import HeatKernelOperator, build_operator, laplacian
+from .operator import HeatKernelOperator, build_operator
 from .options import METHODS, Options, ScaleTuning, resolve_options
-from .point_laplacian import PointCloudLaplacian, point_cloud_laplacian
+from .point_laplacian import PointCloudLaplacian, laplacian, point_cloud_laplacian
 from .principal import principal_fit
 from .results import CurvatureResult
 from .spacing import global_spacing, local_spacing

@@ -14,7 +14,8 @@ under its own name:
 The object then answers the paper's operator questions without recomputing
 them: the heat-kernel weights ``W_ij`` (eq 2.8), the Laplace-Beltrami matrix
 (eq 2.9), ``L`` applied to a field, and the mean-curvature normal ``K = L x``
-(eq 2.10). :func:`heatcurv.estimate` and :func:`laplacian` start from it.
+(eq 2.10). :func:`heatcurv.estimate` and the paper path of :func:`heatcurv.laplacian`
+(in :mod:`heatcurv.point_laplacian`) start from it.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from .progress import StageClock
 from .spacing import spacing as compute_spacing
 from .validation import PreparedPoints, prepare_points
 
-__all__ = ["HeatKernelOperator", "build_operator", "laplacian"]
+__all__ = ["HeatKernelOperator", "build_operator"]
 
 
 @dataclass
@@ -230,81 +231,13 @@ def _neighbourhood_and_spacing(prepared: PreparedPoints, tree: cKDTree, options:
 
 
 def build_operator(points, options: Options | None = None, progress=None, **overrides) -> HeatKernelOperator:
-    """:meth:`HeatKernelOperator.from_points` as a function (same parameters)."""
-    return HeatKernelOperator.from_points(points, options, progress, **overrides)
-
-
-def laplacian(points, method: str = "default", **options):
-    """The Laplace-Beltrami matrix and per-point areas of a point cloud.
-
-    ``method="default"`` is the accurate operator of
-    :mod:`heatcurv.point_laplacian`: the density-normalised heat kernel with a
-    calibrated diffusion time and a second-order correction, accurate on any
-    sampling (10 000 random points on the unit sphere: eigenvalues of degrees
-    1-5 within 1.2 % on average, Fibonacci 0.1 %; docs/laplacian.md).
-    ``diag(area) @ L`` is symmetric positive semi-definite, ``L @ 1 = 0``.
-
-    ``method="paper"`` is the literal operator of eqs 2.4 and 2.9 (eq 2.6
-    spacing, alpha = 4, m = 1/4, areas from ``H A = 1``) through
-    :class:`HeatKernelOperator`: on a regular 8000 point sphere its residual
-    on the degree-1 and degree-2 spherical harmonics is 0.7 % and 0.9 %
-    (relative 2-norm); on irregular (random) samples the area system fails
-    and so does the operator.
-
-    Parameters
-    ----------
-    points : array_like, shape (n, 3)
-        Point coordinates; must be distinct (a Laplacian row per input point).
-    method : {"default", "paper"}, optional
-        Which operator.
-    **options
-        ``"default"``: ``neighbours``, ``width``, ``order``, ``workers`` (see
-        :func:`heatcurv.point_laplacian.point_cloud_laplacian`).
-        ``"paper"``: ``alpha``, ``m``, ``spacing``, ``gamma``, ``area_method``,
-        ``area_solver`` ... as in :func:`heatcurv.estimate`.
-
-    Returns
-    -------
-    L : scipy.sparse.csr_matrix, shape (n, n)
-        The positive operator (``L = -Delta``), rows in input order; ``L @ f`` applies it.
-    area : ndarray, shape (n,)
-        Per-point areas; ``diag(area) @ L`` is the symmetric stiffness matrix
-        (for ``"paper"``, with the global spacing).
-
-    Raises
-    ------
-    HeatcurvError
-        On bad input, unknown options, and on exact duplicate points (a
-        Laplacian needs one row per distinct point; remove duplicates first).
+    """:meth:`HeatKernelOperator.from_points` as a function (same parameters).
 
     Examples
     --------
-    >>> import numpy as np, heatcurv
-    >>> pts = heatcurv.surfaces.Sphere().sample(2000, "random", seed=0).points
-    >>> L, area = heatcurv.laplacian(pts)
-    >>> bool(np.allclose(L @ np.ones(len(pts)), 0.0))
-    True
+    >>> import heatcurv
+    >>> pts = heatcurv.surfaces.Sphere().sample(1500, "fibonacci").points
+    >>> heatcurv.build_operator(pts, method="paper").matrix().shape
+    (1500, 1500)
     """
-    if method != "paper":
-        from .point_laplacian import point_cloud_laplacian
-
-        if method != "default":
-            raise HeatcurvError(f"method must be 'default' or 'paper', got {method!r}")
-        unknown = sorted(set(options) - {"neighbours", "width", "order", "workers"})
-        if unknown:
-            raise HeatcurvError(
-                f"unknown option(s) {unknown} for laplacian(method='default'): "
-                "use neighbours, width, order, workers (or method='paper' for the paper's options)"
-            )
-        return point_cloud_laplacian(points, **options)
-    op = build_operator(points, method=method, **options)
-    if op.prepared.n_distinct != op.prepared.n_input:
-        raise HeatcurvError(
-            f"points hold {op.prepared.n_input - op.prepared.n_distinct} exact duplicate(s); "
-            "a Laplacian needs one row per distinct point: remove duplicates first"
-        )
-    unit = op.prepared.unit
-    L = op.matrix() / unit**2 if unit != 1.0 else op.matrix()  # 1/length^2, back to input units
-    # distinct points are in k-d tree order; permute back to the input order
-    perm = op.prepared.inverse
-    return L[perm][:, perm].tocsr(), op.areas[perm] * unit**2
+    return HeatKernelOperator.from_points(points, options, progress, **overrides)
