@@ -19,12 +19,12 @@ def _run(*args):
 
 
 def test_compute_in_tiles_writes_the_in_memory_fields(tmp_path):
-    sample = heatcurv.surfaces.Sphere().sample(6000, "random", seed=9)
+    sample = heatcurv.surfaces.Sphere().sample(4000, "random", seed=9)
     np.save(tmp_path / "sphere.npy", sample.points)
-    out = _run("compute", tmp_path / "sphere.npy", "-o", tmp_path / "tiled.ply", "--tile-size", "2000", "-j", "2",
+    out = _run("compute", tmp_path / "sphere.npy", "-o", tmp_path / "tiled.ply", "--tile-size", "1500", "-j", "2",
                "--scheduler", "threads", "-v")
     assert out.returncode == 0, out.stderr
-    assert "tiled sphere.npy: 6000 points in " in out.stdout + out.stderr
+    assert "tiled sphere.npy: 4000 points in " in out.stdout + out.stderr
     memory = _run("compute", tmp_path / "sphere.npy", "-o", tmp_path / "memory.ply")
     assert memory.returncode == 0, memory.stderr
     a, b = read_points(tmp_path / "tiled.ply"), read_points(tmp_path / "memory.ply")

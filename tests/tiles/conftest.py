@@ -10,8 +10,8 @@ from heatcurv.tiles import compute_file
 
 @pytest.fixture(scope="session")
 def torus_file(tmp_path_factory):
-    """A clean random torus (R = 2.3701, r = 1), 12000 points, as an NPY file; and its sample."""
-    sample = heatcurv.surfaces.Torus().sample(12000, "random", seed=3)
+    """A clean random torus (R = 2.3701, r = 1), 6000 points, as an NPY file; and its sample."""
+    sample = heatcurv.surfaces.Torus().sample(6000, "random", seed=3)
     path = tmp_path_factory.mktemp("torus") / "torus.npy"
     np.save(path, sample.points)
     return path, sample
@@ -27,6 +27,6 @@ def torus_memory(torus_file):
 def torus_threads(torus_file, tmp_path_factory):
     """The torus in 8 tiles on 2 threads, every field as float64 PLY: (path, report)."""
     out = tmp_path_factory.mktemp("threads") / "torus.ply"
-    report = compute_file(torus_file[0], out, tile_size=2500, tile_workers=2, scheduler="threads",
+    report = compute_file(torus_file[0], out, tile_size=1200, tile_workers=2, scheduler="threads",
                           dtype="float64", fields=ALL_FIELDS, max_memory="4G")
     return out, report

@@ -15,7 +15,7 @@ from heatcurv.tiles.tasks import FAULT_VARIABLE
 
 def test_tiled_torus_equals_in_memory(torus_threads, torus_memory):
     path, report = torus_threads
-    assert report.tiles == 8 and report.points == 12000 and report.widened == 0
+    assert report.tiles == 8 and report.points == 6000 and report.widened == 0
     # measured: every field within 1e-10 relative (the tiles centre the points elsewhere: rounding);
     # the target is 1e-6 on 99.99 % of the points
     agreement = tiled_agreement(path, torus_memory, rtol=1e-6)
@@ -41,55 +41,52 @@ def test_outward_across_seams(torus_threads, torus_file):
 
 
 def test_outward_sphere(tmp_path):
-    sample = heatcurv.surfaces.Sphere(radius=2.0).sample(8000, "random", seed=5)
+    sample = heatcurv.surfaces.Sphere(radius=2.0).sample(5000, "random", seed=5)
     src = tmp_path / "sphere.npy"
     np.save(src, sample.points)
-    report = compute_file(src, tmp_path / "sphere.ply", tile_size=1500, tile_workers=2, scheduler="threads")
+    report = compute_file(src, tmp_path / "sphere.ply", tile_size=1000, tile_workers=2, scheduler="threads")
     assert report.tiles >= 6
     columns = read_fields(tmp_path / "sphere.ply")
     normals = np.column_stack([columns[a] for a in ("nx", "ny", "nz")])
     assert np.all(np.einsum("ij,ij->i", normals, sample.points / 2.0) > 0.9)
-    # outward: positive mean curvature 1/R (float32 output; the estimator's error on 8000 random points)
+    # outward: positive mean curvature 1/R (float32 output; the estimator's error on 5000 random points)
     assert abs(np.median(columns["mean"]) - 0.5) < 0.01
 
 
-def test_a_failing_tile_fails_the_run_without_output(torus_file, tmp_path, monkeypatch):
+def test_a_failing_tile_fails_the_run_without_output(torus_file, torus_threads, tmp_path, monkeypatch):
     out = tmp_path / "failed.ply"
     monkeypatch.setenv(FAULT_VARIABLE, "fail:2")
     with pytest.raises(HeatcurvError, match=r"^tile 2 of 8 failed: RuntimeError: injected failure in tile 2$"):
-        compute_file(torus_file[0], out, tile_size=2500, scheduler="serial")
+        compute_file(torus_file[0], out, tile_size=1200, scheduler="serial")
     assert os.listdir(tmp_path) == [".failed.ply.heatcurv-tiles"]  # no output, no temporary output
     kept = sorted(os.listdir(tmp_path / ".failed.ply.heatcurv-tiles" / "tiles"))
     assert kept == ["tile_00000.npz", "tile_00001.npz"]  # the finished tiles, for a resume
     # resume: the two finished tiles are not computed again, and the output is the same as in one go
     monkeypatch.delenv(FAULT_VARIABLE)
-    report = compute_file(torus_file[0], out, tile_size=2500, scheduler="serial", dtype="float64",
+    report = compute_file(torus_file[0], out, tile_size=1200, scheduler="serial", dtype="float64",
                           fields=ALL_FIELDS)
     assert report.resumed == 2 and len(report.tile_seconds) == 6
     assert os.listdir(tmp_path) == ["failed.ply"]  # the scratch directory is gone
-    whole = compute_file(torus_file[0], tmp_path / "whole.ply", tile_size=2500, scheduler="serial",
-                         dtype="float64", fields=ALL_FIELDS)
-    assert whole.resumed == 0
-    a, b = read_fields(out), read_fields(tmp_path / "whole.ply")
+    a, b = read_fields(out), read_fields(torus_threads[0])  # the same tiles, computed in one go
     assert all(np.array_equal(a[k], b[k]) for k in b)
 
 
 def test_resume_requires_a_plan(torus_file, tmp_path):
     with pytest.raises(HeatcurvError, match="nothing to resume"):
-        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=2500, resume=True)
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, resume=True)
 
 
 def test_ctrl_c_removes_temporaries_and_keeps_finished_tiles(torus_file, tmp_path, monkeypatch):
     monkeypatch.setenv(FAULT_VARIABLE, "interrupt:1")
     with pytest.raises(KeyboardInterrupt):
-        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=2500, scheduler="serial")
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, scheduler="serial")
     work = tmp_path / ".out.ply.heatcurv-tiles"
     assert sorted(os.listdir(work / "tiles")) == ["tile_00000.npz"]
     assert not (work / "results.rec").exists() and not (tmp_path / "out.ply").exists()
     # interrupted before any tile finished: nothing is kept
     monkeypatch.setenv(FAULT_VARIABLE, "interrupt:0")
     with pytest.raises(KeyboardInterrupt):
-        compute_file(torus_file[0], tmp_path / "other.ply", tile_size=2500, scheduler="serial")
+        compute_file(torus_file[0], tmp_path / "other.ply", tile_size=1200, scheduler="serial")
     assert not (tmp_path / ".other.ply.heatcurv-tiles").exists()
 
 
@@ -100,15 +97,15 @@ def test_not_enough_disk_is_found_before_the_run(torus_file, tmp_path, monkeypat
 
     usage = shutil.disk_usage(tmp_path)
     monkeypatch.setattr(plan.shutil, "disk_usage", lambda path: usage._replace(free=100_000))
-    with pytest.raises(HeatcurvError, match=r"not enough disk space for the scratch files of 12000 points in .*"
+    with pytest.raises(HeatcurvError, match=r"not enough disk space for the scratch files of 6000 points in .*"
                                             r"about \d+\.\d+ MB needed, 100 kB free"):
-        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=2500)
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200)
     assert os.listdir(tmp_path) == []
 
 
 def test_budget_too_small_for_a_tile(torus_file, tmp_path):
     with pytest.raises(HeatcurvError, match="more than the budget .* leaves for one worker; pass a smaller"):
-        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=2500, max_memory="700M")
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, max_memory="700M")
     assert not (tmp_path / "out.ply").exists()
 
 

@@ -30,7 +30,7 @@ def test_processes_retry_a_killed_worker_and_match_threads(torus_file, torus_thr
     monkeypatch.setenv(FAULT_VARIABLE, f"kill:3:{marker}")  # the worker computing tile 3 dies once
     messages = []
     out = tmp_path / "processes.ply"
-    report = compute_file(torus_file[0], out, tile_size=2500, tile_workers=2, scheduler="processes",
+    report = compute_file(torus_file[0], out, tile_size=1200, tile_workers=2, scheduler="processes",
                           dtype="float64", fields=ALL_FIELDS, max_memory="4G", log=messages.append)
     assert marker.exists() and report.scheduler == "processes" and report.workers == 2
     assert any("a worker process died; restarting the pool" in m for m in messages)
@@ -41,7 +41,7 @@ def test_dask_client_in_process(torus_file, torus_threads, tmp_path):
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None)
     out = tmp_path / "dask.ply"
     with cluster, distributed.Client(cluster) as client:
-        report = compute_file(torus_file[0], out, tile_size=2500, scheduler=client, dtype="float64",
+        report = compute_file(torus_file[0], out, tile_size=1200, scheduler=client, dtype="float64",
                               fields=ALL_FIELDS, max_memory="4G")
     assert report.scheduler == "dask client" and report.tiles == torus_threads[1].tiles
     _same_output(out, torus_threads[0])
@@ -70,7 +70,7 @@ def test_dask_scheduler_and_two_workers(torus_file, torus_threads, tmp_path):
         with distributed.Client(address, timeout="30s") as client:
             client.wait_for_workers(2, timeout=60)
         out = tmp_path / "cluster.ply"
-        report = compute_file(torus_file[0], out, tile_size=2500, scheduler=address, dtype="float64",
+        report = compute_file(torus_file[0], out, tile_size=1200, scheduler=address, dtype="float64",
                               fields=ALL_FIELDS, max_memory="4G")
         assert report.scheduler == f"dask at {address}" and report.workers >= 1
         _same_output(out, torus_threads[0])

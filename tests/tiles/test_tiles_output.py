@@ -17,14 +17,14 @@ from heatcurv.tiles import output as tiled_output
 
 @pytest.fixture(scope="module")
 def terrain_laz(tmp_path_factory):
-    """Smooth LiDAR-like terrain (a tilt, a hill, a valley) of 16000 points with intensity and classes, LAZ."""
+    """Smooth LiDAR-like terrain (a tilt, a hill, a valley) of 6000 points with intensity and classes, LAZ."""
     rng = np.random.default_rng(7)
-    x = 500000.0 + rng.uniform(-30, 30, 16000)
-    y = 5000000.0 + rng.uniform(-30, 30, 16000)
+    x = 500000.0 + rng.uniform(-30, 30, 6000)
+    y = 5000000.0 + rng.uniform(-30, 30, 6000)
     z = heatcurv.surfaces.lidar_terrain(x, y)
     path = tmp_path_factory.mktemp("terrain") / "terrain.laz"
-    write_points(path, np.column_stack([x, y, z]), {"intensity": rng.integers(0, 4000, 16000).astype(np.uint16),
-                                                     "classification": np.full(16000, 2, np.uint8)})
+    write_points(path, np.column_stack([x, y, z]), {"intensity": rng.integers(0, 4000, 6000).astype(np.uint16),
+                                                     "classification": np.full(6000, 2, np.uint8)})
     return path
 
 
@@ -34,7 +34,7 @@ def test_field_names_are_those_of_compute():
 
 def test_las_keeps_dimensions_raw_integers_and_records_the_run(terrain_laz, tmp_path):
     out = tmp_path / "out.laz"
-    report = compute_file(terrain_laz, out, tile_size=3000, tile_workers=2, scheduler="threads", dtype="float64")
+    report = compute_file(terrain_laz, out, tile_size=1200, tile_workers=2, scheduler="threads", dtype="float64")
     assert report.tiles >= 6 and report.parameters["options"]["orient"] == "up"  # LAS: up, as the CLI
     source, written = laspy.read(terrain_laz), laspy.read(out)
     for name in source.point_format.dimension_names:  # every input dimension, raw integers included
