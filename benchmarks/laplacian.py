@@ -103,6 +103,10 @@ def spectra_table(quick, only=None):
         if only and not any(word in name for word in only):
             continue
         for method in ("default", "paper", "robust"):
+            if method == "paper" and "density" in name:
+                # its eigensolve did not finish in 5-7 minutes in two runs (H A = 1 failed: areas near 0)
+                print(f"| {name} | {len(pts)} | paper | not run (no result in 7 min) | | | | | | |", flush=True)
+                continue
             values, secs = spectrum(method, pts, exact.size + 1)
             if values is None:
                 print(f"| {name} | {len(pts)} | {method} | failed ({secs}) | | | | | | |", flush=True)
