@@ -97,3 +97,14 @@ def test_ply_keeps_properties_faces_and_records_the_run(tmp_path):
     comments = [c for c in written.comments if c.startswith("heatcurv-tiles ")]
     assert len(comments) == 1 and json.loads(comments[0].split(" ", 1)[1])["tiles"] >= 3
     assert read_fields(tmp_path / "out.ply")["mean"].shape == (5000,)
+
+
+def test_las_from_ply_carries_the_properties(tmp_path):
+    sample = heatcurv.surfaces.Sphere().sample(3000, "random", seed=1)
+    write_points(tmp_path / "s.ply", sample.points, {"quality": np.arange(3000, dtype=np.float32)})
+    compute_file(tmp_path / "s.ply", tmp_path / "s.las", tile_size=1000, scheduler="threads", fields=("mean",))
+    las = laspy.read(tmp_path / "s.las")
+    assert list(las.point_format.extra_dimension_names) == ["quality", "mean"]
+    assert np.array_equal(np.asarray(las.quality), np.arange(3000, dtype=np.float32))
+    # LAS 1.4 format 6 at the scale write_points chooses (1e-6 of the largest side or finer)
+    assert np.abs(read_points(tmp_path / "s.las").points - sample.points).max() <= 1e-6
