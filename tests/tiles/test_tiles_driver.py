@@ -103,10 +103,15 @@ def test_not_enough_disk_is_found_before_the_run(torus_file, tmp_path, monkeypat
     assert os.listdir(tmp_path) == []
 
 
-def test_budget_too_small_for_a_tile(torus_file, tmp_path):
-    with pytest.raises(HeatcurvError, match="more than the budget .* leaves for one worker; pass a smaller"):
+def test_budget_too_small_for_a_tile(torus_file, tmp_path, monkeypatch):
+    with pytest.raises(HeatcurvError, match=r"a memory budget of 734 MB is too small for a tiled run"):
         compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, max_memory="700M")
-    assert not (tmp_path / "out.ply").exists()
+    from heatcurv.tiles import plan
+
+    monkeypatch.setattr(plan, "BYTES_PER_POINT", 10**7)  # 12 GB for a tile of 1200 points
+    with pytest.raises(HeatcurvError, match="more than the budget .* leaves for one worker; pass a smaller"):
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, max_memory="4G")
+    assert os.listdir(tmp_path) == []
 
 
 def test_bad_arguments(torus_file, tmp_path):

@@ -57,6 +57,7 @@ from .medians import apply_cloud_flags
 from .output import DEFAULT_FIELDS, RECORD, TILED_FIELDS, TILED_WRITE, create_results, store_tile, write_output
 from .plan import (
     BYTES_PER_POINT,
+    WORKER_OVERHEAD,
     CloudStats,
     Tiling,
     check_disk,
@@ -307,6 +308,12 @@ def compute_file(
     if isinstance(scheduler, str) and scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
         raise HeatcurvError(f"unknown scheduler {scheduler!r}; choose {', '.join(SCHEDULERS)} or tcp://host:port")
     budget = parse_size(max_memory) if max_memory is not None else default_budget()
+    if budget - DRIVER_MEMORY < WORKER_OVERHEAD:  # not even an empty worker fits: say so before reading anything
+        raise HeatcurvError(
+            f"a memory budget of {size_text(budget)} is too small for a tiled run: the driver keeps "
+            f"{size_text(DRIVER_MEMORY)} and a worker needs {size_text(WORKER_OVERHEAD)} before its tile; "
+            "raise --max-memory"
+        )
     source = open_source(src)
     threads = options.pop("workers", -1)
     est = estimator_options(method, viewpoint, options, source.kind)
