@@ -64,25 +64,26 @@ class CloudFrame:
 
 
 def frame_of(prepared) -> CloudFrame:
-    """The frame of a cloud held in memory, shape-for-shape what :class:`FrameStats` accumulates.
+    """The frame of a cloud held in memory: moments of its *distinct* points.
+
+    Exact duplicates count once (adding duplicates of some points changes no
+    result: the contract of :func:`heatcurv.estimate`), so a tiled run takes
+    its moments over each tile's distinct points (:meth:`FrameStats.add_distinct`).
 
     Parameters
     ----------
     prepared : heatcurv.validation.PreparedPoints
-        The whole cloud, centred (duplicates count once per row, as they do in
-        a streaming pass).
+        The whole cloud, centred and merged.
 
     Returns
     -------
     CloudFrame
     """
     pts = prepared.points
-    rows = np.bincount(prepared.inverse, minlength=pts.shape[0]).astype(np.float64)
-    n = float(prepared.n_input)
-    centroid = (rows @ pts) / n
+    centroid = pts.mean(axis=0)
     d = pts - centroid
-    rms = float(np.sqrt(rows @ np.einsum("ij,ij->i", d, d) / n))
-    return CloudFrame(np.asarray(prepared.offset, dtype=np.float64), float(prepared.unit), int(prepared.n_input),
+    rms = float(np.sqrt(np.mean(np.einsum("ij,ij->i", d, d))))
+    return CloudFrame(np.asarray(prepared.offset, dtype=np.float64), float(prepared.unit), int(pts.shape[0]),
                       centroid, rms)
 
 
@@ -129,6 +130,20 @@ class FrameStats:
         self.high = np.maximum(self.high, chunk.max(axis=0))
         self.total += shifted.sum(axis=0)
         self.total_sq += float(np.einsum("ij,ij->", shifted, shifted))
+
+    def add_distinct(self, chunk, frame: CloudFrame) -> None:
+        """Add a part's rows counting exact duplicates once, as :func:`frame_of` does in memory.
+
+        Every duplicate of a row must be in the same chunk (a tile's core holds
+        all the points at its positions). Duplicates are found in the stages'
+        coordinates ``frame.to_stage(chunk)``, as :func:`heatcurv.validation.prepare_points`
+        finds them.
+        """
+        chunk = np.asarray(chunk, dtype=np.float64)
+        if chunk.shape[0] == 0:
+            return
+        _, first = np.unique(frame.to_stage(chunk), axis=0, return_index=True)
+        self.add(chunk[np.sort(first)])
 
     def frame(self) -> CloudFrame:
         """The frame of every row added so far."""

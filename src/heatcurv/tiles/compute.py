@@ -61,7 +61,9 @@ def cloud_frame(stats) -> CloudFrame:
     low, high = np.asarray(stats.low, dtype=float), np.asarray(stats.high, dtype=float)
     offset, unit = bounding_box_frame(low, high)
     centroid = (np.asarray(stats.centroid, dtype=float) - offset) / unit
-    return CloudFrame(offset, unit, int(stats.finite), centroid, float(stats.rms_radius) / unit)
+    # distinct points, as in memory (0: statistics of a plan made before they were counted)
+    n = int(getattr(stats, "distinct", 0) or stats.finite)
+    return CloudFrame(offset, unit, n, centroid, float(stats.rms_radius) / unit)
 
 
 def _estimate_options(options: dict) -> dict:

@@ -63,6 +63,7 @@ from .plan import (
     check_disk,
     default_budget,
     default_tile_size,
+    distinct_frame,
     make_tiling,
     options_hash,
     parse_size,
@@ -83,7 +84,7 @@ RETRIES = 2
 #: Memory the driver keeps for itself out of the budget (chunks of the streaming passes), bytes.
 DRIVER_MEMORY = 600 * 2**20
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 2
+PLAN_VERSION = 3
 
 
 @dataclass
@@ -365,6 +366,7 @@ def compute_file(
             bar.stage("scattering")
             tic = time.perf_counter()
             scatter(source, tiling, work)
+            stats = distinct_frame(work, tiling, stats)  # the keys' frame counts duplicates once, as in memory
             timings["scatter"] = time.perf_counter() - tic
             plan = {"identity": identity, "tiling": tiling.to_json(), "stats": stats.__dict__,
                     "tile_size": int(tile_size)}

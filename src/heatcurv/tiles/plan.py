@@ -76,6 +76,10 @@ class CloudStats:
     rms_radius : float
         Root-mean-square distance of the finite points from ``centroid`` (with
         the centroid: the sampling keys' frame, :class:`heatcurv.choices.CloudFrame`).
+    distinct : int
+        Distinct points (0 until :func:`distinct_frame` has counted them; then
+        ``centroid`` and ``rms_radius`` are those of the distinct points, as in
+        memory).
     """
 
     count: int
@@ -84,6 +88,7 @@ class CloudStats:
     high: tuple
     centroid: tuple
     rms_radius: float = float("nan")
+    distinct: int = 0
 
     @property
     def diagonal(self) -> float:
@@ -326,6 +331,31 @@ def read_rows(directory, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]
     points = np.fromfile(os.path.join(directory, "points.f8"), dtype=np.float64, count=3 * k, offset=24 * start)
     rows = np.fromfile(os.path.join(directory, "rows.i8"), dtype=np.int64, count=k, offset=8 * start)
     return points.reshape(k, 3), rows
+
+
+def distinct_frame(directory, tiling, stats: CloudStats) -> CloudStats:
+    """``stats`` with the centroid, rms radius and count of the distinct points, tile by tile from the scratch.
+
+    The sampling keys' frame counts exact duplicates once, as in memory
+    (:func:`heatcurv.choices.frame_of`); duplicates share a position, so they
+    share a tile.
+    """
+    from dataclasses import replace
+
+    from ..choices import CloudFrame, FrameStats
+    from ..validation import bounding_box_frame
+
+    offset, unit = bounding_box_frame(np.asarray(stats.low), np.asarray(stats.high))
+    frame = CloudFrame(offset, unit, stats.finite, np.zeros(3), 1.0)
+    moments = FrameStats()
+    offsets = tiling.offsets
+    for tile in range(len(tiling.counts)):
+        points, _ = read_rows(directory, int(offsets[tile]), int(offsets[tile + 1]))
+        moments.add_distinct(points, frame)
+    whole = moments.frame()
+    centroid = whole.centroid * whole.unit + whole.offset
+    return replace(stats, centroid=tuple(centroid.tolist()), rms_radius=whole.rms_radius * whole.unit,
+                   distinct=moments.n)
 
 
 def options_hash(options: dict) -> str:
