@@ -98,7 +98,7 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
 
     from ..errors import HeatcurvWarning
     from ..reliability import MISFIT_FLOOR, RESOLUTION_LIMIT, misfits
-    from .output import RECORD, read_results
+    from .output import read_results, write_records
 
     def blocks():
         for start in range(0, count, chunk):
@@ -123,17 +123,12 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
             "wrap around the surface; every value is marked unreliable. Sample it more densely.",
             HeatcurvWarning, stacklevel=3,
         )
-    results = np.memmap(results_path, dtype=RECORD, mode="r+")
-    try:
-        for start, block, _ in blocks():
-            width = block["fit_width"]
-            for k in np.unique(width).tolist():
-                baselines.setdefault(int(k), MISFIT_FLOOR)  # a width with no counted row: the floor
-            local = block["reliable"] == 1
-            bad = misfits(block["misfit_residual"], width, baselines)
-            reliable = local & ~bad & ~coarse
-            results["reliable"][start:start + len(block)] = reliable.astype(np.uint8)
-        results.flush()
-    finally:
-        del results
+    for start, block, _ in blocks():  # rewritten chunk by chunk: no map of the whole file stays resident
+        width = block["fit_width"]
+        for k in np.unique(width).tolist():
+            baselines.setdefault(int(k), MISFIT_FLOOR)  # a width with no counted row: the floor
+        local = block["reliable"] == 1
+        bad = misfits(block["misfit_residual"], width, baselines)
+        block["reliable"] = (local & ~bad & ~coarse).astype(np.uint8)
+        write_records(results_path, block, np.arange(start, start + len(block)))
     return {"baselines": baselines, "resolution": resolution}
