@@ -528,7 +528,9 @@ def _run(executor, workers: int, fn, specs: dict, on_done, say, what: str, total
             if worst is not None and attempts[worst] > RETRIES:
                 raise HeatcurvError(
                     f"{what} {worst}: a worker process died computing it {attempts[worst]} times (out of memory? "
-                    f"estimated {BYTES_PER_POINT} bytes per point); pass a smaller --tile-size or --max-memory"
+                    f"estimated {BYTES_PER_POINT} bytes per point); pass a smaller --tile-size or --max-memory. "
+                    "From a Python script: workers are spawned, so the script must call compute_file under "
+                    "`if __name__ == '__main__':` (else every worker dies at start)"
                 ) from None
             say(f"a worker process died; restarting the pool for {len(pending)} unfinished {what}(s)")
     return name
