@@ -19,6 +19,9 @@ building blocks (see the module of each). The numerical core:
 ``principal``          the curvature-tensor fit (section 3, eq 3.1)
 ``chordfit``           the default's fit: chord curvatures with tilt and cubic terms
 ``scale``              the default's kernel width: noise estimate, Lepski's rule
+``choices``            what a run decides once for the whole cloud (frame, widths)
+``survey``             the kernel choice measured part by part (a tiled run)
+``reliability``        the flags that compare a point with cloud-wide medians
 ``border``             border points of open surfaces
 ``estimator``          :func:`estimate`: the stages above as a named list
 ``results``            :class:`CurvatureResult`
