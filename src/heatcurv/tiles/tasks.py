@@ -30,12 +30,10 @@ from ..errors import HeatcurvError
 from . import compute
 from .plan import Tiling, read_rows
 
-__all__ = ["run_survey", "run_tile", "tile_points", "certificate", "tile_path", "WIDENINGS", "SURVEY_POINTS"]
+__all__ = ["run_survey", "run_tile", "tile_points", "certificate", "tile_path", "WIDENINGS"]
 
 #: Times a tile may widen its halo before the run fails.
 WIDENINGS = 3
-#: Points of a tile's survey window (the points nearest the tile's middle).
-SURVEY_POINTS = 100_000
 #: Environment variable of the fault-injection hook the tests use: ``fail:T`` raises in tile T,
 #: ``interrupt:T`` raises KeyboardInterrupt there (Ctrl-C in a serial run), ``kill:T:FILE`` ends the
 #: worker process at tile T once (FILE records that it did).
