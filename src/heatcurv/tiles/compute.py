@@ -31,7 +31,7 @@ from ..validation import bounding_box_frame
 
 __all__ = [
     "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame", "describe",
-    "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS", "DEPTH", "HALO_MARGIN",
+    "orients_outward", "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS", "DEPTH", "HALO_MARGIN",
 ]
 
 #: The certificate's dependency radius is DEPTH x what :func:`compute_tile` returns as ``support``;
@@ -178,7 +178,8 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
     out = {name: np.asarray(fields[name])[core] for name in RESULT_FIELDS}
     out["support"] = np.asarray(res.info["reach"])[core]
     out["halo_normals"] = res.normals[~core]
-    out["patch"] = _patches(points, res.spacing, options) if _outward(options) else np.zeros(len(points), np.int64)
+    outward = orients_outward(options)
+    out["patch"] = _patches(points, res.spacing, options) if outward else np.zeros(len(points), np.int64)
     return out
 
 
@@ -225,7 +226,7 @@ def describe(context: dict) -> dict:
     return out
 
 
-def _outward(options: dict) -> bool:
+def orients_outward(options: dict) -> bool:
     """Whether the options orient outward (the one policy that is not decided point by point)."""
     orient = options.get("orient") or "auto"
     return orient == "outward" or (orient == "auto" and options.get("viewpoint") is None)

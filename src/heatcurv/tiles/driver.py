@@ -167,11 +167,6 @@ def estimator_options(method: str, viewpoint, options: dict, source_kind: str) -
     return out
 
 
-def _outward(options: dict) -> bool:
-    orient = options.get("orient") or "auto"
-    return orient == "outward" or (orient == "auto" and options.get("viewpoint") is None)
-
-
 def _write_json(path, data) -> None:
     import json
 
@@ -433,7 +428,7 @@ def compute_file(
         timings["reliability"] = time.perf_counter() - tic
 
         flips, orientation = None, None
-        if _outward(est):
+        if compute.orients_outward(est):
             from .orient import seam_flips
 
             bar.stage("orientation")
