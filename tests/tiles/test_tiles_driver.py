@@ -157,3 +157,17 @@ def test_noisy_cloud_with_duplicates_equals_in_memory(tmp_path):
     assert report.tiles >= 4
     agreement = tiled_agreement(out, memory, rtol=1e-6)
     assert {name: a["share"] for name, a in agreement.items()} == dict.fromkeys(agreement, 1.0)
+
+
+def test_estimator_options_of_a_tiled_run():
+    """heatcurv.tiles.driver.estimator_options: what every tile gets, checked before any pass over the file."""
+    from heatcurv.tiles.driver import estimator_options
+
+    # LAS/LAZ orient up by default, as on the command line; other formats keep "auto" (outward)
+    assert estimator_options("default", None, {}, "las")["orient"] == "up"
+    assert "orient" not in estimator_options("default", None, {}, "npy")
+    assert estimator_options("default", (1, 2, 3), {}, "las")["viewpoint"] == [1.0, 2.0, 3.0]
+    with pytest.raises(HeatcurvError, match="one viewpoint"):
+        estimator_options("default", np.zeros((4, 3)), {}, "las")
+    with pytest.raises(HeatcurvError):
+        estimator_options("default", None, {"alpha": -1.0}, "npy")
