@@ -4,8 +4,9 @@
 
 1. ``stats``, ``tiling``, ``scatter``: three streaming passes over the input
    (:mod:`.plan`): statistics, the tiles, the points in tile order in scratch.
-2. ``survey``: :func:`.tasks.run_survey` on every tile, merged by
-   :func:`.compute.merge_surveys` into the context every tile gets (the halo).
+2. ``survey``: :func:`.tasks.run_survey` on every tile with its survey halo
+   (decided in the plan, which budgets the survey's workers with it), merged
+   by :func:`.compute.merge_surveys` into the context every tile gets (the halo).
 3. ``tiles``: :func:`.tasks.run_tile` on every tile not done yet, at most
    ``2 x slots`` in flight; each finished tile is copied into the
    index-addressed ``results.rec``.
@@ -57,6 +58,7 @@ from .medians import apply_cloud_flags
 from .output import DEFAULT_FIELDS, RECORD, TILED_FIELDS, TILED_WRITE, create_results, store_tile, write_output
 from .plan import (
     BYTES_PER_POINT,
+    DRIVER_MEMORY,
     WORKER_OVERHEAD,
     CloudStats,
     Tiling,
@@ -64,14 +66,15 @@ from .plan import (
     default_budget,
     default_tile_size,
     distinct_frame,
+    fitting_workers,
+    halo_points,
     make_tiling,
     options_hash,
     parse_size,
-    plan_workers,
+    read_rows,
     scan_stats,
     scatter,
     size_text,
-    worker_memory,
 )
 from .progressbar import TileProgress
 from .sources import TILED_READ, open_source
@@ -81,10 +84,8 @@ __all__ = ["compute_file", "TiledReport", "RETRIES", "DRIVER_MEMORY", "estimator
 
 #: Times a tile is resubmitted after its worker process died.
 RETRIES = 2
-#: Memory the driver keeps for itself out of the budget (chunks of the streaming passes), bytes.
-DRIVER_MEMORY = 600 * 2**20
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 3
+PLAN_VERSION = 4
 
 
 @dataclass
@@ -181,31 +182,20 @@ def _identity(src: Path) -> dict:
     return {"path": str(src.resolve()), "size": stat.st_size, "mtime_ns": stat.st_mtime_ns}
 
 
-def _halo_points(tiling: Tiling, stats: CloudStats, halo: float) -> list[int]:
-    """Estimated core + halo points of each tile (uniform density inside each tile's box)."""
-    lo_c, hi_c = np.asarray(stats.low), np.asarray(stats.high)
+def _fitting_workers(tiling, stats, halo, budget: int, requested: int, cpus: int, tile_size: int,
+                     phase: str = "tiles") -> int:
+    """Tiles the budget lets run at once with this halo (one, or one per tile); an error if not even one fits."""
+    return fitting_workers(halo_points(tiling, stats, halo), budget, requested, cpus, tile_size, phase)
+
+
+def _survey_halos(work: Path, tiling: Tiling, stats: CloudStats, options: dict) -> list[float]:
+    """Each tile's survey halo (:func:`.compute.survey_halo` of its core), read tile by tile from the scratch."""
+    offsets = tiling.offsets
     out = []
-    for t, count in enumerate(tiling.counts):
-        low, high = tiling.box(t)
-        low, high = np.maximum(low, lo_c), np.minimum(high, hi_c)
-        side = high - low
-        wide = np.minimum(high + halo, hi_c) - np.maximum(low - halo, lo_c)
-        ratio = np.prod(np.where(side > 0, wide / np.where(side > 0, side, 1), 1.0))
-        out.append(int(count * ratio))
+    for t in range(len(tiling.counts)):
+        core, _ = read_rows(work, int(offsets[t]), int(offsets[t + 1]))
+        out.append(float(compute.survey_halo(core, stats, options)))
     return out
-
-
-def _fitting_workers(tiling, stats, halo: float, budget: int, requested: int, cpus: int, tile_size: int) -> int:
-    """Tiles the budget lets run at once with this halo; an error if not even one fits."""
-    largest = max(_halo_points(tiling, stats, halo if np.isfinite(halo) else 0.0))
-    fit = plan_workers(max(budget - DRIVER_MEMORY, 0), requested, largest, cpus)
-    if fit < 1:
-        raise HeatcurvError(
-            f"a tile of about {largest} points (core and halo) needs about {size_text(worker_memory(largest))}, "
-            f"more than the budget of {size_text(budget)} leaves for one worker; pass a smaller --tile-size "
-            f"(now {tile_size}) or a larger --max-memory"
-        )
-    return fit
 
 
 def _cleanup(work: Path, keep_done: bool) -> str:
@@ -363,8 +353,13 @@ def compute_file(
             scatter(source, tiling, work)
             stats = distinct_frame(work, tiling, stats)  # the keys' frame counts duplicates once, as in memory
             timings["scatter"] = time.perf_counter() - tic
+            # the survey reads each tile with a halo as wide as the widest candidate's ball: decided here,
+            # so that the survey's workers are budgeted with it (plan.fitting_workers)
+            tic = time.perf_counter()
+            survey_halos = _survey_halos(work, tiling, stats, est)
+            timings["survey"] = time.perf_counter() - tic  # the survey's first step, done here
             plan = {"identity": identity, "tiling": tiling.to_json(), "stats": stats.__dict__,
-                    "tile_size": int(tile_size)}
+                    "tile_size": int(tile_size), "survey_halos": survey_halos}
             _write_json(work / "plan.json", plan)
             say(f"tiled {src.name}: {stats.count} points in {len(tiling.counts)} tiles of at most {tile_size} "
                 f"points (budget {size_text(budget)})")
@@ -387,15 +382,18 @@ def compute_file(
         else:
             bar.stage("survey")
             tic = time.perf_counter()
-            specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options}
-                     for t in range(n_tiles)}
+            survey_halos = plan["survey_halos"]
+            survey_workers = max(1, min(n_tiles, _fitting_workers(tiling, stats, survey_halos, budget, requested,
+                                                                  cpus, tile_size, "survey")))
+            specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
+                         "halo": survey_halos[t]} for t in range(n_tiles)}
             surveys = {}
-            _run(executor, workers, run_survey, specs, surveys.__setitem__, say, "survey of tile", n_tiles)
+            _run(executor, survey_workers, run_survey, specs, surveys.__setitem__, say, "survey of tile", n_tiles)
             context = compute.merge_surveys([surveys[t] for t in range(n_tiles)], stats, est)
             with open(f"{context_file}.tmp", "wb") as stream:
                 pickle.dump(context, stream)
             os.replace(f"{context_file}.tmp", context_file)
-            timings["survey"] = time.perf_counter() - tic
+            timings["survey"] += time.perf_counter() - tic
         halo = float(context["halo"]) if isinstance(context, dict) and "halo" in context else float("nan")
         workers = max(1, min(_fitting_workers(tiling, stats, halo, budget, requested, cpus, tile_size), n_tiles))
 

@@ -22,9 +22,17 @@ Memory
 ------
 The estimator needs about :data:`BYTES_PER_POINT` bytes per point (measured,
 see docs/tiles.md) plus a fixed :data:`WORKER_OVERHEAD` per process. The budget
-(``max_memory``) is for the whole run, all workers together; by default
-:data:`BUDGET_FRACTION` of the memory available (``MemAvailable`` of
-``/proc/meminfo``; elsewhere psutil if installed, else the free pages).
+(``max_memory``) is for the whole run, the driver (:data:`DRIVER_MEMORY`) and
+all workers together; by default :data:`BUDGET_FRACTION` of the memory
+available (``MemAvailable`` of ``/proc/meminfo``; elsewhere psutil if
+installed, else the free pages).
+
+A worker holds its tile's core *and halo* points, and the two parallel phases
+read different halos: the survey's is as wide as the widest candidate kernel's
+ball (:func:`heatcurv.tiles.compute.survey_halo`, one per tile, stored in the
+plan), the tiles' is the one the survey's choices need. Each phase runs as
+many tiles at once as the budget holds with *its* halo
+(:func:`halo_points`, :func:`fitting_workers`).
 """
 
 from __future__ import annotations
@@ -45,7 +53,8 @@ from .sources import CHUNK_POINTS, Source
 __all__ = [
     "CloudStats", "Tiling", "BYTES_PER_POINT", "WORKER_OVERHEAD", "BUDGET_FRACTION", "FINE_CELLS",
     "available_memory", "default_budget", "parse_size", "size_text", "scan_stats", "make_tiling", "scatter",
-    "options_hash", "check_disk", "read_rows", "in_memory_bytes",
+    "options_hash", "check_disk", "read_rows", "in_memory_bytes", "DRIVER_MEMORY", "halo_points",
+    "fitting_workers", "worker_memory",
 ]
 
 #: Estimator memory per point of a tile (core + halo), bytes: measured 1.18 kB per point at 1M points of
@@ -53,6 +62,9 @@ __all__ = [
 BYTES_PER_POINT = 1300
 #: Memory of a worker process before it computes anything (interpreter, numpy, numba, heatcurv), bytes.
 WORKER_OVERHEAD = 400 * 2**20
+#: Memory the driver keeps for itself out of the budget (chunks of the streaming passes, a window of
+#: ``results.rec``, the final write), bytes.
+DRIVER_MEMORY = 600 * 2**20
 #: The default budget: this share of the memory available when the run starts.
 BUDGET_FRACTION = 0.6
 #: Cells of the fine histogram grid the tiles are made of.
@@ -384,6 +396,73 @@ def plan_workers(budget: int, requested: int | None, tile_points: int, cpus: int
     want = cpus if requested in (None, -1) else int(requested)
     fit = budget // worker_memory(tile_points)
     return int(max(0, min(want, fit)))
+
+
+def halo_points(tiling: Tiling, stats: CloudStats, halo) -> np.ndarray:
+    """Estimated core + halo points of each tile: its count times the volume its halo box adds (clipped to the cloud).
+
+    Parameters
+    ----------
+    tiling : Tiling
+    stats : CloudStats
+        The cloud's bounding box clips each halo box.
+    halo : float or array_like, shape (T,)
+        Halo width, one for all tiles or one per tile (length units; NaN: none).
+
+    Returns
+    -------
+    ndarray of int64, shape (T,)
+        Points each tile holds with its halo, assuming the density of its core
+        box inside the halo box.
+    """
+    lo_c, hi_c = np.asarray(stats.low, dtype=float), np.asarray(stats.high, dtype=float)
+    halos = np.broadcast_to(np.nan_to_num(np.asarray(halo, dtype=float), nan=0.0), (len(tiling.counts),))
+    out = np.empty(len(tiling.counts), dtype=np.int64)
+    for t, count in enumerate(tiling.counts):
+        low, high = tiling.box(t)
+        low, high = np.maximum(low, lo_c), np.minimum(high, hi_c)
+        side = high - low
+        wide = np.minimum(high + halos[t], hi_c) - np.maximum(low - halos[t], lo_c)
+        ratio = np.prod(np.where(side > 0, wide / np.where(side > 0, side, 1), 1.0))
+        out[t] = int(count * ratio)
+    return out
+
+
+def fitting_workers(points, budget: int, requested: int, cpus: int, tile_size: int, phase: str = "tiles") -> int:
+    """Tiles the budget lets run at once when each holds ``points`` (core + halo); an error if not one fits.
+
+    Parameters
+    ----------
+    points : array_like of int, shape (T,)
+        Core + halo points of each tile in this phase (:func:`halo_points`).
+    budget : int
+        The whole run's budget, bytes; the driver's :data:`DRIVER_MEMORY` is taken off first.
+    requested, cpus : int
+        Tiles asked to run at once (-1 or None: ``cpus``), and the cores.
+    tile_size : int
+        The tile size, for the message.
+    phase : str
+        ``"survey"`` or ``"tiles"``, for the message.
+
+    Returns
+    -------
+    int
+        At least 1: ``min(requested, (budget - DRIVER_MEMORY) // worker_memory(max(points)))``.
+
+    Raises
+    ------
+    HeatcurvError
+        When not even one worker with the largest tile fits.
+    """
+    largest = int(np.max(points)) if len(points) else 0
+    fit = plan_workers(max(budget - DRIVER_MEMORY, 0), requested, largest, cpus)
+    if fit < 1:
+        raise HeatcurvError(
+            f"a tile of about {largest} points (core and halo{', the survey' if phase == 'survey' else ''}) needs "
+            f"about {size_text(worker_memory(largest))}, more than the budget of {size_text(budget)} leaves for one "
+            f"worker; pass a smaller --tile-size (now {tile_size}) or a larger --max-memory"
+        )
+    return fit
 
 
 def default_tile_size(budget: int, workers: int, halo_share: float = 1.0) -> int:

@@ -136,7 +136,8 @@ def _peak_bytes() -> int:
 def run_survey(spec: dict):
     """Survey one tile: fit the candidate kernels at its sample centres (:func:`.compute.survey_tile`).
 
-    The tile's core and a halo as wide as the widest candidate's ball; the
+    The tile's core and a halo as wide as the widest candidate's ball
+    (``spec["halo"]``, the plan's; else :func:`.compute.survey_halo`); the
     certificate checks every centre's reach and widens the halo as
     :func:`run_tile` does.
     """
@@ -146,7 +147,8 @@ def run_survey(spec: dict):
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     offsets = tiling.offsets
     core_points, _ = read_rows(scratch, int(offsets[tile]), int(offsets[tile + 1]))
-    halo = compute.survey_halo(core_points, stats, options)
+    # the driver's (the plan budgets the survey's workers with it); the same function of the same core
+    halo = float(spec["halo"]) if "halo" in spec else compute.survey_halo(core_points, stats, options)
     for widened in range(WIDENINGS + 1):
         points, _, core, low, high = tile_points(scratch, tiling, tile, halo)
         survey = compute.survey_tile(points, core, stats, options)
