@@ -10,7 +10,8 @@ LAZ file in a temporary directory, a chunk at a time, and prints tables:
 4. ``--huge``: 100M points, generated on the fly (about 45 GB of scratch and files).
 
 Peak memory is the resident memory summed over this process and its children
-(workers, Dask nannies), sampled every 0.2 s with psutil. Every run is a fresh
+(workers, Dask nannies), sampled every 0.2 s with psutil; a tiled run's peak is
+also given per phase (the sum, the driver's and the largest worker's). Every run is a fresh
 subprocess, so one run's caches do not help the next.
 
     python benchmarks/tiles.py                # 1M rows of every table
@@ -63,12 +64,17 @@ def generate(path: Path, n: int, seed: int = 0, chunk: int = 2_000_000) -> None:
 
 
 class PeakSampler:
-    """Resident memory of a process and its children, summed, sampled in a thread."""
+    """Resident memory of a process and its children, summed, sampled in a thread.
+
+    ``samples`` keeps ``(time, process's rss, largest child's rss, sum)`` of every sample,
+    so that :func:`phase_peaks` can say which phase made the peak.
+    """
 
     def __init__(self, pid: int, every: float = 0.2):
         import psutil
 
         self.process, self.every, self.peak, self._stop = psutil.Process(pid), every, 0, threading.Event()
+        self.samples = []
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
 
@@ -77,14 +83,16 @@ class PeakSampler:
 
         while not self._stop.is_set():
             try:
-                procs = [self.process] + self.process.children(recursive=True)
-                total = 0
-                for p in procs:
+                own = self.process.memory_info().rss
+                children = []
+                for p in self.process.children(recursive=True):
                     try:
-                        total += p.memory_info().rss
+                        children.append(p.memory_info().rss)
                     except psutil.Error:
                         pass
+                total = own + sum(children)
                 self.peak = max(self.peak, total)
+                self.samples.append((time.time(), own, max(children, default=0), total))
             except psutil.Error:
                 pass
             time.sleep(self.every)
@@ -109,6 +117,7 @@ if __name__ == "__main__":
         out = {"seconds": time.perf_counter() - tic, "points": len(res)}
     else:
         from heatcurv.tiles import compute_file
+        print("START " + repr(time.time()), flush=True)
         report = compute_file(src, dst, progress=False, **arg)
         out = {"seconds": time.perf_counter() - tic, "points": report.points, "tiles": report.tiles,
                "tile_size": report.tile_size, "workers": report.workers, "halo": report.halo,
@@ -138,7 +147,26 @@ def measure(kind: str, src, dst, arg: dict, scratch_dir: Path | None = None) -> 
     result = json.loads(lines[-1][7:])
     result["sampled_peak"] = peak
     result["scratch_peak"] = scratch_peak
+    starts = [float(line.split()[1]) for line in out.splitlines() if line.startswith("START ")]
+    if starts and "timings" in result:
+        result["phase_peaks"] = phase_peaks(sampler.samples, starts[0], result["timings"])
     return result
+
+
+PHASES = ("stats", "tiling", "scatter", "survey", "tiles", "reliability", "orientation", "write")
+
+
+def phase_peaks(samples: list, start: float, timings: dict) -> dict:
+    """Per phase of a tiled run (placed by its timings from ``start``): the peak sum, the driver's, a worker's, GB."""
+    out, at = {}, 0.0
+    for phase in PHASES:
+        end = at + timings.get(phase, 0.0)
+        mine = [s for s in samples if at <= s[0] - start < end]
+        if mine:
+            out[phase] = {"sum": max(s[3] for s in mine) / 1e9, "driver": max(s[1] for s in mine) / 1e9,
+                          "worker": max(s[2] for s in mine) / 1e9}
+        at = end
+    return out
 
 
 def _tree_size(path: Path) -> int:
@@ -218,6 +246,9 @@ def _print_row(what, n, workers, budget, r):
                  f"tiles {t['tiles']:.0f} s, write {t['write']:.0f} s; scratch peak {_gb(r['scratch_peak'])} GB")
     print(f"| {what:10s} | {n:>11,d} | {workers:7s} | {budget:>4s} | {r['seconds']:8.1f} s | {per:6.1f} us/pt | "
           f"peak {_gb(r['sampled_peak'])} GB |{extra}", flush=True)
+    for phase, p in r.get("phase_peaks", {}).items():
+        print(f"    {phase:12s} peak {p['sum']:.2f} GB (driver {p['driver']:.2f}, largest worker {p['worker']:.2f})",
+              flush=True)
 
 
 def _summary(rows):
