@@ -14,6 +14,15 @@ points within its ball, so a tiled run can fit the centres where they lie:
    (:func:`merge_surveys`), which gives :class:`heatcurv.choices.CloudChoices`
    for every tile.
 
+A tiled run surveys in two rounds that make the same fits at exactly the
+centres the decision reads and nowhere else (:func:`key_part`,
+:func:`join_keys`, :func:`fit_centres`, :func:`merge_fits`: the sampling keys
+of every tile over a thin halo first, then each candidate's fits at the
+cloud's centres only, each over the points within its reach), instead of every
+candidate at every tile's own ``n_sub`` centres over a halo as wide as the
+widest candidate's ball (:func:`survey_part`, :func:`merge_surveys`: the same
+choice, bit for bit, at several times the cost).
+
 The fits use unoriented normals: a centre's fits at all widths share its
 normal, and the decision reads only magnitudes and differences at one centre,
 which a flipped normal leaves unchanged (to rounding).
@@ -35,7 +44,10 @@ from .outliers import find_outliers
 from .sampling import geometric_keys, shifted_keys
 from .scale import CentreFits, CentreFitter, Scale, _ladder, decide_scale, level_sizes
 
-__all__ = ["CentreSurvey", "check_tileable", "merge_surveys", "survey_part", "tile_options"]
+__all__ = [
+    "CentreSurvey", "check_tileable", "merge_surveys", "survey_part", "tile_options", "KeySurvey", "CentrePlan",
+    "CentreFitsPart", "key_part", "join_keys", "fit_centres", "merge_fits",
+]
 
 
 def tile_options(options: dict) -> Options:
@@ -206,6 +218,250 @@ def merge_surveys(surveys: list, frame: CloudFrame, **options) -> CloudChoices:
     fits = SurveyedFits(surveys, q)
     choice = decide_scale(
         fits, fits.positions, frame.n_points, base_k=int(opts.neighbours), max_k=tuning.max_k, tau=tuning.tau,
+        clean_ratio=tuning.clean_ratio, fixed_k=None if opts.scale == "auto" else int(opts.scale),
+        workers=opts.workers,
+    )
+    return CloudChoices(frame, choice)
+
+
+# ----------------------------------------------------------------------------------------------------
+# The survey in two rounds: the cloud's sample centres first (keys only), then fits at those centres only
+# ----------------------------------------------------------------------------------------------------
+#
+# :func:`survey_part` fits every candidate at a tile's own ``n_sub`` centres of smallest keys, over the
+# tile and a halo as wide as the widest candidate's ball; the decision reads ``n_sub`` of those
+# ``n_sub x tiles`` centres. The two rounds below make the same fits at exactly the centres read:
+#
+# 1. :func:`key_part`: the sampling key of each of a tile's core points (its ``neighbours`` nearest,
+#    over the core and a halo of one operator ball) and the tile's ``n_sub`` smallest;
+# 2. :func:`join_keys`: the cloud's first ``n_sub`` in key order (as :class:`SurveyedFits` joins them),
+#    and how many of them each candidate is fitted at (:func:`heatcurv.scale.level_sizes`);
+# 3. :func:`fit_centres`: a tile's fits at its centres of the cloud's first ``n_sub``, each over the
+#    points within its widest ball plus two operator balls (the areas of the ball's points and the
+#    outlier test's neighbour medians), never the whole tile;
+# 4. :func:`merge_fits`: the decision (:func:`heatcurv.scale.decide_scale`) on the joined fits.
+#
+# A fit depends on its centre's ball and what the ball's points' own neighbourhoods hold, so it is
+# the same number whichever points lie farther: the fits, and the choice, are those of
+# :func:`survey_part` and :func:`merge_surveys` to the last bit (tests/test_survey_rounds.py).
+
+
+@dataclass(frozen=True)
+class KeySurvey:
+    """A tile's candidate centres from its keys alone (round 1).
+
+    Attributes
+    ----------
+    keys : ndarray, shape (c,)
+        The tile's ``c <= n_sub`` smallest shifted sampling keys of its core points, increasing.
+    positions : ndarray, shape (c, 3)
+        Their coordinates in the cloud's frame (stages' units).
+    balls : ndarray, shape (c,)
+        Their operator ball radii (``neighbours`` nearest), stages' units.
+    largest_ball : float
+        The largest operator ball radius of the tile's core points, stages' units.
+    """
+
+    keys: np.ndarray
+    positions: np.ndarray
+    balls: np.ndarray
+    largest_ball: float
+
+
+def key_part(points, core, frame: CloudFrame, **options) -> tuple[KeySurvey, np.ndarray]:
+    """Round 1 on a tile: the sampling keys of its core points and its candidate centres.
+
+    Parameters
+    ----------
+    points : array_like, shape (m, 3)
+        The tile's core and halo points, input coordinates (the halo must hold
+        each core point's ``neighbours`` nearest: the returned reach).
+    core : array_like of bool, shape (m,)
+    frame : CloudFrame
+        The whole cloud's frame.
+    **options
+        As :func:`heatcurv.estimate` (:func:`tile_options`).
+
+    Returns
+    -------
+    survey : KeySurvey
+    reach : ndarray, shape (k,)
+        The operator ball radius of each core row (``points[core]``, in order),
+        stages' units: the key reads no point farther.
+    """
+    from scipy.spatial import cKDTree
+
+    from .neighbourhood import knn_neighbourhood
+    from .operator import _prepare
+
+    opts = tile_options(options)
+    core = np.asarray(core, dtype=bool)
+    # the operator's own steps (HeatKernelOperator.from_points): the same distinct points, the same balls
+    prepared = _prepare(points, opts, frame)
+    X = prepared.points
+    base = knn_neighbourhood(X, int(opts.neighbours), tree=cKDTree(X), workers=opts.workers)
+    core_rows = np.zeros(X.shape[0], dtype=bool)
+    core_rows[prepared.inverse[core]] = True
+    keys = geometric_keys(X, base, frame)
+    q = min(opts.scale_tuning.n_sub, frame.n_points)
+    rows = _candidate_rows(keys, core_rows, q, opts.scale_tuning.seed)
+    radius = base.radius
+    survey = KeySurvey(shifted_keys(keys[rows], opts.scale_tuning.seed), X[rows], radius[rows],
+                       float(radius[core_rows].max()) if core_rows.any() else 0.0)
+    return survey, radius[prepared.inverse[core]]
+
+
+@dataclass(frozen=True)
+class CentrePlan:
+    """The cloud's sample centres from every tile's :class:`KeySurvey` (round 2's work list).
+
+    Attributes
+    ----------
+    tile, rank : ndarray of int, shape (q,)
+        The tile of each of the cloud's ``q`` centres, in key order, and its
+        place in that tile's :class:`KeySurvey`.
+    positions : ndarray, shape (q, 3)
+        The centres, stages' units.
+    balls : ndarray, shape (q,)
+        Their operator ball radii, stages' units.
+    sizes : list of int
+        Centres each candidate of the ladder is fitted at (the first ones):
+        :func:`heatcurv.scale.level_sizes`.
+    ladder : list of Scale
+    largest_ball : float
+        The largest operator ball of any point of the cloud, stages' units.
+    """
+
+    tile: np.ndarray
+    rank: np.ndarray
+    positions: np.ndarray
+    balls: np.ndarray
+    sizes: list
+    ladder: list
+    largest_ball: float
+
+    def of_tile(self, tile: int) -> np.ndarray:
+        """Places (in the cloud's key order, increasing) of the centres that lie in ``tile``."""
+        return np.flatnonzero(self.tile == tile)
+
+    def widths(self, places: np.ndarray) -> np.ndarray:
+        """The widest candidate (neighbours) each centre at ``places`` is fitted with, shape (len(places),)."""
+        k = np.array([c.k for c in self.ladder])
+        sizes = np.asarray(self.sizes)
+        return np.array([k[sizes > p].max() for p in np.asarray(places).tolist()], dtype=np.int64)
+
+
+def join_keys(surveys: list, frame: CloudFrame, **options) -> CentrePlan:
+    """Round 2's work list: the cloud's first ``n_sub`` centres in key order (as :class:`SurveyedFits`)."""
+    opts = tile_options(options)
+    tuning = opts.scale_tuning
+    keys = np.concatenate([s.keys for s in surveys])
+    tile = np.concatenate([np.full(s.keys.shape[0], i) for i, s in enumerate(surveys)])
+    rank = np.concatenate([np.arange(s.keys.shape[0]) for s in surveys])
+    q = min(tuning.n_sub, frame.n_points, keys.shape[0])
+    order = np.argsort(keys, kind="stable")[:q]
+    ladder = _ladder(int(opts.neighbours), tuning.max_k, frame.n_points)
+    return CentrePlan(
+        tile[order], rank[order], np.concatenate([s.positions for s in surveys])[order],
+        np.concatenate([s.balls for s in surveys])[order], level_sizes(ladder, q), ladder,
+        max((s.largest_ball for s in surveys), default=0.0),
+    )
+
+
+@dataclass(frozen=True)
+class CentreFitsPart:
+    """A tile's fits at its centres of the cloud's first ``q`` (round 2).
+
+    Attributes
+    ----------
+    places : ndarray of int, shape (c,)
+        The centres' places in the cloud's key order, increasing.
+    fits : dict
+        ``{scale label: CentreFits}`` at the first of ``places`` that the
+        candidate is fitted at (those below its level size).
+    reach : ndarray, shape (c,)
+        Each centre's widest fitted ball plus two largest operator balls, stages' units.
+    """
+
+    places: np.ndarray
+    fits: dict
+    reach: np.ndarray
+
+
+def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, **options) -> CentreFitsPart:
+    """Round 2 on a tile: every candidate at the tile's centres that need it (step 3 of the rounds).
+
+    Parameters
+    ----------
+    points : array_like, shape (m, 3)
+        Every point within each centre's reach (its widest ball plus two
+        operator balls), input coordinates; farther points change nothing.
+    frame : CloudFrame
+    plan : CentrePlan
+    places : array_like of int, shape (c,)
+        The tile's centres, places in ``plan`` (increasing).
+    **options
+        As :func:`heatcurv.estimate`.
+
+    Returns
+    -------
+    CentreFitsPart
+    """
+    from scipy.spatial import cKDTree
+
+    opts = tile_options(options)
+    places = np.asarray(places, dtype=np.int64)
+    op = HeatKernelOperator.from_points(points, opts, frame=frame)
+    X, base = op.points, op.neighbourhood
+    dist, rows = cKDTree(X).query(plan.positions[places])
+    if places.size and dist.max() != 0.0:
+        raise HeatcurvError("a survey centre is missing from its tile's points (the scratch files changed?)")
+    outliers = find_outliers(X, base)
+    normals, _ = pca_normals(X, base, taper=opts.taper)
+    fit_areas = np.where(outliers.mask, 0.0, np.maximum(op.areas, 0.0))
+    fitter = CentreFitter(X, op.tree, normals[rows], fit_areas, rows, alpha=opts.alpha, workers=opts.workers)
+    base_k = int(opts.neighbours)
+    fits = {Scale(base_k, False).label: fitter(Scale(base_k, False), places.shape[0])}
+    widest = np.zeros(places.shape[0])
+    for scale, size in zip(plan.ladder, plan.sizes):
+        count = int(np.searchsorted(places, size))  # this tile's centres among the cloud's first `size`
+        fits[scale.label] = fitter(scale, count)
+        widest[:count] = np.maximum(widest[:count], fits[scale.label].h[:count] * opts.alpha)
+    return CentreFitsPart(places, fits, widest + 2.0 * plan.largest_ball)
+
+
+class JoinedFits:
+    """The fits of every tile's :class:`CentreFitsPart`, in the cloud's key order (``fits(scale, size)``)."""
+
+    def __init__(self, parts: list, plan: CentrePlan):
+        self.parts, self.plan = parts, plan
+        self.positions = plan.positions
+
+    def __call__(self, scale: Scale, size: int) -> CentreFits:
+        out = {f: np.empty(size) for f in ("mean", "factor", "sigma", "h")}
+        filled = np.zeros(size, dtype=bool)
+        for part in self.parts:
+            fits = part.fits.get(scale.label)
+            if fits is None:
+                continue
+            places = part.places[: fits.mean.shape[0]]
+            mine = places < size
+            for f in out:
+                out[f][places[mine]] = getattr(fits, f)[mine]
+            filled[places[mine]] = True
+        if not filled.all():
+            missing = int((~filled).sum())
+            raise HeatcurvError(f"no tile fitted {scale.label} at {missing} of the centres the choice needs")
+        return CentreFits(**out)
+
+
+def merge_fits(parts: list, plan: CentrePlan, frame: CloudFrame, **options) -> CloudChoices:
+    """The whole cloud's choices from round 2's fits (what :func:`merge_surveys` gives from one-round surveys)."""
+    opts = tile_options(options)
+    tuning = opts.scale_tuning
+    fits = JoinedFits(parts, plan)
+    choice = decide_scale(
+        fits, plan.positions, frame.n_points, base_k=int(opts.neighbours), max_k=tuning.max_k, tau=tuning.tau,
         clean_ratio=tuning.clean_ratio, fixed_k=None if opts.scale == "auto" else int(opts.scale),
         workers=opts.workers,
     )

@@ -83,10 +83,12 @@ def test_the_plan_holds_each_tiles_survey_halo_and_the_survey_runs_within_it(tor
         core, _ = read_rows(report.scratch, int(tiling.offsets[t]), int(tiling.offsets[t + 1]))
         expected.append(compute.survey_halo(core, stats, report.parameters["options"]))
     assert saved["survey_halos"] == expected
-    # the survey got those halos, and they are wider than the tiles' (the widest candidate against the chosen)
-    survey = [p for p in phases if p[0] == "run_survey"][0]
-    assert [survey[2][t] for t in range(len(expected))] == expected
+    # they are wider than the tiles' (the widest candidate against the chosen) and the keys' (one operator ball),
+    # which the survey's first round got
     assert min(expected) > report.halo
+    keys = [p for p in phases if p[0] == "run_keys"][0]
+    assert [keys[2][t] for t in range(len(expected))] == saved["key_halos"]
+    assert max(h / s for h, s in zip(saved["key_halos"], expected)) < 0.5
     # the same run with a model whose survey tiles no longer fit two at once runs the survey one at a time
     points = halo_points(tiling, stats, expected)
     tiles_points = halo_points(tiling, stats, report.halo)
@@ -98,7 +100,7 @@ def test_the_plan_holds_each_tiles_survey_halo_and_the_survey_runs_within_it(tor
     phases.clear()
     again = driver.compute_file(torus_file[0], tmp_path / "again.ply", tile_size=1200, tile_workers=2,
                                 scheduler="threads", max_memory=budget)
-    assert [(name, workers) for name, workers, _ in phases] == [("run_survey", 1), ("run_tile", 2)]
+    assert [(name, workers) for name, workers, _ in phases] == [("run_keys", 1), ("run_centres", 1), ("run_tile", 2)]
     assert again.workers == 2
     first, second = read_fields(out), read_fields(tmp_path / "again.ply")  # the budget changes no value
     assert first.keys() == second.keys()

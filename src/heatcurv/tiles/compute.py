@@ -25,12 +25,13 @@ import numpy as np
 from ..choices import CloudFrame
 from ..estimator import estimate
 from ..reliability import ReliabilityInputs, cloud_flags
+from ..survey import fit_centres, join_keys, key_part, merge_fits, survey_part, tile_options
 from ..survey import merge_surveys as merge_centre_surveys
-from ..survey import survey_part, tile_options
 from ..validation import bounding_box_frame
 
 __all__ = [
     "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame", "describe",
+    "key_halo", "key_tile", "plan_centres", "centre_reach", "fit_tile_centres", "merge_rounds",
     "orients_outward", "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS", "DEPTH", "HALO_MARGIN",
 ]
 
@@ -71,24 +72,97 @@ def _estimate_options(options: dict) -> dict:
     return {k: v for k, v in options.items() if k not in ("viewpoint", "orient", "progress")}
 
 
-def survey_halo(core_points: np.ndarray, stats, options: dict) -> float:
+def _core_ball(core_points: np.ndarray, options: dict) -> float:
+    """The 90th percentile of the operator ball radius (``neighbours`` nearest) on a sample of a tile's core."""
+    from scipy.spatial import cKDTree
+
+    k0 = int(tile_options(_estimate_options(options)).neighbours)
+    sample = core_points[:: max(1, len(core_points) // 2000)]
+    radius = cKDTree(core_points).query(sample, min(k0 + 1, len(core_points)))[0][:, -1]
+    return float(np.quantile(radius, 0.9))
+
+
+def survey_halo(core_points: np.ndarray, stats, options: dict, r0: float | None = None) -> float:
     """A first halo for a tile's survey: the widest candidate's ball, from the core's own density.
 
     The widest candidate holds ``k`` points, so its ball's radius is about
     ``sqrt(k / k_0)`` times the narrowest's (``k_0`` neighbours, measured on a
-    sample of the core); the certificate widens it where that is not enough.
+    sample of the core: ``r0``, :func:`_core_ball` unless given); the
+    certificate widens it where that is not enough.
     """
-    from scipy.spatial import cKDTree
-
     from ..scale import _ladder
 
     opts = tile_options(_estimate_options(options))
     k0 = int(opts.neighbours)
     widest = _ladder(k0, opts.scale_tuning.max_k, int(stats.finite))[-1].k
-    sample = core_points[:: max(1, len(core_points) // 2000)]
-    radius = cKDTree(core_points).query(sample, min(k0 + 1, len(core_points)))[0][:, -1]
-    r0 = float(np.quantile(radius, 0.9))
+    r0 = _core_ball(core_points, options) if r0 is None else r0
     return r0 * (np.sqrt(widest / k0) + 1.0) * HALO_MARGIN
+
+
+#: The keys' first halo, in operator balls of the core (:func:`key_halo`).
+KEY_HALO = 1.5
+
+
+def key_halo(core_points: np.ndarray, options: dict, r0: float | None = None) -> float:
+    """A first halo for a tile's keys (round 1): :data:`KEY_HALO` operator balls, x :data:`HALO_MARGIN`."""
+    r0 = _core_ball(core_points, options) if r0 is None else r0
+    return KEY_HALO * r0 * HALO_MARGIN
+
+
+def key_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
+    """Round 1 of the survey on a tile (:func:`heatcurv.survey.key_part`).
+
+    Returns
+    -------
+    survey : heatcurv.survey.KeySurvey
+    reach : ndarray, shape (c,)
+        Each core row's operator ball radius, input units (the certificate's).
+    """
+    frame = cloud_frame(stats)
+    survey, reach = key_part(points, core, frame, **_estimate_options(options))
+    return survey, reach * frame.unit
+
+
+def plan_centres(surveys: list, stats, options: dict):
+    """The cloud's sample centres from every tile's keys (:func:`heatcurv.survey.join_keys`)."""
+    return join_keys(surveys, cloud_frame(stats), **_estimate_options(options))
+
+
+def centre_reach(plan, places: np.ndarray, stats, options: dict) -> np.ndarray:
+    """A first guess of how far each centre's fits read, input units, shape (len(places),).
+
+    The widest candidate it is fitted with holds ``k`` points: its ball is
+    about ``sqrt(k / k_0)`` times the centre's operator ball; plus two of the
+    cloud's largest operator balls, x :data:`HALO_MARGIN`. Round 2's
+    certificate widens it where that is not enough.
+    """
+    frame = cloud_frame(stats)
+    k0 = int(tile_options(_estimate_options(options)).neighbours)
+    ball = plan.balls[places] * np.sqrt(plan.widths(places) / k0)
+    return (ball + 2.0 * plan.largest_ball) * HALO_MARGIN * frame.unit
+
+
+def fit_tile_centres(points: np.ndarray, stats, options: dict, plan, places: np.ndarray):
+    """Round 2 of the survey on a tile (:func:`heatcurv.survey.fit_centres`); its ``reach`` in input units."""
+    frame = cloud_frame(stats)
+    part = fit_centres(points, frame, plan, places, **_estimate_options(options))
+    return part, part.reach * frame.unit, plan.positions[places] * frame.unit + frame.offset
+
+
+def merge_rounds(parts: list, plan, stats, options: dict) -> dict:
+    """:func:`merge_surveys` for the survey in two rounds: the choices, and a first halo for the tiles."""
+    frame = cloud_frame(stats)
+    opts = tile_options(_estimate_options(options))
+    choices = merge_fits(parts, plan, frame, **_estimate_options(options))
+    scale = choices.scale
+    widest = int(scale.scale.k if scale.k_centre is None else scale.k_centre.max())
+
+    def ball(k: int) -> float:
+        h = [fits.h for part in parts for label, fits in part.fits.items() if label.endswith(f"-{k}")]
+        return opts.alpha * float(max((x.max() for x in h if x.size), default=0.0)) * frame.unit
+
+    chosen, operator = ball(widest), ball(int(opts.neighbours))
+    return {"choices": choices, "halo": (2.0 * chosen + operator) * HALO_MARGIN, "support": chosen}
 
 
 def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):

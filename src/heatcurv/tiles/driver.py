@@ -4,9 +4,13 @@
 
 1. ``stats``, ``tiling``, ``scatter``: three streaming passes over the input
    (:mod:`.plan`): statistics, the tiles, the points in tile order in scratch.
-2. ``survey``: :func:`.tasks.run_survey` on every tile with its survey halo
-   (decided in the plan, which budgets the survey's workers with it), merged
-   by :func:`.compute.merge_surveys` into the context every tile gets (the halo).
+2. ``survey``, two rounds (:mod:`heatcurv.survey`): :func:`.tasks.run_keys`
+   on every tile (its core's sampling keys over a thin halo), joined into the
+   cloud's sample centres; :func:`.tasks.run_centres` on the tiles holding
+   some (the candidates' fits at those centres only, over the points within
+   their reach); merged by :func:`.compute.merge_rounds` into the context every
+   tile gets (the halo). The survey's halo (decided in the plan, which budgets
+   the survey's workers with it) bounds both rounds.
 3. ``tiles``: :func:`.tasks.run_tile` on every tile not done yet, at most
    ``2 x slots`` in flight; each finished tile is copied into the
    index-addressed ``results.rec``.
@@ -78,14 +82,14 @@ from .plan import (
 )
 from .progressbar import TileProgress
 from .sources import TILED_READ, open_source
-from .tasks import load_plan, run_survey, run_tile, tile_path
+from .tasks import load_plan, run_centres, run_keys, run_tile, tile_path
 
 __all__ = ["compute_file", "TiledReport", "RETRIES", "DRIVER_MEMORY", "estimator_options"]
 
 #: Times a tile is resubmitted after its worker process died.
 RETRIES = 2
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 4
+PLAN_VERSION = 5
 
 
 @dataclass
@@ -188,14 +192,17 @@ def _fitting_workers(tiling, stats, halo, budget: int, requested: int, cpus: int
     return fitting_workers(halo_points(tiling, stats, halo), budget, requested, cpus, tile_size, phase)
 
 
-def _survey_halos(work: Path, tiling: Tiling, stats: CloudStats, options: dict) -> list[float]:
-    """Each tile's survey halo (:func:`.compute.survey_halo` of its core), read tile by tile from the scratch."""
+def _survey_halos(work: Path, tiling: Tiling, stats: CloudStats, options: dict) -> tuple[list, list]:
+    """Each tile's survey halo and keys' halo (:func:`.compute.survey_halo`, :func:`.compute.key_halo` of its
+    core), read tile by tile from the scratch."""
     offsets = tiling.offsets
-    out = []
+    survey, keys = [], []
     for t in range(len(tiling.counts)):
         core, _ = read_rows(work, int(offsets[t]), int(offsets[t + 1]))
-        out.append(float(compute.survey_halo(core, stats, options)))
-    return out
+        r0 = compute._core_ball(core, options)
+        survey.append(float(compute.survey_halo(core, stats, options, r0)))
+        keys.append(float(compute.key_halo(core, options, r0)))
+    return survey, keys
 
 
 def _cleanup(work: Path, keep_done: bool) -> str:
@@ -356,10 +363,10 @@ def compute_file(
             # the survey reads each tile with a halo as wide as the widest candidate's ball: decided here,
             # so that the survey's workers are budgeted with it (plan.fitting_workers)
             tic = time.perf_counter()
-            survey_halos = _survey_halos(work, tiling, stats, est)
+            survey_halos, key_halos = _survey_halos(work, tiling, stats, est)
             timings["survey"] = time.perf_counter() - tic  # the survey's first step, done here
             plan = {"identity": identity, "tiling": tiling.to_json(), "stats": stats.__dict__,
-                    "tile_size": int(tile_size), "survey_halos": survey_halos}
+                    "tile_size": int(tile_size), "survey_halos": survey_halos, "key_halos": key_halos}
             _write_json(work / "plan.json", plan)
             say(f"tiled {src.name}: {stats.count} points in {len(tiling.counts)} tiles of at most {tile_size} "
                 f"points (budget {size_text(budget)})")
@@ -385,11 +392,19 @@ def compute_file(
             survey_halos = plan["survey_halos"]
             survey_workers = max(1, min(n_tiles, _fitting_workers(tiling, stats, survey_halos, budget, requested,
                                                                   cpus, tile_size, "survey")))
+            # two rounds (heatcurv.survey): every tile's keys over a thin halo, then the candidates' fits at the
+            # cloud's sample centres only, over the points within their reach; the survey's halo bounds both
             specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
-                         "halo": survey_halos[t]} for t in range(n_tiles)}
-            surveys = {}
-            _run(executor, survey_workers, run_survey, specs, surveys.__setitem__, say, "survey of tile", n_tiles)
-            context = compute.merge_surveys([surveys[t] for t in range(n_tiles)], stats, est)
+                         "halo": plan["key_halos"][t]} for t in range(n_tiles)}
+            keys = {}
+            _run(executor, survey_workers, run_keys, specs, keys.__setitem__, say, "keys of tile", n_tiles)
+            centres = compute.plan_centres([keys[t] for t in range(n_tiles)], stats, est)
+            specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
+                         "plan": centres, "places": centres.of_tile(t)} for t in range(n_tiles)}
+            specs = {t: spec for t, spec in specs.items() if spec["places"].size}
+            parts = {}
+            _run(executor, survey_workers, run_centres, specs, parts.__setitem__, say, "survey of tile", n_tiles)
+            context = compute.merge_rounds([parts[t] for t in sorted(parts)], centres, stats, est)
             with open(f"{context_file}.tmp", "wb") as stream:
                 pickle.dump(context, stream)
             os.replace(f"{context_file}.tmp", context_file)

@@ -30,7 +30,7 @@ from ..errors import HeatcurvError
 from . import compute
 from .plan import Tiling, read_rows
 
-__all__ = ["run_survey", "run_tile", "tile_points", "certificate", "tile_path", "WIDENINGS"]
+__all__ = ["run_survey", "run_keys", "run_centres", "run_tile", "tile_points", "certificate", "tile_path", "WIDENINGS"]
 
 #: Times a tile may widen its halo before the run fails.
 WIDENINGS = 3
@@ -162,6 +162,79 @@ def run_survey(spec: dict):
                 f"{halo:.6g}, needed {need:.6g}); pass a larger tile size or report this"
             )
         halo = need * compute.HALO_MARGIN
+
+
+def run_keys(spec: dict):
+    """Round 1 of the survey on one tile: its core's sampling keys and candidate centres (:func:`.compute.key_tile`).
+
+    The tile's core and a halo of about one operator ball (``spec["halo"]``);
+    the certificate checks every core point's ball (its key reads no farther)
+    and widens the halo as :func:`run_tile` does.
+
+    Returns
+    -------
+    heatcurv.survey.KeySurvey
+    """
+    scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
+    plan = load_plan(scratch)
+    tiling = Tiling.from_json(plan["tiling"])
+    cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
+    halo = float(spec["halo"])
+    for widened in range(WIDENINGS + 1):
+        points, _, core, low, high = tile_points(scratch, tiling, tile, halo)
+        survey, reach = compute.key_tile(points, core, stats, options)
+        need = certificate(points[core], reach / compute.DEPTH, tiling.box(tile), (low, high), cloud)
+        if need == 0.0:
+            return survey
+        if widened == WIDENINGS:
+            raise HeatcurvError(
+                f"keys of tile {tile}: the certificate failed after {WIDENINGS} widenings of the halo (last "
+                f"{halo:.6g}, needed {need:.6g}); pass a larger tile size or report this"
+            )
+        halo = need * compute.HALO_MARGIN
+
+
+def run_centres(spec: dict):
+    """Round 2 of the survey on one tile: the candidates' fits at its centres of the cloud's sample.
+
+    Reads the tile with a halo holding every centre's guessed reach
+    (:func:`.compute.centre_reach`), keeps the points within each centre's
+    reach and fits there (:func:`.compute.fit_tile_centres`). The certificate:
+    each centre's measured reach (its widest ball plus two operator balls)
+    within its guess (the tile reads the largest guess around its box, so
+    every guessed ball lies inside), and more points kept than the widest
+    candidate holds; else the guess is widened, at most :data:`WIDENINGS` times.
+
+    Returns
+    -------
+    heatcurv.survey.CentreFitsPart
+    """
+    from scipy.spatial import cKDTree
+
+    scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
+    centres_plan, places = spec["plan"], np.asarray(spec["places"], dtype=np.int64)
+    tiling = Tiling.from_json(load_plan(scratch)["tiling"])
+    frame = compute.cloud_frame(stats)
+    centres = centres_plan.positions[places] * frame.unit + frame.offset
+    guess = compute.centre_reach(centres_plan, places, stats, options)
+    widest = int(centres_plan.widths(places).max())
+    for widened in range(WIDENINGS + 1):
+        # the centres are core points and the halo the largest guess: every guessed ball lies in the box read
+        points, _, _, _, _ = tile_points(scratch, tiling, tile, float(guess.max()))
+        near = cKDTree(points).query_ball_point(centres, guess)
+        keep = np.unique(np.concatenate([np.asarray(i, dtype=np.int64) for i in near]))
+        if keep.size > widest:
+            part, reach, _ = compute.fit_tile_centres(points[keep], stats, options, centres_plan, places)
+            if np.all(reach <= guess):
+                return part
+            guess = np.maximum(guess, reach * compute.HALO_MARGIN)
+        else:  # fewer points than the widest kernel holds: a fit would take them all
+            guess = guess * 2.0
+        if widened == WIDENINGS:
+            raise HeatcurvError(
+                f"survey of tile {tile}: the centres' certificate failed after {WIDENINGS} widenings (widest reach "
+                f"{float(guess.max()):.6g}); pass a larger tile size or report this"
+            )
 
 
 def run_tile(spec: dict) -> dict:

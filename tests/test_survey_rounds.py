@@ -1,0 +1,99 @@
+"""The survey in two rounds (keys, then fits at the cloud's centres only) equals the one-round survey bit for bit.
+
+heatcurv.survey's rounds fit each candidate only at the cloud's sample centres, each over the points
+within its reach; :func:`heatcurv.survey.survey_part` fits every tile's own candidates over the
+tile and a wide halo. The fits the decision reads, and so the choice, must be the same numbers.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+import heatcurv
+from heatcurv.choices import FrameStats
+from heatcurv.survey import (
+    JoinedFits,
+    SurveyedFits,
+    fit_centres,
+    join_keys,
+    key_part,
+    merge_fits,
+    merge_surveys,
+    survey_part,
+)
+
+
+def _cloud(n, noise, seed=3):
+    sample = heatcurv.surfaces.Torus(0.6, 1.4).sample(n, "random", seed=seed)
+    rng = np.random.default_rng(seed)
+    diagonal = np.linalg.norm(np.ptp(sample.points, axis=0))
+    return sample.points + rng.normal(scale=noise * diagonal, size=sample.points.shape) + [5e5, 4e6, 100.0]
+
+
+def _tiles(points, halo, parts=3):
+    """Slabs across x of equal counts, each with every point within ``halo`` of its box."""
+    cuts = np.quantile(points[:, 0], np.linspace(0, 1, parts + 1)[1:-1])
+    label = np.searchsorted(cuts, points[:, 0], side="right")
+    out = []
+    for t in range(parts):
+        core = label == t
+        low, high = points[core].min(axis=0) - halo, points[core].max(axis=0) + halo
+        rows = np.flatnonzero(np.all((points >= low) & (points <= high), axis=1))
+        out.append((rows, core[rows]))
+    return out
+
+
+def _frame(points):
+    stats = FrameStats()
+    stats.add(points)
+    return stats.frame()
+
+
+@pytest.mark.parametrize("noise", [0.0012, 0.0])
+def test_two_rounds_fit_the_same_numbers_and_choose_the_same_widths(noise):
+    points = _cloud(6000, noise)
+    frame = _frame(points)
+    tiles = _tiles(points, 2.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        one = [survey_part(points[rows], core, frame) for rows, core in tiles]
+        old = merge_surveys(one, frame)
+        keys = []
+        for rows, core in tiles:
+            survey, reach = key_part(points[rows], core, frame)
+            keys.append(survey)
+            assert reach.shape == (int(core.sum()),) and np.all(reach > 0)
+        plan = join_keys(keys, frame)
+        parts, kept = [], []
+        for t, (rows, _) in enumerate(tiles):
+            places = plan.of_tile(t)
+            whole = fit_centres(points[rows], frame, plan, places)
+            # only the points within each centre's reach: the same fits to the last bit
+            centres = plan.positions[places] * frame.unit + frame.offset
+            near = cKDTree(points[rows]).query_ball_point(centres, whole.reach * frame.unit)
+            keep = np.unique(np.concatenate([np.asarray(i, dtype=np.int64) for i in near]))
+            kept.append(keep.size / rows.size)
+            part = fit_centres(points[rows][keep], frame, plan, places)
+            for label, fits in whole.fits.items():
+                for f in ("mean", "factor", "sigma", "h"):
+                    np.testing.assert_array_equal(getattr(part.fits[label], f), getattr(fits, f), err_msg=label)
+            parts.append(part)
+        new = merge_fits(parts, plan, frame)
+    print("kept", kept)
+    assert min(kept) < 0.9  # a real restriction somewhere
+    # the centres are the one-round survey's, in the same order, and every fit the decision reads is equal
+    joined, surveyed = JoinedFits(parts, plan), SurveyedFits(one, plan.positions.shape[0])
+    np.testing.assert_array_equal(joined.positions, surveyed.positions)
+    levels = [(heatcurv.scale.Scale(60, False), plan.positions.shape[0])] + list(zip(plan.ladder, plan.sizes))
+    for scale, size in levels:
+        a, b = joined(scale, size), surveyed(scale, size)
+        for f in ("mean", "factor", "sigma", "h"):
+            np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f"{scale.label} {f}")
+    assert new.scale.scale == old.scale.scale and new.scale.sigma == old.scale.sigma
+    if old.scale.k_centre is None:
+        assert new.scale.k_centre is None and noise == 0.0  # a clean cloud: one width
+    else:
+        np.testing.assert_array_equal(new.scale.k_centre, old.scale.k_centre)
+        assert old.scale.k_centre.max() > 60  # the noisy cloud chose wide kernels somewhere
