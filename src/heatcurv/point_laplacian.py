@@ -2,45 +2,52 @@
 
 The paper's operator (eq 2.9, ``method="paper"`` of :func:`heatcurv.laplacian`)
 needs per-point areas from the solve ``H A = 1`` (section 2.2), which is
-unstable on irregular samples. This module builds the heat-kernel operator
-without that solve, in four steps, all over one symmetric ball neighbourhood:
+unstable on irregular samples. This module builds a heat-kernel operator in
+weak form instead: a mass (per-point areas) and a symmetric stiffness, the
+discrete Dirichlet energy ``E(f) = 1/2 sum_ij W_ij (f_i - f_j)^2`` of the
+Gaussian kernel of eq 2.8. Four steps:
 
-1. **Kernel.** One global width: ``R`` is the 80th percentile of the points'
-   distances to their ``neighbours``-th nearest neighbour, the ball radius
-   (sparser parts of a cloud of varying density keep enough neighbours: on a
-   4000 point sphere of density 10:1 the mean eigenvalue error is 3.4 %
-   with it, 4.2 % with the median); the kernel is the
-   Gaussian ``W_ij = exp(-|xi - xj|^2 / h^2)`` (eq 2.8, ``t = h^2/4``) with
-   ``h = width * R``, cut at ``R``. The point itself is excluded: given
-   ``x_i``, the other points of a random sample are independent draws, so
-   the sums over ``j != i`` are the unbiased quadratures.
-2. **Density normalisation** (Coifman and Lafon's ``alpha = 1``):
-   ``W~ = Q^-1 W Q^-1`` with ``Q_ii = sum_j W_ij``, and ``D_ii = sum_j W~_ij``.
-   The Markov matrix ``P = D^-1 W~`` then averages over the surface, not
-   over the sampling density, so ``(I - P)`` approximates ``t Delta`` on
-   any density.
-3. **Calibrated diffusion time.** Instead of the analytic ``t`` (which is
-   off by the point's own missing weight on a lattice: +8 % on the
-   eigenvalues of a Fibonacci sphere at 60 neighbours), each point takes
-   the time its own neighbours give,
-   ``t_i = sum_j P_ij |xi - xj|^2 / 4``, so that ``L`` is exact on
-   ``|x|^2`` in the tangent plane at every point, on any sampling.
-   ``L1 = diag(1/t) (I - P)``.
+1. **Areas.** ``A_i`` is the area of point ``i``'s Voronoi cell among its
+   20 nearest neighbours, projected onto its tangent plane (PCA normal).
+   The cells tile the surface, so the areas are a quadrature of it without
+   the Monte Carlo noise of a density estimate (10 000 random points on the
+   unit sphere: sum -0.04 %). An *open* cell (a border point: a cell vertex
+   farther than the 20th neighbour) is closed by a line ``0.2`` local
+   spacings beyond the point, on the side away from its neighbours'
+   centroid (the spacing: the square root of the neighbours' mean closed
+   cell). Where a border lies is not in the points: a lattice with a row on
+   the border wants 0, cell-centred samples 0.5, random samples about 0.2
+   (measured on the 10 000 point squares of ``benchmarks/laplacian.py``:
+   area sums +0.6 % jittered, -0.3 % random, -0.04 % scanned).
+2. **Kernel.** One global width: ``R`` is the 80th percentile of the points'
+   distances to their ``neighbours``-th nearest neighbour (the ball radius),
+   ``k(d) = exp(-d^2 / h^2)`` (eq 2.8, ``t = h^2/4``) with ``h = width * R``,
+   cut at ``R``; the point itself is excluded. The pair weights are the
+   quadrature of the continuous energy ``1/2 int int k (f(x) - f(y))^2``:
+   ``w_ij = A_i A_j k(|x_i - x_j|)``.
+3. **Calibration** (a symmetric scaling). ``W_ij = c_i c_j w_ij`` with
+   ``c > 0`` solving ``sum_j W_ij |x_i - x_j|^2 / 4 = A_i`` at every point:
+   ``L = diag(1/A) (diag(W 1) - W)`` is then exact on ``|x - x_i|^2`` at
+   ``x_i`` (``L |x - x_i|^2 = -4``), so the energy of every linear function
+   is exact point by point on any sampling and density. At a **border** the
+   ball is cut: the second moment that matters there is the one *along*
+   the border (a Neumann eigenfunction has no normal derivative), and an
+   isotropic calibration overweights it (the jittered square's eigenvalues
+   +1.05 % against +0.02 %). So a row whose kernel-weighted tangential
+   centroid offset ``|sum_j w_ij P_i d_ij| / (h sum_j w_ij)`` exceeds 0.1
+   (0.56 on a straight border) calibrates ``2 (d . v_i)^2`` instead of
+   ``|d|^2``, fully from 0.3 on (``v_i`` the tangent normal to the offset).
+   ``c`` comes from the fixed-point iteration ``c <- sqrt(c A / (M c))``
+   (about 60 sparse products to 1e-9).
 4. **Second-order correction** (``order=2``). The kernel's symbol is
    ``1 - c2 lam + c4 lam^2 + ...`` (moments of the cut Gaussian), so ``L1``
    underestimates an eigenvalue ``lam`` by about ``(c4/c2) h^2 lam^2``; the
    default returns ``L = L1 + gamma L1^2`` with ``gamma = (c4/c2) h^2``,
    which has the same eigenvectors as ``L1`` and removes that bias.
 
-The areas (the mass) are ``A_i = s t_i D_ii``: that is what makes
-``diag(A) L`` symmetric. ``s`` is one global factor (the eigenvalues do not
-depend on it), chosen so that the areas sum to the surface area that
-:func:`heatcurv.estimate` measures (its per-point areas, curvature- and
-border-corrected density estimates: measured -0.04 % on a random 10 000
-point sphere, +0.26 % on a random torus, +1.6 % on a random square, whose
-border the areas overestimate).
-The stiffness ``S = diag(A) L = s (D - W~) + gamma S1 diag(1/A) S1``
-(``S1`` the first term) is symmetric positive semi-definite, ``L 1 = 0``.
+The stiffness ``S = diag(A) L = S1 + gamma S1 diag(1/A) S1`` with
+``S1 = diag(W 1) - W`` (a graph Laplacian with positive weights) is
+symmetric positive semi-definite, ``L 1 = 0``, and the areas are the mass.
 
 Sign convention as in :mod:`heatcurv.laplace_beltrami`: ``L`` is the
 *positive* operator, ``L = -Delta``; on a sphere of radius ``R`` the
@@ -48,8 +55,8 @@ spherical harmonics of degree ``l`` have eigenvalue ``l (l + 1) / R^2`` and
 ``L x = 2 kappa_M n`` (eq 2.10) with outward ``n`` and ``kappa_M = 1/R``.
 
 On an open surface the operator is the Neumann (free-border) Laplacian: the
-density normalisation makes ``P`` average over the part of the ball that
-the surface covers, the discrete analogue of a zero normal derivative.
+energy has no term across the border, the weak form of a zero normal
+derivative.
 
 :class:`PointCloudLaplacian` holds the operator for repeated use: its
 eigenpairs (shift-invert Lanczos on the generalised problem
@@ -67,8 +74,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
+from ._kernels import laplacian as lap_kernels
+from ._kernels import segment as segment_kernels
 from .errors import HeatcurvError
-from .estimator import estimate
 from .neighbourhood import ball_neighbourhood
 from .operator import build_operator
 from .validation import prepare_points
@@ -84,6 +92,16 @@ DEFAULT_NEIGHBOURS = 60
 DEFAULT_WIDTH = 0.5
 #: Quantile of the points' neighbour distances that sets the ball radius ``R``.
 RADIUS_QUANTILE = 0.8
+#: Nearest neighbours among which each point's tangent-plane Voronoi cell is cut.
+VORONOI_NEIGHBOURS = 20
+#: An open Voronoi cell (a border point) ends this many local spacings beyond its point.
+BORDER_GAP = 0.2
+#: Kernel-weighted centroid offsets (in kernel widths ``h``) over which a row's calibration turns from
+#: isotropic (``|d|^2``) to along the border (``2 (d . v)^2``); a straight border through the point has 0.56.
+BORDER_RAMP = (0.1, 0.3)
+#: Relative residual at which the symmetric scaling of the kernel weights stops, and its iteration cap.
+SCALING_TOLERANCE = 1e-9
+SCALING_ITERATIONS = 500
 
 
 @functools.cache
@@ -126,38 +144,80 @@ def _check_options(neighbours, width, order) -> tuple[int, float, int]:
     return int(neighbours), width, int(order)
 
 
+def _voronoi_areas(X: np.ndarray, tree: cKDTree, neighbours: int, gap: float, workers: int):
+    """Tangent-plane Voronoi areas ``(n,)``, PCA normals ``(n, 3)`` and open-cell flags ``(n,)`` of distinct ``X``."""
+    n = X.shape[0]
+    k = min(neighbours, n - 1)
+    dist, nbr = tree.query(X, k + 1, workers=workers)
+    nbr = np.ascontiguousarray(nbr[:, 1:])
+    normals, _ = segment_kernels.smallest_eigenvectors(lap_kernels.knn_covariances(X, nbr))
+    area, opened = lap_kernels.voronoi_cells(X, nbr, normals, np.zeros(n))
+    if np.any(opened) and gap > 0:
+        # an open cell (a border point) ends `gap` local spacings beyond its point; the local spacing is
+        # the square root of the mean closed cell among its neighbours
+        closed = np.where(opened, 0.0, area)
+        rows = np.flatnonzero(opened)
+        count = (~opened)[nbr[rows]].sum(axis=1)
+        if np.any(~opened):
+            fallback = float(np.median(area[~opened]))
+        else:  # no closed cell at all (a strip a few points wide): the nearest-neighbour spacing
+            fallback = float(np.median(dist[:, 1])) ** 2
+        local = np.where(count > 0, closed[nbr[rows]].sum(axis=1) / np.maximum(count, 1), fallback)
+        spacing = np.zeros(n)
+        spacing[rows] = gap * np.sqrt(local)
+        area, _ = lap_kernels.voronoi_cells(X, nbr, normals, spacing)
+    if not np.all(area > 0):
+        raise HeatcurvError("a point has a Voronoi cell of zero area: the cloud has (nearly) coincident points")
+    return area, normals, opened
+
+
+def _symmetric_scaling(M: sp.csr_matrix, target: np.ndarray) -> np.ndarray:
+    """``c > 0`` with ``c_i sum_j M_ij c_j = target_i`` (the geometric-mean fixed-point iteration)."""
+    c = np.full(target.size, np.sqrt(target.sum() / M.sum()))
+    for _ in range(SCALING_ITERATIONS):
+        Mc = M @ c
+        residual = float(np.max(np.abs(c * Mc / target - 1.0)))
+        if residual < SCALING_TOLERANCE:
+            return c
+        c = np.sqrt(c * target / Mc)
+    if residual > 1e-6:
+        raise HeatcurvError(
+            f"the calibration of the kernel weights did not converge (relative residual {residual:.1e} after "
+            f"{SCALING_ITERATIONS} iterations): is the cloud a sampled surface?"
+        )
+    return c
+
+
 def _stiffness_and_areas(X: np.ndarray, tree: cKDTree, neighbours: int, width: float, order: int, workers: int):
-    """The symmetric stiffness ``S`` (CSR), areas ``A``, ``h`` and ``R`` of distinct, centred points ``X``."""
+    """Stiffness ``S`` (CSR, symmetric), areas ``A``, ``h``, ``R`` and ``gamma`` of distinct, centred points ``X``."""
     n = X.shape[0]
     kth, _ = tree.query(X, [neighbours], workers=workers)
     R = float(np.quantile(kth, RADIUS_QUANTILE))
     if not R > 0:
         raise HeatcurvError("the neighbour distances are zero: too many coincident points")
     h = width * R
+    area, normals, _ = _voronoi_areas(X, tree, VORONOI_NEIGHBOURS, BORDER_GAP, workers)
     nbhd = ball_neighbourhood(X, R, tree=tree, min_neighbours=8, workers=workers)
-    # pairs of points given their nearest neighbours beyond R (sparse parts) are made symmetric below
-    W = sp.csr_matrix((np.exp(-((nbhd.distances / h) ** 2)), nbhd.indices, nbhd.indptr), shape=(n, n))
-    W = W.maximum(W.T).tocsr()
-    q = np.asarray(W.sum(axis=1)).ravel()
-    if not np.all(q > 0):
+    # pairs of points given their nearest neighbours beyond R (sparse parts) are made symmetric here
+    K = sp.csr_matrix((np.exp(-((nbhd.distances / h) ** 2)), nbhd.indices, nbhd.indptr), shape=(n, n))
+    K = K.maximum(K.T).tocsr()
+    # the quadrature of the kernel energy: w_ij = A_i A_j k(|xi - xj|)
+    W = (sp.diags(area) @ K @ sp.diags(area)).tocsr()
+    W.sort_indices()
+    moment, total = lap_kernels.border_moments(X, W.indptr, W.indices, W.data, normals)
+    if not np.all(total > 0):
         raise HeatcurvError("a point has no neighbour within its kernel: the cloud has isolated points")
-    Wt = W.copy()
-    rows = np.repeat(np.arange(n), np.diff(Wt.indptr))
-    Wt.data = Wt.data / (q[rows] * q[Wt.indices])
-    D = np.asarray(Wt.sum(axis=1)).ravel()
-    d2 = np.einsum("ij,ij->i", X[rows] - X[Wt.indices], X[rows] - X[Wt.indices])
-    t = np.bincount(rows, weights=Wt.data * d2, minlength=n) / (4.0 * D)
-    # the mean of the ratios t_i is Jensen-biased on random samples (+2.3 % at 60 neighbours); the ratio of
-    # the sums over all pairs is not, and equals the per-point value on a lattice: it sets the level of t
-    level = float(np.sum(W.data * d2) / (4.0 * np.sum(W.data)))
-    t *= level * float(np.sum(D)) / float(np.sum(t * D))
-    mass = t * D
-    # the total: heatcurv.estimate's areas (density areas corrected by the fitted curvatures and at
-    # borders): within 0.3 % on a random torus where the bare density estimate is 1 % low
-    total = float(np.sum(estimate(X, workers=workers).area))
-    s = total / float(np.sum(mass))
-    area = s * mass
-    S = (sp.diags(s * D) - s * Wt).tocsr()
+    size = np.linalg.norm(moment, axis=1)
+    offset = size / (total * h)  # a straight border through the point: 1/sqrt(pi) = 0.56
+    lo, hi = BORDER_RAMP
+    beta = np.clip((offset - lo) / (hi - lo), 0.0, 1.0)
+    along = np.cross(normals, moment / np.where(size > 0, size, 1.0)[:, None])
+    beta[size == 0] = 0.0
+    M = sp.csr_matrix((lap_kernels.moment_weights(X, W.indptr, W.indices, W.data, beta, along), W.indices, W.indptr),
+                      shape=(n, n))
+    c = _symmetric_scaling(M, area)
+    W = (sp.diags(c) @ W @ sp.diags(c)).tocsr()
+    S = (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
     _, c2, c4 = kernel_moments(width)
     gamma = c4 / c2 * h * h if order == 2 else 0.0
     return S, area, h, R, gamma
@@ -181,7 +241,8 @@ def point_cloud_laplacian(
         2 (default) adds the second-order symbol correction (denser matrix:
         about 3.5 times the pairs); 1 is the plain calibrated operator.
     workers : int, optional
-        Threads for the k-d tree queries.
+        Threads for the k-d tree queries (the numba kernels use
+        :func:`heatcurv.backend.threads`).
 
     Returns
     -------
@@ -404,10 +465,11 @@ def laplacian(points, method: str = "default", **options):
     """The Laplace-Beltrami matrix and per-point areas of a point cloud.
 
     ``method="default"`` is the accurate operator of
-    :mod:`heatcurv.point_laplacian`: the density-normalised heat kernel with a
-    calibrated diffusion time and a second-order correction, accurate on any
-    sampling (10 000 random points on the unit sphere: eigenvalues of degrees
-    1-5 within 1.2 % on average, Fibonacci 0.1 %; docs/laplacian.md).
+    :mod:`heatcurv.point_laplacian`: the heat kernel's energy over
+    tangent-plane Voronoi areas, calibrated point by point (along the border
+    at a border) and corrected to second order, accurate on any sampling
+    (10 000 random points on the unit sphere: eigenvalues of degrees 1-5
+    within 0.4 % on average, Fibonacci 0.1 %; docs/laplacian.md).
     ``diag(area) @ L`` is symmetric positive semi-definite, ``L @ 1 = 0``.
 
     ``method="paper"`` is the literal operator of eqs 2.4 and 2.9 (eq 2.6
