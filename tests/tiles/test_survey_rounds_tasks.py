@@ -1,0 +1,76 @@
+"""The survey's two rounds as tasks on scratch files: certificates that widen, and the same fits either way."""
+
+import json
+
+import numpy as np
+import pytest
+
+from heatcurv.errors import HeatcurvError
+from heatcurv.tiles import compute, tasks
+from heatcurv.tiles.plan import distinct_frame, make_tiling, read_rows, scan_stats, scatter
+from heatcurv.tiles.sources import open_source
+
+OPTIONS = {"method": "default", "workers": 1}
+
+
+@pytest.fixture(scope="module")
+def scratch(torus_file, tmp_path_factory):
+    """The 6000-point torus tiled into scratch files (the driver's three passes), and each tile's keys."""
+    work = tmp_path_factory.mktemp("rounds")
+    source = open_source(torus_file[0])
+    stats = scan_stats(source)
+    tiling = make_tiling(source, stats, 1200)
+    scatter(source, tiling, work)
+    stats = distinct_frame(work, tiling, stats)
+    (work / "plan.json").write_text(json.dumps({"tiling": tiling.to_json(), "stats": stats.__dict__}))
+    keys = []
+    for t in range(len(tiling.counts)):
+        core, _ = read_rows(work, int(tiling.offsets[t]), int(tiling.offsets[t + 1]))
+        spec = {"scratch": str(work), "tile": t, "stats": stats, "options": OPTIONS,
+                "halo": compute.key_halo(core, OPTIONS)}
+        keys.append(tasks.run_keys(spec))
+    return work, stats, tiling, keys
+
+
+def test_keys_widen_a_halo_too_thin_and_give_the_same_candidates(scratch, monkeypatch):
+    work, stats, tiling, keys = scratch
+    calls = []
+    real = compute.key_tile
+
+    def counted(points, core, *args):
+        calls.append(len(points) - int(core.sum()))
+        return real(points, core, *args)
+
+    monkeypatch.setattr(compute, "key_tile", counted)
+    spec = {"scratch": str(work), "tile": 3, "stats": stats, "options": OPTIONS, "halo": 1e-6}
+    thin = tasks.run_keys(spec)  # a halo of nothing: the certificate widens it
+    assert len(calls) == 2 and calls[0] == 0 and calls[1] > 0
+    np.testing.assert_array_equal(thin.keys, keys[3].keys)
+    np.testing.assert_array_equal(thin.positions, keys[3].positions)
+
+
+def test_centres_widen_a_guess_too_small_and_fit_the_same_numbers(scratch, monkeypatch):
+    work, stats, tiling, keys = scratch
+    plan = compute.plan_centres(keys, stats, OPTIONS)
+    tile = int(np.bincount(plan.tile).argmax())
+    places = plan.of_tile(tile)
+    spec = {"scratch": str(work), "tile": tile, "stats": stats, "options": OPTIONS, "plan": plan, "places": places}
+    right = tasks.run_centres(spec)
+    guesses = []
+    real = compute.centre_reach
+
+    def small(*args):
+        guesses.append(real(*args) * 0.3)
+        return guesses[-1]
+
+    monkeypatch.setattr(compute, "centre_reach", small)
+    widened = tasks.run_centres(spec)
+    assert len(guesses) == 1 and np.any(right.reach * compute.cloud_frame(stats).unit > guesses[0])
+    assert right.fits.keys() == widened.fits.keys()
+    for label, fits in right.fits.items():
+        for f in ("mean", "factor", "sigma", "h"):
+            np.testing.assert_array_equal(getattr(widened.fits[label], f), getattr(fits, f), err_msg=label)
+    # a guess that never grows enough fails with a message, never a wrong fit
+    monkeypatch.setattr(compute, "HALO_MARGIN", 1e-3)
+    with pytest.raises(HeatcurvError, match=f"survey of tile {tile}: the centres' certificate failed"):
+        tasks.run_centres(spec)
