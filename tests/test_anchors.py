@@ -6,6 +6,7 @@ from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import surfaces
+from heatcurv._kernels.anchors import carry_anchor_fits
 from heatcurv.anchors import ANCHORS_PER_BALL, anchor_rows, carry_fits, fit_anchors
 from heatcurv.areas import density_areas
 from heatcurv.neighbourhood import knn_neighbourhood
@@ -124,3 +125,90 @@ def test_noise_that_swamps_the_small_balls_is_oriented_at_the_anchors():
     errors = compare(sample, res)
     assert errors["orientation"] >= 0.995  # measured 100 %
     assert errors["normal_deg"] < 12  # measured 8.7 degrees (noise of 0.2 minor radii)
+
+
+def _graph_tensor(height, x, y, h=1e-4):
+    """Normal and curvature tensor (heatcurv's sign) of the graph ``z = height(x, y)``, by finite differences."""
+    f = lambda dx, dy: height(x + dx, y + dy)  # noqa: E731
+    zx = (f(h, 0) - f(-h, 0)) / (2 * h)
+    zy = (f(0, h) - f(0, -h)) / (2 * h)
+    zxx = (f(h, 0) - 2 * f(0, 0) + f(-h, 0)) / h**2
+    zyy = (f(0, h) - 2 * f(0, 0) + f(0, -h)) / h**2
+    zxy = (f(h, h) - f(h, -h) - f(-h, h) + f(-h, -h)) / (4 * h * h)
+    J = np.array([[1.0, 0.0], [0.0, 1.0], [zx, zy]])  # tangent vectors X_x, X_y as columns
+    W = np.sqrt(1 + zx * zx + zy * zy)
+    Ginv = np.linalg.inv(J.T @ J)
+    # a surface below its tangent plane (Hess z < 0) bends away from the normal +z: positive curvature
+    T = -J @ Ginv @ (np.array([[zxx, zxy], [zxy, zyy]]) / W) @ Ginv @ J.T
+    return np.array([-zx, -zy, 1.0]) / W, T
+
+
+def test_carry_is_exact_on_the_anchor_models_surface():
+    # one anchor with every term of the model (tensor, tilt, cubic, quartic): the surface of its chord
+    # model, kN = P(x, y) / r^2 with the tilt a shear, as a graph differentiated numerically, has the
+    # normal and tensor the carry gives at every offset, near the anchor (no cone of the tilt) and far
+    c = np.array([0.3, -0.08, -0.15, 0.004, -0.002, 0.05, -0.03, 0.02, 0.04, 0.02, -0.01, 0.03, 0.015, -0.02])
+    R = 2.0
+    e1, e2, n = np.eye(3)
+
+    def height(x, y):  # units of R in, units of R out
+        P = (c[0] * x * x + 2 * c[1] * x * y + c[2] * y * y + c[5] * x**3 + c[6] * x * x * y + c[7] * x * y * y
+             + c[8] * y**3 + c[9] * x**4 + c[10] * x**3 * y + c[11] * x * x * y * y + c[12] * x * y**3 + c[13] * y**4)
+        q = x * x + y * y
+        return -P / (1 + np.sqrt(1 - P * P / q)) - 0.5 * (c[3] * x + c[4] * y)
+
+    offsets = [(1e-9, 0.0), (0.05, 0.02), (-0.3, 0.4), (0.5, -0.5), (-0.2, -0.7)]
+    points = np.array([[R * x, R * y, R * height(x, y)] for x, y in offsets])
+    m = len(points)
+    normals, tensor, _, _, total = carry_anchor_fits(
+        points, np.arange(m + 1, dtype=np.int64), np.zeros(m, dtype=np.int64),
+        np.linalg.norm(points, axis=1) * 0.5, np.zeros((1, 3)), n[None], e1[None], e2[None], c[None],
+        np.array([R]), np.ones(1), np.zeros((1, 1)),
+    )
+    assert np.all(total > 0)
+    xx, xy, xz, yy, yz, zz = tensor.T
+    got = np.stack([np.stack([xx, xy, xz], 1), np.stack([xy, yy, yz], 1), np.stack([xz, yz, zz], 1)], 1)
+    for i, (x, y) in enumerate(offsets):
+        nrm, T = _graph_tensor(height, x, y)
+        np.testing.assert_allclose(normals[i] / np.linalg.norm(normals[i]), nrm, atol=1e-9)
+        # finite differences of step 1e-4 R: errors about 1e-8 of the curvatures (about 0.1 / R)
+        np.testing.assert_allclose(got[i], T / R, atol=1e-6)
+
+
+def test_regression_reproduces_cubic_curvature_fields():
+    # anchors on the plane z = 0 whose own tensors vary as cubics of (x, y): the degree-3 regression
+    # gives the cubic's value at every point (rotated into the carried normal's plane), to rounding;
+    # the weighted mean of the carried models does not
+    rng = np.random.default_rng(5)
+    at = np.c_[rng.uniform(-1, 1, (400, 2)), np.zeros(400)]
+    points = np.c_[rng.uniform(-0.5, 0.5, (50, 2)), np.zeros(50)]
+    poly = rng.normal(size=(3, 10))
+
+    def field(p):  # (A, B, D) at positions p, shape (len(p), 3)
+        x, y = p[:, 0], p[:, 1]
+        basis = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y, x**3, x * x * y, x * y * y, y**3], 1)
+        return basis @ poly.T
+
+    R = 0.6
+    coefficients = np.zeros((400, 9))
+    coefficients[:, :3] = field(at) * R  # units of the ball radius
+    e1, e2, n = (np.tile(v, (400, 1)) for v in np.eye(3))
+    dist, idx = cKDTree(at).query(points, 24)
+    indptr = np.arange(0, idx.size + 1, 24, dtype=np.int64)
+    args = (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(400, R), np.ones(400),
+            np.zeros((400, 1)))
+    normals, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
+    target = normals / np.linalg.norm(normals, axis=1)[:, None]
+    expected = field(points)
+    for i in range(len(points)):
+        # the smallest rotation taking +z to the carried normal (the anchors' tensors' rotation)
+        w, cos = np.cross([0.0, 0.0, 1.0], target[i]), target[i, 2]
+        W = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        rot = np.eye(3) + W + W @ W / (1 + cos)
+        A, B, D = expected[i]
+        T = rot @ np.array([[A, B, 0], [B, D, 0], [0, 0, 0]]) @ rot.T
+        xx, xy, xz, yy, yz, zz = tensor[i]
+        np.testing.assert_allclose([xx, xy, xz, yy, yz, zz], T[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]], atol=1e-9)
+    _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
+    assert np.abs(mean_tensor[:, 0] - expected[:, 0]).max() > 1e-3
+
