@@ -4,8 +4,8 @@
   neighbours (and itself), for the tangent plane of its Voronoi cell;
 * :func:`voronoi_cells`: each point's Voronoi cell among its projected nearest
   neighbours, in its tangent plane (half-plane clipping of a square), its
-  area, whether it is open (it reaches the square: a border of the cloud, or
-  a cell the neighbours do not close) and, for the open cells, the clip at a
+  area, whether it is open (a vertex far out: a border of the cloud, or a
+  cell the neighbours do not close) and, for the open cells, the clip at a
   given distance beyond the point, away from the neighbours' centroid;
 * :func:`border_moments`: each row's weighted tangential first moment
   ``sum_j w_ij P_i (x_j - x_i)`` (the centroid offset of a cut ball) and
@@ -86,7 +86,7 @@ def _knn_covariances(row0, row1, points, neighbours, cov):
         cov[i, 2, 2] = c22
 
 
-def voronoi_cells(points, neighbours, normals, gap) -> tuple[np.ndarray, np.ndarray]:
+def voronoi_cells(points, neighbours, normals, gap, reach=1.0) -> tuple[np.ndarray, np.ndarray]:
     """Tangent-plane Voronoi cell areas of each point among its nearest neighbours.
 
     Parameters
@@ -96,11 +96,16 @@ def voronoi_cells(points, neighbours, normals, gap) -> tuple[np.ndarray, np.ndar
         Each point's ``k`` nearest neighbours, itself excluded.
     normals : ndarray, shape (n, 3)
         Unit normals: the cell is computed in the plane through the point
-        normal to it, with the neighbours projected onto it.
+        normal to it, each neighbour placed in the direction of its
+        projection at its distance from the point (a first-order logarithmic
+        map: orthogonal projection would shrink the cells by the curvature,
+        -0.56 % on the area of a 5000 point torus, this -0.13 %).
     gap : ndarray, shape (n,)
         Where positive and the cell is open, the cell is also clipped by the
         line at this distance beyond the point, normal to the direction away
         from the neighbours' projected centroid.
+    reach : float, optional
+        Open-cell threshold in units of ``d_k`` (see ``opened``).
 
     Returns
     -------
@@ -108,16 +113,16 @@ def voronoi_cells(points, neighbours, normals, gap) -> tuple[np.ndarray, np.ndar
         Cell areas. A cell starts as the square of half-side ``2 d_k`` (``d_k``
         the distance to the ``k``-th neighbour) about the point.
     opened : ndarray, shape (n,), bool
-        Cells with a vertex farther than ``d_k`` from the point (before the
-        gap's clip): a border of the cloud (or, rarely, a cell that the ``k``
-        neighbours do not close).
+        Cells with a vertex farther than ``reach * d_k`` from the point
+        (before the gap's clip): a border of the cloud (or, rarely, a cell
+        that the ``k`` neighbours do not close).
     """
     points = as_floats(points)
     neighbours = np.ascontiguousarray(neighbours, dtype=np.int64)
     n = points.shape[0]
     area = np.empty(n)
     opened = np.zeros(n, dtype=np.bool_)
-    parallel_rows(_voronoi_cells, n, points, neighbours, as_floats(normals), as_floats(gap), area, opened)
+    parallel_rows(_voronoi_cells, n, points, neighbours, as_floats(normals), as_floats(gap), float(reach), area, opened)
     return area, opened
 
 
@@ -142,7 +147,7 @@ def _clip(px, py, nv, a, b, c, qx, qy):
 
 
 @njit(**ROW_CORE)
-def _voronoi_cells(row0, row1, points, neighbours, normals, gap, area, opened):
+def _voronoi_cells(row0, row1, points, neighbours, normals, gap, reach, area, opened):
     k = neighbours.shape[1]
     cap = 2 * k + 16
     px = np.empty(cap)
@@ -177,6 +182,12 @@ def _voronoi_cells(row0, row1, points, neighbours, normals, gap, area, opened):
             ux[j] = dx * e1x + dy * e1y + dz * e1z
             uy[j] = dx * e2x + dy * e2y + dz * e2z
             r = np.sqrt(dx * dx + dy * dy + dz * dz)
+            # the projected direction at the chord's length (a first-order logarithmic map): an
+            # orthogonal projection shortens the distances and the cells by the curvature
+            plane = np.sqrt(ux[j] * ux[j] + uy[j] * uy[j])
+            if plane > 0.0:
+                ux[j] *= r / plane
+                uy[j] *= r / plane
             if 2.0 * r > half:
                 half = 2.0 * r
             cx += ux[j]
@@ -191,11 +202,11 @@ def _voronoi_cells(row0, row1, points, neighbours, normals, gap, area, opened):
             for v in range(nv):
                 px[v] = qx[v]
                 py[v] = qy[v]
-        # open: a vertex beyond d_k (= half / 2), which no neighbour left out can cut off
-        reach = 0.25 * half * half
+        # open: a vertex beyond reach * d_k (d_k = half / 2)
+        far = (0.5 * reach * half) ** 2
         is_open = False
         for v in range(nv):
-            if px[v] * px[v] + py[v] * py[v] > reach:
+            if px[v] * px[v] + py[v] * py[v] > far:
                 is_open = True
         norm = np.sqrt(cx * cx + cy * cy)
         if is_open and gap[i] > 0.0 and norm > 0.0:
