@@ -49,15 +49,18 @@ def smallest(stiffness, area, k):
 
 
 def spectrum(method, points, k):
-    """(eigenvalues, seconds) of one method; eigenvalues None where the method fails."""
+    """(eigenvalues, seconds, area sum) of one method; eigenvalues None where the method fails."""
     start = time.perf_counter()
     try:
         if method == "default":
-            values = heatcurv.PointCloudLaplacian(points).eigenpairs(k)[0]
+            lap = heatcurv.PointCloudLaplacian(points)
+            values, total = lap.eigenpairs(k)[0], float(lap.area.sum())
         elif method == "robust":
-            values = smallest(*robust(points), k)
+            S, A = robust(points)
+            values, total = smallest(S, A, k), float(A.sum())
         else:  # the paper's L is not symmetric and its areas may be negative: non-symmetric shift-invert
-            L, _ = heatcurv.laplacian(points, method="paper")
+            L, A = heatcurv.laplacian(points, method="paper")
+            total = float(A.sum())
             sigma = -1e-3 * float(np.median(L.diagonal()))
             # capped: on clouds where H A = 1 failed the operator is so ill-conditioned that ARPACK may not converge
             values = spla.eigs(
@@ -65,8 +68,8 @@ def spectrum(method, points, k):
             )
             values = np.sort(values.real)
     except Exception as exc:  # a failing method is a row of the table, not the end of the run
-        return None, f"{type(exc).__name__}"
-    return values, time.perf_counter() - start
+        return None, f"{type(exc).__name__}", None
+    return values, time.perf_counter() - start, total
 
 
 def clouds(quick):
@@ -78,12 +81,13 @@ def clouds(quick):
     keep = rng.random(len(dense)) < (0.1 + 0.9 * (dense[:, 2] + 1) / 2) * 0.6  # 10:1 from pole to pole
     square = np.sort([np.pi**2 * (i * i + j * j) / 4 for i in range(8) for j in range(8)])[:31].astype(float)
     torus_n = 8000 if quick else 20000
+    torus = surfaces.Torus(0.6, 1.4)
     out = [
         ("sphere random", sphere.sample(n, "random", seed=1).points, ls, "sphere"),
         ("sphere Fibonacci", sphere.sample(n, "fibonacci").points, ls, "sphere"),
         ("sphere jittered", sphere.sample(n, "jittered", seed=1).points, ls, "sphere"),
         ("sphere density 10:1", dense[keep], ls, "sphere"),
-        ("torus random (0.6, 1.4)", surfaces.Torus(0.6, 1.4).sample(torus_n, "random", seed=1).points,
+        ("torus random (0.6, 1.4)", torus.sample(torus_n, "random", seed=1).points,
          torus_reference_eigenvalues(0.6, 1.4, 31, 128 if quick else 256)[1:], "first 30"),
         ("square random (Neumann)", surfaces.Plane(1.0).sample(n, "random", seed=1).points, square[1:], "first 30"),
         ("square jittered (Neumann)", surfaces.Plane(1.0).sample(n, "jittered", seed=1).points, square[1:],
@@ -92,32 +96,34 @@ def clouds(quick):
         ("square scan (Neumann)", np.unique(surfaces.Plane(1.0).sample(n, "scan", seed=1).points, axis=0), square[1:],
          "first 30"),
     ]
-    return out
+    surface_area = {"sphere": 4 * np.pi, "torus": torus.area(), "square": 4.0}
+    return [(name, pts, exact, kind, surface_area[name.split()[0]]) for name, pts, exact, kind in out]
 
 
 def spectra_table(quick, only=None):
     print("## Spectra: mean relative eigenvalue error (%)\n")
-    print("| cloud | n | method | l=1 | l=2 | l=3 | l=4 | l=5 | all | seconds |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for name, pts, exact, kind in clouds(quick):
+    print("| cloud | n | method | l=1 | l=2 | l=3 | l=4 | l=5 | all | area sum % | seconds |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, pts, exact, kind, surface_area in clouds(quick):
         if only and not any(word in name for word in only):
             continue
         for method in ("default", "paper", "robust"):
             if method == "paper" and "density" in name:
                 # its eigensolve did not finish in 5-7 minutes in two runs (H A = 1 failed: areas near 0)
-                print(f"| {name} | {len(pts)} | paper | not run (no result in 7 min) | | | | | | |", flush=True)
+                print(f"| {name} | {len(pts)} | paper | not run (no result in 7 min) | | | | | | | |", flush=True)
                 continue
-            values, secs = spectrum(method, pts, exact.size + 1)
+            values, secs, total = spectrum(method, pts, exact.size + 1)
             if values is None:
-                print(f"| {name} | {len(pts)} | {method} | failed ({secs}) | | | | | | |", flush=True)
+                print(f"| {name} | {len(pts)} | {method} | failed ({secs}) | | | | | | | |", flush=True)
                 continue
             err = np.abs(values[1:] - exact) / exact * 100
             if kind == "sphere":
                 cells = [f"{err[d * d - 1:(d + 1) ** 2 - 1].mean():.2f}" for d in range(1, 6)]
             else:
                 cells = ["", "", "", "", ""]
-            print(f"| {name} | {len(pts)} | {method} | " + " | ".join(cells) + f" | {err.mean():.2f} | {secs:.1f} |",
-                  flush=True)
+            area = f"{(total / surface_area - 1) * 100:+.2f}"
+            print(f"| {name} | {len(pts)} | {method} | " + " | ".join(cells) + f" | {err.mean():.2f} | {area} "
+                  f"| {secs:.1f} |", flush=True)
     print()
 
 
