@@ -6,7 +6,8 @@
   neighbours, in its tangent plane (half-plane clipping of a square), its
   area, whether it is open (a vertex far out: a border of the cloud, or a
   cell the neighbours do not close) and, for the open cells, the clip at a
-  given distance beyond the point, away from the neighbours' centroid;
+  given distance beyond the point, normal to the direction in which the cell
+  opens (the mean of its far vertices);
 * :func:`border_moments`: each row's weighted tangential first moment
   ``sum_j w_ij P_i (x_j - x_i)`` (the centroid offset of a cut ball) and
   weight sum;
@@ -102,8 +103,8 @@ def voronoi_cells(points, neighbours, normals, gap, reach=1.0) -> tuple[np.ndarr
         -0.56 % on the area of a 5000 point torus, this -0.13 %).
     gap : ndarray, shape (n,)
         Where positive and the cell is open, the cell is also clipped by the
-        line at this distance beyond the point, normal to the direction away
-        from the neighbours' projected centroid.
+        line at this distance beyond the point, normal to the direction in
+        which the cell opens (the mean of its vertices beyond ``reach * d_k``).
     reach : float, optional
         Open-cell threshold in units of ``d_k`` (see ``opened``).
 
@@ -172,8 +173,6 @@ def _voronoi_cells(row0, row1, points, neighbours, normals, gap, reach, area, op
         e2y = nz * e1x - nx * e1z
         e2z = nx * e1y - ny * e1x
         half = 0.0
-        cx = 0.0
-        cy = 0.0
         for j in range(k):
             p = neighbours[i, j]
             dx = points[p, 0] - points[i, 0]
@@ -190,8 +189,6 @@ def _voronoi_cells(row0, row1, points, neighbours, normals, gap, reach, area, op
                 uy[j] *= r / plane
             if 2.0 * r > half:
                 half = 2.0 * r
-            cx += ux[j]
-            cy += uy[j]
         px[0], py[0] = -half, -half
         px[1], py[1] = half, -half
         px[2], py[2] = half, half
@@ -203,14 +200,19 @@ def _voronoi_cells(row0, row1, points, neighbours, normals, gap, reach, area, op
                 px[v] = qx[v]
                 py[v] = qy[v]
         # open: a vertex beyond reach * d_k (d_k = half / 2)
+        # the outward direction: the mean of the far vertices (where the cell opens)
         far = (0.5 * reach * half) ** 2
         is_open = False
+        cx = 0.0
+        cy = 0.0
         for v in range(nv):
             if px[v] * px[v] + py[v] * py[v] > far:
                 is_open = True
+                cx += px[v]
+                cy += py[v]
         norm = np.sqrt(cx * cx + cy * cy)
         if is_open and gap[i] > 0.0 and norm > 0.0:
-            nv = _clip(px, py, nv, -cx / norm, -cy / norm, gap[i], qx, qy)
+            nv = _clip(px, py, nv, cx / norm, cy / norm, gap[i], qx, qy)
             for v in range(nv):
                 px[v] = qx[v]
                 py[v] = qy[v]
