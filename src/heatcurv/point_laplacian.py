@@ -211,9 +211,11 @@ def _stiffness_and_areas(X: np.ndarray, tree: cKDTree, neighbours: int, width: f
     # pairs of points given their nearest neighbours beyond R (sparse parts) are made symmetric here
     K = sp.csr_matrix((np.exp(-((nbhd.distances / h) ** 2)), nbhd.indices, nbhd.indptr), shape=(n, n))
     K = K.maximum(K.T).tocsr()
-    # the quadrature of the kernel energy: w_ij = A_i A_j k(|xi - xj|)
-    W = (sp.diags(area) @ K @ sp.diags(area)).tocsr()
+    # the quadrature of the kernel energy: w_ij = A_i A_j k(|xi - xj|) (scaled in place: no sparse products)
+    W = K
     W.sort_indices()
+    rows = np.repeat(np.arange(n, dtype=W.indices.dtype), np.diff(W.indptr))
+    W.data *= area[rows] * area[W.indices]
     moment, total = lap_kernels.border_moments(X, W.indptr, W.indices, W.data, normals)
     if not np.all(total > 0):
         raise HeatcurvError("a point has no neighbour within its kernel: the cloud has isolated points")
@@ -226,7 +228,9 @@ def _stiffness_and_areas(X: np.ndarray, tree: cKDTree, neighbours: int, width: f
     M = sp.csr_matrix((lap_kernels.moment_weights(X, W.indptr, W.indices, W.data, beta, along), W.indices, W.indptr),
                       shape=(n, n))
     c = _symmetric_scaling(M, area)
-    W = (sp.diags(c) @ W @ sp.diags(c)).tocsr()
+    del M
+    W.data *= c[rows] * c[W.indices]
+    del rows
     S = (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
     _, c2, c4 = kernel_moments(width)
     gamma = c4 / c2 * h * h if order == 2 else 0.0
