@@ -17,9 +17,23 @@ sign depends on which way along it the normal points. Three policies
 For ``"up"`` and ``"viewpoint"`` every normal clearly facing or clearly facing
 away from its reference direction ``r_i`` (``|n_i . r_i| >= ANCHOR_COSINE``)
 is an *anchor*, oriented on its own; the others (walls for ``"up"``, grazing
-views for ``"viewpoint"``) take the side of the nearest anchor along the
-spanning tree. A random half of a cloud then agrees with the whole on
-practically every point, because most points are decided locally.
+views for ``"viewpoint"``) take their side from their neighbours by a bounded
+local propagation (:func:`local_sides`): in rounds, every point not yet
+decided takes the side its decided graph neighbours vote for, each vote
+``s_ij`` (below) weighted by how well the edge stays in both tangent planes,
+for at most :data:`LOCAL_HOPS` rounds. A point's side then depends only on
+the points a few balls around it (:attr:`Orientation.reach`), never on how
+far the cloud goes on: a tile of a tiled run (:mod:`heatcurv.tiles`) whose
+halo holds that reach gives every point the side the whole cloud gives it.
+The spanning tree these modes used before carried a wall's side from the
+nearest anchor *along the tree*, a path a tile's piece of the cloud could
+not reproduce (measured on ``lidar_tile(40000)`` in 11 tiles: 13 points off,
+12 crown normals flipped; on ``lidar_tile(12000)`` in 12 tiles: 55 off).
+Points no anchor reaches within the rounds are flagged ambiguous and face
+their reference direction.
+
+``"outward"`` has no local reference: its spanning tree is global, and a
+tiled run makes its pieces agree afterwards (:mod:`heatcurv.tiles.orient`).
 
 The spanning tree compares two normals by ``s_ij = n_i . n_j - (n_i . e)(n_j
 . e)`` (``e`` the unit edge): their agreement once the components along the
@@ -33,8 +47,8 @@ opposite sides, which the plain Hoppe cost takes for the cheapest edge of all
 and which then turns one side inside out (measured on a 28k-point bunny scan:
 3.6 % of the normals, on the back of an ear).
 
-Where no consistent side exists (two sheets closer than the ball, a
-component with no anchor and no clear outward vote), the points are flagged
+Where no consistent side exists (two sheets closer than the ball, points
+no anchor reaches within :data:`LOCAL_HOPS` rounds), the points are flagged
 *ambiguous*, never silently guessed: :attr:`Orientation.ambiguous`, and
 ``estimate`` marks them unreliable.
 """
@@ -53,8 +67,8 @@ from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood
 
 __all__ = [
-    "ORIENT_MODES", "ANCHOR_COSINE", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
-    "as_viewpoint",
+    "ORIENT_MODES", "ANCHOR_COSINE", "GRAPH_NEIGHBOURS", "LOCAL_HOPS", "Orientation", "OrientationReport", "orient",
+    "local_sides", "as_viewpoint",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
@@ -65,6 +79,12 @@ GRAPH_NEIGHBOURS = 10
 #: (72.5 degrees from it): a normal that close to perpendicular takes its side
 #: from its neighbours instead.
 ANCHOR_COSINE = 0.3
+#: Rounds of the local propagation of ``"up"`` and ``"viewpoint"`` (:func:`local_sides`): each
+#: carries the anchors' sides one graph edge further. A wall takes about its half-height over
+#: the graph's edge length (measured on ``lidar_tile(10**6)``, 280 points per m^2 of ground,
+#: 0.6 m wall balls, eaves 5-8 m high: 10 rounds; ``lidar_tile(40000)``: 2); points still
+#: undecided after these are flagged ambiguous.
+LOCAL_HOPS = 32
 #: A neighbour is compared when the edge to it is within 30 degrees of the
 #: tangent plane (``|n . e| <= 0.5``) and the normal axes within 45 degrees.
 CONFLICT_IN_PLANE, CONFLICT_ALIGNED = 0.5, 0.7
@@ -122,14 +142,25 @@ class Orientation:
     normals : ndarray, shape (n, 3)
         The input normals, flipped where needed.
     ambiguous : ndarray, shape (n,), bool
-        No consistent side: in-plane neighbours pointing the other way, or a
-        component with neither an anchor nor a clear outward vote.
+        No consistent side: in-plane neighbours pointing the other way, or
+        (``"up"``, ``"viewpoint"``) no anchor within :data:`LOCAL_HOPS` edges.
     report : OrientationReport
+    reach : ndarray, shape (n,), optional
+        ``"up"`` and ``"viewpoint"``: how far from each point (in the points'
+        unit) the sides of the points of its ball read: its ball radius plus
+        the most by which the side of it or of a graph neighbour reads beyond
+        that point's own ball (:func:`local_sides`; 0 for anchors, several
+        balls on a wall whose side came from the roof or the ground). The
+        estimator's ``info["reach"]`` is the fit's support plus this, as it
+        is the support plus the ball radius for the normals (neighbours' balls
+        taken as about as wide as the point's own). None for ``"outward"``,
+        whose spanning tree is global.
     """
 
     normals: np.ndarray
     ambiguous: np.ndarray
     report: OrientationReport
+    reach: np.ndarray | None = None
 
 
 def as_viewpoint(viewpoint, n: int | None = None) -> np.ndarray:
@@ -204,35 +235,147 @@ def orient(
         graph = graph.without(excluded)
         w = np.where(excluded, 0.0, w)
     reference = _reference_directions(points, mode, towards)
+    if reference is not None:
+        return _orient_locally(points, normals, graph, reference, mode, excluded)
 
     tree = _spanning_forest(points, normals, graph)
     n_comp, labels = csgraph.connected_components(tree, directed=False)
-    if reference is None:
-        anchors = np.zeros(n, dtype=bool)
-        anchor_side = np.ones(n)
-    else:
-        facing = np.einsum("ij,ij->i", normals, reference)
-        anchors = np.abs(facing) >= ANCHOR_COSINE
-        anchor_side = np.where(facing < 0, -1.0, 1.0)
-    # every component without an anchor is rooted at its first point
-    anchored_comp = np.bincount(labels[anchors], minlength=n_comp) > 0
-    reps = np.unique(labels, return_index=True)[1]
-    roots = anchors.copy()
-    roots[reps[~anchored_comp]] = True
-    parity, root = _parity_from_roots(tree, points, normals, roots)
-    side = np.where(parity, -1.0, 1.0) * anchor_side[root]
-    oriented = normals * side[:, None]
+    # every component is rooted at its first point
+    roots = np.zeros(n, dtype=bool)
+    roots[np.unique(labels, return_index=True)[1]] = True
+    parity, _ = _parity_from_roots(tree, points, normals, roots)
+    oriented = normals * np.where(parity, -1.0, 1.0)[:, None]
 
-    # the sign of each component without an anchor: outward vote, flat convention, or ambiguous
-    sign, convention, undecided = _component_signs(points, oriented, labels, n_comp, w, reference, ~anchored_comp)
+    # the sign of each component: outward vote, else the flat convention
+    sign, convention = _component_signs(points, oriented, labels, n_comp, w)
     oriented *= sign[labels][:, None]
 
-    ambiguous = _conflicting(points, oriented, graph) | undecided[labels]
+    ambiguous = _conflicting(points, oriented, graph)
     report = OrientationReport(
-        mode=mode, components=_surface_components(labels, excluded), anchored=int(anchors.sum()),
+        mode=mode, components=_surface_components(labels, excluded),
         by_convention=int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
     )
     return Orientation(oriented, ambiguous, report)
+
+
+def _orient_locally(points, normals, graph, reference, mode, excluded) -> Orientation:
+    """``"up"`` and ``"viewpoint"``: anchors by their reference direction, the others by :func:`local_sides`."""
+    facing = np.einsum("ij,ij->i", normals, reference)
+    anchors = np.abs(facing) >= ANCHOR_COSINE
+    facing_side = np.where(facing < 0, -1.0, 1.0)
+    side, own_reach = local_sides(points, normals, graph, np.where(anchors, facing_side, 0.0))
+    undecided = side == 0
+    oriented = normals * np.where(undecided, facing_side, side)[:, None]
+    ambiguous = _conflicting(points, oriented, graph) | undecided
+    if excluded is not None:
+        ambiguous &= ~excluded  # an outlier's own side: it is flagged an outlier already
+    # beyond its own ball, a point's values read its neighbours' sides (its flag; its fit, in the
+    # estimator): its ball radius plus the most any side in its row reads beyond that point's ball
+    excess = own_reach - graph.radius
+    reach = graph.radius + np.maximum(excess, _segment_max(excess[graph.indices], graph.counts))
+    n_comp, labels = csgraph.connected_components(_symmetric(graph), directed=False)
+    report = OrientationReport(
+        mode=mode, components=_surface_components(labels, excluded), anchored=int(anchors.sum()),
+        ambiguous=int(ambiguous.sum()),
+    )
+    return Orientation(oriented, ambiguous, report, reach)
+
+
+def local_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood, sides: np.ndarray,
+                hops: int = LOCAL_HOPS) -> tuple[np.ndarray, np.ndarray]:
+    """Carry the anchors' sides over the graph in ``hops`` synchronous rounds; each point's side and reach.
+
+    In round ``t`` every undecided point ``i`` sums over its decided graph
+    neighbours ``j`` (its own row: edges to the points of its ball)
+
+    ``v_i = sum_j s_ij (1 - max(|n_i . e_ij|, |n_j . e_ij|))_+ side_j``,
+
+    ``s_ij`` the normals' agreement with the edge component removed
+    (:func:`_edge_agreement`: 0.5 across a right-angled edge such as a wall's
+    eave or foot, so a roof or the ground carries its side onto the wall) and
+    the second factor 0 for an edge along the normals (across a thin part,
+    between two sides of a sheet); it takes the side ``sign(v_i)`` when
+    ``v_i != 0``. A point's side thus depends only on the points within
+    ``t`` edges, and on their balls (their normals): never on how far the
+    cloud goes on, so that any part of the cloud holding that reach gives the
+    same sides.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    normals : ndarray, shape (n, 3)
+        Unit normals of arbitrary sign.
+    graph : Neighbourhood
+        The propagation graph (each row: the edges to a point's neighbours),
+        with each point's ball radius ``graph.radius`` (its normal's support).
+    sides : ndarray, shape (n,)
+        ``+1`` or ``-1`` for the anchors (keep, or flip the normal), ``0`` for
+        the points to decide.
+    hops : int
+        Rounds.
+
+    Returns
+    -------
+    side : ndarray, shape (n,)
+        ``+1``, ``-1``, or ``0`` for the points no anchor reached.
+    reach : ndarray, shape (n,)
+        How far from each point lie the points its side (or its being
+        undecided) depends on: an anchor's ball radius; for the others, each
+        round they take part in raises it to ``max_j |xi - xj| + reach_j``
+        over the row, ``reach_j`` as of the round before.
+    """
+    side = np.array(sides, dtype=np.float64)
+    reach = np.array(graph.radius, dtype=np.float64)
+    todo = np.flatnonzero(side == 0)
+    if todo.size == 0:
+        return side, reach
+    # the rows of the points to decide, and each vote's weight, computed once
+    lo, counts = graph.indptr[todo], graph.counts[todo]
+    pair = np.repeat(lo - (np.cumsum(counts) - counts), counts) + np.arange(counts.sum())
+    row, col, dist = np.repeat(todo, counts), graph.indices[pair], graph.distances[pair]
+    weight = _edge_agreement(points, normals, row, col) * np.clip(1.0 - _edge_tilt(points, normals, row, col), 0, None)
+    for done in range(int(hops)):
+        # synchronous: every undecided point's state (side, or still none) follows from its row's
+        # states in the round before, so its reach grows by one edge per round
+        slot = np.repeat(np.arange(todo.size), counts)
+        vote = np.bincount(slot, weights=weight * side[col], minlength=todo.size)
+        reach[todo] = np.maximum(reach[todo], _segment_max(dist + reach[col], counts))
+        decided = vote != 0
+        side[todo[decided]] = np.where(vote[decided] < 0, -1.0, 1.0)
+        keep = ~decided[slot]
+        todo, counts, col, dist, weight = todo[~decided], counts[~decided], col[keep], dist[keep], weight[keep]
+        if todo.size == 0:
+            break
+        if not decided.any():
+            # nothing changes any more; the undecided points' state still reads every round's reach
+            for _ in range(done + 1, int(hops)):
+                reach[todo] = np.maximum(reach[todo], _segment_max(dist + reach[col], counts))
+            break
+    return side, reach
+
+
+def _edge_tilt(points, normals, i, j) -> np.ndarray:
+    """``max(|n_i . e|, |n_j . e|)``, ``e`` the unit edge ``xi -> xj``: how far the edge leaves the tangent planes."""
+    edge = points[j] - points[i]
+    length = np.linalg.norm(edge, axis=1)
+    edge = np.divide(edge, length[:, None], out=np.zeros_like(edge), where=length[:, None] > 0)
+    return np.maximum(np.abs(np.einsum("ij,ij->i", normals[i], edge)),
+                      np.abs(np.einsum("ij,ij->i", normals[j], edge)))
+
+
+def _segment_max(values: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Maximum of ``values`` over consecutive segments of ``counts`` entries (0 if empty), shape (len(counts),)."""
+    out = np.zeros(counts.shape[0])
+    full = counts > 0
+    if full.any():
+        out[full] = np.maximum.reduceat(values, (np.cumsum(counts) - counts)[full])
+    return out
+
+
+def _symmetric(graph: Neighbourhood) -> sp.csr_matrix:
+    """The graph's pairs as a sparse matrix, shape (n, n) (connected components ignore the direction)."""
+    n = graph.n_points
+    return sp.csr_matrix((np.ones(graph.n_pairs), graph.indices, graph.indptr), shape=(n, n))
 
 
 def _surface_components(labels: np.ndarray, excluded: np.ndarray | None) -> int:
@@ -343,21 +486,18 @@ def _edge_agreement(points, normals, i, j) -> np.ndarray:
     return np.einsum("ij,ij->i", ni, nj) - np.einsum("ij,ij->i", ni, edge) * np.einsum("ij,ij->i", nj, edge)
 
 
-def _component_signs(points, oriented, labels, n_comp, w, reference, free):
-    """Sign of every component, shape (n_comp,), for the ``free`` ones (no anchor).
+def _component_signs(points, oriented, labels, n_comp, w):
+    """Sign of every component of the ``"outward"`` orientation, shape (n_comp,).
 
     Outward when the vote ``sum_i A_i n_i . (x_i - c)`` is clear (closed
-    surfaces, bowls, caps). Otherwise, with a reference direction the
-    component's area-weighted mean cosine to it decides when at least
-    ``WEAK_VOTE`` in magnitude, else the component is undecided (ambiguous);
-    without one (``"outward"``) a nearly flat patch's mean normal is made to
-    point along the positive side of its least-variance axis (whose largest
-    coordinate is made positive), a convention.
+    surfaces, bowls, caps); otherwise a nearly flat patch's mean normal is
+    made to point along the positive side of its least-variance axis (whose
+    largest coordinate is made positive), a convention.
 
     Returns
     -------
     sign : ndarray, shape (n_comp,)
-    convention, undecided : ndarray, shape (n_comp,), bool
+    convention : ndarray, shape (n_comp,), bool
     """
     count = np.bincount(labels, weights=w, minlength=n_comp)
     centroid = np.stack([np.bincount(labels, weights=w * points[:, k], minlength=n_comp) for k in range(3)], 1)
@@ -365,18 +505,10 @@ def _component_signs(points, oriented, labels, n_comp, w, reference, free):
     radial = np.einsum("ij,ij->i", oriented, points - centroid[labels]) * w
     vote = np.bincount(labels, weights=radial, minlength=n_comp)
     strength = np.bincount(labels, weights=np.abs(radial), minlength=n_comp)
-    sign = np.where(free & (vote < 0), -1.0, 1.0)
+    sign = np.where(vote < 0, -1.0, 1.0)
     # a component without weight (excluded points) keeps its propagated side: nothing to decide
-    weak = free & (count > 0) & (np.abs(vote) <= WEAK_VOTE * strength)
+    weak = (count > 0) & (np.abs(vote) <= WEAK_VOTE * strength)
     convention = np.zeros(n_comp, dtype=bool)
-    undecided = np.zeros(n_comp, dtype=bool)
-    if reference is not None:
-        # clear when the area-weighted mean cosine to the reference is at least WEAK_VOTE
-        facing = np.bincount(labels, weights=np.einsum("ij,ij->i", oriented, reference) * w, minlength=n_comp)
-        clear = np.abs(facing) >= WEAK_VOTE * count
-        sign = np.where(weak & clear, np.where(facing < 0, -1.0, 1.0), sign)
-        undecided = weak & ~clear
-        return sign, convention, undecided
     for c in np.flatnonzero(weak):  # nearly flat patches: few components, small loop
         member = labels == c
         rel = points[member] - centroid[c]
@@ -384,4 +516,4 @@ def _component_signs(points, oriented, labels, n_comp, w, reference, free):
         axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
         sign[c] = -1.0 if oriented[member].sum(axis=0) @ axis < 0 else 1.0
         convention[c] = True
-    return sign, convention, undecided
+    return sign, convention
