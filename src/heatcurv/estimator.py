@@ -504,9 +504,11 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
             back(inputs.rho), back(inputs.counted) & first,
         )}
         # how far each point's values reach: its fit's support, then the neighbours' normals and
-        # areas it weighs (one operator ball further), input units
+        # areas it weighs (one operator ball further, or as far as their sides were carried from:
+        # Orientation.reach of "up" and "viewpoint"), input units
         support = nbhd.radius if fitted.support is None else fitted.support
-        extra["reach"] = back(support + nbhd.radius) * unit
+        near = nbhd.radius if orientation.reach is None else np.maximum(nbhd.radius, orientation.reach)
+        extra["reach"] = back(support + near) * unit
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count, "resolution": resolution, **extra,
