@@ -2,11 +2,12 @@
 
 ``orient="up"`` (the default for LAS/LAZ) once carried a wall's or a crown's
 side from the nearest anchor along the spanning tree of the whole cloud, a
-path a tile could not see: on ``lidar_tile(12000, seed=0)`` in 12 tiles, 55
-points differed (9 crown normals flipped). The side is now decided within a
+path a tile could not see: on ``lidar_tile(12000, seed=0)`` in 6 tiles, 53
+points differed with ``orient="up"`` and 52 with a viewpoint (crown normals
+flipped, and every value fitted with them). The side is now decided within a
 few balls of each point (:func:`heatcurv.orientation.local_sides`), which the
 tiles' halo holds. Measured after the change: every field of every point within
-4e-15 relative (the tiles centre the points elsewhere: rounding).
+3e-14 relative (the tiles centre the points elsewhere: rounding).
 """
 
 import numpy as np
@@ -36,9 +37,9 @@ def test_lidar_tile_in_tiles_equals_in_memory(lidar_file, tmp_path, orient):
     src, scene = lidar_file
     memory = heatcurv.estimate(scene.points, **orient)
     out = tmp_path / "lidar.ply"
-    report = compute_file(src, out, tile_size=1500, scheduler="serial", dtype="float64", fields=ALL_FIELDS,
+    report = compute_file(src, out, tile_size=3000, scheduler="serial", dtype="float64", fields=ALL_FIELDS,
                           **orient)
-    assert report.tiles >= 8 and report.points == 12000
+    assert report.tiles >= 6 and report.points == 12000
     agreement = tiled_agreement(out, memory, rtol=1e-6)
     assert set(agreement) >= FIELDS
     assert {name: a["bad"] for name, a in agreement.items()} == dict.fromkeys(agreement, 0)
