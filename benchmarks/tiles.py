@@ -123,6 +123,11 @@ if __name__ == "__main__":
                "tile_size": report.tile_size, "workers": report.workers, "halo": report.halo,
                "timings": report.timings, "peak": report.peak_memory, "scheduler": report.scheduler,
                "tile_seconds": report.tile_seconds}
+    import resource
+    # CPU seconds of this process and of its reaped children (the workers): a number a busy machine inflates
+    # far less than the wall time
+    out["cpu"] = sum(getattr(resource.getrusage(who), f) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
+                     for f in ("ru_utime", "ru_stime"))
     print("RESULT " + json.dumps(out))
 """
 
@@ -244,7 +249,8 @@ def _print_row(what, n, workers, budget, r):
         extra = (f" tiles {r['tiles']:3d} of <= {r['tile_size']} pts, halo {r['halo']:.2f} m; passes "
                  f"{t['stats'] + t['tiling'] + t['scatter']:.0f} s, survey {t['survey']:.0f} s, "
                  f"tiles {t['tiles']:.0f} s, write {t['write']:.0f} s; scratch peak {_gb(r['scratch_peak'])} GB")
-    print(f"| {what:10s} | {n:>11,d} | {workers:7s} | {budget:>4s} | {r['seconds']:8.1f} s | {per:6.1f} us/pt | "
+    cpu = f" cpu {r['cpu']:8.1f} s |" if "cpu" in r else ""
+    print(f"| {what:10s} | {n:>11,d} | {workers:7s} | {budget:>4s} | {r['seconds']:8.1f} s | {per:6.1f} us/pt |{cpu} "
           f"peak {_gb(r['sampled_peak'])} GB |{extra}", flush=True)
     for phase, p in r.get("phase_peaks", {}).items():
         print(f"    {phase:12s} peak {p['sum']:.2f} GB (driver {p['driver']:.2f}, largest worker {p['worker']:.2f})",
