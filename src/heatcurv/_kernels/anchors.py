@@ -62,7 +62,7 @@ _COL = (0, 1, 2, 1, 2, 2)
 
 
 def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, e2, coefficients, radius, usable,
-                      scalars, reference=None, n_mean=None, degree=0):
+                      scalars, reference=None, n_mean=None, degree=0, exact=None):
     """Every point's normal, curvature tensor and scalars from its nearest anchors' fits.
 
     Parameters
@@ -96,6 +96,9 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
         0: the tensor is that mean. 1-3: the tensor is the regression of degree ``degree``
         (lowered where the anchors cannot carry it) of every anchor's own tensor in the row
         (module docstring); the normal stays the mean's.
+    exact : ndarray, shape (m,), optional
+        1.0 for anchors whose model is carried exactly, 0.0 for those carried to first
+        order in the offset (noisy models); default all exactly.
 
     Returns
     -------
@@ -122,7 +125,8 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
     args = (
         as_floats(points), as_pointers(indptr), as_indices(indices, anchors.shape[0]), as_floats(distances),
         as_floats(anchors), as_floats(normals), as_floats(e1), as_floats(e2), as_floats(coefficients),
-        as_floats(radius), as_floats(usable), scalars, reference, check,
+        as_floats(radius), as_floats(usable),
+        np.ones(anchors.shape[0]) if exact is None else as_floats(exact), scalars, reference, check,
         int(np.diff(indptr).max(initial=0)) if n_mean is None else int(n_mean), int(degree),
         out_n, out_t, out_s, support, total,
     )
@@ -219,6 +223,72 @@ def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm
         tensor[t] = (u0 * (t00 * v0 + t01 * v1 + t02 * v2) + u1 * (t01 * v0 + t11 * v1 + t12 * v2)
                      + u2 * (t02 * v0 + t12 * v1 + t22 * v2))
     return True
+
+
+@njit(**ROW_CORE)
+def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v):
+    """:func:`_carry_one` to first order in the offset, for noisy models (:data:`EXACT_CARRY_SIGMA`).
+
+    The slope ``s = grad P / 2`` and tensor ``[[A + 3 g0 x + g1 y, ...]] / R`` of the model, the
+    normal ``sqrt(1 - |s|^2) n + s_1 e1 + s_2 e2`` (exact on a circle) and the tensor carried into
+    its tangent plane by the smallest rotation taking ``n`` to it (exact on a sphere).
+
+    ``u`` and ``v`` (shape (3,)) are scratch space: the anchor's frame carried to the point.
+    """
+    R = radius[a]
+    dx = points[i, 0] - anchors[a, 0]
+    dy = points[i, 1] - anchors[a, 1]
+    dz = points[i, 2] - anchors[a, 2]
+    x = (dx * e1[a, 0] + dy * e1[a, 1] + dz * e1[a, 2]) / R
+    y = (dx * e2[a, 0] + dy * e2[a, 1] + dz * e2[a, 2]) / R
+    c = coefficients[a]
+    s1 = 0.5 * (2 * c[0] * x + 2 * c[1] * y + c[3] + 3 * c[5] * x * x + 2 * c[6] * x * y + c[7] * y * y)
+    s2 = 0.5 * (2 * c[1] * x + 2 * c[2] * y + c[4] + c[6] * x * x + 2 * c[7] * x * y + 3 * c[8] * y * y)
+    slope2 = s1 * s1 + s2 * s2
+    if not slope2 < MAX_SLOPE * MAX_SLOPE:  # (also false for nan)
+        return False
+    up = math.sqrt(1.0 - slope2)
+    for k in range(3):
+        nrm[k] = up * normals[a, k] + s1 * e1[a, k] + s2 * e2[a, k]
+    b11 = (c[0] + 3 * c[5] * x + c[6] * y) / R
+    b12 = (c[1] + c[6] * x + c[7] * y) / R
+    b22 = (c[2] + c[7] * x + 3 * c[8] * y) / R
+    # smallest rotation taking the anchor's normal to the carried one: v -> v + w x v + w x (w x v) / (1 + cos)
+    w0 = normals[a, 1] * nrm[2] - normals[a, 2] * nrm[1]
+    w1 = normals[a, 2] * nrm[0] - normals[a, 0] * nrm[2]
+    w2 = normals[a, 0] * nrm[1] - normals[a, 1] * nrm[0]
+    cos = normals[a, 0] * nrm[0] + normals[a, 1] * nrm[1] + normals[a, 2] * nrm[2]
+    f = 1.0 / (1.0 + cos)
+    for which in range(2):
+        src = e1 if which == 0 else e2
+        v0, v1, v2 = src[a, 0], src[a, 1], src[a, 2]
+        c0 = w1 * v2 - w2 * v1
+        c1 = w2 * v0 - w0 * v2
+        c2 = w0 * v1 - w1 * v0
+        r0 = v0 + c0 + f * (w1 * c2 - w2 * c1)
+        r1 = v1 + c1 + f * (w2 * c0 - w0 * c2)
+        r2 = v2 + c2 + f * (w0 * c1 - w1 * c0)
+        if which == 0:
+            frame_u[0], frame_u[1], frame_u[2] = r0, r1, r2
+        else:
+            frame_v[0], frame_v[1], frame_v[2] = r0, r1, r2
+    # T = b11 u u^T + b12 (u v^T + v u^T) + b22 v v^T (u, v: the carried frame), upper triangle
+    for t in range(6):
+        r, c = _ROW[t], _COL[t]
+        tensor[t] = (b11 * frame_u[r] * frame_u[c] + b12 * (frame_u[r] * frame_v[c] + frame_v[r] * frame_u[c])
+                     + b22 * frame_v[r] * frame_v[c])
+    return True
+
+
+
+@njit(**ROW_CORE)
+def _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess, frame_u,
+           frame_v):
+    """Anchor ``a``'s model at point ``i``: exact (:func:`_carry_one`) unless ``exact[a]`` is 0; False if too steep."""
+    if exact[a] != 0.0:
+        return _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, grad, hess)
+    return _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u,
+                              frame_v)
 
 
 @njit(**ROW_CORE)
@@ -387,8 +457,11 @@ def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2
 
 @njit(**ROW_CORE)
 def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, normals, e1, e2, coefficients,
-                       radius, usable, scalars, reference, check, n_mean, degree, out_n, out_t, out_s, support, total):
+                       radius, usable, exact, scalars, reference, check, n_mean, degree, out_n, out_t, out_s, support,
+                       total):
     nrm = np.empty(3)
+    frame_u = np.empty(3)
+    frame_v = np.empty(3)
     tensor = np.empty(6)
     grad = np.empty(3)
     hess = np.empty(6)
@@ -434,8 +507,8 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
                 if agreement < MIN_AGREEMENT:
                     continue
             w = (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
-            if w <= 0.0 or not _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm,
-                                          tensor, grad, hess):
+            if w <= 0.0 or not _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm,
+                                      tensor, grad, hess, frame_u, frame_v):
                 continue
             wsum += w
             for k in range(3):
@@ -465,7 +538,8 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
         elif nearest >= 0:
             # no anchor's ball reaches the point: the nearest usable anchor alone (the caller flags it)
             a = indices[nearest]
-            if _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, grad, hess):
+            if _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess,
+                      frame_u, frame_v):
                 for k in range(3):
                     out_n[i, k] = nrm[k]
                 for k in range(6):
