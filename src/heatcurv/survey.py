@@ -387,6 +387,13 @@ class CentreFitsPart:
     fits: dict
     reach: np.ndarray
 
+    def take(self, keep) -> CentreFitsPart:
+        """The part of these centres where ``keep`` (bool, shape (c,)): the same fits, fewer centres."""
+        keep = np.asarray(keep, dtype=bool)
+        fits = {label: CentreFits(*(getattr(f, a)[keep[: f.mean.shape[0]]] for a in ("mean", "factor", "sigma", "h")))
+                for label, f in self.fits.items()}
+        return CentreFitsPart(self.places[keep], fits, self.reach[keep])
+
 
 def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, **options) -> CentreFitsPart:
     """Round 2 on a tile: every candidate at the tile's centres that need it (step 3 of the rounds).

@@ -404,7 +404,7 @@ def compute_file(
             specs = {t: spec for t, spec in specs.items() if spec["places"].size}
             parts = {}
             _run(executor, survey_workers, run_centres, specs, parts.__setitem__, say, "survey of tile", n_tiles)
-            context = compute.merge_rounds([parts[t] for t in sorted(parts)], centres, stats, est)
+            context = compute.merge_rounds([p for t in sorted(parts) for p in parts[t]], centres, stats, est)
             with open(f"{context_file}.tmp", "wb") as stream:
                 pickle.dump(context, stream)
             os.replace(f"{context_file}.tmp", context_file)

@@ -203,31 +203,34 @@ def run_centres(spec: dict):
     each centre's measured reach (its widest ball plus two operator balls)
     within its guess (the tile reads the largest guess around its box, so
     every guessed ball lies inside), and more points kept than the widest
-    candidate holds; else the guess is widened, at most :data:`WIDENINGS` times.
+    candidate holds; else the guess of the centres that failed is widened and
+    they alone are fitted again, at most :data:`WIDENINGS` times.
 
     Returns
     -------
-    heatcurv.survey.CentreFitsPart
+    list of heatcurv.survey.CentreFitsPart
+        The centres fitted at the first try, then those fitted again (a
+        centre's fits do not depend on the others').
     """
-    from scipy.spatial import cKDTree
-
     scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
     centres_plan, places = spec["plan"], np.asarray(spec["places"], dtype=np.int64)
     tiling = Tiling.from_json(load_plan(scratch)["tiling"])
     frame = compute.cloud_frame(stats)
     centres = centres_plan.positions[places] * frame.unit + frame.offset
     guess = compute.centre_reach(centres_plan, places, stats, options)
-    widest = int(centres_plan.widths(places).max())
+    done = []
     for widened in range(WIDENINGS + 1):
         # the centres are core points and the halo the largest guess: every guessed ball lies in the box read
         points, _, _, _, _ = tile_points(scratch, tiling, tile, float(guess.max()))
-        near = cKDTree(points).query_ball_point(centres, guess)
-        keep = np.unique(np.concatenate([np.asarray(i, dtype=np.int64) for i in near]))
-        if keep.size > widest:
+        keep = np.flatnonzero(_within(points, centres, guess))
+        if keep.size > int(centres_plan.widths(places).max()):
             part, reach, _ = compute.fit_tile_centres(points[keep], stats, options, centres_plan, places)
-            if np.all(reach <= guess):
-                return part
-            guess = np.maximum(guess, reach * compute.HALO_MARGIN)
+            ok = reach <= guess
+            done.append(part.take(ok))
+            if ok.all():
+                return done
+            # only the centres whose reach passed their guess are fitted again, with a wider one
+            places, centres, guess = places[~ok], centres[~ok], np.maximum(guess[~ok], reach[~ok] * compute.HALO_MARGIN)
         else:  # fewer points than the widest kernel holds: a fit would take them all
             guess = guess * 2.0
         if widened == WIDENINGS:
@@ -235,6 +238,26 @@ def run_centres(spec: dict):
                 f"survey of tile {tile}: the centres' certificate failed after {WIDENINGS} widenings (widest reach "
                 f"{float(guess.max()):.6g}); pass a larger tile size or report this"
             )
+
+
+def _within(points: np.ndarray, centres: np.ndarray, radius: np.ndarray, groups: int = 8) -> np.ndarray:
+    """Whether each point lies within ``radius`` of some centre (a superset: radii rounded up by group), shape (m,).
+
+    The centres are grouped by radius (at most ``groups`` groups, each taken at
+    its largest radius), and each group answers one nearest-centre query per
+    point: no list of neighbours per centre (a wide ball holds tens of thousands).
+    """
+    from scipy.spatial import cKDTree
+
+    out = np.zeros(len(points), dtype=bool)
+    order = np.argsort(radius)
+    for part in np.array_split(order, min(groups, len(order))):
+        if not part.size:
+            continue
+        reach = float(radius[part].max())
+        distance, _ = cKDTree(centres[part]).query(points, distance_upper_bound=reach)
+        out |= distance <= reach
+    return out
 
 
 def run_tile(spec: dict) -> dict:
