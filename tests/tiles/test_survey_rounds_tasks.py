@@ -83,3 +83,27 @@ def _by_place(parts):
             for i, place in enumerate(part.places[: fits.mean.shape[0]].tolist()):
                 out[label, place] = tuple(float(getattr(fits, f)[i]) for f in ("mean", "factor", "sigma", "h"))
     return out
+
+
+@pytest.mark.parametrize("tile_size, tiles, rounds",
+                         [(4000, 2, ["run_survey"]), (1200, 8, ["run_keys", "run_centres"])])
+def test_few_tiles_are_surveyed_in_one_round_many_in_two(torus_file, torus_memory, tmp_path, monkeypatch, tile_size,
+                                                        tiles, rounds):
+    from heatcurv.testing.tiles import tiled_agreement
+    from heatcurv.tiles import driver
+
+    phases = []
+    real_run = driver._run
+
+    def run(executor, workers, fn, *args):
+        phases.append(fn.__name__)
+        return real_run(executor, workers, fn, *args)
+
+    monkeypatch.setattr(driver, "_run", run)
+    out = tmp_path / "torus.ply"
+    report = driver.compute_file(torus_file[0], out, tile_size=tile_size, tile_workers=2, scheduler="threads",
+                                 dtype="float64", max_memory="4G")
+    assert report.tiles == tiles and phases == rounds + ["run_tile"]
+    # either way every field equals the in-memory run's (measured: within 1e-10 relative, rounding)
+    agreement = tiled_agreement(out, torus_memory, rtol=1e-6)
+    assert {name: a["share"] for name, a in agreement.items()} == dict.fromkeys(agreement, 1.0)
