@@ -483,7 +483,7 @@ def laplacian(points, method: str = "default", **options):
     tangent-plane Voronoi areas, calibrated point by point (along the border
     at a border) and corrected to second order, accurate on any sampling
     (10 000 random points on the unit sphere: eigenvalues of degrees 1-5
-    within 0.4 % on average, Fibonacci 0.1 %; docs/laplacian.md).
+    within 0.3 % on average, Fibonacci 0.1 %; docs/laplacian.md).
     ``diag(area) @ L`` is symmetric positive semi-definite, ``L @ 1 = 0``.
 
     ``method="paper"`` is the literal operator of eqs 2.4 and 2.9 (eq 2.6
