@@ -10,6 +10,9 @@ a numba kernel, with no per-pair temporaries:
 ``chordfit``   the chord fit's normal equations, residuals and Cholesky solve
 ``graph``      minimum spanning forest (orientation) and connected components
                (outliers), serial
+``anchors``    carrying the anchors' fits to every point (:mod:`heatcurv.anchors`)
+``laplacian``  the default Laplacian's tangent-plane Voronoi cells and border
+               moments (:mod:`heatcurv.point_laplacian`)
 =============  ==============================================================
 
 The kernels take and return plain arrays and import nothing from the rest of
