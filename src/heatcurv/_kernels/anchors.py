@@ -134,7 +134,7 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
     return out_n, out_t, out_s, support, total
 
 
-@njit(**ROW_CORE)
+@njit(**ROW_CORE, inline="always")
 def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, grad, hess):
     """Anchor ``a``'s normal (into ``nrm``) and tensor (into ``tensor``) at point ``i``; False if too steep.
 
@@ -225,7 +225,7 @@ def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm
     return True
 
 
-@njit(**ROW_CORE)
+@njit(**ROW_CORE, inline="always")
 def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v):
     """:func:`_carry_one` to first order in the offset, for noisy models (:data:`EXACT_CARRY_SIGMA`).
 
@@ -281,7 +281,7 @@ def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, rad
 
 
 
-@njit(**ROW_CORE)
+@njit(**ROW_CORE, inline="always")
 def _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess, frame_u,
            frame_v):
     """Anchor ``a``'s model at point ``i``: exact (:func:`_carry_one`) unless ``exact[a]`` is 0; False if too steep."""
@@ -291,13 +291,13 @@ def _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, 
                               frame_v)
 
 
-@njit(**ROW_CORE)
-def _own_tensor(a, target, normals, e1, e2, coefficients, radius, tensor):
+@njit(**ROW_CORE, inline="always")
+def _own_tensor(a, target, normals, e1, e2, coefficients, radius, tensor, u, v):
     """Anchor ``a``'s own tensor (its fit at its centre) rotated into the plane normal to ``target``.
 
     The rotation is the smallest taking the anchor's normal to ``target`` (shape (3,), unit):
     ``v -> v + w x v + w x (w x v) / (1 + cos)``, exact on a sphere. Into ``tensor``
-    (``xx, xy, xz, yy, yz, zz``).
+    (``xx, xy, xz, yy, yz, zz``); ``u``, ``v`` (shape (3,)) are scratch space.
     """
     c = coefficients[a]
     b11, b12, b22 = c[0] / radius[a], c[1] / radius[a], c[2] / radius[a]
@@ -306,8 +306,6 @@ def _own_tensor(a, target, normals, e1, e2, coefficients, radius, tensor):
     w2 = normals[a, 0] * target[1] - normals[a, 1] * target[0]
     cos = normals[a, 0] * target[0] + normals[a, 1] * target[1] + normals[a, 2] * target[2]
     f = 1.0 / (1.0 + cos)
-    u = np.empty(3)
-    v = np.empty(3)
     for which in range(2):
         src = e1 if which == 0 else e2
         v0, v1, v2 = src[a, 0], src[a, 1], src[a, 2]
@@ -323,7 +321,7 @@ def _own_tensor(a, target, normals, e1, e2, coefficients, radius, tensor):
         tensor[t] = b11 * u[r] * u[q] + b12 * (u[r] * v[q] + v[r] * u[q]) + b22 * v[r] * v[q]
 
 
-@njit(**ROW_CORE)
+@njit(**ROW_CORE, inline="always")
 def _basis(s, t, phi):
     """The monomials ``1, s, t, s^2, s t, t^2, s^3, s^2 t, s t^2, t^3`` into ``phi`` (shape (10,))."""
     phi[0] = 1.0
@@ -339,12 +337,13 @@ def _basis(s, t, phi):
 
 
 @njit(**ROW_CORE)
-def _value_at_zero(G, rhs, m, chol, sol):
+def _value_at_zero(G, rhs, m, chol, x, sol):
     """The first row of ``G[:m, :m]^-1 rhs[:m]`` (the fit's value at the point) into ``sol``; False if ill-posed.
 
     Cholesky of the leading ``m x m`` block (the basis is nested: degree 1, 2, 3 take 3, 6, 10
     monomials); a pivot below :data:`REGRESSION_RCOND` times the block's largest diagonal entry
-    (anchors too few or on a line around the point) refuses the degree.
+    (anchors too few or on a line around the point) refuses the degree. ``chol`` (shape (10, 10))
+    and ``x`` (shape (10,)) are scratch space.
     """
     top = 0.0
     for a in range(m):
@@ -363,7 +362,6 @@ def _value_at_zero(G, rhs, m, chol, sol):
             else:
                 chol[a, b] = acc / chol[b, b]
     # solve L L^T x = e_0 for the first row of the inverse, then sol = x^T rhs
-    x = np.zeros(m)
     for a in range(m):  # forward: L y = e_0
         acc = 1.0 if a == 0 else 0.0
         for k in range(a):
@@ -384,13 +382,14 @@ def _value_at_zero(G, rhs, m, chol, sol):
 
 @njit(**ROW_CORE)
 def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2, coefficients, radius, usable,
-                 reference, check, degree, target, out_t, support, G, rhs, chol, phi, tensor, sol):
+                 reference, check, degree, target, out_t, support, G, rhs, chol, phi, tensor, sol, u, v, xs):
     """Point ``i``'s tensor as a weighted polynomial regression of its anchors' own tensors; False if ill-posed.
 
     Each anchor's own tensor is rotated into the plane normal to ``target`` (the point's carried normal)
     and the six entries are fitted by weighted least squares, in the tangent coordinates of the anchors
     around the point, with polynomials of degree ``degree`` (lower where the anchors cannot carry it);
     the fit's value at the point is the tensor. Weights as the mean's, over all the row's anchors.
+    The last arrays are scratch space.
     """
     # a tangent frame of the target normal
     if abs(target[0]) < 0.9:
@@ -428,7 +427,7 @@ def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2
         w = (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
         if w <= 0.0:
             continue
-        _own_tensor(a, target, normals, e1, e2, coefficients, radius, tensor)
+        _own_tensor(a, target, normals, e1, e2, coefficients, radius, tensor, u, v)
         dx = anchors[a, 0] - points[i, 0]
         dy = anchors[a, 1] - points[i, 1]
         dz = anchors[a, 2] - points[i, 2]
@@ -447,7 +446,7 @@ def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2
     for deg in range(degree, 0, -1):
         m = (deg + 1) * (deg + 2) // 2
         # at least twice as many anchors as monomials: a fit through barely enough anchors follows their noise
-        if count >= 2 * m and _value_at_zero(G, rhs, m, chol, sol):
+        if count >= 2 * m and _value_at_zero(G, rhs, m, chol, xs, sol):
             for t in range(6):
                 out_t[i, t] = sol[t]
             support[i] = max(support[i], reach)
@@ -471,6 +470,7 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
     chol = np.zeros((10, 10))
     phi = np.empty(10)
     sol = np.empty(6)
+    xs = np.empty(10)
     n_scalars = scalars.shape[1]
     for i in range(row0, row1):
         for k in range(3):
@@ -534,7 +534,7 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
                         target[k] = out_n[i, k] / length
                     _regress_own(i, lo, hi_all, points, indices, distances, anchors, normals, e1, e2, coefficients,
                                  radius, usable, reference, check, degree, target, out_t, support, G, rhs, chol, phi,
-                                 tensor, sol)
+                                 tensor, sol, frame_u, frame_v, xs)
         elif nearest >= 0:
             # no anchor's ball reaches the point: the nearest usable anchor alone (the caller flags it)
             a = indices[nearest]
