@@ -100,6 +100,7 @@ def test_few_tiles_are_surveyed_in_one_round_many_in_two(torus_file, torus_memor
         return real_run(executor, workers, fn, *args)
 
     monkeypatch.setattr(driver, "_run", run)
+    monkeypatch.setattr(driver, "ONE_ROUND_TILES", 2)  # the default (63) would survey this small cloud in one round
     out = tmp_path / "torus.ply"
     report = driver.compute_file(torus_file[0], out, tile_size=tile_size, tile_workers=2, scheduler="threads",
                                  dtype="float64", max_memory="4G")

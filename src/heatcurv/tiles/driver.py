@@ -4,8 +4,8 @@
 
 1. ``stats``, ``tiling``, ``scatter``: three streaming passes over the input
    (:mod:`.plan`): statistics, the tiles, the points in tile order in scratch.
-2. ``survey`` (one round, :func:`.tasks.run_survey`, for at most
-   :data:`ONE_ROUND_TILES` tiles), two rounds (:mod:`heatcurv.survey`): :func:`.tasks.run_keys`
+2. ``survey``: one round (:func:`.tasks.run_survey`) for at most
+   :data:`ONE_ROUND_TILES` tiles, else two rounds (:mod:`heatcurv.survey`): :func:`.tasks.run_keys`
    on every tile (its core's sampling keys over a thin halo), joined into the
    cloud's sample centres; :func:`.tasks.run_centres` on the tiles holding
    some (the candidates' fits at those centres only, over the points within
@@ -90,10 +90,13 @@ __all__ = ["compute_file", "TiledReport", "RETRIES", "DRIVER_MEMORY", "estimator
 #: Times a tile is resubmitted after its worker process died.
 RETRIES = 2
 #: A cloud of at most this many tiles is surveyed in one round (:func:`.tasks.run_survey`), others in two
-#: (:func:`.tasks.run_keys`, :func:`.tasks.run_centres`): measured on a 1M-point terrain in 2 tiles, the two
-#: rounds took 835 s against 427 s for the tiles (one round: about as long as the tiles); in 64 tiles one
-#: round fits 64 x 2000 centres over halos as wide as the widest candidate's ball, two rounds 2000.
-ONE_ROUND_TILES = 2
+#: (:func:`.tasks.run_keys`, :func:`.tasks.run_centres`). Measured (CPU seconds, single thread, the same
+#: choice bit for bit): a 3M-point terrain in 16 tiles of 187k points, two rounds 151 s (keys 44, centres
+#: 107: 125 centres a tile, whose balls cover about the whole tile) against one round 148 s; a 1M terrain in
+#: 2 tiles, two rounds' survey 835 s wall against 427 s for the tiles. Round 2's cost falls with the centres
+#: per tile (2000 / tiles), round 1 costs about 0.3 of one round: two rounds should pay from about 64 tiles
+#: (31 centres a tile), an estimate not measured yet.
+ONE_ROUND_TILES = 63
 #: Plan file version: a plan of another version is never resumed.
 PLAN_VERSION = 5
 
