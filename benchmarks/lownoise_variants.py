@@ -23,11 +23,9 @@ as the default estimator's; areas and normals from ``heatcurv.estimate(scale=60)
   refit and (for ``D``) in the height fit.
 
 Run ``python benchmarks/lownoise_variants.py --help``. These are the fits at the
-centres themselves. The default estimator now uses ``autoQ`` under very low noise
-(:func:`heatcurv.chordfit._denoised_refit`), fitted at anchors 64 per ball and
-regressed to every point (:mod:`heatcurv.anchors`): on the torus at 1e-5 and 480
-neighbours that reaches mean 0.115 %, k2 0.19 % against this script's 0.125 %
-and 0.23 % (the first-order carry of the anchors' models had 0.59 % and 2.8 %).
+centres themselves: the default estimator fits kernels wider than 64 neighbours
+at anchors and carries them to the points to first order (:mod:`heatcurv.anchors`),
+which adds its own error (see the report in ``docs/accuracy.md``).
 """
 
 from __future__ import annotations

@@ -13,31 +13,15 @@ anchors in each ball (a point is an anchor when its sampling key is below
 pair work stays about ``ANCHORS_PER_BALL`` pairs per point whatever ``k``).
 Every point then takes its :data:`CARRIED_ANCHORS` nearest anchors and carries
 their fitted models to itself (:mod:`heatcurv._kernels.anchors`): each anchor's
-model (tensor, tilt, cubic and, under very low noise, quartic terms) describes a
-surface, and the carry gives that surface's normal and curvature tensor *at the
-point's offset*, exactly (so exact on circles and spheres, and to every order
-the model has; a noisy model, ``sigma`` at least :data:`EXACT_CARRY_SIGMA` ball
-radii, to first order in the offset); the point's values are their smooth
-weighted mean. The anchor
+tensor, tilt and cubic terms give the normal and the curvature tensor *at the
+point*, not at the anchor (first order in the offset, and exact on circles and
+spheres), and the point's values are their smooth weighted mean. The anchor
 spacing is about ``R / 2``, well inside the ball where an anchor's model is
 fitted.
 
-A model fitted over a wide ball is less accurate away from its centre than at
-it. Under ordinary noise the fit's own variance hides that; under very low noise
-(``relative_noise`` below :data:`LOW_NOISE`, e.g. coordinate rounding) it would
-dominate (a torus at 1e-5 of its diagonal, 480 neighbours: the nearest anchor's
-model is 0.12 % off in the mean curvature within 0.1 R of it, 0.5 % at
-0.3-0.4 R), so there the anchors are 4x denser (:func:`anchors_per_ball`) and
-each point's tensor is a weighted cubic regression of its
-:data:`REGRESSED_ANCHORS` nearest anchors' *own* tensors, at their centres
-(:func:`carry_degree`): it reproduces any cubic variation of the curvature field.
-Measured on that torus (issue 12, bullet 3): mean 0.115 %, k2 0.19 %, against
-0.127 % and 0.23 % with the same fit at every point and 0.59 % and 2.8 % with
-the first-order carry.
-
 Every value of a point depends only on the points within its **support
-radius** ``max_a (|p - a| + R_a)`` over the anchors it uses, the regression's
-included (at most about 1.8 ball radii): the halo a tiled run needs.
+radius** ``max_a (|p - a| + R_a)`` over the anchors it uses (at most about 1.8
+ball radii): the halo a tiled run needs.
 """
 
 from __future__ import annotations
@@ -61,35 +45,17 @@ from .sampling import key_thinning
 from .scale import Scale, fit_balls
 
 __all__ = [
-    "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "EXACT_CARRY_SIGMA", "LOW_NOISE", "LOW_NOISE_ANCHORS_PER_BALL",
-    "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "REGRESSION_DEGREE", "AnchorFits", "CarriedFit", "anchor_normals",
-    "anchor_rows", "anchors_per_ball", "carry_degree", "carry_fits", "fit_anchors",
+    "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "PCA_NEIGHBOURS", "AnchorFits", "CarriedFit", "anchor_rows",
+    "anchor_normals", "fit_anchors", "carry_fits",
 ]
 
 #: Anchors per fitted ball: their spacing is about ``R sqrt(pi / 16) = 0.44 R``.
 ANCHORS_PER_BALL = 16
-#: Anchors per fitted ball under very low noise (:func:`anchors_per_ball`): spacing about ``0.22 R``.
-LOW_NOISE_ANCHORS_PER_BALL = 64
-#: Noise (``sigma`` over the median spacing, ``info["scale"].relative_noise``) below which the anchors are
-#: :data:`LOW_NOISE_ANCHORS_PER_BALL` per ball: measured 0.0008-0.0096 at 1e-5-1e-4 of the diagonal
-#: (torus, saddle, sphere; 20 000 points), 0.084-0.088 at 0.12 %.
-LOW_NOISE = 0.03
 #: Kernels of at most this many times :data:`ANCHORS_PER_BALL` neighbours are fitted at every point
 #: (a 60-neighbour kernel: its pair work is small, and small clouds keep their own fits).
 EVERY_POINT = 4
 #: Anchors each point's values are carried from (the farthest gets weight 0).
 CARRIED_ANCHORS = 8
-#: Anchors whose fit's residual ``sigma`` is at least this many ball radii carry their models to first order
-#: in the offset, the others exactly. The exact surface of a noisy model carries its noise non-linearly:
-#: measured (noise table, 20 000 points), where ``sigma / R`` was 0.021-0.054 (0.6 % noise) the exact carry lost
-#: (torus mean 5.34 -> 5.68 %, ellipsoid 3.09 -> 3.32 %, saddle k1 3.07 -> 3.40 %), where it was 0.004-0.011
-#: (0.12 %) it gained (torus 3.0 -> 1.81 %, cylinder 1.05 -> 0.88 %, saddle k1 1.27 -> 1.12 %).
-EXACT_CARRY_SIGMA = 0.015
-#: Anchors whose own tensors are regressed at each point under very low noise (:func:`carry_degree`).
-REGRESSED_ANCHORS = 24
-#: Degree of that regression: cubic (measured against quadratic over 16 anchors, torus and saddle at
-#: 1e-5 of the diagonal: k2 0.19 against 0.23 %, k1 0.067 against 0.081 %).
-REGRESSION_DEGREE = 3
 #: Most neighbours of an anchor's PCA normal (:func:`anchor_normals`): enough to average noise
 #: of several spacings (a 480-point ball is 12 spacings wide), cheap beside the fit.
 PCA_NEIGHBOURS = 480
@@ -155,53 +121,6 @@ class CarriedFit:
     mean_variance_factor: np.ndarray
     support: np.ndarray
     nearest: np.ndarray
-
-
-def anchors_per_ball(relative_noise: float) -> int:
-    """Anchors per ball for a cloud's noise: denser where the noise no longer hides the carry's error.
-
-    The carried values are exact on the anchors' model surfaces (:mod:`heatcurv._kernels.anchors`), but
-    a model fitted over a wide ball is less accurate away from its centre: on a torus with noise 1e-5
-    of the diagonal (480 neighbours, 20 000 points) the nearest anchor's model is off by 0.12 % in the
-    mean curvature within 0.1 R of it and 0.5 % at 0.3-0.4 R. Under ordinary noise the fit's own
-    variance hides that; under very low noise (coordinate rounding) it would dominate, so the anchors
-    are 4x denser there (torus: mean 0.237 -> 0.114 %, every point fitted 0.127 %).
-
-    Parameters
-    ----------
-    relative_noise : float
-        ``sigma / h`` of the kernel choice (:class:`heatcurv.scale.ScaleChoice`).
-
-    Returns
-    -------
-    int
-        :data:`LOW_NOISE_ANCHORS_PER_BALL` below :data:`LOW_NOISE`, else :data:`ANCHORS_PER_BALL`.
-    """
-    return LOW_NOISE_ANCHORS_PER_BALL if relative_noise < LOW_NOISE else ANCHORS_PER_BALL
-
-
-def carry_degree(relative_noise: float) -> int:
-    """Degree of the regression of the anchors' own tensors (:func:`carry_fits`) for a cloud's noise.
-
-    Even exact on its model surface, an anchor's model is less accurate away from its centre than
-    at it (:func:`anchors_per_ball`). Under very low noise the anchors' own tensors, at their
-    centres, are the better data: a weighted cubic regression of them over the
-    :data:`REGRESSED_ANCHORS` nearest anchors reproduces any cubic variation of the curvature
-    field, where a mean of carried models keeps the models' error. Under ordinary noise the
-    mean's smoothing is worth more (and the anchors stay :data:`ANCHORS_PER_BALL` per ball,
-    too sparse to regress).
-
-    Parameters
-    ----------
-    relative_noise : float
-        ``sigma / h`` of the kernel choice.
-
-    Returns
-    -------
-    int
-        :data:`REGRESSION_DEGREE` below :data:`LOW_NOISE`, else 0 (the weighted mean).
-    """
-    return REGRESSION_DEGREE if relative_noise < LOW_NOISE else 0
 
 
 def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = ANCHORS_PER_BALL) -> np.ndarray:
@@ -401,8 +320,7 @@ def fit_anchors(
 
 
 def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray | None = None,
-               reference: np.ndarray | None = None, carried: int = CARRIED_ANCHORS, degree: int = 0,
-               workers: int = -1) -> CarriedFit:
+               reference: np.ndarray | None = None, carried: int = CARRIED_ANCHORS, workers: int = -1) -> CarriedFit:
     """Every point's normal, curvatures and fit diagnostics from its nearest anchors (module docstring).
 
     Parameters
@@ -420,11 +338,7 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
         981 of 5400 normals inward at a 960-neighbour kernel). Default: the
         caller's ``normals``, if given.
     carried : int, optional
-        Nearest anchors per point whose models are carried and averaged.
-    degree : int, optional
-        0: the tensor is that weighted mean. 1-3: it is the regression of that degree of the
-        :data:`REGRESSED_ANCHORS` nearest anchors' own tensors (:func:`carry_degree`; the
-        normal is still the mean's). The support radius counts every anchor used.
+        Nearest anchors per point.
     workers : int, optional
         Threads of the k-d tree query.
 
@@ -443,9 +357,8 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     at = points[anchors.index]
     m = at.shape[0]
     carried = min(carried, m)
-    queried = min(max(carried, REGRESSED_ANCHORS if degree > 0 else 0), m)
-    dist, idx = cKDTree(at).query(points, queried, workers=workers)
-    dist, idx = dist.reshape(points.shape[0], queried), idx.reshape(points.shape[0], queried)
+    dist, idx = cKDTree(at).query(points, carried, workers=workers)
+    dist, idx = dist.reshape(points.shape[0], carried), idx.reshape(points.shape[0], carried)
     a_normals = fit.normals
     if reference is None:
         reference = normals
@@ -453,11 +366,10 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     usable = (fit.principal.well_posed & np.all(np.isfinite(fit.coefficients), axis=1)).astype(np.float64)
     scalars = np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area,
                                fit.mean_variance_factor])
-    exact = (fit.sigma < EXACT_CARRY_SIGMA * anchors.radius).astype(np.float64)
-    indptr = np.arange(0, idx.size + 1, queried, dtype=np.int64)
+    indptr = np.arange(0, idx.size + 1, carried, dtype=np.int64)
     summed, tensor, values, support, total = kernels.carry_anchor_fits(
         points, indptr, idx.reshape(-1), dist.reshape(-1), at, a_normals, e1, e2, fit.coefficients,
-        anchors.radius, usable, scalars, reference=reference, n_mean=carried, degree=degree, exact=exact,
+        anchors.radius, usable, scalars, reference=reference,
     )
     length = np.linalg.norm(summed, axis=1)
     reached = (total > 0) & (length > 0) & np.all(np.isfinite(tensor), axis=1)

@@ -32,16 +32,6 @@ first a plain height fit (``-2 z = r^2 * model``, the classical jet), then a
 refit in which the denominator uses the *fitted* heights,
 ``-2 (z - z_0) = (r^2 + zhat^2) * model``, with an offset ``z_0`` for the
 noise of the centre point itself.
-
-Under very low noise (coordinate rounding: about 1e-5 to 1e-4 of the diagonal)
-that refit's own bias, the third-order model's, exceeds the noise's error. There
-the denoised form refits with quartic terms ``r^2 c^4 .. r^2 s^4``, the
-denominator from a height fit with quartic terms, and pair weights
-``w lambda^4 / (D^4 + lambda^4)`` (``lambda^2 = sigma / 6e-4``, ball radii): pairs
-nearer than ``lambda`` weigh as in the chord fit (exact on circles), farther ones
-as in the height fit (:func:`_denoised_refit`). Measured at the centres
-(``benchmarks/lownoise_variants.py``, torus at 1e-5, 480 neighbours): mean 0.125 %
-against 0.61 %.
 """
 
 from __future__ import annotations
@@ -75,11 +65,11 @@ class ChordFit:
         Variance of the fitted mean curvature per unit height-noise variance:
         ``Var(kappa_M) = sigma^2 * factor`` for independent height noise of
         standard deviation ``sigma``.
-    coefficients : ndarray, shape (n, 9) or, for the denoised form, (n, 14)
+    coefficients : ndarray, shape (n, 9)
         The last pass's model in the frame ``tangent_frames(normals)``, in units of
-        each centre's ball radius: tensor ``a, b, d``, tilt ``t_1, t_2``, cubic
-        ``g_0 .. g_3`` and (denoised form) quartic ``q_0 .. q_4`` (zeros for terms not
-        fitted); :mod:`heatcurv.anchors` evaluates it away from the centre.
+        each centre's ball radius: tensor ``a, b, d``, tilt ``t_1, t_2`` and cubic
+        ``g_0 .. g_3`` (zeros for terms not fitted); :mod:`heatcurv.anchors`
+        evaluates it away from the centre.
     """
 
     principal: PrincipalCurvatures
@@ -456,103 +446,25 @@ def _fit_pass(base: tuple, nrm: np.ndarray, tilt: bool, cubic: bool, denoise: bo
     if not denoise:
         contrast = _mean_contrast(n_shape) if final else None
         fitted = kernels.fit(kernels.CHORD, n_shape, geometry, contrast=contrast)
+        height_beta = np.empty((0, n_shape))
     else:
         # 1) plain height fit: z = z0 - r^2/2 * model;
+        # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2 of its heights
         height_beta = kernels.fit(kernels.HEIGHT, n_shape + 1, geometry)
         if not final:
             # the tilt alone: the height fit's (the refit moves it by far less than the noise: noisy
             # spheres, ellipsoids, tori, patches and saddles gave the same errors to 0.01 points)
             return _refined_normal(height_beta[:, :n_shape], e1, e2, nrm, tilt)
-        # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2 of its heights
-        return _denoised_refit(geometry, height_beta, n_shape, unit, e1, e2, nrm, tilt, cubic)
+        contrast = _mean_contrast(n_shape + 1) if final else None
+        fitted = kernels.fit(
+            kernels.DENOISED_HEIGHT, n_shape + 1, geometry, height_beta=height_beta, contrast=contrast
+        )
     if not final:
         return _refined_normal(fitted[:, :n_shape], e1, e2, nrm, tilt)
     beta, _, ok, var_factor = fitted
     sigma2 = np.empty(nrm.shape[0])
-    kernels.weighted_height_residual(*geometry, kernels.CHORD, np.empty((0, n_shape)), beta, sigma2)
+    kind = kernels.DENOISED_HEIGHT if denoise else kernels.CHORD
+    kernels.weighted_height_residual(*geometry, kind, height_beta, beta, sigma2)
     pc, _ = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
     # the normal this fit was done in, so that d1 x d2 = n holds exactly
     return _chord_fit_result(pc, ok, nrm, sigma2, var_factor, unit, _model_coefficients(beta, tilt, cubic))
-
-
-def _take_rows(geometry: tuple, rows: np.ndarray) -> tuple:
-    """The fit geometry of the centres ``rows`` alone (their CSR pairs gathered)."""
-    points, centres, indptr, indices, weights, unit, nrm, e1, e2, tilt, cubic = geometry
-    counts = np.diff(indptr)[rows]
-    sub_indptr = np.zeros(rows.size + 1, dtype=np.int64)
-    np.cumsum(counts, out=sub_indptr[1:])
-    pairs = np.repeat(indptr[:-1][rows] - sub_indptr[:-1], counts) + np.arange(sub_indptr[-1])
-    return (
-        points, np.ascontiguousarray(centres[rows]), sub_indptr, np.ascontiguousarray(indices[pairs]),
-        np.ascontiguousarray(weights[pairs]), np.ascontiguousarray(unit[rows]), np.ascontiguousarray(nrm[rows]),
-        np.ascontiguousarray(e1[rows]), np.ascontiguousarray(e2[rows]), tilt, cubic,
-    )
-
-
-def _denoised_refit(geometry, height_beta, n_shape, unit, e1, e2, nrm, tilt, cubic) -> ChordFit:
-    """The denoised fit's refit of the plain height fit ``height_beta``, as the final :class:`ChordFit`.
-
-    Very low noise (such as coordinate rounding) takes the ``LOW_NOISE_HEIGHT``
-    refit: quartic terms, the denominator from a height fit with quartic terms
-    (``QUARTIC_HEIGHT``), and pair weights ``w lambda^4 / (D^4 + lambda^4)`` with
-    ``lambda^2 = sigma / LOW_NOISE_SIGMA`` (``sigma`` that height fit's residual,
-    units of the ball radius; at least ``LOW_NOISE_MIN_LAMBDA^2``), which weigh
-    pairs nearer than ``lambda`` as the chord fit does (exact on circles) and
-    farther ones as the height fit (whose heights the noise does not amplify). It is tried where the plain height fit's
-    residual is below ``LOW_NOISE_TRIED * LOW_NOISE_LIMIT * LOW_NOISE_SIGMA`` and
-    used where the quartic one's is below ``LOW_NOISE_LIMIT * LOW_NOISE_SIGMA``;
-    the other centres take ``DENOISED_HEIGHT``, as before. The reported ``sigma``
-    of a low-noise centre is the height fit's residual: the quartic terms absorb
-    the model error a clean cloud's residual consists of, and the noise gate of
-    :func:`heatcurv.scale.select_scale` compares that residual with the chord fit's.
-    """
-    n = nrm.shape[0]
-    p = n_shape + 1
-    limit2 = (kernels.LOW_NOISE_LIMIT * kernels.LOW_NOISE_SIGMA) ** 2
-    jet_sigma2 = np.empty(n)
-    kernels.weighted_height_residual(*geometry, kernels.HEIGHT, height_beta, height_beta, jet_sigma2)
-    beta = np.zeros((n, p))
-    quartic = np.zeros((n, kernels.QUARTIC_COLUMNS))
-    ok = np.zeros(n, dtype=bool)
-    var_factor = np.empty(n)
-    sigma2 = jet_sigma2.copy()
-    low = np.zeros(n, dtype=bool)
-    tried = np.flatnonzero(jet_sigma2 < kernels.LOW_NOISE_TRIED**2 * limit2)
-    if tried.size:
-        sub = geometry if tried.size == n else _take_rows(geometry, tried)
-        # the height fit with quartic terms: its residual is the noise (the plain one's holds the
-        # quartic shape, beyond the noise from about 200 neighbours on a torus), its heights the denominator
-        width = p + kernels.QUARTIC_COLUMNS
-        quartic_beta = kernels.fit(kernels.QUARTIC_HEIGHT, width, sub)
-        own = np.empty(tried.size)
-        kernels.weighted_height_residual(*sub, kernels.QUARTIC_HEIGHT, quartic_beta, quartic_beta, own)
-        keep = own < limit2
-        rows = tried[keep]
-        low[rows] = True
-        if rows.size:
-            sub = _take_rows(sub, np.flatnonzero(keep)) if rows.size < tried.size else sub
-            # lambda^4 = (sigma / LOW_NOISE_SIGMA)^2, one more column of the height fit
-            lam4 = np.maximum(own[keep] / kernels.LOW_NOISE_SIGMA**2, kernels.LOW_NOISE_MIN_LAMBDA**4)
-            hb = np.concatenate([quartic_beta[keep], lam4[:, None]], 1)
-            fit_beta, _, fit_ok, fit_var = kernels.fit(
-                kernels.LOW_NOISE_HEIGHT, width, sub, height_beta=hb, contrast=_mean_contrast(width)
-            )
-            beta[rows, :n_shape] = fit_beta[:, :n_shape]
-            beta[rows, n_shape] = fit_beta[:, -1]
-            quartic[rows] = fit_beta[:, n_shape : n_shape + kernels.QUARTIC_COLUMNS]
-            ok[rows], var_factor[rows] = fit_ok, fit_var
-    rows = np.flatnonzero(~low)
-    if rows.size:
-        sub = geometry if rows.size == n else _take_rows(geometry, rows)
-        hb = np.ascontiguousarray(height_beta[rows])
-        fit_beta, _, fit_ok, fit_var = kernels.fit(
-            kernels.DENOISED_HEIGHT, p, sub, height_beta=hb, contrast=_mean_contrast(p)
-        )
-        beta[rows], ok[rows], var_factor[rows] = fit_beta, fit_ok, fit_var
-        part = np.empty(rows.size)
-        kernels.weighted_height_residual(*sub, kernels.DENOISED_HEIGHT, hb, fit_beta, part)
-        sigma2[rows] = part
-    pc, _ = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
-    # the quartic terms are part of the model the anchors carry (:mod:`heatcurv.anchors`)
-    coefficients = np.concatenate([_model_coefficients(beta, tilt, cubic), quartic], axis=1)
-    return _chord_fit_result(pc, ok, nrm, sigma2, var_factor, unit, coefficients)

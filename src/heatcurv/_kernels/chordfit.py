@@ -35,13 +35,6 @@ __all__ = [
     "CHORD",
     "HEIGHT",
     "DENOISED_HEIGHT",
-    "LOW_NOISE_HEIGHT",
-    "QUARTIC_HEIGHT",
-    "LOW_NOISE_SIGMA",
-    "LOW_NOISE_LIMIT",
-    "LOW_NOISE_TRIED",
-    "LOW_NOISE_MIN_LAMBDA",
-    "QUARTIC_COLUMNS",
     "MIN_DOF_FRACTION",
     "WELL_POSED_RCOND",
     "assemble_normal_equations",
@@ -57,28 +50,6 @@ CHORD = 0
 HEIGHT = 1
 #: heights ``z`` against ``[-D^2 / 2 * columns, 1]``, ``D^2 = r^2 + (zhat - z0)^2`` from a height fit.
 DENOISED_HEIGHT = 2
-#: heights ``z`` against ``[-D^2 / 2 * columns, -D^2 / 2 * quartic, 1]``, ``D^2 = r^2 + (zhat - z0)^2`` from a
-#: ``QUARTIC_HEIGHT`` fit, pairs weighted ``w lambda^4 / (D^4 + lambda^4)``: the low-noise refit
-#: (:func:`heatcurv.chordfit.chord_fit`);
-LOW_NOISE_HEIGHT = 3
-#: heights ``z`` against ``[-r^2 / 2 * columns, -r^2 / 2 * quartic, 1]`` (the height fit with quartic terms).
-QUARTIC_HEIGHT = 4
-#: Quartic columns of the low-noise refit: ``r^2 c^4, r^2 c^3 s, r^2 c^2 s^2, r^2 c s^3, r^2 s^4``.
-QUARTIC_COLUMNS = 5
-#: ``lambda^2 = sigma / LOW_NOISE_SIGMA`` (both in units of the ball radius) in the low-noise refit's weights.
-LOW_NOISE_SIGMA = 6e-4
-#: The low-noise refit is kept where its own residual is below ``LOW_NOISE_LIMIT * LOW_NOISE_SIGMA``;
-#: noisier centres take ``DENOISED_HEIGHT``.
-LOW_NOISE_LIMIT = 4.0
-#: ... and it is tried only where the plain height fit's residual is below ``LOW_NOISE_TRIED`` times that
-#: (strong noise skips it: its residual would be the noise's).
-LOW_NOISE_TRIED = 10.0
-#: Least ``lambda`` of the low-noise refit, units of the ball radius: on a clean ball ``lambda -> 0`` and the
-#: weights ``1 / D^4`` of far pairs against ``1`` of a pair at the centre (``D = 0``) made the normal equations
-#: singular to rounding (a grid under a saddle: the numpy and compiled fits 7e-7 apart). The floor only acts
-#: where ``sigma`` is below ``LOW_NOISE_SIGMA * 0.05^2 = 1.5e-6`` ball radii (noise 1e-5 of a torus's
-#: diagonal at 480 neighbours is 1.7e-4).
-LOW_NOISE_MIN_LAMBDA = 0.05
 
 #: Floor of ``1 - p / n_eff`` in the residual variance (balls barely larger than the model);
 #: see :func:`_unbiased_mean_square`.
@@ -132,22 +103,6 @@ def _fill_shape_columns(x, y, tilt, cubic, cols):
         else:  # r c^3 ... at r = 0
             cols[k] = cols[k + 1] = cols[k + 2] = cols[k + 3] = 0.0
     return r2
-
-
-@numba.njit(cache=True)
-def _fill_quartic_columns(x, y, r2, X, first):
-    """The quartic columns ``r^2 c^4 ... r^2 s^4`` (``x^4 / r^2 ...``) into ``X[first:first + 5]``."""
-    if r2 > 0:
-        inv = 1.0 / r2
-        xx, yy = x * x, y * y
-        X[first] = xx * xx * inv
-        X[first + 1] = xx * x * y * inv
-        X[first + 2] = xx * yy * inv
-        X[first + 3] = x * y * yy * inv
-        X[first + 4] = yy * yy * inv
-    else:
-        for a in range(QUARTIC_COLUMNS):
-            X[first + a] = 0.0
 
 
 @numba.njit(cache=True, fastmath={"reassoc", "contract"})
@@ -204,17 +159,6 @@ def _denoised_denominator(cols, n_shape, r2, height_beta, i):
     return r2 + dz * dz
 
 
-@numba.njit(cache=True)
-def _quartic_denominator(cols, quartic, n_shape, r2, height_beta, i):
-    """``D^2 = r^2 + (zhat - z0)^2`` with ``zhat`` the ``QUARTIC_HEIGHT`` fit ``height_beta[i]`` at the pair."""
-    dz = 0.0
-    for a in range(n_shape):
-        dz += -0.5 * r2 * cols[a] * height_beta[i, a]
-    for a in range(QUARTIC_COLUMNS):
-        dz += -0.5 * r2 * quartic[a] * height_beta[i, n_shape + a]
-    return r2 + dz * dz
-
-
 def assemble_normal_equations(
     points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, G, rhs, yy, G2
 ):
@@ -232,11 +176,9 @@ def assemble_normal_equations(
         Each centre's frame.
     tilt, cubic : bool
     kind : int
-        ``CHORD``, ``HEIGHT``, ``DENOISED_HEIGHT``, ``LOW_NOISE_HEIGHT`` or ``QUARTIC_HEIGHT``.
+        ``CHORD``, ``HEIGHT`` or ``DENOISED_HEIGHT``.
     height_beta : ndarray, shape (n, p) or (0, p)
-        The plain height fit (for ``DENOISED_HEIGHT``), or for ``LOW_NOISE_HEIGHT`` the
-        ``QUARTIC_HEIGHT`` fit and one more column, last: each centre's ``lambda^4``
-        (units of ``unit``).
+        The plain height fit (for ``DENOISED_HEIGHT`` only).
     G, rhs, yy : ndarray, shape (n, p, p), (n, p), (n,)
         Output: ``X^T W X``, ``X^T W y``, ``y^T W y``.
     G2 : ndarray, shape (n, p, p) or (0, p, p)
@@ -308,25 +250,16 @@ def _assemble_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, G, rhs,
                 for a in range(p):
                     X[a] = cols[a]
             else:
-                D2 = r2  # HEIGHT, QUARTIC_HEIGHT
-                if kind == DENOISED_HEIGHT:
+                if kind == HEIGHT:
+                    D2 = r2
+                else:
                     D2 = _denoised_denominator(cols, n_shape, r2, height_beta, i)
-                if kind == LOW_NOISE_HEIGHT or kind == QUARTIC_HEIGHT:
-                    _fill_quartic_columns(x, y, r2, X, n_shape)
-                    if kind == LOW_NOISE_HEIGHT:
-                        D2 = _quartic_denominator(cols, X[n_shape:], n_shape, r2, height_beta, i)
-                    for a in range(n_shape, p - 1):
-                        X[a] *= -0.5 * D2
                 for a in range(n_shape):
                     X[a] = -0.5 * D2 * cols[a]
-                X[p - 1] = 1.0
+                X[n_shape] = 1.0
                 response = z
                 noise = 1.0
             w = weights[k]
-            if kind == LOW_NOISE_HEIGHT:
-                # near pairs weigh as in the chord fit (1 / D^4 on heights), far ones as in the height fit
-                lam4 = height_beta[i, n_shape + QUARTIC_COLUMNS + 1]
-                w *= lam4 / (D2 * D2 + lam4)
             yyi += w * response * response
             sw = np.sqrt(w)
             for a in range(p):
@@ -368,10 +301,8 @@ def weighted_height_residual(
 ):
     """Weighted mean square height residual of each centre's final fit, into ``sigma2``.
 
-    ``kind`` is ``CHORD`` (a kN residual, times ``D^2 / 2`` to make it a height),
-    ``HEIGHT`` or ``QUARTIC_HEIGHT`` (``beta`` the height fit itself), ``DENOISED_HEIGHT``
-    or ``LOW_NOISE_HEIGHT`` (``beta`` the refit of ``height_beta``, residuals weighted
-    ``w`` alone); other
+    ``kind`` is ``CHORD`` (a kN residual, times ``D^2 / 2`` to make it a height) or
+    ``DENOISED_HEIGHT`` (``beta`` the refit of ``height_beta``); other
     arguments as :func:`assemble_normal_equations`. Units of ``unit``.
     """
     points, indptr = as_floats(points), as_pointers(indptr)
@@ -407,8 +338,6 @@ def _residual_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, s
     p = beta.shape[1]
     n_shape = 3 + 2 * tilt + 4 * cubic
     cols = np.empty(n_shape)
-    # (filled from n_shape on, as the design row of _assemble_rows: one compiled signature of the helpers)
-    quartic = np.empty(n_shape + QUARTIC_COLUMNS)
     for i in range(row0, row1):
         weighted_sq = 0.0
         total_weight = 0.0
@@ -425,20 +354,11 @@ def _residual_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, s
                     fitted += cols[a] * beta[i, a]
                 resid = (kN - fitted) * D2 / 2
             else:
-                D2 = r2  # HEIGHT, QUARTIC_HEIGHT
-                if kind == DENOISED_HEIGHT:
-                    D2 = _denoised_denominator(cols, n_shape, r2, height_beta, i)
-                if kind == LOW_NOISE_HEIGHT or kind == QUARTIC_HEIGHT:
-                    _fill_quartic_columns(x, y, r2, quartic, n_shape)
-                    if kind == LOW_NOISE_HEIGHT:
-                        D2 = _quartic_denominator(cols, quartic[n_shape:], n_shape, r2, height_beta, i)
+                D2 = _denoised_denominator(cols, n_shape, r2, height_beta, i)
                 fitted = 0.0
                 for a in range(n_shape):
                     fitted += -0.5 * D2 * cols[a] * beta[i, a]
-                if kind == LOW_NOISE_HEIGHT or kind == QUARTIC_HEIGHT:
-                    for a in range(QUARTIC_COLUMNS):
-                        fitted += -0.5 * D2 * quartic[n_shape + a] * beta[i, n_shape + a]
-                fitted += beta[i, p - 1]
+                fitted += beta[i, n_shape]
                 resid = z - fitted
             w = weights[k]
             weighted_sq += w * resid * resid
@@ -604,15 +524,14 @@ def fit(kind, p, geometry, height_beta=None, contrast=None):
     Parameters
     ----------
     kind : int
-        ``CHORD``, ``HEIGHT``, ``DENOISED_HEIGHT``, ``LOW_NOISE_HEIGHT`` or ``QUARTIC_HEIGHT``.
+        ``CHORD``, ``HEIGHT`` or ``DENOISED_HEIGHT``.
     p : int
         Unknowns of the fit.
     geometry : tuple
         ``(points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic)``
         as :func:`assemble_normal_equations` takes them.
     height_beta : ndarray, shape (n, p), optional
-        The plain height fit (``DENOISED_HEIGHT`` and ``LOW_NOISE_HEIGHT``; see
-        :func:`assemble_normal_equations`).
+        The plain height fit (``DENOISED_HEIGHT`` only).
     contrast : ndarray, shape (p,), optional
         Given for the final fit (the last pass's, whose diagnostics are
         reported): it is solved by :func:`solve_compiled` with this contrast
