@@ -160,17 +160,8 @@ def fit_tile_centres(points: np.ndarray, stats, options: dict, plan, places: np.
 def merge_rounds(parts: list, plan, stats, options: dict) -> dict:
     """:func:`merge_surveys` for the survey in two rounds: the choices, and a first halo for the tiles."""
     frame = cloud_frame(stats)
-    opts = tile_options(_estimate_options(options))
     choices = merge_fits(parts, plan, frame, **_estimate_options(options))
-    scale = choices.scale
-    widest = int(scale.scale.k if scale.k_centre is None else scale.k_centre.max())
-
-    def ball(k: int) -> float:
-        h = [fits.h for part in parts for label, fits in part.fits.items() if label.endswith(f"-{k}")]
-        return opts.alpha * float(max((x.max() for x in h if x.size), default=0.0)) * frame.unit
-
-    chosen, operator = ball(widest), ball(int(opts.neighbours))
-    return {"choices": choices, "halo": (2.0 * chosen + operator) * HALO_MARGIN, "support": chosen}
+    return _first_halo(choices, [part.fits for part in parts], frame, options)
 
 
 def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
@@ -212,14 +203,19 @@ def merge_surveys(surveys: list, stats, options: dict) -> dict:
         tile's certificate checks point by point; ``support``: the widest chosen ball.
     """
     frame = cloud_frame(stats)
-    opts = tile_options(_estimate_options(options))
     choices = merge_centre_surveys(surveys, frame, **_estimate_options(options))
+    return _first_halo(choices, [survey.fits for survey in surveys], frame, options)
+
+
+def _first_halo(choices, fits: list, frame: CloudFrame, options: dict) -> dict:
+    """:func:`merge_surveys`' result from the choices and every part's fits (``{label: CentreFits}`` each)."""
+    opts = tile_options(_estimate_options(options))
     scale = choices.scale
     widest = int(scale.scale.k if scale.k_centre is None else scale.k_centre.max())
 
     def ball(k: int) -> float:
         """The largest ball of ``k`` neighbours at any surveyed centre, input units (0 if none was fitted)."""
-        h = [fits.h for s in surveys for label, fits in s.fits.items() if label.endswith(f"-{k}")]
+        h = [f.h for part in fits for label, f in part.items() if label.endswith(f"-{k}")]
         return opts.alpha * float(max((x.max() for x in h if x.size), default=0.0)) * frame.unit
 
     chosen, operator = ball(widest), ball(int(opts.neighbours))
