@@ -133,6 +133,47 @@ def _peak_bytes() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
+#: The advice of a survey's failed certificate (a tile's own says a smaller tile: its halo grew too wide).
+LARGER_TILES = "; pass a larger tile size or report this"
+
+
+def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: str, advice: str):
+    """Read a tile with a halo, evaluate it, and widen the halo until the certificate holds.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(points, core) -> (result, positions, reach)``: the tile's
+        result, and the positions (shape (c, 3)) and radii (shape (c,)) whose
+        balls must lie inside what was read (:func:`certificate`).
+    what, advice : str
+        The failure message's subject and its closing advice.
+
+    Returns
+    -------
+    tuple
+        ``(result, points, rows, core, halo, widened)`` of the certified read.
+
+    Raises
+    ------
+    HeatcurvError
+        After :data:`WIDENINGS` widenings (each to the certificate's need
+        times :data:`.compute.HALO_MARGIN`).
+    """
+    for widened in range(WIDENINGS + 1):
+        points, rows, core, low, high = tile_points(scratch, tiling, tile, halo)
+        result, positions, reach = evaluate(points, core)
+        need = certificate(positions, reach, tiling.box(tile), (low, high), cloud)
+        if need == 0.0:
+            return result, points, rows, core, halo, widened
+        if widened == WIDENINGS:
+            raise HeatcurvError(
+                f"{what}: the certificate failed after {WIDENINGS} widenings of the halo (last {halo:.6g}, "
+                f"needed {need:.6g}){advice}"
+            )
+        halo = need * compute.HALO_MARGIN
+
+
 def run_survey(spec: dict):
     """Survey one tile: fit the candidate kernels at its sample centres (:func:`.compute.survey_tile`).
 
@@ -149,19 +190,13 @@ def run_survey(spec: dict):
     core_points, _ = read_rows(scratch, int(offsets[tile]), int(offsets[tile + 1]))
     # the driver's (the plan budgets the survey's workers with it); the same function of the same core
     halo = float(spec["halo"]) if "halo" in spec else compute.survey_halo(core_points, stats, options)
-    for widened in range(WIDENINGS + 1):
-        points, _, core, low, high = tile_points(scratch, tiling, tile, halo)
-        survey = compute.survey_tile(points, core, stats, options)
-        centres, reach = compute.survey_reach(survey, stats)
-        need = certificate(centres, reach / compute.DEPTH, tiling.box(tile), (low, high), cloud)
-        if need == 0.0:
-            return survey
-        if widened == WIDENINGS:
-            raise HeatcurvError(
-                f"survey of tile {tile}: the certificate failed after {WIDENINGS} widenings of the halo (last "
-                f"{halo:.6g}, needed {need:.6g}); pass a larger tile size or report this"
-            )
-        halo = need * compute.HALO_MARGIN
+
+    def survey(points, core):
+        part = compute.survey_tile(points, core, stats, options)
+        centres, reach = compute.survey_reach(part, stats)
+        return part, centres, reach / compute.DEPTH
+
+    return _certified(scratch, tiling, tile, halo, cloud, survey, f"survey of tile {tile}", LARGER_TILES)[0]
 
 
 def run_keys(spec: dict):
@@ -180,18 +215,12 @@ def run_keys(spec: dict):
     tiling = Tiling.from_json(plan["tiling"])
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     halo = float(spec["halo"])
-    for widened in range(WIDENINGS + 1):
-        points, _, core, low, high = tile_points(scratch, tiling, tile, halo)
-        survey, reach = compute.key_tile(points, core, stats, options)
-        need = certificate(points[core], reach / compute.DEPTH, tiling.box(tile), (low, high), cloud)
-        if need == 0.0:
-            return survey
-        if widened == WIDENINGS:
-            raise HeatcurvError(
-                f"keys of tile {tile}: the certificate failed after {WIDENINGS} widenings of the halo (last "
-                f"{halo:.6g}, needed {need:.6g}); pass a larger tile size or report this"
-            )
-        halo = need * compute.HALO_MARGIN
+
+    def keys(points, core):
+        part, reach = compute.key_tile(points, core, stats, options)
+        return part, points[core], reach / compute.DEPTH
+
+    return _certified(scratch, tiling, tile, halo, cloud, keys, f"keys of tile {tile}", LARGER_TILES)[0]
 
 
 def run_centres(spec: dict):
@@ -278,19 +307,15 @@ def run_tile(spec: dict) -> dict:
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     centroid = np.asarray(plan["stats"]["centroid"])
     halo = float(spec.get("halo", context["halo"]))
-    for widened in range(WIDENINGS + 1):
-        points, rows, core, low, high = tile_points(scratch, tiling, tile, halo)
+
+    def tile_values(points, core):
         out = compute.compute_tile(points, core, context, options)
-        need = certificate(points[core], out["support"], tiling.box(tile), (low, high), cloud)
-        if need == 0.0:
-            break
-        if widened == WIDENINGS:
-            raise HeatcurvError(
-                f"tile {tile}: the certificate failed after {WIDENINGS} widenings of the halo (last {halo:.6g}, "
-                f"needed {need:.6g}): some point's values depend on points farther than the halo; "
-                "pass a smaller tile size or report this"
-            )
-        halo = need * compute.HALO_MARGIN
+        return out, points[core], out["support"]
+
+    out, points, rows, core, halo, widened = _certified(
+        scratch, tiling, tile, halo, cloud, tile_values, f"tile {tile}",
+        ": some point's values depend on points farther than the halo; pass a smaller tile size or report this",
+    )
     c = int(core.sum())
     patch = np.asarray(out["patch"], dtype=np.int64)
     labels, inverse = np.unique(patch[core], return_inverse=True)
