@@ -216,8 +216,14 @@ def merge_surveys(surveys: list, frame: CloudFrame, **options) -> CloudChoices:
     tuning = opts.scale_tuning
     q = min(tuning.n_sub, frame.n_points, sum(s.keys.shape[0] for s in surveys))
     fits = SurveyedFits(surveys, q)
+    return _decide(fits, fits.positions, frame, opts)
+
+
+def _decide(fits, positions: np.ndarray, frame: CloudFrame, opts) -> CloudChoices:
+    """:func:`heatcurv.scale.decide_scale` once for the cloud, on fits at its sample centres (``positions``)."""
+    tuning = opts.scale_tuning
     choice = decide_scale(
-        fits, fits.positions, frame.n_points, base_k=int(opts.neighbours), max_k=tuning.max_k, tau=tuning.tau,
+        fits, positions, frame.n_points, base_k=int(opts.neighbours), max_k=tuning.max_k, tau=tuning.tau,
         clean_ratio=tuning.clean_ratio, fixed_k=None if opts.scale == "auto" else int(opts.scale),
         workers=opts.workers,
     )
@@ -464,12 +470,4 @@ class JoinedFits:
 
 def merge_fits(parts: list, plan: CentrePlan, frame: CloudFrame, **options) -> CloudChoices:
     """The whole cloud's choices from round 2's fits (what :func:`merge_surveys` gives from one-round surveys)."""
-    opts = tile_options(options)
-    tuning = opts.scale_tuning
-    fits = JoinedFits(parts, plan)
-    choice = decide_scale(
-        fits, plan.positions, frame.n_points, base_k=int(opts.neighbours), max_k=tuning.max_k, tau=tuning.tau,
-        clean_ratio=tuning.clean_ratio, fixed_k=None if opts.scale == "auto" else int(opts.scale),
-        workers=opts.workers,
-    )
-    return CloudChoices(frame, choice)
+    return _decide(JoinedFits(parts, plan), plan.positions, frame, tile_options(options))
