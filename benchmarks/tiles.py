@@ -9,6 +9,9 @@ LAZ file in a temporary directory, a chunk at a time, and prints tables:
 3. the same with ``--scheduler dask`` (a local cluster of 2 workers): Dask's overhead per tile;
 4. ``--huge``: 100M points, generated on the fly (about 45 GB of scratch and files).
 
+``--cloud clean`` runs the same terrain without noise or rounding, as a float64 NPY, oriented up:
+the clean path's narrow kernel makes a 100M run take hours instead of a day on 2 cores.
+
 Peak memory is the resident memory summed over this process and its children
 (workers, Dask nannies), sampled every 0.2 s with psutil; a tiled run's peak is
 also given per phase (the sum, the driver's and the largest worker's). Every run is a fresh
@@ -36,31 +39,56 @@ import numpy as np
 SIDE_PER_MILLION = 250.0  # metres of terrain side per million points: 16 points per square metre
 
 
-def generate(path: Path, n: int, seed: int = 0, chunk: int = 2_000_000) -> None:
-    """A LAZ of ``n`` points of terrain, written a chunk at a time (bounded memory)."""
-    import laspy
-
+def _terrain_chunks(n: int, seed: int, noise: float, chunk: int):
+    """The terrain's points ``(x, y, z)``, a chunk at a time: uniform in x and y, ``noise`` metres of height noise."""
     from heatcurv.surfaces import lidar_terrain
 
     side = SIDE_PER_MILLION * np.sqrt(n / 1e6)
-    origin = (500000.0, 5000000.0, 200.0)
+    rng = np.random.default_rng(seed)
+    for start in range(0, n, chunk):
+        k = min(chunk, n - start)
+        x = ORIGIN[0] + rng.uniform(-side / 2, side / 2, k)
+        y = ORIGIN[1] + rng.uniform(-side / 2, side / 2, k)
+        # the terrain's hill and valley are 30 m wide: repeat them every 60 m so every tile has relief
+        lx = (x - ORIGIN[0] + 30) % 60 - 30 + ORIGIN[0]
+        ly = (y - ORIGIN[1] + 30) % 60 - 30 + ORIGIN[1]
+        z = lidar_terrain(lx, ly, ORIGIN) + 0.002 * (x - ORIGIN[0])
+        if noise:
+            z = z + rng.normal(0, noise, k)
+        yield x, y, z, rng
+
+
+ORIGIN = (500000.0, 5000000.0, 200.0)
+
+
+def generate(path: Path, n: int, seed: int = 0, chunk: int = 2_000_000) -> None:
+    """A LAZ of ``n`` points of terrain (1 cm noise, millimetre rounding), written a chunk at a time."""
+    import laspy
+
+    side = SIDE_PER_MILLION * np.sqrt(n / 1e6)
     header = laspy.LasHeader(point_format=6, version="1.4")
     header.scales = np.array([0.001, 0.001, 0.001])
-    header.offsets = np.array([origin[0] - side / 2, origin[1] - side / 2, 0.0])
-    rng = np.random.default_rng(seed)
+    header.offsets = np.array([ORIGIN[0] - side / 2, ORIGIN[1] - side / 2, 0.0])
     with laspy.open(path, mode="w", header=header, do_compress=True) as writer:
-        for start in range(0, n, chunk):
-            k = min(chunk, n - start)
-            x = origin[0] + rng.uniform(-side / 2, side / 2, k)
-            y = origin[1] + rng.uniform(-side / 2, side / 2, k)
-            # the terrain's hill and valley are 30 m wide: repeat them every 60 m so every tile has relief
-            lx = (x - origin[0] + 30) % 60 - 30 + origin[0]
-            ly = (y - origin[1] + 30) % 60 - 30 + origin[1]
-            z = lidar_terrain(lx, ly, origin) + rng.normal(0, 0.01, k) + 0.002 * (x - origin[0])
-            record = laspy.ScaleAwarePointRecord.zeros(k, header=header)
+        for x, y, z, rng in _terrain_chunks(n, seed, 0.01, chunk):
+            record = laspy.ScaleAwarePointRecord.zeros(len(x), header=header)
             record.x, record.y, record.z = x, y, z
-            record.intensity = rng.integers(0, 4000, k).astype(np.uint16)
+            record.intensity = rng.integers(0, 4000, len(x)).astype(np.uint16)
             writer.write_points(record)
+
+
+def generate_clean(path: Path, n: int, seed: int = 0, chunk: int = 2_000_000) -> None:
+    """An NPY (float64, shape (n, 3)) of ``n`` points of the same terrain, no noise, no rounding, a chunk at a time.
+
+    The clean path's narrow kernel (60 neighbours) makes it the cheap cloud: the one the 100M run can afford.
+    """
+    out = np.lib.format.open_memmap(path, mode="w+", dtype=np.float64, shape=(n, 3))
+    start = 0
+    for x, y, z, _ in _terrain_chunks(n, seed, 0.0, chunk):
+        out[start:start + len(x)] = np.column_stack([x, y, z])
+        start += len(x)
+    out.flush()
+    del out
 
 
 class PeakSampler:
@@ -197,6 +225,9 @@ def main(argv=None) -> None:
     parser.add_argument("--no-memory", action="store_true", help="skip the in-memory runs")
     parser.add_argument("--no-dask", action="store_true", help="skip the Dask runs")
     parser.add_argument("--huge", action="store_true", help="also 100M points, 2 workers (long: hours)")
+    parser.add_argument("--cloud", choices=("lidar", "clean"), default="lidar",
+                        help="lidar: LAZ, 1 cm noise, mm rounding (default); clean: the same terrain as a float64 NPY, "
+                             "no noise (the narrow clean kernel: the cloud a 100M run can afford)")
     parser.add_argument("--dir", default=None, help="directory for the files and the scratch (default: a temp dir)")
     args = parser.parse_args(argv)
 
@@ -210,11 +241,12 @@ def main(argv=None) -> None:
           f"{os.cpu_count()} cores; files in {work}", flush=True)
     sizes = [int(s) for s in args.sizes] + ([100_000_000] if args.huge else [])
     rows = []
+    orient = {} if args.cloud == "lidar" else {"orient": "up"}  # a LAZ is oriented up by default, an NPY outward
     for n in sizes:
-        src = work / f"terrain_{n // 1_000_000}M.laz"
+        src = work / (f"terrain_{n // 1_000_000}M.laz" if args.cloud == "lidar" else f"clean_{n // 1_000_000}M.npy")
         if not src.exists():
             tic = time.perf_counter()
-            generate(src, n)
+            (generate if args.cloud == "lidar" else generate_clean)(src, n)
             print(f"generated {src.name}: {n} points, {src.stat().st_size / 1e6:.0f} MB in "
                   f"{time.perf_counter() - tic:.0f} s", flush=True)
         if n <= 1_000_000 and not args.no_memory:
@@ -224,15 +256,15 @@ def main(argv=None) -> None:
                 _print_row(*rows[-1])
         for w in (args.workers if n < 100_000_000 else [max(args.workers)]):
             dst = work / f"out_{n}_{w}.laz"
-            r = measure("tiled", src, dst, {"max_memory": args.budget, "tile_workers": w, "scratch": str(work)},
-                        work / f".{dst.name}.heatcurv-tiles")
+            arg = {"max_memory": args.budget, "tile_workers": w, "scratch": str(work), **orient}
+            r = measure("tiled", src, dst, arg, work / f".{dst.name}.heatcurv-tiles")
             rows.append(("tiled", n, f"{w} proc", args.budget, r))
             _print_row(*rows[-1])
             dst.unlink(missing_ok=True)
         if not args.no_dask and n <= 1_000_000:
             dst = work / f"out_{n}_dask.laz"
             r = measure("tiled", src, dst, {"max_memory": args.budget, "tile_workers": 2, "scheduler": "dask",
-                                            "scratch": str(work)})
+                                            "scratch": str(work), **orient})
             rows.append(("tiled dask", n, "2 dask", args.budget, r))
             _print_row(*rows[-1])
             dst.unlink(missing_ok=True)
