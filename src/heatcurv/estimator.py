@@ -45,7 +45,7 @@ from .neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_pe
 from .normals import pca_normals
 from .operator import HeatKernelOperator
 from .options import rename_aliases, resolve_options
-from .orientation import Orientation, OrientationReport, as_viewpoint, orient
+from .orientation import Orientation, OrientationReport, as_viewpoint, orient, row_reach
 from .outliers import Outliers, find_outliers
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
@@ -413,7 +413,14 @@ def _anchored_fit_stages(
             # the points' side is their nearest anchor's; so is an ambiguous one
             ambiguous = on_anchors.ambiguous[carried.nearest]
             report = replace(on_anchors.report, ambiguous=int(ambiguous.sum()), on_anchors=int(index.shape[0]))
-            reoriented = Orientation(carried.normals, ambiguous, report)
+            reach = None
+            if on_anchors.reach is not None:
+                # "up"/"viewpoint": a wall anchor's side was voted over the anchors' graph from anchors
+                # up to on_anchors.reach away, so a point's side reads that far beyond its nearest anchor
+                nearest = anchors.index[carried.nearest]
+                own = np.linalg.norm(X - X[nearest], axis=1) + on_anchors.reach[carried.nearest]
+                reach = row_reach(own, op.neighbourhood)
+            reoriented = Orientation(carried.normals, ambiguous, report, reach)
     pc = carried.principal
     with clock.stage("area_correction", report=False):
         border = carried.offset > BORDER_OFFSET

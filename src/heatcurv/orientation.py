@@ -269,10 +269,7 @@ def _orient_locally(points, normals, graph, reference, mode, excluded) -> Orient
     ambiguous = _conflicting(points, oriented, graph) | undecided
     if excluded is not None:
         ambiguous &= ~excluded  # an outlier's own side: it is flagged an outlier already
-    # beyond its own ball, a point's values read its neighbours' sides (its flag; its fit, in the
-    # estimator): its ball radius plus the most any side in its row reads beyond that point's ball
-    excess = own_reach - graph.radius
-    reach = graph.radius + np.maximum(excess, _segment_max(excess[graph.indices], graph.counts))
+    reach = row_reach(own_reach, graph)
     n_comp, labels = csgraph.connected_components(_symmetric(graph), directed=False)
     report = OrientationReport(
         mode=mode, components=_surface_components(labels, excluded), anchored=int(anchors.sum()),
@@ -361,6 +358,24 @@ def _edge_tilt(points, normals, i, j) -> np.ndarray:
     edge = np.divide(edge, length[:, None], out=np.zeros_like(edge), where=length[:, None] > 0)
     return np.maximum(np.abs(np.einsum("ij,ij->i", normals[i], edge)),
                       np.abs(np.einsum("ij,ij->i", normals[j], edge)))
+
+
+def row_reach(own_reach: np.ndarray, graph: Neighbourhood) -> np.ndarray:
+    """How far the sides a point's values read reach, shape (n,): its own side's and its ball's.
+
+    Beyond its own ball, a point's values read its neighbours' sides (its
+    ambiguity flag; its fit, in the estimator): its ball radius plus the most
+    by which any side in its row reads beyond that point's ball.
+
+    Parameters
+    ----------
+    own_reach : ndarray, shape (n,)
+        How far from each point its own side was read.
+    graph : Neighbourhood
+        The points' balls.
+    """
+    excess = own_reach - graph.radius
+    return graph.radius + np.maximum(excess, _segment_max(excess[graph.indices], graph.counts))
 
 
 def _segment_max(values: np.ndarray, counts: np.ndarray) -> np.ndarray:
