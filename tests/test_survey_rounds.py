@@ -14,6 +14,8 @@ from scipy.spatial import cKDTree
 import heatcurv
 from heatcurv.choices import FrameStats
 from heatcurv.survey import (
+    GATE_LEVELS,
+    FitsNotSurveyed,
     JoinedFits,
     SurveyedFits,
     fit_centres,
@@ -97,3 +99,36 @@ def test_two_rounds_fit_the_same_numbers_and_choose_the_same_widths(noise):
     else:
         np.testing.assert_array_equal(new.scale.k_centre, old.scale.k_centre)
         assert old.scale.k_centre.max() > 60  # the noisy cloud chose wide kernels somewhere
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.0012])
+def test_the_noise_gates_round_decides_a_clean_cloud_and_defers_a_noisy_one(noise):
+    # round 2 fits the gate's candidates first (the chord and the ladder's first); a clean cloud's
+    # choice needs nothing wider, so its wide fits (most of a survey's work) are never made
+    points = _cloud(6000, noise)
+    frame = _frame(points)
+    tiles = _tiles(points, 2.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plan = join_keys([key_part(points[rows], core, frame)[0] for rows, core in tiles], frame)
+        gate = [fit_centres(points[rows], frame, plan, plan.of_tile(t), GATE_LEVELS)
+                for t, (rows, _) in enumerate(tiles)]
+        every = [fit_centres(points[rows], frame, plan, plan.of_tile(t)) for t, (rows, _) in enumerate(tiles)]
+        full = merge_fits(every, plan, frame)
+        assert all(set(part.fits) == {"chord-60", plan.ladder[0].label} for part in gate)
+        # the gate's fits are the full round's, bit for bit, and read less far
+        for g, e in zip(gate, every):
+            for label, fits in g.fits.items():
+                np.testing.assert_array_equal(fits.sigma, e.fits[label].sigma)
+            assert np.all(g.reach <= e.reach)
+        if noise:
+            assert full.scale.k_centre is not None and full.scale.k_centre.max() > 60
+            with pytest.raises(FitsNotSurveyed, match="denoised-120"):
+                merge_fits(gate, plan, frame)
+        else:
+            decided = merge_fits(gate, plan, frame)
+            assert decided.scale.scale == full.scale.scale == heatcurv.scale.Scale(60, False)
+            assert decided.scale.sigma == full.scale.sigma
+            # the widest candidate here holds 1500 neighbours, a ball 5x the gate's; with the two operator
+            # balls every reach adds, measured: the farthest read 0.58-0.59 of the full round's
+            assert all(g.reach.max() < 0.65 * e.reach.max() for g, e in zip(gate, every))

@@ -46,7 +46,7 @@ from .scale import CentreFits, CentreFitter, Scale, _ladder, decide_scale, level
 
 __all__ = [
     "CentreSurvey", "check_tileable", "merge_surveys", "survey_part", "tile_options", "KeySurvey", "CentrePlan",
-    "CentreFitsPart", "key_part", "join_keys", "fit_centres", "merge_fits",
+    "CentreFitsPart", "key_part", "join_keys", "fit_centres", "merge_fits", "GATE_LEVELS", "FitsNotSurveyed",
 ]
 
 
@@ -247,6 +247,9 @@ def _decide(fits, positions: np.ndarray, frame: CloudFrame, opts) -> CloudChoice
 #    outlier test's neighbour medians), never the whole tile;
 # 4. :func:`merge_fits`: the decision (:func:`heatcurv.scale.decide_scale`) on the joined fits.
 #
+# Steps 3-4 run first with the noise gate's candidates only (:data:`GATE_LEVELS`): the decision reads
+# the wider ones only under noise, and asks for them by raising :class:`FitsNotSurveyed`.
+#
 # A fit depends on its centre's ball and what the ball's points' own neighbourhoods hold, so it is
 # the same number whichever points lie farther: the fits, and the choice, are those of
 # :func:`survey_part` and :func:`merge_surveys` to the last bit (tests/test_survey_rounds.py).
@@ -350,10 +353,13 @@ class CentrePlan:
         """Places (in the cloud's key order, increasing) of the centres that lie in ``tile``."""
         return np.flatnonzero(self.tile == tile)
 
-    def widths(self, places: np.ndarray) -> np.ndarray:
-        """The widest candidate (neighbours) each centre at ``places`` is fitted with, shape (len(places),)."""
-        k = np.array([c.k for c in self.ladder])
-        sizes = np.asarray(self.sizes)
+    def widths(self, places: np.ndarray, levels: int | None = None) -> np.ndarray:
+        """The widest candidate (neighbours) each centre at ``places`` is fitted with, shape (len(places),).
+
+        ``levels``: only the ladder's first ``levels`` candidates are fitted (None: all).
+        """
+        k = np.array([c.k for c in self.ladder[:levels]])
+        sizes = np.asarray(self.sizes[:levels])
         return np.array([k[sizes > p].max() for p in np.asarray(places).tolist()], dtype=np.int64)
 
 
@@ -372,6 +378,17 @@ def join_keys(surveys: list, frame: CloudFrame, **options) -> CentrePlan:
         np.concatenate([s.balls for s in surveys])[order], level_sizes(ladder, q), ladder,
         max((s.largest_ball for s in surveys), default=0.0),
     )
+
+
+#: Round 2 first fits the noise gate's candidates only (the chord and the ladder's first, at every
+#: centre): on a clean cloud they decide (:func:`heatcurv.scale.decide_scale` stops there, and
+#: :func:`merge_fits` returns), so the wide candidates, most of a survey's work, are fitted only under
+#: noise (:class:`FitsNotSurveyed`, then a round of every candidate).
+GATE_LEVELS = 1
+
+
+class FitsNotSurveyed(HeatcurvError):
+    """:func:`merge_fits` on a round of the gate's candidates needs a wider candidate: fit every one."""
 
 
 @dataclass(frozen=True)
@@ -401,7 +418,8 @@ class CentreFitsPart:
         return CentreFitsPart(self.places[keep], fits, self.reach[keep])
 
 
-def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, **options) -> CentreFitsPart:
+def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, levels: int | None = None,
+                **options) -> CentreFitsPart:
     """Round 2 on a tile: every candidate at the tile's centres that need it (step 3 of the rounds).
 
     Parameters
@@ -413,6 +431,10 @@ def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, **options) 
     plan : CentrePlan
     places : array_like of int, shape (c,)
         The tile's centres, places in ``plan`` (increasing).
+    levels : int, optional
+        Fit only the ladder's first ``levels`` candidates (and the chord at
+        ``neighbours``): :data:`GATE_LEVELS` for the noise gate's round.
+        Default: every candidate.
     **options
         As :func:`heatcurv.estimate`.
 
@@ -436,7 +458,7 @@ def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, **options) 
     base_k = int(opts.neighbours)
     fits = {Scale(base_k, False).label: fitter(Scale(base_k, False), places.shape[0])}
     widest = np.zeros(places.shape[0])
-    for scale, size in zip(plan.ladder, plan.sizes):
+    for scale, size in zip(plan.ladder[:levels], plan.sizes[:levels]):
         count = int(np.searchsorted(places, size))  # this tile's centres among the cloud's first `size`
         fits[scale.label] = fitter(scale, count)
         widest[:count] = np.maximum(widest[:count], fits[scale.label].h[:count] * opts.alpha)
@@ -462,6 +484,9 @@ class JoinedFits:
             for f in out:
                 out[f][places[mine]] = getattr(fits, f)[mine]
             filled[places[mine]] = True
+        if not any(scale.label in part.fits for part in self.parts):
+            # a round of the noise gate's candidates only (GATE_LEVELS), and the choice needs a wider one
+            raise FitsNotSurveyed(f"the decision needs {scale.label}, which this round did not fit")
         if not filled.all():
             missing = int((~filled).sum())
             raise HeatcurvError(f"no tile fitted {scale.label} at {missing} of the centres the choice needs")

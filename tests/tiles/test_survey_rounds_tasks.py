@@ -108,3 +108,34 @@ def test_few_tiles_are_surveyed_in_one_round_many_in_two(torus_file, torus_memor
     # either way every field equals the in-memory run's (measured: within 1e-10 relative, rounding)
     agreement = tiled_agreement(out, torus_memory, rtol=1e-6)
     assert {name: a["share"] for name, a in agreement.items()} == dict.fromkeys(agreement, 1.0)
+
+
+@pytest.mark.parametrize("noise, rounds", [(0.0, ["run_keys", "run_centres"]),
+                                           (0.0012, ["run_keys", "run_centres", "run_centres"])])
+def test_round_two_fits_the_gate_first_and_every_candidate_only_under_noise(tmp_path, monkeypatch, noise, rounds):
+    import heatcurv
+    from heatcurv.testing.tiles import tiled_agreement
+    from heatcurv.tiles import driver
+
+    sample = heatcurv.surfaces.Torus().sample(6000, "random", seed=3)
+    diagonal = np.linalg.norm(np.ptp(sample.points, axis=0))
+    points = sample.points + np.random.default_rng(3).normal(scale=noise * diagonal, size=sample.points.shape)
+    src = tmp_path / "torus.npy"
+    np.save(src, points)
+    phases = []
+    real_run = driver._run
+
+    def run(executor, workers, fn, specs, *args):
+        phases.append((fn.__name__, {spec.get("levels") for spec in specs.values()}))
+        return real_run(executor, workers, fn, specs, *args)
+
+    monkeypatch.setattr(driver, "_run", run)
+    monkeypatch.setattr(driver, "ONE_ROUND_TILES", 2)
+    out = tmp_path / "torus.ply"
+    driver.compute_file(src, out, tile_size=1200, tile_workers=2, scheduler="threads", dtype="float64",
+                        max_memory="4G")
+    assert [name for name, _ in phases] == rounds + ["run_tile"]
+    # the gate's round fits the chord and the ladder's first candidate; a noisy cloud's then fits them all
+    assert phases[1][1] == {heatcurv.survey.GATE_LEVELS} and (noise == 0.0 or phases[2][1] == {None})
+    agreement = tiled_agreement(out, heatcurv.estimate(points), rtol=1e-6)
+    assert {name: a["share"] for name, a in agreement.items()} == dict.fromkeys(agreement, 1.0)

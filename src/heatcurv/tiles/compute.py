@@ -25,13 +25,13 @@ import numpy as np
 from ..choices import CloudFrame
 from ..estimator import estimate
 from ..reliability import ReliabilityInputs, cloud_flags
-from ..survey import fit_centres, join_keys, key_part, merge_fits, survey_part, tile_options
+from ..survey import GATE_LEVELS, fit_centres, join_keys, key_part, merge_fits, survey_part, tile_options
 from ..survey import merge_surveys as merge_centre_surveys
 from ..validation import bounding_box_frame
 
 __all__ = [
     "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame", "describe",
-    "key_halo", "key_tile", "plan_centres", "centre_reach", "fit_tile_centres", "merge_rounds",
+    "key_halo", "key_tile", "plan_centres", "centre_reach", "gate_levels", "fit_tile_centres", "merge_rounds",
     "orients_outward", "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS", "DEPTH", "HALO_MARGIN",
 ]
 
@@ -128,7 +128,7 @@ def plan_centres(surveys: list, stats, options: dict):
     return join_keys(surveys, cloud_frame(stats), **_estimate_options(options))
 
 
-def centre_reach(plan, places: np.ndarray, stats, options: dict) -> np.ndarray:
+def centre_reach(plan, places: np.ndarray, stats, options: dict, levels: int | None = None) -> np.ndarray:
     """A first guess of how far each centre's fits read, input units, shape (len(places),).
 
     The widest candidate it is fitted with holds ``k`` points: its ball is
@@ -139,7 +139,7 @@ def centre_reach(plan, places: np.ndarray, stats, options: dict) -> np.ndarray:
     """
     frame = cloud_frame(stats)
     k0 = int(tile_options(_estimate_options(options)).neighbours)
-    ball = plan.balls[places] * np.sqrt(plan.widths(places) / k0) * CENTRE_MARGIN
+    ball = plan.balls[places] * np.sqrt(plan.widths(places, levels) / k0) * CENTRE_MARGIN
     return (ball + 2.0 * plan.largest_ball) * HALO_MARGIN * frame.unit
 
 
@@ -150,10 +150,16 @@ def centre_reach(plan, places: np.ndarray, stats, options: dict) -> np.ndarray:
 CENTRE_MARGIN = 1.5
 
 
-def fit_tile_centres(points: np.ndarray, stats, options: dict, plan, places: np.ndarray):
+def gate_levels(options: dict) -> int | None:
+    """The candidates round 2 fits first: the noise gate's (:data:`heatcurv.survey.GATE_LEVELS`) when the
+    kernel is chosen (``scale="auto"``), else every one (a fixed ``scale`` needs its own width's fits)."""
+    return GATE_LEVELS if tile_options(_estimate_options(options)).scale == "auto" else None
+
+
+def fit_tile_centres(points: np.ndarray, stats, options: dict, plan, places: np.ndarray, levels: int | None = None):
     """Round 2 of the survey on a tile (:func:`heatcurv.survey.fit_centres`); its ``reach`` in input units."""
     frame = cloud_frame(stats)
-    part = fit_centres(points, frame, plan, places, **_estimate_options(options))
+    part = fit_centres(points, frame, plan, places, levels, **_estimate_options(options))
     return part, part.reach * frame.unit, plan.positions[places] * frame.unit + frame.offset
 
 

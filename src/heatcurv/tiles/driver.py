@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import HeatcurvError
+from ..survey import FitsNotSurveyed
 from . import compute
 from .executors import SCHEDULERS, SerialExecutor, kill_workers, open_executor
 from .medians import apply_cloud_flags
@@ -418,12 +419,22 @@ def compute_file(
                 keys = {}
                 _run(executor, survey_workers, run_keys, specs, keys.__setitem__, say, "keys of tile", n_tiles)
                 centres = compute.plan_centres([keys[t] for t in range(n_tiles)], stats, est)
-                specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
-                             "plan": centres, "places": centres.of_tile(t)} for t in range(n_tiles)}
-                specs = {t: spec for t, spec in specs.items() if spec["places"].size}
-                parts = {}
-                _run(executor, survey_workers, run_centres, specs, parts.__setitem__, say, "survey of tile", n_tiles)
-                context = compute.merge_rounds([p for t in sorted(parts) for p in parts[t]], centres, stats, est)
+
+                def fit_round(levels):
+                    specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
+                                 "plan": centres, "places": centres.of_tile(t), "levels": levels}
+                             for t in range(n_tiles)}
+                    specs = {t: spec for t, spec in specs.items() if spec["places"].size}
+                    parts = {}
+                    _run(executor, survey_workers, run_centres, specs, parts.__setitem__, say, "survey of tile",
+                         n_tiles)
+                    return compute.merge_rounds([p for t in sorted(parts) for p in parts[t]], centres, stats, est)
+
+                # the noise gate's candidates first: a clean cloud is decided by them, a noisy one fits them all
+                try:
+                    context = fit_round(compute.gate_levels(est))
+                except FitsNotSurveyed:
+                    context = fit_round(None)
             with open(f"{context_file}.tmp", "wb") as stream:
                 pickle.dump(context, stream)
             os.replace(f"{context_file}.tmp", context_file)

@@ -243,17 +243,18 @@ def run_centres(spec: dict):
     """
     scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
     centres_plan, places = spec["plan"], np.asarray(spec["places"], dtype=np.int64)
+    levels = spec.get("levels")  # the noise gate's candidates only (heatcurv.survey.GATE_LEVELS), or all
     tiling = Tiling.from_json(load_plan(scratch)["tiling"])
     frame = compute.cloud_frame(stats)
     centres = centres_plan.positions[places] * frame.unit + frame.offset
-    guess = compute.centre_reach(centres_plan, places, stats, options)
+    guess = compute.centre_reach(centres_plan, places, stats, options, levels)
     done = []
     for widened in range(WIDENINGS + 1):
         # the centres are core points and the halo the largest guess: every guessed ball lies in the box read
         points, _, _, _, _ = tile_points(scratch, tiling, tile, float(guess.max()))
         keep = np.flatnonzero(_within(points, centres, guess))
-        if keep.size > int(centres_plan.widths(places).max()):
-            part, reach, _ = compute.fit_tile_centres(points[keep], stats, options, centres_plan, places)
+        if keep.size > int(centres_plan.widths(places, levels).max()):
+            part, reach, _ = compute.fit_tile_centres(points[keep], stats, options, centres_plan, places, levels)
             ok = reach <= guess
             done.append(part.take(ok))
             if ok.all():
