@@ -252,7 +252,7 @@ def run_centres(spec: dict):
     for widened in range(WIDENINGS + 1):
         # the centres are core points and the halo the largest guess: every guessed ball lies in the box read
         points, _, _, _, _ = tile_points(scratch, tiling, tile, float(guess.max()))
-        keep = np.flatnonzero(_within(points, centres, guess))
+        keep = np.flatnonzero(_within(points, centres, guess, int(options.get("workers", 1))))
         if keep.size > int(centres_plan.widths(places, levels).max()):
             part, reach, _ = compute.fit_tile_centres(points[keep], stats, options, centres_plan, places, levels)
             ok = reach <= guess
@@ -270,23 +270,19 @@ def run_centres(spec: dict):
             )
 
 
-def _within(points: np.ndarray, centres: np.ndarray, radius: np.ndarray, groups: int = 8) -> np.ndarray:
-    """Whether each point lies within ``radius`` of some centre (a superset: radii rounded up by group), shape (m,).
+def _within(points: np.ndarray, centres: np.ndarray, radius: np.ndarray, workers: int = 1) -> np.ndarray:
+    """Whether each point lies within ``radius`` of some centre, shape (m,).
 
-    The centres are grouped by radius (at most ``groups`` groups, each taken at
-    its largest radius), and each group answers one nearest-centre query per
-    point: no list of neighbours per centre (a wide ball holds tens of thousands).
+    One tree over the points and a ball query per centre: the work is the
+    balls' points, not every point against every centre (a tile's gate round
+    keeps a few thousand points of a tile and halo of hundreds of thousands).
     """
     from scipy.spatial import cKDTree
 
     out = np.zeros(len(points), dtype=bool)
-    order = np.argsort(radius)
-    for part in np.array_split(order, min(groups, len(order))):
-        if not part.size:
-            continue
-        reach = float(radius[part].max())
-        distance, _ = cKDTree(centres[part]).query(points, distance_upper_bound=reach)
-        out |= distance <= reach
+    if len(centres):
+        balls = cKDTree(points).query_ball_point(centres, radius, workers=workers)
+        out[np.concatenate([np.asarray(b, dtype=np.int64) for b in balls])] = True
     return out
 
 
