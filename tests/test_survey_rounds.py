@@ -132,3 +132,22 @@ def test_the_noise_gates_round_decides_a_clean_cloud_and_defers_a_noisy_one(nois
             # the widest candidate here holds 1500 neighbours, a ball 5x the gate's; with the two operator
             # balls every reach adds, measured: the farthest read 0.58-0.59 of the full round's
             assert all(g.reach.max() < 0.65 * e.reach.max() for g, e in zip(gate, every))
+
+
+def test_a_tile_whose_centres_are_all_past_the_wide_candidates_prefix_fits_only_its_own():
+    # 100M points in 512 tiles left most tiles with a few centres, none among the wide candidates'
+    # first: the fit of zero centres raised IndexError (survey of tile 1 of 512 failed)
+    points = _cloud(6000, 0.0012)
+    frame = _frame(points)
+    tiles = _tiles(points, 2.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plan = join_keys([key_part(points[rows], core, frame)[0] for rows, core in tiles], frame)
+        late = np.arange(min(plan.sizes), plan.positions.shape[0])[-50:]
+        part = fit_centres(points, frame, plan, late)
+    print("sizes", plan.sizes, [c.k for c in plan.ladder])
+    assert late.size == 50 and len(part.fits) == len(plan.ladder) + 1
+    assert min(plan.sizes) <= late[0]  # some candidate is fitted at none of these centres
+    for scale, size in zip(plan.ladder, plan.sizes):
+        assert part.fits[scale.label].mean.shape == ((50,) if size > late[0] else (0,))
+    assert part.fits[plan.ladder[0].label].mean.shape == (50,) and np.all(np.isfinite(part.reach))

@@ -671,6 +671,8 @@ class CentreFitter:
         self.centres, self.alpha, self.workers = centres, alpha, workers
 
     def __call__(self, scale: Scale, size: int) -> CentreFits:
+        if size == 0:  # a tile none of whose centres is among this candidate's first (heatcurv.survey)
+            return CentreFits(*(np.zeros(0) for _ in range(4)))
         fit, h, _ = fit_at_scale(
             self.points, self.tree, self.normals[:size], self.areas, scale, centres=self.centres[:size],
             alpha=self.alpha, workers=self.workers,
