@@ -53,21 +53,27 @@ def _frame(points):
     return stats.frame()
 
 
-@pytest.mark.parametrize("noise", [0.0012, 0.0])
-def test_two_rounds_fit_the_same_numbers_and_choose_the_same_widths(noise):
+def _keyed(noise):
+    """The 6000-point torus in three slabs, its frame, round 1's plan of the cloud's centres, and each
+    slab's core reach from round 1."""
     points = _cloud(6000, noise)
     frame = _frame(points)
     tiles = _tiles(points, 2.5)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        keys = [key_part(points[rows], core, frame) for rows, core in tiles]
+    return points, frame, tiles, join_keys([survey for survey, _ in keys], frame), [reach for _, reach in keys]
+
+
+@pytest.mark.parametrize("noise", [0.0012, 0.0])
+def test_two_rounds_fit_the_same_numbers_and_choose_the_same_widths(noise):
+    points, frame, tiles, plan, reaches = _keyed(noise)
+    for (_, core), reach in zip(tiles, reaches):
+        assert reach.shape == (int(core.sum()),) and np.all(reach > 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
         one = [survey_part(points[rows], core, frame) for rows, core in tiles]
         old = merge_surveys(one, frame)
-        keys = []
-        for rows, core in tiles:
-            survey, reach = key_part(points[rows], core, frame)
-            keys.append(survey)
-            assert reach.shape == (int(core.sum()),) and np.all(reach > 0)
-        plan = join_keys(keys, frame)
         parts, kept = [], []
         for t, (rows, _) in enumerate(tiles):
             places = plan.of_tile(t)
@@ -105,12 +111,9 @@ def test_two_rounds_fit_the_same_numbers_and_choose_the_same_widths(noise):
 def test_the_noise_gates_round_decides_a_clean_cloud_and_defers_a_noisy_one(noise):
     # round 2 fits the gate's candidates first (the chord and the ladder's first); a clean cloud's
     # choice needs nothing wider, so its wide fits (most of a survey's work) are never made
-    points = _cloud(6000, noise)
-    frame = _frame(points)
-    tiles = _tiles(points, 2.5)
+    points, frame, tiles, plan, _ = _keyed(noise)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        plan = join_keys([key_part(points[rows], core, frame)[0] for rows, core in tiles], frame)
         gate = [fit_centres(points[rows], frame, plan, plan.of_tile(t), GATE_LEVELS)
                 for t, (rows, _) in enumerate(tiles)]
         every = [fit_centres(points[rows], frame, plan, plan.of_tile(t)) for t, (rows, _) in enumerate(tiles)]
@@ -137,15 +140,11 @@ def test_the_noise_gates_round_decides_a_clean_cloud_and_defers_a_noisy_one(nois
 def test_a_tile_whose_centres_are_all_past_the_wide_candidates_prefix_fits_only_its_own():
     # 100M points in 512 tiles left most tiles with a few centres, none among the wide candidates'
     # first: the fit of zero centres raised IndexError (survey of tile 1 of 512 failed)
-    points = _cloud(6000, 0.0012)
-    frame = _frame(points)
-    tiles = _tiles(points, 2.5)
+    points, frame, _, plan, _ = _keyed(0.0012)
+    late = np.arange(min(plan.sizes), plan.positions.shape[0])[-50:]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        plan = join_keys([key_part(points[rows], core, frame)[0] for rows, core in tiles], frame)
-        late = np.arange(min(plan.sizes), plan.positions.shape[0])[-50:]
         part = fit_centres(points, frame, plan, late)
-    print("sizes", plan.sizes, [c.k for c in plan.ladder])
     assert late.size == 50 and len(part.fits) == len(plan.ladder) + 1
     assert min(plan.sizes) <= late[0]  # some candidate is fitted at none of these centres
     for scale, size in zip(plan.ladder, plan.sizes):
