@@ -3,22 +3,30 @@
 Each anchor ``a`` has a chord fit in its frame ``(e1, e2, n)`` with ball radius
 ``R``: tensor ``(A, B, D)``, tilt ``(t1, t2)`` and cubic ``(g0, g1, g2, g3)``
 coefficients in units of ``R`` (the columns of :mod:`heatcurv._kernels.chordfit`).
-Its model of the surface near ``a``, at tangential coordinates ``(x, y)`` (units
-of ``R``), has the height slope
+The fit says that a neighbour at tangential offset ``(x, y)`` (units of ``R``,
+``r^2 = x^2 + y^2``) and height ``z`` has the chord curvature
+``kN = -2 z / (r^2 + z^2) = P(x, y) / r^2`` with the polynomial
 
-    s = -grad z = 1/2 (2 A x + 2 B y + t1 + 3 g0 x^2 + 2 g1 x y + g2 y^2,
-                       2 B x + 2 D y + t2 + g1 x^2 + 2 g2 x y + 3 g3 y^2)
+    P = A x^2 + 2 B x y + D y^2 + t1 x + t2 y + g0 x^3 + g1 x^2 y + g2 x y^2 + g3 y^3
 
-and the curvature tensor (the cubic terms are a third of the tensor's derivative
-along the chord, see :mod:`heatcurv.chordfit`)
+(the columns ``c^2, 2 c s, s^2, c / r, s / r, r c^3 ...`` times ``r^2``). Without the
+tilt this is the algebraic surface
 
-    B(x, y) = [[A + 3 g0 x + g1 y, B + g1 x + g2 y], [B + g1 x + g2 y, D + g2 x + 3 g3 y]] / R.
+    F(x, y, w) = P(x, y) (x^2 + y^2 + w^2) + 2 w (x^2 + y^2) = 0
 
-A point ``p`` near ``a`` gets from it the normal ``sqrt(1 - |s|^2) n + s_1 e1 + s_2 e2``
-(``|s|`` is the sine of the normal's turn: exact on a circle, where the chord model
-is exact) and the tensor ``B(x, y)`` carried into the tangent plane of that normal
-by the smallest rotation taking ``n`` to it (exact on a sphere). The point's values
-are the weighted means over its nearest anchors, with weights
+(a sphere when ``P = A r^2``); the tilt, the small turn of the tangent plane the fit
+found, shears it, ``w = z + (t1 x + t2 y) / 2`` (as the tilt term itself, a
+chord model with tilt would be a cone at the anchor, of curvature ``~ t^2 / r``).
+A point ``p`` near ``a`` gets from it that surface's normal ``grad F / |grad F|``
+and curvature tensor ``P_t (Hess F) P_t / |grad F|`` (``P_t`` the projection onto
+the tangent plane) at the model's point above ``p``'s offset, the root
+``w = -P / (1 + sqrt(1 - P^2 / r^2))``: exact on the model surface, to every order
+the model has. A noisy model (``exact`` 0, :data:`heatcurv.anchors.EXACT_CARRY_SIGMA`)
+is carried to first order in the offset instead: the normal
+``sqrt(1 - |s|^2) n + s_1 e1 + s_2 e2`` of the slope ``s = grad P / 2`` (exact on a
+circle) and the tensor ``[[A + 3 g0 x + g1 y, B + g1 x + g2 y], [., D + g2 x + 3 g3 y]] / R``
+carried into its tangent plane by the smallest rotation taking ``n`` to it (exact on a
+sphere). The point's values are the weighted means over its nearest anchors, with weights
 ``(1 - (d / d_max)^2)^2 (1 - (d / R)^2)^2`` (``d_max`` just beyond the row's farthest
 anchor): smooth as anchors enter or leave a point's list, zero outside an anchor's ball.
 
@@ -47,7 +55,7 @@ _COL = (0, 1, 2, 1, 2, 2)
 
 
 def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, e2, coefficients, radius, usable,
-                      scalars, reference=None):
+                      scalars, reference=None, exact=None):
     """Every point's normal, curvature tensor and scalars from its nearest anchors' fits.
 
     Parameters
@@ -74,6 +82,9 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
         Each point's own oriented normal: an anchor whose normal is more than
         60 degrees from it (:data:`MIN_AGREEMENT`; the other side of a part
         thinner than the ball) is not carried to the point.
+    exact : ndarray, shape (m,), optional
+        1.0 for anchors whose model is carried exactly, 0.0 for those carried to first
+        order in the offset (noisy models); default all exactly.
 
     Returns
     -------
@@ -100,15 +111,105 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
     args = (
         as_floats(points), as_pointers(indptr), as_indices(indices, anchors.shape[0]), as_floats(distances),
         as_floats(anchors), as_floats(normals), as_floats(e1), as_floats(e2), as_floats(coefficients),
-        as_floats(radius), as_floats(usable), scalars, reference, check, out_n, out_t, out_s, support, total,
+        as_floats(radius), as_floats(usable),
+        np.ones(anchors.shape[0]) if exact is None else as_floats(exact), scalars, reference, check,
+        out_n, out_t, out_s, support, total,
     )
     parallel_rows(_carry_anchor_fits, n, *args)
     return out_n, out_t, out_s, support, total
 
 
-@njit(**ROW_CORE)
-def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v):
+@njit(**ROW_CORE, inline="always")
+def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, grad, hess):
     """Anchor ``a``'s normal (into ``nrm``) and tensor (into ``tensor``) at point ``i``; False if too steep.
+
+    The model surface ``F = P (x^2 + y^2 + z^2) + 2 z (x^2 + y^2) = 0`` (module docstring) at the
+    point's tangential offset: its unit gradient is the normal and its Hessian, projected onto the
+    tangent plane and divided by the gradient's length, the curvature tensor. ``grad`` (shape (3,))
+    and ``hess`` (shape (6,)) are scratch space.
+    """
+    R = radius[a]
+    dx = points[i, 0] - anchors[a, 0]
+    dy = points[i, 1] - anchors[a, 1]
+    dz = points[i, 2] - anchors[a, 2]
+    x = (dx * e1[a, 0] + dy * e1[a, 1] + dz * e1[a, 2]) / R
+    y = (dx * e2[a, 0] + dy * e2[a, 1] + dz * e2[a, 2]) / R
+    q = x * x + y * y
+    if not q > 1e-24:  # (at the anchor itself: its limit along e1)
+        x, y, q = 1e-12, 0.0, 1e-24
+    c = coefficients[a]
+    xx, xy, yy = x * x, x * y, y * y
+    # the shape without the tilt (a chord model with tilt is a cone at the anchor, of curvature ~ t^2 / r)
+    P = c[0] * xx + 2 * c[1] * xy + c[2] * yy
+    P += c[5] * xx * x + c[6] * xx * y + c[7] * x * yy + c[8] * yy * y
+    Px = 2 * c[0] * x + 2 * c[1] * y + 3 * c[5] * xx + 2 * c[6] * xy + c[7] * yy
+    Py = 2 * c[1] * x + 2 * c[2] * y + c[6] * xx + 2 * c[7] * xy + 3 * c[8] * yy
+    Pxx = 2 * c[0] + 6 * c[5] * x + 2 * c[6] * y
+    Pxy = 2 * c[1] + 2 * c[6] * x + 2 * c[7] * y
+    Pyy = 2 * c[2] + 2 * c[7] * x + 6 * c[8] * y
+    root = 1.0 - P * P / q
+    if not root > 0.0:  # no point of the model above the offset (also false for nan)
+        return False
+    z = -P / (1.0 + math.sqrt(root))  # the model's height at the offset (the root through the anchor)
+    rho = q + z * z
+    grad[0] = Px * rho + 2 * x * P + 4 * x * z
+    grad[1] = Py * rho + 2 * y * P + 4 * y * z
+    grad[2] = 2 * z * P + 2 * q
+    hess[0] = Pxx * rho + 4 * x * Px + 2 * P + 4 * z
+    hess[1] = Pxy * rho + 2 * y * Px + 2 * x * Py
+    hess[2] = 2 * z * Px + 4 * x
+    hess[3] = Pyy * rho + 4 * y * Py + 2 * P + 4 * z
+    hess[4] = 2 * z * Py + 4 * y
+    hess[5] = 2 * P
+    # the tilt shears the shape: w = z + (t1 x + t2 y) / 2, so grad F = J^T grad, Hess F = J^T Hess J with
+    # J = I + e_z tau^T, tau = (t1, t2, 0) / 2
+    tau0, tau1 = 0.5 * c[3], 0.5 * c[4]
+    hz0, hz1, hz2 = hess[2], hess[4], hess[5]  # the Hessian's last column
+    hess[0] += 2 * tau0 * hz0 + tau0 * tau0 * hz2
+    hess[1] += tau0 * hz1 + tau1 * hz0 + tau0 * tau1 * hz2
+    hess[2] += tau0 * hz2
+    hess[3] += 2 * tau1 * hz1 + tau1 * tau1 * hz2
+    hess[4] += tau1 * hz2
+    grad[0] += tau0 * grad[2]
+    grad[1] += tau1 * grad[2]
+    length = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+    if not length > 0.0:
+        return False
+    g0, g1, g2 = grad[0] / length, grad[1] / length, grad[2] / length
+    # the normal's sine from the anchor's normal (its cosine is g2): too steep says nothing reliable
+    if not g2 > 0.0 or not g0 * g0 + g1 * g1 < MAX_SLOPE * MAX_SLOPE:
+        return False
+    # T = P_t H P_t / |grad F| (P_t = I - g g^T), in the anchor's frame, then into the cloud's axes
+    h00, h01, h02, h11, h12, h22 = hess[0], hess[1], hess[2], hess[3], hess[4], hess[5]
+    hg0 = h00 * g0 + h01 * g1 + h02 * g2
+    hg1 = h01 * g0 + h11 * g1 + h12 * g2
+    hg2 = h02 * g0 + h12 * g1 + h22 * g2
+    ghg = g0 * hg0 + g1 * hg1 + g2 * hg2
+    scale = 1.0 / (length * R)
+    t00 = (h00 - 2 * g0 * hg0 + g0 * g0 * ghg) * scale
+    t01 = (h01 - g0 * hg1 - g1 * hg0 + g0 * g1 * ghg) * scale
+    t02 = (h02 - g0 * hg2 - g2 * hg0 + g0 * g2 * ghg) * scale
+    t11 = (h11 - 2 * g1 * hg1 + g1 * g1 * ghg) * scale
+    t12 = (h12 - g1 * hg2 - g2 * hg1 + g1 * g2 * ghg) * scale
+    t22 = (h22 - 2 * g2 * hg2 + g2 * g2 * ghg) * scale
+    for k in range(3):
+        nrm[k] = g0 * e1[a, k] + g1 * e2[a, k] + g2 * normals[a, k]
+    for t in range(6):
+        r, s = _ROW[t], _COL[t]
+        u0, u1, u2 = e1[a, r], e2[a, r], normals[a, r]
+        v0, v1, v2 = e1[a, s], e2[a, s], normals[a, s]
+        tensor[t] = (u0 * (t00 * v0 + t01 * v1 + t02 * v2) + u1 * (t01 * v0 + t11 * v1 + t12 * v2)
+                     + u2 * (t02 * v0 + t12 * v1 + t22 * v2))
+    return True
+
+
+@njit(**ROW_CORE, inline="always")
+def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v):
+    """:func:`_carry_one` to first order in the offset, for noisy models (:data:`EXACT_CARRY_SIGMA`).
+
+    The slope ``s = grad P / 2`` and tensor ``[[A + 3 g0 x + g1 y, ...]] / R`` of the model, the
+    normal ``sqrt(1 - |s|^2) n + s_1 e1 + s_2 e2`` (exact on a circle) and the tensor carried into
+    its tangent plane by the smallest rotation taking ``n`` to it (exact on a sphere).
 
     ``u`` and ``v`` (shape (3,)) are scratch space: the anchor's frame carried to the point.
     """
@@ -157,13 +258,25 @@ def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm
     return True
 
 
+@njit(**ROW_CORE, inline="always")
+def _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess, frame_u,
+           frame_v):
+    """Anchor ``a``'s model at point ``i``: exact (:func:`_carry_one`) unless ``exact[a]`` is 0; False if too steep."""
+    if exact[a] != 0.0:
+        return _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, grad, hess)
+    return _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u,
+                              frame_v)
+
+
 @njit(**ROW_CORE)
 def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, normals, e1, e2, coefficients,
-                       radius, usable, scalars, reference, check, out_n, out_t, out_s, support, total):
+                       radius, usable, exact, scalars, reference, check, out_n, out_t, out_s, support, total):
     nrm = np.empty(3)
-    tensor = np.empty(6)
     frame_u = np.empty(3)
     frame_v = np.empty(3)
+    tensor = np.empty(6)
+    grad = np.empty(3)
+    hess = np.empty(6)
     n_scalars = scalars.shape[1]
     for i in range(row0, row1):
         for k in range(3):
@@ -199,8 +312,8 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
                 if agreement < MIN_AGREEMENT:
                     continue
             w = (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
-            if w <= 0.0 or not _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm,
-                                          tensor, frame_u, frame_v):
+            if w <= 0.0 or not _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm,
+                                      tensor, grad, hess, frame_u, frame_v):
                 continue
             wsum += w
             for k in range(3):
@@ -222,7 +335,8 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
         elif nearest >= 0:
             # no anchor's ball reaches the point: the nearest usable anchor alone (the caller flags it)
             a = indices[nearest]
-            if _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v):
+            if _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess,
+                      frame_u, frame_v):
                 for k in range(3):
                     out_n[i, k] = nrm[k]
                 for k in range(6):
