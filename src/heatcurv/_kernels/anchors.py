@@ -120,6 +120,15 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
 
 
 @njit(**ROW_CORE, inline="always")
+def _tangent_offset(i, a, points, anchors, e1, e2, R):
+    """Point ``i``'s offset from anchor ``a`` in the anchor's tangent frame, in ball radii ``R``: ``(x, y)``."""
+    dx = points[i, 0] - anchors[a, 0]
+    dy = points[i, 1] - anchors[a, 1]
+    dz = points[i, 2] - anchors[a, 2]
+    return (dx * e1[a, 0] + dy * e1[a, 1] + dz * e1[a, 2]) / R, (dx * e2[a, 0] + dy * e2[a, 1] + dz * e2[a, 2]) / R
+
+
+@njit(**ROW_CORE, inline="always")
 def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, grad, hess):
     """Anchor ``a``'s normal (into ``nrm``) and tensor (into ``tensor``) at point ``i``; False if too steep.
 
@@ -129,11 +138,7 @@ def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm
     and ``hess`` (shape (6,)) are scratch space.
     """
     R = radius[a]
-    dx = points[i, 0] - anchors[a, 0]
-    dy = points[i, 1] - anchors[a, 1]
-    dz = points[i, 2] - anchors[a, 2]
-    x = (dx * e1[a, 0] + dy * e1[a, 1] + dz * e1[a, 2]) / R
-    y = (dx * e2[a, 0] + dy * e2[a, 1] + dz * e2[a, 2]) / R
+    x, y = _tangent_offset(i, a, points, anchors, e1, e2, R)
     q = x * x + y * y
     if not q > 1e-24:  # (at the anchor itself: its limit along e1)
         x, y, q = 1e-12, 0.0, 1e-24
@@ -214,11 +219,7 @@ def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, rad
     ``u`` and ``v`` (shape (3,)) are scratch space: the anchor's frame carried to the point.
     """
     R = radius[a]
-    dx = points[i, 0] - anchors[a, 0]
-    dy = points[i, 1] - anchors[a, 1]
-    dz = points[i, 2] - anchors[a, 2]
-    x = (dx * e1[a, 0] + dy * e1[a, 1] + dz * e1[a, 2]) / R
-    y = (dx * e2[a, 0] + dy * e2[a, 1] + dz * e2[a, 2]) / R
+    x, y = _tangent_offset(i, a, points, anchors, e1, e2, R)
     c = coefficients[a]
     s1 = 0.5 * (2 * c[0] * x + 2 * c[1] * y + c[3] + 3 * c[5] * x * x + 2 * c[6] * x * y + c[7] * y * y)
     s2 = 0.5 * (2 * c[1] * x + 2 * c[2] * y + c[4] + c[6] * x * x + 2 * c[7] * x * y + 3 * c[8] * y * y)
