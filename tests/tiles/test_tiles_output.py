@@ -108,3 +108,21 @@ def test_las_from_ply_carries_the_properties(tmp_path):
     assert np.array_equal(np.asarray(las.quality), np.arange(3000, dtype=np.float32))
     # LAS 1.4 format 6 at the scale write_points chooses (1e-6 of the largest side or finer)
     assert np.abs(read_points(tmp_path / "s.las").points - sample.points).max() <= 1e-6
+
+
+def test_records_written_and_gathered_window_by_window(tmp_path, monkeypatch):
+    """Rows written and gathered across several windows of results.rec come back as written, the rest zero."""
+    monkeypatch.setattr(tiled_output, "WINDOW_ROWS", 64)
+    path = tmp_path / "results.rec"
+    tiled_output.create_results(path, 1000)
+    rows = np.sort(np.random.default_rng(3).choice(1000, 300, replace=False))
+    block = np.zeros(300, dtype=tiled_output.RECORD)
+    block["mean"] = rows * 0.5
+    block["computed"] = 1
+    for lo in range(0, 300, 64):  # store_tile writes one window at a time
+        tiled_output.write_records(path, block[lo:lo + 64], rows[lo:lo + 64])
+    gathered = tiled_output.gather_records(path, rows)
+    assert np.array_equal(gathered["mean"], rows * 0.5) and gathered["computed"].all()
+    others = np.setdiff1d(np.arange(1000), rows)
+    assert not tiled_output.gather_records(path, others)["computed"].any()
+    assert np.array_equal(tiled_output.read_results(path, 0, 1000)["mean"][rows], rows * 0.5)

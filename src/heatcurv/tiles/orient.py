@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .output import PATCH_SHIFT, RECORD
+from .output import PATCH_SHIFT, gather_records
 
 __all__ = ["seam_flips", "VOTE_COSINE"]
 
@@ -72,25 +72,21 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
         tile's own orientation could not keep consistent) and ``shared``.
     """
     keys, volumes, pairs, votes = [], [], [], []
-    results = np.memmap(results_path, dtype=RECORD, mode="r")
-    try:
-        for tile, path in sorted(tile_files.items()):
-            with np.load(path) as data:
-                base = np.int64(tile) << PATCH_SHIFT
-                keys.append(base | data["volume_labels"])
-                volumes.append(data["volumes"])
-                halo_rows = data["halo_rows"]
-                if not len(halo_rows):
-                    continue
-                owner = results[np.sort(halo_rows)]
-                order = np.argsort(halo_rows)
-                mine_patch = (base | data["halo_patch"])[order]
-                dot = np.einsum("ij,ij->i", data["halo_normals"][order], owner["normals"])
-                vote = (np.abs(dot) >= VOTE_COSINE) & (owner["computed"] == 1)
-                pairs.append(np.column_stack([mine_patch[vote], owner["patch"][vote]]))
-                votes.append(np.sign(dot[vote]).astype(np.int64))
-    finally:
-        del results
+    for tile, path in sorted(tile_files.items()):
+        with np.load(path) as data:
+            base = np.int64(tile) << PATCH_SHIFT
+            keys.append(base | data["volume_labels"])
+            volumes.append(data["volumes"])
+            halo_rows = data["halo_rows"]
+            if not len(halo_rows):
+                continue
+            owner = gather_records(results_path, np.sort(halo_rows))
+            order = np.argsort(halo_rows)
+            mine_patch = (base | data["halo_patch"])[order]
+            dot = np.einsum("ij,ij->i", data["halo_normals"][order], owner["normals"])
+            vote = (np.abs(dot) >= VOTE_COSINE) & (owner["computed"] == 1)
+            pairs.append(np.column_stack([mine_patch[vote], owner["patch"][vote]]))
+            votes.append(np.sign(dot[vote]).astype(np.int64))
     keys, volumes = np.concatenate(keys), np.concatenate(volumes)
     order = np.argsort(keys)
     keys, volumes = keys[order], volumes[order]

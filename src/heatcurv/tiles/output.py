@@ -111,6 +111,24 @@ def write_records(path, records: np.ndarray, rows: np.ndarray) -> None:
         del span
 
 
+def gather_records(path, rows: np.ndarray) -> np.ndarray:
+    """Records of ``results.rec`` at the increasing ``rows``, one window of the file mapped at a time.
+
+    A whole-file map would keep every page it touched resident (at 100M points
+    the halo rows of 512 tiles touch most of a 10 GB file).
+    """
+    out = np.empty(len(rows), dtype=RECORD)
+    for window in np.unique(rows // WINDOW_ROWS).tolist():
+        lo, hi = np.searchsorted(rows, [window * WINDOW_ROWS, (window + 1) * WINDOW_ROWS])
+        first, last = int(rows[lo]), int(rows[hi - 1]) + 1
+        span = np.memmap(path, dtype=RECORD, mode="r", offset=first * RECORD.itemsize, shape=(last - first,))
+        try:
+            out[lo:hi] = span[rows[lo:hi] - first]
+        finally:
+            del span
+    return out
+
+
 def read_results(path, start: int, stop: int) -> np.ndarray:
     """Records of input rows ``[start, stop)`` (a plain read: no map stays in memory)."""
     return np.fromfile(path, dtype=RECORD, count=stop - start, offset=start * RECORD.itemsize)
