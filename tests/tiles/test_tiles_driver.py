@@ -10,6 +10,7 @@ import heatcurv
 from heatcurv.errors import HeatcurvError
 from heatcurv.testing.tiles import compare_fields, result_columns, tiled_agreement
 from heatcurv.tiles import compute_file
+from heatcurv.tiles.output import STORED_KEYS
 from heatcurv.tiles.tasks import FAULT_VARIABLE
 
 
@@ -71,6 +72,25 @@ def test_a_failing_tile_fails_the_run_without_output(torus_file, torus_threads, 
     assert all(np.array_equal(a[k], b[k]) for k in b)
 
 
+def test_resume_without_results_recomputes_the_stored_tiles(torus_file, torus_threads, tmp_path, monkeypatch):
+    """A resumed run whose results.rec is gone computes the tiles stored in it again (their files no longer hold
+    their rows) and says so; the output equals a run in one go."""
+    out = tmp_path / "lost.ply"
+    monkeypatch.setenv(FAULT_VARIABLE, "fail:3")
+    with pytest.raises(HeatcurvError, match="tile 3 of 8 failed"):
+        compute_file(torus_file[0], out, tile_size=1200, scheduler="serial")
+    work = tmp_path / ".lost.ply.heatcurv-tiles"
+    (work / "results.rec").unlink()
+    monkeypatch.delenv(FAULT_VARIABLE)
+    said = []
+    report = compute_file(torus_file[0], out, tile_size=1200, scheduler="serial", dtype="float64",
+                          fields=ALL_FIELDS, log=said.append)
+    assert report.resumed == 0 and len(report.tile_seconds) == 8
+    assert any("3 finished tile(s) must be computed again" in line for line in said)
+    a, b = read_fields(out), read_fields(torus_threads[0])
+    assert all(np.array_equal(a[k], b[k]) for k in b)
+
+
 def test_resume_requires_a_plan(torus_file, tmp_path):
     with pytest.raises(HeatcurvError, match="nothing to resume"):
         compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, resume=True)
@@ -82,7 +102,10 @@ def test_ctrl_c_removes_temporaries_and_keeps_finished_tiles(torus_file, tmp_pat
         compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, scheduler="serial")
     work = tmp_path / ".out.ply.heatcurv-tiles"
     assert sorted(os.listdir(work / "tiles")) == ["tile_00000.npz"]
-    assert not (work / "results.rec").exists() and not (tmp_path / "out.ply").exists()
+    # the finished tile's rows are in results.rec, kept for the resume; its file holds the seam vote's inputs only
+    assert (work / "results.rec").exists() and not (tmp_path / "out.ply").exists()
+    with np.load(work / "tiles" / "tile_00000.npz") as data:
+        assert sorted(data.files) == sorted(STORED_KEYS + ("stored",))
     # interrupted before any tile finished: nothing is kept
     monkeypatch.setenv(FAULT_VARIABLE, "interrupt:0")
     with pytest.raises(KeyboardInterrupt):

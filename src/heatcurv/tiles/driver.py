@@ -24,13 +24,16 @@ Scratch files live in ``<scratch>/.<output name>.heatcurv-tiles/``
 (``scratch`` defaults to the output's directory): ``plan.json`` (source
 identity, options hash, tiling, statistics), ``context.pkl``, ``points.f8``,
 ``rows.i8``, ``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
-tile: its done marker). A run whose scratch directory holds a plan with the
-same source file (path, size, modification time), options and tile size
-resumes: finished tiles are not recomputed (``resume=None``, the default;
-``True`` requires such a plan, ``False`` starts afresh). A successful run
-removes its scratch directory. A failed run or Ctrl-C removes the temporary
-files and ``results.rec``; if tiles were finished, it keeps them with the plan
-for a resume (the message says where), otherwise it removes the directory.
+tile: its done marker; once its rows are copied into ``results.rec`` it keeps
+only the seam vote's inputs, :data:`.output.STORED_KEYS`). A run whose scratch
+directory holds a plan with the same source file (path, size, modification
+time), options and tile size resumes: finished tiles are not recomputed
+(``resume=None``, the default; ``True`` requires such a plan, ``False`` starts
+afresh); if ``results.rec`` is gone, the tiles stored in it are computed again.
+A successful run removes its scratch directory. A failed run or Ctrl-C removes
+the temporary files; if tiles were finished, it keeps them, ``results.rec``
+and the plan for a resume (the message says where), otherwise it removes the
+directory.
 
 Faults
 ------
@@ -61,7 +64,16 @@ from ..survey import FitsNotSurveyed
 from . import compute
 from .executors import SCHEDULERS, SerialExecutor, kill_workers, open_executor
 from .medians import apply_cloud_flags
-from .output import DEFAULT_FIELDS, RECORD, TILED_FIELDS, TILED_WRITE, create_results, store_tile, write_output
+from .output import (
+    DEFAULT_FIELDS,
+    RECORD,
+    TILED_FIELDS,
+    TILED_WRITE,
+    create_results,
+    is_stored,
+    store_tile,
+    write_output,
+)
 from .plan import (
     BYTES_PER_POINT,
     DRIVER_MEMORY,
@@ -99,7 +111,7 @@ RETRIES = 2
 #: (31 centres a tile), an estimate not measured yet.
 ONE_ROUND_TILES = 63
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 5
+PLAN_VERSION = 6
 
 
 @dataclass
@@ -221,8 +233,7 @@ def _cleanup(work: Path, keep_done: bool) -> str:
     done = sorted(tiles.glob("tile_*.npz")) if tiles.exists() else []
     for stray in (tiles.glob("*.tmp.npz") if tiles.exists() else []):
         stray.unlink(missing_ok=True)
-    if keep_done and done:
-        (work / "results.rec").unlink(missing_ok=True)
+    if keep_done and done:  # results.rec holds the rows of the tiles already stored
         return f"{len(done)} finished tile(s) are kept in {work}: run the same command again to resume, or delete it"
     shutil.rmtree(work, ignore_errors=True)
     return ""
@@ -356,7 +367,9 @@ def compute_file(
             timings["stats"] = time.perf_counter() - tic
             if tile_size is None:
                 tile_size = default_tile_size(max(budget - DRIVER_MEMORY, 0), requested)
-            need = stats.finite * (32 + 2 * RECORD.itemsize + 48)
+            # points.f8 + rows.i8 with the halos' copies (~1.25x), results.rec, the slimmed tile files (their
+            # halo rows, normals and patches) and the few full ones in flight
+            need = stats.finite * (48 + RECORD.itemsize + 48)
             check_disk(work, need, f"the scratch files of {stats.finite} points")
             if os.stat(work).st_dev == os.stat(dst.parent).st_dev:
                 need += stats.count * 100
@@ -443,9 +456,15 @@ def compute_file(
         workers = max(1, min(_fitting_workers(tiling, stats, halo, budget, requested, cpus, tile_size), n_tiles))
 
         results_path = work / "results.rec"
-        create_results(results_path, stats.count)
         done = {t for t in range(n_tiles) if os.path.exists(tile_path(work, t))}
-        for t in sorted(done):
+        stored = {t for t in done if is_stored(tile_path(work, t))}
+        if not create_results(results_path, stats.count, keep=bool(stored)) and stored:
+            # their rows were in a results.rec that is gone: those tiles are computed again
+            for t in stored:
+                os.unlink(tile_path(work, t))
+            say(f"{len(stored)} finished tile(s) must be computed again: {results_path} is missing")
+            done -= stored
+        for t in sorted(done - stored):
             store_tile(results_path, tile_path(work, t), t)
         resumed = len(done)
         if resumed:

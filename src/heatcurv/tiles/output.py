@@ -69,14 +69,38 @@ _PLY_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": 
               "f4": "float", "f8": "double"}
 
 
-def create_results(path, count: int) -> None:
-    """An all-zero ``results.rec`` of ``count`` records (a sparse file)."""
+def create_results(path, count: int, *, keep: bool = False) -> bool:
+    """An all-zero ``results.rec`` of ``count`` records (a sparse file); return whether it was kept.
+
+    With ``keep``, an existing file of exactly that size is kept as it is (a
+    resumed run: it holds the rows of the tiles already stored).
+    """
+    if keep and os.path.exists(path) and os.path.getsize(path) == count * RECORD.itemsize:
+        return True
     with open(path, "wb") as stream:
         stream.truncate(count * RECORD.itemsize)
+    return False
+
+
+#: What a tile's result file keeps once its rows are in ``results.rec``: the seam vote's inputs
+#: (:func:`heatcurv.tiles.orient.seam_flips`) and the ``stored`` mark. The per-point fields, about
+#: 170 bytes a core point, would double the scratch (at 100M points 17 of 39 GB).
+STORED_KEYS = ("volume_labels", "volumes", "halo_rows", "halo_normals", "halo_patch")
+
+
+def is_stored(tile_file) -> bool:
+    """Whether ``tile_file``'s rows are already in ``results.rec`` (the file was slimmed by :func:`store_tile`)."""
+    with np.load(tile_file) as data:
+        return "stored" in data.files
 
 
 def store_tile(path, tile_file, tile: int) -> int:
-    """Copy a finished tile's core rows into ``results.rec`` at their input rows; return the row count."""
+    """Copy a finished tile's core rows into ``results.rec`` at their input rows; return the row count.
+
+    Then the tile file is slimmed to :data:`STORED_KEYS` and marked ``stored``
+    (replaced atomically, after the rows are flushed): a resumed run finds those
+    rows in the kept ``results.rec``.
+    """
     with np.load(tile_file) as data:
         rows = data["rows"]
         block = np.zeros(len(rows), dtype=RECORD)
@@ -84,6 +108,7 @@ def store_tile(path, tile_file, tile: int) -> int:
             block[name] = data[name]
         block["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"]
         block["computed"] = 1
+        kept = {name: data[name] for name in STORED_KEYS}
     order = np.argsort(rows)
     rows, block = rows[order], block[order]
     # one window of the file mapped at a time: a tile's rows are spread over the whole file, and a
@@ -91,6 +116,14 @@ def store_tile(path, tile_file, tile: int) -> int:
     for window in np.unique(rows // WINDOW_ROWS).tolist():
         lo, hi = np.searchsorted(rows, [window * WINDOW_ROWS, (window + 1) * WINDOW_ROWS])
         write_records(path, block[lo:hi], rows[lo:hi])
+    temporary = f"{tile_file}.{os.getpid()}.tmp.npz"
+    try:
+        np.savez(temporary, stored=np.int64(len(rows)), **kept)
+        os.replace(temporary, tile_file)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        raise
     return len(rows)
 
 

@@ -83,7 +83,7 @@ class Source:
         """Yield ``(start, points, records)`` for consecutive row ranges of at most ``size`` rows.
 
         ``points`` is (k, 3) float64; ``records`` the raw rows (LAS: a laspy
-        point record; PLY/NPY: the mapped array), or None if ``coordinates_only``.
+        point record; PLY/NPY: the rows read), or None if ``coordinates_only``.
         """
         if self.kind == "las":
             import laspy
