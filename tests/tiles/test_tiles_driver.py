@@ -194,3 +194,23 @@ def test_estimator_options_of_a_tiled_run():
         estimator_options("default", np.zeros((4, 3)), {}, "las")
     with pytest.raises(HeatcurvError):
         estimator_options("default", None, {"alpha": -1.0}, "npy")
+
+
+def test_stored_tiles_are_slimmed_in_batches(torus_file, torus_threads, tmp_path, monkeypatch):
+    """results.rec is fsynced and the stored tiles' files slimmed once their core points reach SLIM_POINTS (and at
+    the end of the tiles), not after every tile; the output is that of a run in one go."""
+    from heatcurv.tiles import driver, output
+
+    batches = []
+
+    def recording(path, files):
+        batches.append(len(files))
+        output.slim_tiles(path, files)
+
+    monkeypatch.setattr(driver, "SLIM_POINTS", 1500)
+    monkeypatch.setattr(driver, "slim_tiles", recording)
+    out = tmp_path / "batched.ply"
+    compute_file(torus_file[0], out, tile_size=1200, scheduler="serial", dtype="float64", fields=ALL_FIELDS)
+    assert sum(batches) == 8 and max(batches) >= 2 and len([b for b in batches if b]) >= 3
+    a, b = read_fields(out), read_fields(torus_threads[0])
+    assert all(np.array_equal(a[k], b[k]) for k in b)

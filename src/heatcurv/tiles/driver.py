@@ -14,7 +14,9 @@
    the survey's workers with it) bounds both rounds.
 3. ``tiles``: :func:`.tasks.run_tile` on every tile not done yet, at most
    ``2 x slots`` in flight; each finished tile is copied into the
-   index-addressed ``results.rec``.
+   index-addressed ``results.rec``, and every :data:`SLIM_POINTS` core points
+   ``results.rec`` is fsynced and the stored tiles' files slimmed
+   (:func:`.output.slim_tiles`).
 4. ``orientation``: for ``outward``, the flip bits (:mod:`.orient`).
 5. ``write``: the output in input order, atomically (:mod:`.output`).
 
@@ -71,6 +73,7 @@ from .output import (
     TILED_WRITE,
     create_results,
     is_stored,
+    slim_tiles,
     store_tile,
     write_output,
 )
@@ -110,6 +113,9 @@ RETRIES = 2
 #: per tile (2000 / tiles), round 1 costs about 0.3 of one round: two rounds should pay from about 64 tiles
 #: (31 centres a tile), an estimate not measured yet.
 ONE_ROUND_TILES = 63
+#: Core points of stored tiles after which :func:`.output.slim_tiles` fsyncs ``results.rec`` and slims their
+#: files (about 350 MB of rows): the scratch stays near one copy of the results, the loop rarely waits.
+SLIM_POINTS = 2_000_000
 #: Plan file version: a plan of another version is never resumed.
 PLAN_VERSION = 6
 
@@ -359,6 +365,8 @@ def compute_file(
     work.mkdir(exist_ok=True)
     (work / "tiles").mkdir(exist_ok=True)
     bar = TileProgress(sys.stderr.isatty() if progress is None else bool(progress), 1, 1)
+    results_path = work / "results.rec"
+    unslimmed = {}  # tile file -> core points: rows in results.rec, not yet fsynced and slimmed (slim_tiles)
     try:
         if plan is None:
             bar.stage("statistics")
@@ -455,7 +463,6 @@ def compute_file(
         halo = float(context["halo"]) if isinstance(context, dict) and "halo" in context else float("nan")
         workers = max(1, min(_fitting_workers(tiling, stats, halo, budget, requested, cpus, tile_size), n_tiles))
 
-        results_path = work / "results.rec"
         done = {t for t in range(n_tiles) if os.path.exists(tile_path(work, t))}
         stored = {t for t in done if is_stored(tile_path(work, t))}
         if not create_results(results_path, stats.count, keep=bool(stored)) and stored:
@@ -465,7 +472,7 @@ def compute_file(
             say(f"{len(stored)} finished tile(s) must be computed again: {results_path} is missing")
             done -= stored
         for t in sorted(done - stored):
-            store_tile(results_path, tile_path(work, t), t)
+            unslimmed[tile_path(work, t)] = store_tile(results_path, tile_path(work, t), t)
         resumed = len(done)
         if resumed:
             say(f"resuming: {resumed} of {n_tiles} tiles already computed in {work}")
@@ -475,14 +482,19 @@ def compute_file(
         tile_results = {}
 
         def finished(t, result):
-            store_tile(results_path, tile_path(work, t), t)
+            unslimmed[tile_path(work, t)] = store_tile(results_path, tile_path(work, t), t)
             tile_results[t] = result
             bar(result["points"])
+            if sum(unslimmed.values()) >= SLIM_POINTS:
+                slim_tiles(results_path, list(unslimmed))
+                unslimmed.clear()
 
         tic = time.perf_counter()
         specs = {t: {"scratch": str(work), "tile": t, "context": context, "options": task_options}
                  for t in range(n_tiles) if t not in done}
         name = _run(executor, workers, run_tile, specs, finished, say, "tile", n_tiles)
+        slim_tiles(results_path, list(unslimmed))  # before the output takes its disk space
+        unslimmed.clear()
         timings["tiles"] = time.perf_counter() - tic
         # the flags that compare each point with the whole cloud's medians, once every tile is in
         tic = time.perf_counter()
@@ -509,6 +521,11 @@ def compute_file(
         timings["write"] = time.perf_counter() - tic
     except BaseException as exc:
         bar.close()
+        if unslimmed:  # the stored tiles' rows made durable, their files slimmed (a resume finds both)
+            try:
+                slim_tiles(results_path, list(unslimmed))
+            except Exception:
+                pass  # a file left whole is stored again on resume
         left = _cleanup(work, keep_done=True)
         if left:
             say(left)
