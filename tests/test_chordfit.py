@@ -111,3 +111,28 @@ def test_normal_refinement_is_the_first_of_two_passes(denoise):
     # the refinement removes most of the tilt: 0.05 rad of noise -> well under a degree
     angle = np.degrees(np.arccos(np.clip(np.abs(np.sum(refined * sample.normals, axis=1)), 0, 1)))
     assert np.median(angle) < 0.3 < np.median(np.degrees(np.arccos(np.abs(np.sum(tilted * sample.normals, 1)))))
+
+
+def test_jacobi_ridge_does_not_depend_on_the_columns_scales():
+    # the low-noise refit's columns span orders of magnitude (quartic terms against the offset): a ridge
+    # relative to the trace pulls the small columns' coefficients (a rotated clean paraboloid: k2 1.4e-5 of
+    # its largest curvature apart), a ridge relative to each diagonal entry is the same for any column scale
+    from heatcurv._kernels.chordfit import solve_compiled
+    from heatcurv.chordfit import ridge_solve
+
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(2, 40, 6))
+    X[:, :, 5] += 0.999 * X[:, :, 4]  # nearly collinear: the ridge matters
+    y = rng.normal(size=(2, 40))
+    scales = np.array([1.0, 1e-4, 1.0, 1e3, 1e-5, 1e-5])
+    found = []
+    for s in (np.ones(6), scales):
+        Xs = X * s
+        G, r = np.einsum("nip,niq->npq", Xs, Xs), np.einsum("nip,ni->np", Xs, y)
+        beta = ridge_solve(G, r, ridge=1e-6, jacobi=True)[0] * s
+        compiled = solve_compiled(G, r, np.einsum("ni,ni->n", y, y), ridge=1e-6, jacobi=True)[0] * s
+        np.testing.assert_allclose(compiled, beta, rtol=1e-8)
+        found.append(beta)
+    np.testing.assert_allclose(found[1], found[0], rtol=1e-8)
+    G, r = np.einsum("nip,niq->npq", X * scales, X * scales), np.einsum("nip,ni->np", X * scales, y)
+    assert np.abs(ridge_solve(G, r, ridge=1e-6)[0] * scales - found[0]).max() > 1e-3  # the trace's ridge does not

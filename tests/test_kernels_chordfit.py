@@ -33,6 +33,10 @@ def cloud(sample, k=60, queries=None):
     return pts, nb, w
 
 
+#: The forms compared: chord, denoised, and the denoised form's low-noise refit (heatcurv.chordfit.chord_fit).
+FORMS = [(False, False), (True, False), (True, True)]
+
+
 def both(*args, **kwargs):
     """The numpy reference's fit and the compiled one."""
     return reference.chord_fit(*args, **kwargs), chord_fit(*args, **kwargs)
@@ -77,32 +81,33 @@ def noisy_sphere():
     return (sample.normals,) + cloud(sample)
 
 
-@pytest.mark.parametrize("denoise", [False, True])
+@pytest.mark.parametrize("denoise, low_noise", FORMS)
 @pytest.mark.parametrize("case", ["torus", "noisy_sphere"])
-def test_compiled_fit_matches_reference(case, denoise, request):
+def test_compiled_fit_matches_reference(case, denoise, low_noise, request):
     normals, pts, nb, w = request.getfixturevalue(case)
-    assert_same_fit(*both(pts, nb, normals, w, denoise=denoise))
+    assert_same_fit(*both(pts, nb, normals, w, denoise=denoise, low_noise=low_noise))
 
 
-@pytest.mark.parametrize("denoise", [False, True])
+@pytest.mark.parametrize("denoise, low_noise", FORMS)
 @pytest.mark.parametrize("tilt, cubic, passes", [(False, False, 1), (True, False, 2), (False, True, 2)])
-def test_compiled_fit_matches_reference_without_terms(torus, tilt, cubic, passes, denoise):
+def test_compiled_fit_matches_reference_without_terms(torus, tilt, cubic, passes, denoise, low_noise):
     normals, pts, nb, w = torus
-    assert_same_fit(*both(pts, nb, normals, w, tilt=tilt, cubic=cubic, passes=passes, denoise=denoise))
+    assert_same_fit(*both(pts, nb, normals, w, tilt=tilt, cubic=cubic, passes=passes, denoise=denoise,
+                          low_noise=low_noise))
 
 
-@pytest.mark.parametrize("denoise", [False, True])
-def test_compiled_fit_matches_reference_on_given_centres(denoise):
+@pytest.mark.parametrize("denoise, low_noise", FORMS)
+def test_compiled_fit_matches_reference_on_given_centres(denoise, low_noise):
     # a subset of the points as centres, as select_scale fits them
     sample = surfaces.Torus().sample(3000, "random", seed=5, noise=0.002)
     sub = np.sort(np.random.default_rng(0).choice(3000, 500, replace=False))
     pts, nb, w = cloud(sample, queries=sample.points[sub])
-    ref, fit = both(pts, nb, sample.normals[sub], w, denoise=denoise, centres=pts[sub])
+    ref, fit = both(pts, nb, sample.normals[sub], w, denoise=denoise, low_noise=low_noise, centres=pts[sub])
     assert_same_fit(ref, fit)
 
 
-@pytest.mark.parametrize("denoise", [False, True])
-def test_compiled_fit_matches_reference_on_degenerate_rows(denoise):
+@pytest.mark.parametrize("denoise, low_noise", FORMS)
+def test_compiled_fit_matches_reference_on_degenerate_rows(denoise, low_noise):
     # centres straight above the points of a grid on a saddle, normals (0, 0, 1):
     # the point below each centre has r = 0 exactly (its direction is a convention)
     g = np.arange(-10, 11) * 0.05
@@ -121,7 +126,7 @@ def test_compiled_fit_matches_reference_on_degenerate_rows(denoise):
         np.concatenate([[0], np.cumsum(counts)]), nb.indices[keep], nb.distances[keep], nb.radius, nb.augmented
     )
     w = np.exp(-(nb.distances**2) / np.repeat(nb.radius / 2, nb.counts) ** 2)
-    ref, fit = both(pts, nb, normals, w, denoise=denoise, centres=centres)
+    ref, fit = both(pts, nb, normals, w, denoise=denoise, low_noise=low_noise, centres=centres)
     assert not ref.principal.well_posed[empty] and ref.principal.mean[empty] == 0
     np.testing.assert_array_equal(fit.principal.well_posed, ref.principal.well_posed)
     for name in ("k1", "k2", "mean", "gaussian"):

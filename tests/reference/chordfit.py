@@ -10,7 +10,14 @@ the normal matrices' condition numbers.
 
 import numpy as np
 
-from heatcurv._kernels.chordfit import MIN_DOF_FRACTION
+from heatcurv._kernels.chordfit import (
+    LOW_NOISE_LIMIT,
+    LOW_NOISE_MIN_LAMBDA,
+    LOW_NOISE_SIGMA,
+    LOW_NOISE_TRIED,
+    MIN_DOF_FRACTION,
+    QUARTIC_COLUMNS,
+)
 from heatcurv.chordfit import (
     ChordFit,
     _chord_fit_result,
@@ -70,6 +77,7 @@ def chord_fit(
     cubic: bool = True,
     denoise: bool = False,
     centres: np.ndarray | None = None,
+    low_noise: bool = False,
 ) -> ChordFit:
     """:func:`heatcurv.chordfit.chord_fit` in numpy: same parameters, same result to rounding."""
     if centres is None:
@@ -104,6 +112,7 @@ def chord_fit(
                 continue
             zhat = np.einsum("ij,ij->i", design, beta[nbhd.rows])
             z0 = beta[nbhd.rows, -1]
+            jet_sigma2 = residual_variance(nbhd, weights, z - zhat, design.shape[1])
             # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2
             D2 = r2 + (zhat - z0) ** 2
             design = np.concatenate([-0.5 * D2[:, None] * cols, np.ones((len(r2), 1))], 1)
@@ -112,6 +121,51 @@ def chord_fit(
             resid = z - np.einsum("ij,ij->i", design, beta[nbhd.rows])
             sigma2 = residual_variance(nbhd, weights, resid, design.shape[1])
             beta = beta[:, :-1]
+            if not low_noise:
+                continue_low = False
+            else:
+                low, low_fit = _low_noise_refit(nbhd, x, y, z, r2, cols, weights, jet_sigma2)
+                continue_low = bool(low.any())
+            quartic = np.zeros((len(beta), QUARTIC_COLUMNS))
+            if continue_low:
+                lbeta, lok, lvar = low_fit
+                n_shape = cols.shape[1]
+                beta[low], ok[low], var_factor[low] = lbeta[low, :n_shape], lok[low], lvar[low]
+                quartic[low] = lbeta[low, n_shape:-1]
+                sigma2[low] = jet_sigma2[low]
         pc, refined = _principal_and_refined_normal(beta, unit, e1, e2, nrm, tilt)
         used, nrm = nrm, refined
-    return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit, _model_coefficients(beta, tilt, cubic))
+    coefficients = _model_coefficients(beta, tilt, cubic)
+    if denoise and low_noise:  # the low-noise refit carries its quartic terms (zeros where it is not used)
+        coefficients = np.concatenate([coefficients, quartic], 1)
+    return _chord_fit_result(pc, ok, used, sigma2, var_factor, unit, coefficients)
+
+
+def _low_noise_refit(nbhd, x, y, z, r2, cols, weights, jet_sigma2):
+    """The low-noise refit of :func:`heatcurv.chordfit._denoised_refit` at every centre, and where it is used.
+
+    Returns ``low`` (bool per centre) and ``(beta, well_posed, variance)`` of the refit
+    (``beta``: shape columns, quartic columns, offset).
+    """
+    rows = nbhd.rows
+    limit2 = (LOW_NOISE_LIMIT * LOW_NOISE_SIGMA) ** 2
+    tried = jet_sigma2 < LOW_NOISE_TRIED**2 * limit2
+    if not tried.any():
+        return tried, None
+    safe = np.where(r2 > 0, r2, 1.0)
+    quartic = np.stack([x**4, x**3 * y, x * x * y * y, x * y**3, y**4], 1) / safe[:, None]
+    shape = np.concatenate([cols, quartic], 1)
+    # the height fit with quartic terms: its residual and heights
+    design = np.concatenate([-0.5 * r2[:, None] * shape, np.ones((len(r2), 1))], 1)
+    qbeta = segment_lstsq(nbhd, design, z, weights, jacobi=True)[0]
+    own = residual_variance(nbhd, weights, z - np.einsum("ij,ij->i", design, qbeta[rows]), design.shape[1])
+    low = tried & (own < limit2)
+    # the refit: D^2 from the quartic heights, pairs weighted w lambda^4 / (D^4 + lambda^4)
+    dz = np.einsum("ij,ij->i", design[:, :-1], qbeta[rows, :-1])
+    D2 = r2 + dz * dz
+    lam4 = np.maximum(own / LOW_NOISE_SIGMA**2, LOW_NOISE_MIN_LAMBDA**4)[rows]
+    design = np.concatenate([-0.5 * D2[:, None] * shape, np.ones((len(r2), 1))], 1)
+    beta, _, ok, var_factor = segment_lstsq(
+        nbhd, design, z, weights * lam4 / (D2 * D2 + lam4), contrast=_mean_contrast(design.shape[1]), jacobi=True
+    )
+    return low, (beta, ok, var_factor)

@@ -35,12 +35,21 @@ __all__ = [
     "CHORD",
     "HEIGHT",
     "DENOISED_HEIGHT",
+    "LOW_NOISE_HEIGHT",
+    "QUARTIC_HEIGHT",
+    "LOW_NOISE_SIGMA",
+    "LOW_NOISE_LIMIT",
+    "LOW_NOISE_TRIED",
+    "LOW_NOISE_MIN_LAMBDA",
+    "QUARTIC_COLUMNS",
     "MIN_DOF_FRACTION",
     "WELL_POSED_RCOND",
     "assemble_normal_equations",
     "weighted_height_residual",
+    "two_height_residuals",
     "solve_compiled",
     "fit",
+    "normal_equations",
 ]
 
 # What a fit's response and design are:
@@ -50,6 +59,28 @@ CHORD = 0
 HEIGHT = 1
 #: heights ``z`` against ``[-D^2 / 2 * columns, 1]``, ``D^2 = r^2 + (zhat - z0)^2`` from a height fit.
 DENOISED_HEIGHT = 2
+#: heights ``z`` against ``[-D^2 / 2 * columns, -D^2 / 2 * quartic, 1]``, ``D^2 = r^2 + (zhat - z0)^2`` from a
+#: ``QUARTIC_HEIGHT`` fit, pairs weighted ``w lambda^4 / (D^4 + lambda^4)``: the low-noise refit
+#: (:func:`heatcurv.chordfit.chord_fit`);
+LOW_NOISE_HEIGHT = 3
+#: heights ``z`` against ``[-r^2 / 2 * columns, -r^2 / 2 * quartic, 1]`` (the height fit with quartic terms).
+QUARTIC_HEIGHT = 4
+#: Quartic columns of the low-noise refit: ``r^2 c^4, r^2 c^3 s, r^2 c^2 s^2, r^2 c s^3, r^2 s^4``.
+QUARTIC_COLUMNS = 5
+#: ``lambda^2 = sigma / LOW_NOISE_SIGMA`` (both in units of the ball radius) in the low-noise refit's weights.
+LOW_NOISE_SIGMA = 6e-4
+#: The low-noise refit is kept where its own residual is below ``LOW_NOISE_LIMIT * LOW_NOISE_SIGMA``;
+#: noisier centres take ``DENOISED_HEIGHT``.
+LOW_NOISE_LIMIT = 4.0
+#: ... and it is tried only where the plain height fit's residual is below ``LOW_NOISE_TRIED`` times that
+#: (strong noise skips it: its residual would be the noise's).
+LOW_NOISE_TRIED = 10.0
+#: Least ``lambda`` of the low-noise refit, units of the ball radius: on a clean ball ``lambda -> 0`` and the
+#: weights ``1 / D^4`` of far pairs against ``1`` of a pair at the centre (``D = 0``) made the normal equations
+#: singular to rounding (a grid under a saddle: the numpy and compiled fits 7e-7 apart). The floor only acts
+#: where ``sigma`` is below ``LOW_NOISE_SIGMA * 0.05^2 = 1.5e-6`` ball radii (noise 1e-5 of a torus's
+#: diagonal at 480 neighbours is 1.7e-4).
+LOW_NOISE_MIN_LAMBDA = 0.05
 
 #: Floor of ``1 - p / n_eff`` in the residual variance (balls barely larger than the model);
 #: see :func:`_unbiased_mean_square`.
@@ -103,6 +134,22 @@ def _fill_shape_columns(x, y, tilt, cubic, cols):
         else:  # r c^3 ... at r = 0
             cols[k] = cols[k + 1] = cols[k + 2] = cols[k + 3] = 0.0
     return r2
+
+
+@numba.njit(cache=True)
+def _fill_quartic_columns(x, y, r2, X, first):
+    """The quartic columns ``r^2 c^4 ... r^2 s^4`` (``x^4 / r^2 ...``) into ``X[first:first + 5]``."""
+    if r2 > 0:
+        inv = 1.0 / r2
+        xx, yy = x * x, y * y
+        X[first] = xx * xx * inv
+        X[first + 1] = xx * x * y * inv
+        X[first + 2] = xx * yy * inv
+        X[first + 3] = x * y * yy * inv
+        X[first + 4] = yy * yy * inv
+    else:
+        for a in range(QUARTIC_COLUMNS):
+            X[first + a] = 0.0
 
 
 @numba.njit(cache=True, fastmath={"reassoc", "contract"})
@@ -159,6 +206,17 @@ def _denoised_denominator(cols, n_shape, r2, height_beta, i):
     return r2 + dz * dz
 
 
+@numba.njit(cache=True)
+def _quartic_denominator(cols, quartic, n_shape, r2, height_beta, i):
+    """``D^2 = r^2 + (zhat - z0)^2`` with ``zhat`` the ``QUARTIC_HEIGHT`` fit ``height_beta[i]`` at the pair."""
+    dz = 0.0
+    for a in range(n_shape):
+        dz += -0.5 * r2 * cols[a] * height_beta[i, a]
+    for a in range(QUARTIC_COLUMNS):
+        dz += -0.5 * r2 * quartic[a] * height_beta[i, n_shape + a]
+    return r2 + dz * dz
+
+
 def assemble_normal_equations(
     points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, G, rhs, yy, G2
 ):
@@ -176,9 +234,11 @@ def assemble_normal_equations(
         Each centre's frame.
     tilt, cubic : bool
     kind : int
-        ``CHORD``, ``HEIGHT`` or ``DENOISED_HEIGHT``.
+        ``CHORD``, ``HEIGHT``, ``DENOISED_HEIGHT``, ``LOW_NOISE_HEIGHT`` or ``QUARTIC_HEIGHT``.
     height_beta : ndarray, shape (n, p) or (0, p)
-        The plain height fit (for ``DENOISED_HEIGHT`` only).
+        The plain height fit (for ``DENOISED_HEIGHT``), or for ``LOW_NOISE_HEIGHT`` the
+        ``QUARTIC_HEIGHT`` fit and one more column, last: each centre's ``lambda^4``
+        (units of ``unit``).
     G, rhs, yy : ndarray, shape (n, p, p), (n, p), (n,)
         Output: ``X^T W X``, ``X^T W y``, ``y^T W y``.
     G2 : ndarray, shape (n, p, p) or (0, p, p)
@@ -250,16 +310,25 @@ def _assemble_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, G, rhs,
                 for a in range(p):
                     X[a] = cols[a]
             else:
-                if kind == HEIGHT:
-                    D2 = r2
-                else:
+                D2 = r2  # HEIGHT, QUARTIC_HEIGHT
+                if kind == DENOISED_HEIGHT:
                     D2 = _denoised_denominator(cols, n_shape, r2, height_beta, i)
+                if kind == LOW_NOISE_HEIGHT or kind == QUARTIC_HEIGHT:
+                    _fill_quartic_columns(x, y, r2, X, n_shape)
+                    if kind == LOW_NOISE_HEIGHT:
+                        D2 = _quartic_denominator(cols, X[n_shape:], n_shape, r2, height_beta, i)
+                    for a in range(n_shape, p - 1):
+                        X[a] *= -0.5 * D2
                 for a in range(n_shape):
                     X[a] = -0.5 * D2 * cols[a]
-                X[n_shape] = 1.0
+                X[p - 1] = 1.0
                 response = z
                 noise = 1.0
             w = weights[k]
+            if kind == LOW_NOISE_HEIGHT:
+                # near pairs weigh as in the chord fit (1 / D^4 on heights), far ones as in the height fit
+                lam4 = height_beta[i, n_shape + QUARTIC_COLUMNS + 1]
+                w *= lam4 / (D2 * D2 + lam4)
             yyi += w * response * response
             sw = np.sqrt(w)
             for a in range(p):
@@ -274,6 +343,81 @@ def _assemble_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, G, rhs,
         if with_g2:
             _gram(St, m, G2[i])
         yy[i] = yyi
+
+
+def two_height_residuals(
+    points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, plain, quartic, sigma2_plain,
+    sigma2_quartic
+):
+    """:func:`weighted_height_residual` of two height fits in one pass over the pairs.
+
+    ``plain`` (shape (n, n_shape + 1)) is a ``HEIGHT`` fit, ``quartic`` (shape (n, n_shape + 6))
+    a ``QUARTIC_HEIGHT`` fit; their residuals go into ``sigma2_plain`` and ``sigma2_quartic``, the
+    same numbers as two calls of :func:`weighted_height_residual` (the low-noise refit reads both).
+    """
+    points, indptr = as_floats(points), as_pointers(indptr)
+    args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights)
+    args += as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2), bool(tilt), bool(cubic)
+    args += as_floats(plain), as_floats(quartic), sigma2_plain, sigma2_quartic
+    core = _two_residuals_full_model if tilt and cubic else _two_height_residuals
+    parallel_rows(core, indptr.shape[0] - 1, *args)
+
+
+@numba.njit(**ROW_CORE)
+def _two_height_residuals(
+    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, plain, quartic,
+    sigma2_plain, sigma2_quartic
+):
+    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+    _two_residual_rows(row0, row1, geometry, tilt, cubic, plain, quartic, sigma2_plain, sigma2_quartic)
+
+
+@numba.njit(**ROW_CORE)
+def _two_residuals_full_model(
+    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, plain, quartic,
+    sigma2_plain, sigma2_quartic
+):
+    # the full model's flags as constants (as _assemble_full_model)
+    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+    _two_residual_rows(row0, row1, geometry, True, True, plain, quartic, sigma2_plain, sigma2_quartic)
+
+
+@numba.njit(cache=True, inline="always")
+def _two_residual_rows(row0, row1, geometry, tilt, cubic, plain, quartic, sigma2_plain, sigma2_quartic):
+    points, centres, indptr, indices, weights, unit, normals, e1, e2 = geometry
+    p = plain.shape[1]
+    width = quartic.shape[1]
+    n_shape = 3 + 2 * tilt + 4 * cubic
+    cols = np.empty(n_shape)
+    extra = np.empty(n_shape + QUARTIC_COLUMNS)
+    for i in range(row0, row1):
+        sq_plain = 0.0
+        sq_quartic = 0.0
+        total_weight = 0.0
+        total_sq_weight = 0.0
+        inverse_unit = 1.0 / unit[i]
+        for k in range(indptr[i], indptr[i + 1]):
+            x, y, z = _local_coordinates(points, centres, i, indices[k], e1, e2, normals, inverse_unit)
+            r2 = _fill_shape_columns(x, y, tilt, cubic, cols)
+            _fill_quartic_columns(x, y, r2, extra, n_shape)
+            fitted_plain = 0.0
+            fitted_quartic = 0.0
+            for a in range(n_shape):
+                fitted_plain += -0.5 * r2 * cols[a] * plain[i, a]
+                fitted_quartic += -0.5 * r2 * cols[a] * quartic[i, a]
+            for a in range(QUARTIC_COLUMNS):
+                fitted_quartic += -0.5 * r2 * extra[n_shape + a] * quartic[i, n_shape + a]
+            fitted_plain += plain[i, p - 1]
+            fitted_quartic += quartic[i, width - 1]
+            w = weights[k]
+            resid = z - fitted_plain
+            sq_plain += w * resid * resid
+            resid = z - fitted_quartic
+            sq_quartic += w * resid * resid
+            total_weight += w
+            total_sq_weight += w * w
+        sigma2_plain[i] = _unbiased_mean_square(sq_plain, total_weight, total_sq_weight, p)
+        sigma2_quartic[i] = _unbiased_mean_square(sq_quartic, total_weight, total_sq_weight, width)
 
 
 @numba.njit(cache=True)
@@ -301,8 +445,10 @@ def weighted_height_residual(
 ):
     """Weighted mean square height residual of each centre's final fit, into ``sigma2``.
 
-    ``kind`` is ``CHORD`` (a kN residual, times ``D^2 / 2`` to make it a height) or
-    ``DENOISED_HEIGHT`` (``beta`` the refit of ``height_beta``); other
+    ``kind`` is ``CHORD`` (a kN residual, times ``D^2 / 2`` to make it a height),
+    ``HEIGHT`` or ``QUARTIC_HEIGHT`` (``beta`` the height fit itself), ``DENOISED_HEIGHT``
+    or ``LOW_NOISE_HEIGHT`` (``beta`` the refit of ``height_beta``, residuals weighted
+    ``w`` alone); other
     arguments as :func:`assemble_normal_equations`. Units of ``unit``.
     """
     points, indptr = as_floats(points), as_pointers(indptr)
@@ -338,6 +484,8 @@ def _residual_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, s
     p = beta.shape[1]
     n_shape = 3 + 2 * tilt + 4 * cubic
     cols = np.empty(n_shape)
+    # (filled from n_shape on, as the design row of _assemble_rows: one compiled signature of the helpers)
+    quartic = np.empty(n_shape + QUARTIC_COLUMNS)
     for i in range(row0, row1):
         weighted_sq = 0.0
         total_weight = 0.0
@@ -354,11 +502,20 @@ def _residual_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, s
                     fitted += cols[a] * beta[i, a]
                 resid = (kN - fitted) * D2 / 2
             else:
-                D2 = _denoised_denominator(cols, n_shape, r2, height_beta, i)
+                D2 = r2  # HEIGHT, QUARTIC_HEIGHT
+                if kind == DENOISED_HEIGHT:
+                    D2 = _denoised_denominator(cols, n_shape, r2, height_beta, i)
+                if kind == LOW_NOISE_HEIGHT or kind == QUARTIC_HEIGHT:
+                    _fill_quartic_columns(x, y, r2, quartic, n_shape)
+                    if kind == LOW_NOISE_HEIGHT:
+                        D2 = _quartic_denominator(cols, quartic[n_shape:], n_shape, r2, height_beta, i)
                 fitted = 0.0
                 for a in range(n_shape):
                     fitted += -0.5 * D2 * cols[a] * beta[i, a]
-                fitted += beta[i, n_shape]
+                if kind == LOW_NOISE_HEIGHT or kind == QUARTIC_HEIGHT:
+                    for a in range(QUARTIC_COLUMNS):
+                        fitted += -0.5 * D2 * quartic[n_shape + a] * beta[i, n_shape + a]
+                fitted += beta[i, p - 1]
                 resid = z - fitted
             w = weights[k]
             weighted_sq += w * resid * resid
@@ -426,7 +583,7 @@ WELL_POSED_RCOND = 1e-10
 
 @numba.njit(**ROW_CORE)
 def _solve_normal_equations(
-    row0, row1, G, rhs, yy, ridge, contrast, G2, with_variance, check, beta, rss, posed, variance
+    row0, row1, G, rhs, yy, ridge, jacobi, contrast, G2, with_variance, check, beta, rss, posed, variance
 ):
     """:func:`heatcurv.chordfit.solve_normal_equations` for the points ``row0 <= i < row1``, by Cholesky.
 
@@ -448,7 +605,7 @@ def _solve_normal_equations(
         for a in range(p):
             for b in range(p):
                 A[a, b] = G[i, a, b]
-            A[a, a] += ridge * scale
+            A[a, a] += ridge * (G[i, a, a] if jacobi and G[i, a, a] > 0.0 else scale)
         if _cholesky(A, L):
             _cholesky_solve(L, rhs[i], x)
         else:  # not reached for a positive semi-definite G; keep a finite answer
@@ -492,13 +649,14 @@ def _solve_normal_equations(
             posed[i] = -1
 
 
-def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True):
+def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True, jacobi=False):
     """Compiled :func:`heatcurv.chordfit.solve_normal_equations` (same returns).
 
     The ridge solve by Cholesky instead of LU agrees to rounding; ``well_posed``
     is exact (eigenvalues are computed for the points the bracket leaves
     undecided). ``check=False`` skips the well-posedness test (all True) for
-    fits whose coefficients alone are used.
+    fits whose coefficients alone are used. ``jacobi``: the ridge relative to each
+    diagonal entry (:func:`heatcurv.chordfit.ridge_solve`).
     """
     G, rhs, yy = as_floats(G), as_floats(rhs), as_floats(yy)
     n, p = rhs.shape
@@ -506,7 +664,7 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True):
     posed = np.empty(n, dtype=np.int8)
     c = np.zeros(p) if contrast is None else as_floats(contrast)
     g2 = as_floats(G2) if contrast is not None else np.empty((0, p, p))
-    args = G, rhs, yy, float(ridge), c, g2, contrast is not None, bool(check), beta, rss, posed, variance
+    args = G, rhs, yy, float(ridge), bool(jacobi), c, g2, contrast is not None, bool(check), beta, rss, posed, variance
     parallel_rows(_solve_normal_equations, n, *args)
     well_posed = posed == 1
     undecided = np.flatnonzero(posed < 0)
@@ -518,20 +676,37 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True):
     return beta, rss, well_posed, variance
 
 
+def normal_equations(kind, p, geometry, height_beta=None):
+    """The normal equations ``G, rhs, yy`` of one fit (:func:`assemble_normal_equations`, no ``G2``), unsolved.
+
+    The low-noise refit solves the plain height fit from the ``QUARTIC_HEIGHT`` equations' block of
+    its columns (the same sums, to the bit) instead of assembling it again.
+    """
+    n = geometry[2].shape[0] - 1
+    G = np.empty((n, p, p))
+    rhs = np.empty((n, p))
+    yy = np.empty(n)
+    if height_beta is None:
+        height_beta = np.empty((0, p))
+    assemble_normal_equations(*geometry, kind, height_beta, G, rhs, yy, np.empty((0, p, p)))
+    return G, rhs, yy
+
+
 def fit(kind, p, geometry, height_beta=None, contrast=None):
     """Assemble one fit with :func:`assemble_normal_equations` and solve it.
 
     Parameters
     ----------
     kind : int
-        ``CHORD``, ``HEIGHT`` or ``DENOISED_HEIGHT``.
+        ``CHORD``, ``HEIGHT``, ``DENOISED_HEIGHT``, ``LOW_NOISE_HEIGHT`` or ``QUARTIC_HEIGHT``.
     p : int
         Unknowns of the fit.
     geometry : tuple
         ``(points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic)``
         as :func:`assemble_normal_equations` takes them.
     height_beta : ndarray, shape (n, p), optional
-        The plain height fit (``DENOISED_HEIGHT`` only).
+        The plain height fit (``DENOISED_HEIGHT`` and ``LOW_NOISE_HEIGHT``; see
+        :func:`assemble_normal_equations`).
     contrast : ndarray, shape (p,), optional
         Given for the final fit (the last pass's, whose diagnostics are
         reported): it is solved by :func:`solve_compiled` with this contrast
@@ -549,6 +724,11 @@ def fit(kind, p, geometry, height_beta=None, contrast=None):
     if height_beta is None:
         height_beta = np.empty((0, p))
     assemble_normal_equations(*geometry, kind, height_beta, G, rhs, yy, G2)
+    # the quartic fits' columns span many orders of magnitude (r^4 terms against the offset): a ridge
+    # relative to the trace pulled their small columns' coefficients, by an amount that depends on the
+    # tangent frame's in-plane turn (a clean 663-point paraboloid, rotated: k2 1.4e-5 of the largest
+    # curvature apart; relative to each diagonal entry: 3e-7)
+    jacobi = kind == LOW_NOISE_HEIGHT or kind == QUARTIC_HEIGHT
     if not final:
-        return solve_compiled(G, rhs, yy, check=False)[0]
-    return solve_compiled(G, rhs, yy, contrast=contrast, G2=G2)
+        return solve_compiled(G, rhs, yy, check=False, jacobi=jacobi)[0]
+    return solve_compiled(G, rhs, yy, contrast=contrast, G2=G2, jacobi=jacobi)
