@@ -7,11 +7,20 @@ from scipy.spatial import cKDTree
 import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.anchors import carry_anchor_fits
-from heatcurv.anchors import ANCHORS_PER_BALL, EXACT_CARRY_SIGMA, anchor_rows, carry_fits, fit_anchors
+from heatcurv.anchors import (
+    ANCHORS_PER_BALL,
+    EXACT_CARRY_SIGMA,
+    LOW_NOISE_ANCHORS_PER_BALL,
+    anchor_rows,
+    anchors_per_ball,
+    carry_degree,
+    carry_fits,
+    fit_anchors,
+)
 from heatcurv.areas import density_areas
 from heatcurv.neighbourhood import knn_neighbourhood
 from heatcurv.sampling import geometric_keys
-from heatcurv.scale import Scale, fit_at_scale
+from heatcurv.scale import LOW_NOISE, NO_NOISE, Scale, fit_at_scale, in_low_noise_band
 from heatcurv.testing import compare
 
 
@@ -145,16 +154,16 @@ def _graph_tensor(height, x, y, h=1e-4):
 
 
 def test_carry_is_exact_on_the_anchor_models_surface():
-    # one anchor with every term of the model (tensor, tilt, cubic): the surface of its chord
+    # one anchor with every term of the model (tensor, tilt, cubic, quartic): the surface of its chord
     # model, kN = P(x, y) / r^2 with the tilt a shear, as a graph differentiated numerically, has the
     # normal and tensor the carry gives at every offset, near the anchor (no cone of the tilt) and far
-    c = np.array([0.3, -0.08, -0.15, 0.004, -0.002, 0.05, -0.03, 0.02, 0.04])
+    c = np.array([0.3, -0.08, -0.15, 0.004, -0.002, 0.05, -0.03, 0.02, 0.04, 0.02, -0.01, 0.03, 0.015, -0.02])
     R = 2.0
     e1, e2, n = np.eye(3)
 
     def height(x, y):  # units of R in, units of R out
         P = (c[0] * x * x + 2 * c[1] * x * y + c[2] * y * y + c[5] * x**3 + c[6] * x * x * y + c[7] * x * y * y
-             + c[8] * y**3)
+             + c[8] * y**3 + c[9] * x**4 + c[10] * x**3 * y + c[11] * x * x * y * y + c[12] * x * y**3 + c[13] * y**4)
         q = x * x + y * y
         return -P / (1 + np.sqrt(1 - P * P / q)) - 0.5 * (c[3] * x + c[4] * y)
 
@@ -174,6 +183,86 @@ def test_carry_is_exact_on_the_anchor_models_surface():
         np.testing.assert_allclose(normals[i] / np.linalg.norm(normals[i]), nrm, atol=1e-9)
         # finite differences of step 1e-4 R: errors about 1e-8 of the curvatures (about 0.1 / R)
         np.testing.assert_allclose(got[i], T / R, atol=1e-6)
+
+
+def test_regression_reproduces_cubic_curvature_fields():
+    # anchors on the plane z = 0 whose own tensors vary as cubics of (x, y): the degree-3 regression
+    # gives the cubic's value at every point (rotated into the carried normal's plane), to rounding;
+    # the weighted mean of the carried models does not
+    rng = np.random.default_rng(5)
+    at = np.c_[rng.uniform(-1, 1, (400, 2)), np.zeros(400)]
+    points = np.c_[rng.uniform(-0.5, 0.5, (50, 2)), np.zeros(50)]
+    poly = rng.normal(size=(3, 10))
+
+    def field(p):  # (A, B, D) at positions p, shape (len(p), 3)
+        x, y = p[:, 0], p[:, 1]
+        basis = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y, x**3, x * x * y, x * y * y, y**3], 1)
+        return basis @ poly.T
+
+    R = 0.6
+    coefficients = np.zeros((400, 9))
+    coefficients[:, :3] = field(at) * R  # units of the ball radius
+    e1, e2, n = (np.tile(v, (400, 1)) for v in np.eye(3))
+    dist, idx = cKDTree(at).query(points, 24)
+    indptr = np.arange(0, idx.size + 1, 24, dtype=np.int64)
+    args = (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(400, R), np.ones(400),
+            np.zeros((400, 1)))
+    normals, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
+    target = normals / np.linalg.norm(normals, axis=1)[:, None]
+    expected = field(points)
+    for i in range(len(points)):
+        # the smallest rotation taking +z to the carried normal (the anchors' tensors' rotation)
+        w, cos = np.cross([0.0, 0.0, 1.0], target[i]), target[i, 2]
+        W = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        rot = np.eye(3) + W + W @ W / (1 + cos)
+        A, B, D = expected[i]
+        T = rot @ np.array([[A, B, 0], [B, D, 0], [0, 0, 0]]) @ rot.T
+        xx, xy, xz, yy, yz, zz = tensor[i]
+        np.testing.assert_allclose([xx, xy, xz, yy, yz, zz], T[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]], atol=1e-9)
+    _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
+    assert np.abs(mean_tensor[:, 0] - expected[:, 0]).max() > 1e-3
+
+
+def test_very_low_noise_improves_the_torus():
+    # issue 12, bullet 3: noise 1e-5 of the diagonal (coordinate rounding) on the torus against its exact
+    # curvature. Measured, seeds 1-3 (Lepski's 120 neighbours widened to 240, 24 anchors per ball, the
+    # low-noise refit and the regression): mean 0.167-0.176 %, k2 0.388-0.422 %, d1 0.041-0.044 deg (clean:
+    # 0.059 %, 0.13 %, 0.0035 deg); without the low-noise path (denoised-120, 16 anchors per ball, the models
+    # carried exactly) mean 0.249-0.252 %, k2 0.636-0.642 %, d1 0.056-0.057 deg: the bounds below (1.2x the
+    # worst seed) fail there
+    sample = surfaces.Torus().sample(20_000, "random", seed=2, noise=1e-5)
+    res = heatcurv.estimate(sample.points)
+    scale = res.info["scale"]
+    assert in_low_noise_band(scale.relative_noise) and scale.fit == "denoised-240"  # Lepski: 120, widened
+    errors = compare(sample, res)
+    assert errors["rel_mean"] < 0.0021 and errors["rel_k2"] < 0.0051 and errors["d1_deg"] < 0.052
+
+
+def test_very_low_noise_improves_the_saddle():
+    # the saddle z = x^2 - y^2 with noise 1e-5 of the diagonal against its exact curvature. Measured, seeds
+    # 1-3 (Lepski's 960 neighbours widened to 1920): k1 0.066-0.094 %, k2 0.070-0.084 %, d1 0.011-0.012 deg;
+    # without the low-noise path k1 0.198-0.215 %, k2 0.210-0.229 %, d1 0.032-0.037 deg (clean: 0.009 %,
+    # 0.0006 deg). Bounds: 1.25x the worst seed
+    sample = surfaces.get("saddle").sample(20_000, "random", seed=3, noise=1e-5)
+    res = heatcurv.estimate(sample.points)
+    assert res.info["scale"].fit == "denoised-1920"  # Lepski: 960, widened
+    errors = compare(sample, res)
+    assert errors["rel_k1"] < 0.0012 and errors["rel_k2"] < 0.00105 and errors["d1_deg"] < 0.0155
+
+
+@pytest.mark.parametrize(
+    "name, sampler, n, mean", [("torus", "random", 20_000, 0.0587), ("paraboloid", "grid", 4096, 0.124)]
+)
+def test_clean_clouds_keep_the_chord_fit(name, sampler, n, mean):
+    # a clean cloud whose measured noise (model misfit) is in the low-noise band (the jittered paraboloid
+    # grid: relative_noise 1.2e-5; the torus 2.4e-5) keeps the chord fit at 60 neighbours: the noise gate
+    # compares the plain denoised fit's residual, and the low-noise path starts after it (an earlier form
+    # of it refitted in the gate and took that grid to denoised-480, d1 0.096 deg against 0.0009)
+    sample = surfaces.get(name).sample(n, sampler, seed=1 if name == "torus" else 3)
+    res = heatcurv.estimate(sample.points)
+    scale = res.info["scale"]
+    assert in_low_noise_band(scale.relative_noise) and scale.fit == "chord-60" and scale.anchors == 0
+    assert 100 * compare(sample, res)["rel_mean"] < 1.1 * mean
 
 
 def test_noisy_models_are_carried_to_first_order():
@@ -207,3 +296,11 @@ def test_noisy_models_are_carried_to_first_order():
     sample = surfaces.Sphere().sample(20_000, "random", seed=1, noise=0.006)
     anchors, _, _, _ = _anchored(sample.points, sample.normals, 960, denoise=True)
     assert np.mean(anchors.fit.sigma >= EXACT_CARRY_SIGMA * anchors.radius) > 0.9  # 0.6 % noise: first order
+
+
+def test_no_noise_keeps_the_ordinary_carry():
+    # the low-noise path is for noise that is there but small (coordinate rounding); a cloud whose measured
+    # noise is at rounding level (two planes at a fold: relative_noise 1e-16) keeps the ordinary anchors
+    assert not in_low_noise_band(1e-16) and not in_low_noise_band(LOW_NOISE) and in_low_noise_band(NO_NOISE)
+    assert anchors_per_ball(False) == ANCHORS_PER_BALL and carry_degree(False) == 0
+    assert anchors_per_ball(True) == LOW_NOISE_ANCHORS_PER_BALL and carry_degree(True) > 0

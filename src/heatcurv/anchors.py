@@ -13,17 +13,34 @@ anchors in each ball (a point is an anchor when its sampling key is below
 pair work stays about ``ANCHORS_PER_BALL`` pairs per point whatever ``k``).
 Every point then takes its :data:`CARRIED_ANCHORS` nearest anchors and carries
 their fitted models to itself (:mod:`heatcurv._kernels.anchors`): each anchor's
-model (tensor, tilt and cubic terms) describes a surface, and the carry gives that
-surface's normal and curvature tensor *at the point's offset*, not at the anchor:
-exactly (so exact on circles and spheres, and to every order the model has), or,
-for a noisy model (``sigma`` at least :data:`EXACT_CARRY_SIGMA` ball radii), to
-first order in the offset; the point's values are their smooth weighted mean. The anchor
+model (tensor, tilt, cubic and, under very low noise, quartic terms) describes a
+surface, and the carry gives that surface's normal and curvature tensor *at the
+point's offset*, exactly (so exact on circles and spheres, and to every order
+the model has; a noisy model, ``sigma`` at least :data:`EXACT_CARRY_SIGMA` ball
+radii, to first order in the offset); the point's values are their smooth
+weighted mean. The anchor
 spacing is about ``R / 2``, well inside the ball where an anchor's model is
 fitted.
 
+A model fitted over a wide ball is less accurate away from its centre than at
+it. Under ordinary noise the fit's own variance hides that; under very low noise
+(``relative_noise`` from :data:`heatcurv.scale.NO_NOISE` to below
+:data:`heatcurv.scale.LOW_NOISE`, e.g. coordinate rounding, where the kernel
+choice widened the kernel: :attr:`heatcurv.scale.ScaleChoice.low_noise`) it
+would dominate (a torus at 1e-5 of its diagonal, 480
+neighbours: the nearest anchor's model is 0.12 % off in the mean curvature within
+0.1 R of it, 0.5 % at 0.3-0.4 R), so there the anchors are 1.5x denser
+(:func:`anchors_per_ball`) and each point's tensor is a weighted cubic regression
+of its :data:`REGRESSED_ANCHORS` nearest anchors' *own* tensors, at their centres
+(:func:`carry_degree`): it reproduces any cubic variation of the curvature field.
+Measured on that torus (issue 12, bullet 3; seeds 1-3, with the kernel one doubling
+wider than Lepski's rule chose, :data:`heatcurv.scale.LOW_NOISE_LEVELS`, and the
+denoised form's low-noise refit): mean 0.167-0.176 %, k2 0.39-0.42 %, against
+0.25 % and 0.64 % without the low-noise path.
+
 Every value of a point depends only on the points within its **support
-radius** ``max_a (|p - a| + R_a)`` over the anchors it uses (at most about 1.8
-ball radii): the halo a tiled run needs.
+radius** ``max_a (|p - a| + R_a)`` over the anchors it uses, the regression's
+included (at most about 1.8 ball radii): the halo a tiled run needs.
 """
 
 from __future__ import annotations
@@ -47,12 +64,20 @@ from .sampling import key_thinning
 from .scale import Scale, fit_balls
 
 __all__ = [
-    "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "EXACT_CARRY_SIGMA", "PCA_NEIGHBOURS", "AnchorFits", "CarriedFit",
-    "anchor_rows", "anchor_normals", "fit_anchors", "carry_fits",
+    "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "EXACT_CARRY_SIGMA", "LOW_NOISE_ANCHORS_PER_BALL",
+    "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "REGRESSION_DEGREE", "AnchorFits", "CarriedFit", "anchor_normals",
+    "anchor_rows", "anchors_per_ball", "carry_degree", "carry_fits", "fit_anchors",
 ]
 
 #: Anchors per fitted ball: their spacing is about ``R sqrt(pi / 16) = 0.44 R``.
 ANCHORS_PER_BALL = 16
+#: Anchors per fitted ball under very low noise (:func:`anchors_per_ball`): spacing about ``0.36 R``. Measured
+#: (low-noise table, torus / saddle at 1e-5 of the diagonal, mean and k1 %, the kernel of Lepski's rule widened two
+#: doublings): 16 with the regression 0.27 / 0.47 (too sparse to regress), 20: 0.15 / 0.24, 24: 0.135 / 0.152,
+#: 32: 0.117 / 0.101, 64: 0.115 / 0.048; a million-point LAZ with millimetre rounding took 3.5-4.1x its kNN
+#: query at 24 per ball in the first form of this path (its refit also in the kernel choice), 100 s at 64 against
+#: a query of 15-17.7 s (bullet 4 of issue 12 allows 4x); now 3.1-3.6x at 24 (docs/speed.md).
+LOW_NOISE_ANCHORS_PER_BALL = 24
 #: Kernels of at most this many times :data:`ANCHORS_PER_BALL` neighbours are fitted at every point
 #: (a 60-neighbour kernel: its pair work is small, and small clouds keep their own fits).
 EVERY_POINT = 4
@@ -64,6 +89,13 @@ CARRIED_ANCHORS = 8
 #: (torus mean 5.34 -> 5.68 %, ellipsoid 3.09 -> 3.32 %, saddle k1 3.07 -> 3.40 %), where it was 0.004-0.011
 #: (0.12 %) it gained (torus 3.0 -> 1.81 %, cylinder 1.05 -> 0.88 %, saddle k1 1.27 -> 1.12 %).
 EXACT_CARRY_SIGMA = 0.015
+#: Points carried at a time (:func:`carry_fits`): their anchor lists are held at once.
+CARRY_BLOCK = 262_144
+#: Anchors whose own tensors are regressed at each point under very low noise (:func:`carry_degree`).
+REGRESSED_ANCHORS = 24
+#: Degree of that regression: cubic (measured against quadratic over 16 anchors, torus and saddle at
+#: 1e-5 of the diagonal: k2 0.19 against 0.23 %, k1 0.067 against 0.081 %).
+REGRESSION_DEGREE = 3
 #: Most neighbours of an anchor's PCA normal (:func:`anchor_normals`): enough to average noise
 #: of several spacings (a 480-point ball is 12 spacings wide), cheap beside the fit.
 PCA_NEIGHBOURS = 480
@@ -129,6 +161,54 @@ class CarriedFit:
     mean_variance_factor: np.ndarray
     support: np.ndarray
     nearest: np.ndarray
+
+
+def anchors_per_ball(low_noise: bool) -> int:
+    """Anchors per ball for a cloud's noise: denser where the noise no longer hides the carry's error.
+
+    The carried values are exact on the anchors' model surfaces (:mod:`heatcurv._kernels.anchors`), but
+    a model fitted over a wide ball is less accurate away from its centre: on a torus with noise 1e-5
+    of the diagonal (480 neighbours, 20 000 points) the nearest anchor's model is off by 0.12 % in the
+    mean curvature within 0.1 R of it and 0.5 % at 0.3-0.4 R. Under ordinary noise the fit's own
+    variance hides that; under very low noise (coordinate rounding) it would dominate, so the anchors
+    are denser there (:data:`LOW_NOISE_ANCHORS_PER_BALL`).
+
+    Parameters
+    ----------
+    low_noise : bool
+        The kernel choice's ``low_noise`` (:class:`heatcurv.scale.ScaleChoice`: the cloud is in the
+        very-low-noise band and its kernel wider than the narrowest).
+
+    Returns
+    -------
+    int
+        :data:`LOW_NOISE_ANCHORS_PER_BALL` under very low noise, else :data:`ANCHORS_PER_BALL`.
+    """
+    return LOW_NOISE_ANCHORS_PER_BALL if low_noise else ANCHORS_PER_BALL
+
+
+def carry_degree(low_noise: bool) -> int:
+    """Degree of the regression of the anchors' own tensors (:func:`carry_fits`) for a cloud's noise.
+
+    Even exact on its model surface, an anchor's model is less accurate away from its centre than
+    at it (:func:`anchors_per_ball`). Under very low noise the anchors' own tensors, at their
+    centres, are the better data: a weighted cubic regression of them over the
+    :data:`REGRESSED_ANCHORS` nearest anchors reproduces any cubic variation of the curvature
+    field, where a mean of carried models keeps the models' error. Under ordinary noise the
+    mean's smoothing is worth more (and the anchors stay :data:`ANCHORS_PER_BALL` per ball,
+    too sparse to regress).
+
+    Parameters
+    ----------
+    low_noise : bool
+        The kernel choice's ``low_noise`` (:func:`anchors_per_ball`).
+
+    Returns
+    -------
+    int
+        :data:`REGRESSION_DEGREE` under very low noise, else 0 (the weighted mean).
+    """
+    return REGRESSION_DEGREE if low_noise else 0
 
 
 def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = ANCHORS_PER_BALL) -> np.ndarray:
@@ -247,6 +327,7 @@ def fit_anchors(
     k: np.ndarray,
     *,
     denoise: bool,
+    low_noise: bool = False,
     alpha: float = 2.0,
     taper: bool = True,
     refine: bool = True,
@@ -271,6 +352,8 @@ def fit_anchors(
         Neighbours in each anchor's ball.
     denoise : bool
         The denoised height form of the fit.
+    low_noise : bool, optional
+        With ``denoise``, its low-noise refit (:func:`carry_degree`, :func:`heatcurv.chordfit.chord_fit`).
     alpha : float, optional
         Ball radius in heat-kernel spacings (``h = R / alpha``, ``t = h^2 / 4``, eq 2.8).
     taper : bool, optional
@@ -296,7 +379,7 @@ def fit_anchors(
         # two passes (a tilt-refined normal, then the curvatures) unless the normals are the caller's
         nbhd, fit = fit_balls(
             points, tree, index[rows], normals[rows], areas, Scale(width, denoise), alpha=alpha,
-            passes=2 if refine else 1, workers=workers,
+            passes=2 if refine else 1, workers=workers, low_noise=low_noise,
         )
         offset[rows] = centroid_offset(points, nbhd, fit.normals, taper=taper, centres=points[index[rows]])
         density[rows] = density_areas(nbhd)
@@ -328,7 +411,8 @@ def fit_anchors(
 
 
 def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray | None = None,
-               reference: np.ndarray | None = None, carried: int = CARRIED_ANCHORS, workers: int = -1) -> CarriedFit:
+               reference: np.ndarray | None = None, carried: int = CARRIED_ANCHORS, degree: int = 0,
+               workers: int = -1) -> CarriedFit:
     """Every point's normal, curvatures and fit diagnostics from its nearest anchors (module docstring).
 
     Parameters
@@ -346,7 +430,11 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
         981 of 5400 normals inward at a 960-neighbour kernel). Default: the
         caller's ``normals``, if given.
     carried : int, optional
-        Nearest anchors per point.
+        Nearest anchors per point whose models are carried and averaged.
+    degree : int, optional
+        0: the tensor is that weighted mean. 1-3: it is the regression of that degree of the
+        :data:`REGRESSED_ANCHORS` nearest anchors' own tensors (:func:`carry_degree`; the
+        normal is still the mean's). The support radius counts every anchor used.
     workers : int, optional
         Threads of the k-d tree query.
 
@@ -365,8 +453,7 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     at = points[anchors.index]
     m = at.shape[0]
     carried = min(carried, m)
-    dist, idx = cKDTree(at).query(points, carried, workers=workers)
-    dist, idx = dist.reshape(points.shape[0], carried), idx.reshape(points.shape[0], carried)
+    queried = min(max(carried, REGRESSED_ANCHORS if degree > 0 else 0), m)
     a_normals = fit.normals
     if reference is None:
         reference = normals
@@ -375,11 +462,26 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     scalars = np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area,
                                fit.mean_variance_factor])
     exact = (fit.sigma < EXACT_CARRY_SIGMA * anchors.radius).astype(np.float64)
-    indptr = np.arange(0, idx.size + 1, carried, dtype=np.int64)
-    summed, tensor, values, support, total = kernels.carry_anchor_fits(
-        points, indptr, idx.reshape(-1), dist.reshape(-1), at, a_normals, e1, e2, fit.coefficients,
-        anchors.radius, usable, scalars, reference=reference, exact=exact,
-    )
+    n = points.shape[0]
+    tree = cKDTree(at)
+    summed, tensor, values = np.empty((n, 3)), np.empty((n, 6)), np.empty((n, scalars.shape[1]))
+    support, total, nearest_dist = np.empty(n), np.empty(n), np.empty(n)
+    nearest = np.empty(n, dtype=np.int64)
+    # the points a block at a time: the anchor lists of a million points (24 under very low noise) would
+    # otherwise add 0.4 GB to the peak; each point's values are its own, so the blocks change none
+    for lo in range(0, n, CARRY_BLOCK):
+        hi = min(n, lo + CARRY_BLOCK)
+        dist, idx = tree.query(points[lo:hi], queried, workers=workers)
+        dist, idx = dist.reshape(hi - lo, queried), idx.reshape(hi - lo, queried)
+        indptr = np.arange(0, idx.size + 1, queried, dtype=np.int64)
+        parts = kernels.carry_anchor_fits(
+            points[lo:hi], indptr, idx.reshape(-1), dist.reshape(-1), at, a_normals, e1, e2, fit.coefficients,
+            anchors.radius, usable, scalars, reference=None if reference is None else reference[lo:hi],
+            n_mean=carried, degree=degree, exact=exact,
+        )
+        for out, part in zip((summed, tensor, values, support, total), parts):
+            out[lo:hi] = part
+        nearest[lo:hi], nearest_dist[lo:hi] = idx[:, 0], dist[:, 0]
     length = np.linalg.norm(summed, axis=1)
     reached = (total > 0) & (length > 0) & np.all(np.isfinite(tensor), axis=1)
     # no usable anchor near the point at all (every nearby fit ill-posed): the nearest anchor's normal,
@@ -388,13 +490,13 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     if reference is not None:  # no anchor on the point's side: its own normal, not the other side's
         lost |= total == 0
     if lost.any():
-        summed[lost] = a_normals[idx[lost, 0]] if reference is None else reference[lost]
+        summed[lost] = a_normals[nearest[lost]] if reference is None else reference[lost]
         tensor[lost] = 0.0
         length[lost] = 1.0
     unset = ~np.all(np.isfinite(values), axis=1)
     if unset.any():
-        values[unset] = scalars[idx[unset, 0]]
-        support[unset] = dist[unset, 0] + anchors.radius[idx[unset, 0]]
+        values[unset] = scalars[nearest[unset]]
+        support[unset] = nearest_dist[unset] + anchors.radius[nearest[unset]]
     keep = normals is not None
     if not keep:
         normals = summed / np.where(length > 0, length, 1.0)[:, None]
@@ -417,7 +519,7 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     support[own] = anchors.radius
     return CarriedFit(
         normals=normals, principal=pc, sigma=values[:, 0], offset=values[:, 1], radius=values[:, 2],
-        density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support, nearest=idx[:, 0],
+        density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support, nearest=nearest,
     )
 
 

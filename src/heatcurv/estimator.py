@@ -31,7 +31,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from .anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
+from .anchors import anchor_normals, anchor_rows, anchors_per_ball, carry_degree, carry_fits, fit_anchors
 from .areas import ball_area_factor, cut_ball_coverage, density_areas
 from .backend import threads
 from .border import BORDER_OFFSET, border_points, centroid_offset
@@ -388,7 +388,7 @@ def _anchored_fit_stages(
     n = X.shape[0]
     k_point = choice.k_per_point if choice.k_per_point is not None else np.full(n, choice.scale.k)
     with clock.stage("anchor_fit", report=False):
-        index = anchor_rows(keys, k_point, opts.scale_tuning.seed)
+        index = anchor_rows(keys, k_point, opts.scale_tuning.seed, anchors_per_ball(choice.low_noise))
     start, on_anchors, reoriented = nrm[index], None, None
     if not keep_normals and choice.relative_noise > STRONG_NOISE:
         with clock.stage("anchor_fit", report=False):
@@ -399,7 +399,8 @@ def _anchored_fit_stages(
         start = on_anchors.normals
     with clock.stage("anchor_fit", report=False):
         anchors = fit_anchors(
-            X, op.tree, start, fit_areas, index, k_point[index], denoise=True, alpha=opts.alpha, taper=opts.taper,
+            X, op.tree, start, fit_areas, index, k_point[index], denoise=True,
+            low_noise=choice.low_noise, alpha=opts.alpha, taper=opts.taper,
             refine=not keep_normals, workers=opts.workers, progress=lambda f: clock.report("fit", 0.9 * f),
         )
     with clock.stage("carry", report=False):
@@ -407,6 +408,7 @@ def _anchored_fit_stages(
         # strong noise, where they are what the anchors replace)
         carried = carry_fits(
             X, anchors, normals=nrm if keep_normals else None, reference=nrm if on_anchors is None else None,
+            degree=carry_degree(choice.low_noise),
             workers=opts.workers,
         )
         if on_anchors is not None:
