@@ -76,7 +76,7 @@ ANCHORS_PER_BALL = 16
 #: doublings): 16 with the regression 0.27 / 0.47 (too sparse to regress), 20: 0.15 / 0.24, 24: 0.135 / 0.152,
 #: 32: 0.117 / 0.101, 64: 0.115 / 0.048; a million-point LAZ with millimetre rounding took 3.5-4.1x its kNN
 #: query at 24 per ball in the first form of this path (its refit also in the kernel choice), 100 s at 64 against
-#: a query of 15-17.7 s (bullet 4 of issue 12 allows 4x); now 3.1-3.6x at 24 (docs/speed.md).
+#: a query of 15-17.7 s (bullet 4 of issue 12 allows 4x); now 3.0-3.6x at 24 in CPU seconds (docs/speed.md).
 LOW_NOISE_ANCHORS_PER_BALL = 24
 #: Kernels of at most this many times :data:`ANCHORS_PER_BALL` neighbours are fitted at every point
 #: (a 60-neighbour kernel: its pair work is small, and small clouds keep their own fits).
