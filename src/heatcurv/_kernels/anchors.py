@@ -395,6 +395,32 @@ def _value_at_zero(G, rhs, m, chol, x, sol):
     return True
 
 
+@njit(**ROW_CORE, inline="always")
+def _anchor_weight(i, p, indices, distances, d_max, radius, usable, normals, reference, check):
+    """Weight of the anchor in row slot ``p`` for point ``i``; 0 where it does not count.
+
+    ``(1 - (d / d_max)^2)^2 (1 - (d / R_a)^2)^2``: a taper over the row's nearest anchors times the
+    anchor's ball cut (``d`` the point's distance to the anchor, ``R_a`` its ball radius). Unusable
+    anchors, points outside the ball and, with ``check``, anchors whose normal is more than 60 degrees
+    from the point's ``reference`` normal (:data:`MIN_AGREEMENT`) weigh 0.
+    """
+    a = indices[p]
+    if usable[a] == 0.0:
+        return 0.0
+    d = distances[p]
+    rel = d / d_max
+    q = d / radius[a]
+    if q >= 1.0:
+        return 0.0
+    if check:
+        agreement = 0.0
+        for k in range(3):
+            agreement += normals[a, k] * reference[i, k]
+        if agreement < MIN_AGREEMENT:
+            return 0.0
+    return (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
+
+
 @njit(**ROW_CORE)
 def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2, coefficients, radius, usable,
                  reference, check, degree, target, frame, out_t, support, G, rhs, chol, phi, tensor, sol, u, v, xs):
@@ -426,23 +452,11 @@ def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2
     count = 0
     reach = 0.0
     for p in range(lo, hi):
-        a = indices[p]
-        if usable[a] == 0.0:
-            continue
-        d = distances[p]
-        rel = d / d_max
-        q = d / radius[a]
-        if q >= 1.0:
-            continue
-        if check:
-            agreement = 0.0
-            for k in range(3):
-                agreement += normals[a, k] * reference[i, k]
-            if agreement < MIN_AGREEMENT:
-                continue
-        w = (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
+        w = _anchor_weight(i, p, indices, distances, d_max, radius, usable, normals, reference, check)
         if w <= 0.0:
             continue
+        a = indices[p]
+        d = distances[p]
         _own_tensor(a, target, frame, normals, e1, e2, coefficients, radius, tensor, u, v)
         dx = anchors[a, 0] - points[i, 0]
         dy = anchors[a, 1] - points[i, 1]
@@ -517,17 +531,7 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
             if nearest < 0:
                 nearest = p
             d = distances[p]
-            rel = d / d_max
-            q = d / radius[a]
-            if q >= 1.0:
-                continue
-            if check:
-                agreement = 0.0
-                for k in range(3):
-                    agreement += normals[a, k] * reference[i, k]
-                if agreement < MIN_AGREEMENT:
-                    continue
-            w = (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
+            w = _anchor_weight(i, p, indices, distances, d_max, radius, usable, normals, reference, check)
             if w <= 0.0 or not _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm,
                                       tensor, grad, hess, frame_u, frame_v, with_tensor):
                 continue
@@ -561,20 +565,7 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
                 if not regressed:  # the weighted mean of the carried models' tensors, as without a regression
                     for p in range(lo, hi):
                         a = indices[p]
-                        if usable[a] == 0.0:
-                            continue
-                        d = distances[p]
-                        rel = d / d_max
-                        q = d / radius[a]
-                        if q >= 1.0:
-                            continue
-                        if check:
-                            agreement = 0.0
-                            for k in range(3):
-                                agreement += normals[a, k] * reference[i, k]
-                            if agreement < MIN_AGREEMENT:
-                                continue
-                        w = (1.0 - rel * rel) ** 2 * (1.0 - q * q) ** 2
+                        w = _anchor_weight(i, p, indices, distances, d_max, radius, usable, normals, reference, check)
                         if w <= 0.0 or not _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact,
                                                   nrm, tensor, grad, hess, frame_u, frame_v, True):
                             continue
