@@ -87,12 +87,15 @@ __all__ = [
 
 #: The logger the compile notice goes to (a child of ``heatcurv``).
 LOGGER_NAME = "heatcurv.kernels"
-#: What compiling every kernel takes on the 2-core machine of ``benchmarks/first_run.py``.
+#: What compiling the clean path's kernels takes on the 2-core machine of ``benchmarks/first_run.py``.
 COMPILE_SECONDS = 15
+#: ... and the noisy path's on top (the anchors' fit and carry): measured 31 s (a 20 000-point torus with
+#: 0.12 % noise after a clean one, ``NUMBA_CACHE_DIR`` empty; 1.6 s with the cache, 2026-11-30).
+NOISY_COMPILE_SECONDS = 30
 #: The notice, logged once per process when the first kernel starts compiling.
 COMPILE_NOTICE = (
-    f"compiling the numba kernels for this machine (first run only, about {COMPILE_SECONDS} s; "
-    "later runs load them from numba's cache)"
+    f"compiling the numba kernels for this machine (first run only, about {COMPILE_SECONDS} s, "
+    f"{NOISY_COMPILE_SECONDS} s more for a first noisy cloud; later runs load them from numba's cache)"
 )
 
 _logger = logging.getLogger(LOGGER_NAME)

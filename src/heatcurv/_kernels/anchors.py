@@ -286,7 +286,7 @@ def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, rad
     return True
 
 
-@njit(**ROW_CORE, inline="always")
+@njit(**ROW_CORE)
 def _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess, frame_u,
            frame_v, with_tensor=True):
     """Anchor ``a``'s model at point ``i``: exact (:func:`_carry_one`) unless ``exact[a]`` is 0; False if too steep.
@@ -578,7 +578,7 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
             # no anchor's ball reaches the point: the nearest usable anchor alone (the caller flags it)
             a = indices[nearest]
             if _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess,
-                      frame_u, frame_v):
+                      frame_u, frame_v, True):
                 for k in range(3):
                     out_n[i, k] = nrm[k]
                 for k in range(6):
