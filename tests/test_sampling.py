@@ -62,3 +62,30 @@ def test_wide_kernel_results_do_not_depend_on_order_or_rotation(noisy_torus):
     for name, size in scale_of.items():
         assert np.max(np.abs(getattr(moved, name) - getattr(base, name))) < 1e-6 * size, name
     assert np.max(np.abs(moved.normals - base.normals @ rot.T)) < 1e-6
+
+
+def test_very_low_noise_results_do_not_depend_on_order_rotation_or_unit():
+    # the very-low-noise path (denser anchors, the quartic refit, the regression of the anchors' tensors in
+    # a tangent frame built from coordinates) must be as invariant as the others: a permutation changes
+    # nothing, a rigid motion only by its rounding, a change of unit scales lengths and curvatures
+    pts = heatcurv.surfaces.Torus().sample(8000, "random", seed=3, noise=1e-5).points
+    base = heatcurv.estimate(pts)
+    scale = base.info["scale"]
+    assert 1e-6 <= scale.relative_noise < 0.02 and scale.anchors > 0 and scale.k > 60  # the low-noise band
+    perm = np.random.default_rng(7).permutation(len(pts))
+    permuted = heatcurv.estimate(pts[perm])
+    for name in ("mean", "k1", "k2", "area"):
+        assert np.allclose(getattr(permuted, name), getattr(base, name)[perm], rtol=1e-9, atol=1e-12), name
+    rot = Rotation.random(random_state=8).as_matrix()
+    moved = heatcurv.estimate(pts @ rot.T + np.array([250.0, -40.0, 3.0]))
+    assert moved.info["scale"].fit == scale.fit
+    # rounding of the motion only: 1e-7 of the largest value (measured 6e-11 to 6e-10, normals 1.3e-9)
+    for name, size in {"mean": np.abs(base.mean).max(), "k2": np.abs(base.k2).max(), "area": base.area.max()}.items():
+        assert np.max(np.abs(getattr(moved, name) - getattr(base, name))) < 1e-7 * size, name
+    assert np.max(np.abs(moved.normals - base.normals @ rot.T)) < 1e-7
+    # millimetres instead of metres: lengths x1000, curvatures /1000, areas x1e6
+    mm = heatcurv.estimate(pts * 1000.0)
+    assert mm.info["scale"].fit == scale.fit
+    # (measured: 1.6e-13 of the largest mean curvature, areas 5e-15)
+    np.testing.assert_allclose(mm.mean * 1000.0, base.mean, rtol=1e-9, atol=1e-10 * np.abs(base.mean).max())
+    np.testing.assert_allclose(mm.area / 1e6, base.area, rtol=1e-9)
