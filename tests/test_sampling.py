@@ -47,21 +47,27 @@ def test_key_sample_takes_the_smallest_keys_and_seeds_differ():
     assert np.array_equal(key_sample(keys, 5000), np.arange(1000))
 
 
-def test_wide_kernel_results_do_not_depend_on_order_or_rotation(noisy_torus):
-    pts = noisy_torus
-    base = heatcurv.estimate(pts)
-    assert base.info["scale"].k > 240  # the coarse-level path
-    perm = np.random.default_rng(5).permutation(len(pts))
+def _assert_order_and_motion_change_nothing(pts, base, seed, tolerance, fields=("mean", "area")):
+    """A permutation of ``pts`` changes none of ``base``'s values; a rigid motion only ``fields`` and the
+    normals, by at most ``tolerance`` of each field's largest value (its rounding). Returns the moved result."""
+    perm = np.random.default_rng(seed).permutation(len(pts))
     permuted = heatcurv.estimate(pts[perm])
     for name in ("mean", "k1", "k2", "area"):
         assert np.allclose(getattr(permuted, name), getattr(base, name)[perm], rtol=1e-9, atol=1e-12), name
-    rot = Rotation.random(random_state=6).as_matrix()
+    rot = Rotation.random(random_state=seed + 1).as_matrix()
     moved = heatcurv.estimate(pts @ rot.T + np.array([250.0, -40.0, 3.0]))
-    scale_of = {"mean": np.abs(base.mean).max(), "area": base.area.max()}
+    for name in fields:
+        size = np.abs(getattr(base, name)).max()
+        assert np.max(np.abs(getattr(moved, name) - getattr(base, name))) < tolerance * size, name
+    assert np.max(np.abs(moved.normals - base.normals @ rot.T)) < tolerance
+    return moved
+
+
+def test_wide_kernel_results_do_not_depend_on_order_or_rotation(noisy_torus):
+    base = heatcurv.estimate(noisy_torus)
+    assert base.info["scale"].k > 240  # the coarse-level path
     # rounding of the rotation only: 1e-6 of the largest value (measured 3e-9)
-    for name, size in scale_of.items():
-        assert np.max(np.abs(getattr(moved, name) - getattr(base, name))) < 1e-6 * size, name
-    assert np.max(np.abs(moved.normals - base.normals @ rot.T)) < 1e-6
+    _assert_order_and_motion_change_nothing(noisy_torus, base, 5, 1e-6)
 
 
 def test_very_low_noise_results_do_not_depend_on_order_rotation_or_unit():
@@ -72,17 +78,9 @@ def test_very_low_noise_results_do_not_depend_on_order_rotation_or_unit():
     base = heatcurv.estimate(pts)
     scale = base.info["scale"]
     assert 1e-6 <= scale.relative_noise < 0.02 and scale.anchors > 0 and scale.k > 60  # the low-noise band
-    perm = np.random.default_rng(7).permutation(len(pts))
-    permuted = heatcurv.estimate(pts[perm])
-    for name in ("mean", "k1", "k2", "area"):
-        assert np.allclose(getattr(permuted, name), getattr(base, name)[perm], rtol=1e-9, atol=1e-12), name
-    rot = Rotation.random(random_state=8).as_matrix()
-    moved = heatcurv.estimate(pts @ rot.T + np.array([250.0, -40.0, 3.0]))
-    assert moved.info["scale"].fit == scale.fit
     # rounding of the motion only: 1e-7 of the largest value (measured 6e-11 to 6e-10, normals 1.3e-9)
-    for name, size in {"mean": np.abs(base.mean).max(), "k2": np.abs(base.k2).max(), "area": base.area.max()}.items():
-        assert np.max(np.abs(getattr(moved, name) - getattr(base, name))) < 1e-7 * size, name
-    assert np.max(np.abs(moved.normals - base.normals @ rot.T)) < 1e-7
+    moved = _assert_order_and_motion_change_nothing(pts, base, 7, 1e-7, ("mean", "k2", "area"))
+    assert moved.info["scale"].fit == scale.fit
     # millimetres instead of metres: lengths x1000, curvatures /1000, areas x1e6
     mm = heatcurv.estimate(pts * 1000.0)
     assert mm.info["scale"].fit == scale.fit
