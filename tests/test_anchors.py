@@ -11,6 +11,7 @@ from heatcurv.anchors import (
     ANCHORS_PER_BALL,
     EXACT_CARRY_SIGMA,
     LOW_NOISE_ANCHORS_PER_BALL,
+    LOW_NOISE_MIN_NEIGHBOURS,
     anchor_rows,
     anchors_per_ball,
     carry_degree,
@@ -185,6 +186,21 @@ def test_carry_is_exact_on_the_anchor_models_surface():
         np.testing.assert_allclose(got[i], T / R, atol=1e-6)
 
 
+def _in_carried_planes(normals, fields):
+    """Plane tensors ``(A, B, D)`` (shape (n, 3), in the z = 0 plane) rotated into the planes normal to
+    ``normals`` by the smallest rotation taking +z there (the anchors' tensors' rotation), as the carry's
+    six entries ``xx, xy, xz, yy, yz, zz`` (shape (n, 6))."""
+    target = normals / np.linalg.norm(normals, axis=1)[:, None]
+    out = np.empty((len(target), 6))
+    for i, (A, B, D) in enumerate(fields):
+        w, cos = np.cross([0.0, 0.0, 1.0], target[i]), target[i, 2]
+        W = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        rot = np.eye(3) + W + W @ W / (1 + cos)
+        T = rot @ np.array([[A, B, 0], [B, D, 0], [0, 0, 0]]) @ rot.T
+        out[i] = T[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    return out
+
+
 def test_regression_reproduces_cubic_curvature_fields():
     # anchors on the plane z = 0 whose own tensors vary as cubics of (x, y): the degree-3 regression
     # gives the cubic's value at every point (rotated into the carried normal's plane), to rounding;
@@ -208,19 +224,50 @@ def test_regression_reproduces_cubic_curvature_fields():
     args = (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(400, R), np.ones(400),
             np.zeros((400, 1)))
     normals, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
-    target = normals / np.linalg.norm(normals, axis=1)[:, None]
     expected = field(points)
-    for i in range(len(points)):
-        # the smallest rotation taking +z to the carried normal (the anchors' tensors' rotation)
-        w, cos = np.cross([0.0, 0.0, 1.0], target[i]), target[i, 2]
-        W = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-        rot = np.eye(3) + W + W @ W / (1 + cos)
-        A, B, D = expected[i]
-        T = rot @ np.array([[A, B, 0], [B, D, 0], [0, 0, 0]]) @ rot.T
-        xx, xy, xz, yy, yz, zz = tensor[i]
-        np.testing.assert_allclose([xx, xy, xz, yy, yz, zz], T[[0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]], atol=1e-9)
+    np.testing.assert_allclose(tensor, _in_carried_planes(normals, expected), atol=1e-9)
     _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
     assert np.abs(mean_tensor[:, 0] - expected[:, 0]).max() > 1e-3
+
+
+def test_regression_too_few_anchors_for_a_quadratic_takes_the_mean():
+    # 8 anchors per point carry no quadratic (12 needed: twice its 6 monomials); a plane through all of
+    # them, out to the ball's edge, was far worse than the weighted mean of the nearest (a saddle at 1e-5:
+    # k1 3.4 % against 0.64 % at the 0.8 % of points that took it), so the regression stops at degree 2
+    rng = np.random.default_rng(6)
+    at = np.c_[rng.uniform(-1, 1, (400, 2)), np.zeros(400)]
+    points = np.c_[rng.uniform(-0.5, 0.5, (50, 2)), np.zeros(50)]
+    coefficients = np.zeros((400, 9))
+    coefficients[:, :3] = np.c_[1 + at[:, 0], 0.2 * at[:, 1], 0.5 - at[:, 1]] * 0.6  # a linear field, units of R
+    e1, e2, n = (np.tile(v, (400, 1)) for v in np.eye(3))
+    dist, idx = cKDTree(at).query(points, 8)
+    indptr = np.arange(0, idx.size + 1, 8, dtype=np.int64)
+    args = (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(400, 0.6), np.ones(400),
+            np.zeros((400, 1)))
+    _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
+    _, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
+    np.testing.assert_array_equal(tensor, mean_tensor)
+    # asked for, a plane is still fitted (and reproduces this linear field where the mean does not)
+    normals, linear, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=1)
+    expected = _in_carried_planes(normals, np.c_[1 + points[:, 0], 0.2 * points[:, 1], 0.5 - points[:, 1]])
+    np.testing.assert_allclose(linear, expected, atol=1e-9)
+    assert np.abs(mean_tensor - expected).max() > 1e-3
+
+
+def test_narrow_kernels_keep_the_plain_fit_under_very_low_noise():
+    # a region whose kernel Lepski's rule kept at 60 neighbours in a very-low-noise cloud: its anchors (every
+    # point) keep the plain denoised fit, whose error there is a third of the quartic refit's (a torus at
+    # 1e-5: 0.55 % against 1.80 %); from LOW_NOISE_MIN_NEIGHBOURS on, the refit
+    sample = surfaces.Torus().sample(6000, "random", seed=2, noise=1e-5)
+    pts, normals = sample.points, sample.normals
+    tree = cKDTree(pts)
+    areas = density_areas(knn_neighbourhood(pts, 60, tree=tree))
+    index = np.arange(0, len(pts), 50)
+    for k, same in ((60, True), (LOW_NOISE_MIN_NEIGHBOURS, False)):
+        kk = np.full(index.shape[0], k)
+        plain = fit_anchors(pts, tree, normals[index], areas, index, kk, denoise=True)
+        low = fit_anchors(pts, tree, normals[index], areas, index, kk, denoise=True, low_noise=True)
+        assert np.array_equal(low.fit.principal.mean, plain.fit.principal.mean) == same, k
 
 
 def test_very_low_noise_improves_the_torus():

@@ -40,7 +40,8 @@ denoised form's low-noise refit): mean 0.167-0.176 %, k2 0.39-0.42 %, against
 
 Every value of a point depends only on the points within its **support
 radius** ``max_a (|p - a| + R_a)`` over the anchors it uses, the regression's
-included (at most about 1.8 ball radii): the halo a tiled run needs.
+included (measured: with the regression a median 1.96 and at most 2.2 ball radii on a torus at 1e-5,
+at most 2.98 on a saddle; 1-1.5 without it): the halo a tiled run needs, per point.
 """
 
 from __future__ import annotations
@@ -65,8 +66,8 @@ from .scale import Scale, fit_balls
 
 __all__ = [
     "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "EXACT_CARRY_SIGMA", "LOW_NOISE_ANCHORS_PER_BALL",
-    "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "REGRESSION_DEGREE", "AnchorFits", "CarriedFit", "anchor_normals",
-    "anchor_rows", "anchors_per_ball", "carry_degree", "carry_fits", "fit_anchors",
+    "LOW_NOISE_MIN_NEIGHBOURS", "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "REGRESSION_DEGREE", "AnchorFits",
+    "CarriedFit", "anchor_normals", "anchor_rows", "anchors_per_ball", "carry_degree", "carry_fits", "fit_anchors",
 ]
 
 #: Anchors per fitted ball: their spacing is about ``R sqrt(pi / 16) = 0.44 R``.
@@ -78,6 +79,12 @@ ANCHORS_PER_BALL = 16
 #: query at 24 per ball in the first form of this path (its refit also in the kernel choice), 100 s at 64 against
 #: a query of 15-17.7 s (bullet 4 of issue 12 allows 4x); now 3.0-3.6x at 24 in CPU seconds (docs/speed.md).
 LOW_NOISE_ANCHORS_PER_BALL = 24
+#: Narrowest kernel the low-noise refit is fitted at (``fit_anchors(low_noise=True)``): the narrowest the very-low-
+#: noise path widens to (Lepski's 120 neighbours, one doubling wider: :data:`heatcurv.scale.LOW_NOISE_LEVELS`).
+#: Regions of such a cloud whose kernel the rule kept at 60 keep the plain denoised fit: the refit's 15 unknowns
+#: at 60 neighbours gave a torus at 1e-5 of its diagonal a mean error of 1.80 % against 0.55 % (0.65 against
+#: 0.61 % at 120; measured at the centres, 20 000 points, 2026-11-30).
+LOW_NOISE_MIN_NEIGHBOURS = 240
 #: Kernels of at most this many times :data:`ANCHORS_PER_BALL` neighbours are fitted at every point
 #: (a 60-neighbour kernel: its pair work is small, and small clouds keep their own fits).
 EVERY_POINT = 4
@@ -353,7 +360,8 @@ def fit_anchors(
     denoise : bool
         The denoised height form of the fit.
     low_noise : bool, optional
-        With ``denoise``, its low-noise refit (:func:`carry_degree`, :func:`heatcurv.chordfit.chord_fit`).
+        With ``denoise``, its low-noise refit (:func:`carry_degree`, :func:`heatcurv.chordfit.chord_fit`)
+        at the anchors whose kernel holds at least :data:`LOW_NOISE_MIN_NEIGHBOURS` neighbours.
     alpha : float, optional
         Ball radius in heat-kernel spacings (``h = R / alpha``, ``t = h^2 / 4``, eq 2.8).
     taper : bool, optional
@@ -379,7 +387,7 @@ def fit_anchors(
         # two passes (a tilt-refined normal, then the curvatures) unless the normals are the caller's
         nbhd, fit = fit_balls(
             points, tree, index[rows], normals[rows], areas, Scale(width, denoise), alpha=alpha,
-            passes=2 if refine else 1, workers=workers, low_noise=low_noise,
+            passes=2 if refine else 1, workers=workers, low_noise=low_noise and width >= LOW_NOISE_MIN_NEIGHBOURS,
         )
         offset[rows] = centroid_offset(points, nbhd, fit.normals, taper=taper, centres=points[index[rows]])
         density[rows] = density_areas(nbhd)

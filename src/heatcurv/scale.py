@@ -38,7 +38,7 @@ grows with ``R^2``). :func:`select_scale` picks the width per cloud:
    to below :data:`LOW_NOISE`, e.g. coordinate rounding) is fitted with the
    denoised form's low-noise refit (:mod:`heatcurv.anchors`), whose bias is far
    below the plain fit's that the rule measured: where the rule widened the
-   kernel at all, it is :data:`LOW_NOISE_LEVELS` doubling wider.
+   kernel of the median centre, every widened centre's kernel is :data:`LOW_NOISE_LEVELS` doubling wider.
 
 Measured: a torus with 0.05 % noise on one half and 0.6 % on the other
 chose 960 and 1920 neighbours (mean errors 1.6 % and 4.4 %; the best single
@@ -870,7 +870,7 @@ def decide_scale(
             biased |= _window_medians(change, windows, q) > TAU_LOCAL
         guarded = np.where(biased & (guarded >= j), j - 1, guarded)
     chosen = np.minimum(chosen, guarded)
-    # very low noise, where the rule widened the kernel at all: the low-noise refit's kernel is wider
+    # very low noise, where the rule widened the median centre's kernel: the low-noise refit's kernel is wider
     # (LOW_NOISE_LEVELS). Where the rule kept the narrowest (scans: the bunny, the face, relative_noise
     # 0.019, chose 60; widened to 240 the bunny's area moved 2 %, the face's 28 %) the bias is at the
     # narrowest scale already, and the cloud keeps the plain fit.

@@ -11,7 +11,7 @@ from heatcurv.tiles import compute_file
 
 
 def test_low_noise_cloud_equals_in_memory(tmp_path):
-    """A torus with noise 1e-5 of its diagonal (coordinate rounding): the kernel widened two doublings beyond
+    """A torus with noise 1e-5 of its diagonal (coordinate rounding): the kernel widened one doubling beyond
     Lepski's choice (the survey fits those candidates too, for the halo), anchors 24 per ball, each point's
     tensor regressed from its 24 nearest anchors, whose reach the support radius counts; the tiles
     equal the in-memory run on every field of every point."""
