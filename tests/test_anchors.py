@@ -186,6 +186,14 @@ def test_carry_is_exact_on_the_anchor_models_surface():
         np.testing.assert_allclose(got[i], T / R, atol=1e-6)
 
 
+def _anchor_square(rng):
+    """400 anchors on the plane z = 0 over [-1, 1]^2, a jittered 20 x 20 grid (spacing 0.1, as even as the
+    sampling keys' anchors: uniform random ones leave some points' nearest anchors on one side)."""
+    g = np.linspace(-0.95, 0.95, 20)
+    grid = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2) + rng.uniform(-0.03, 0.03, (400, 2))
+    return np.c_[grid, np.zeros(400)]
+
+
 def _in_carried_planes(normals, fields):
     """Plane tensors ``(A, B, D)`` (shape (n, 3), in the z = 0 plane) rotated into the planes normal to
     ``normals`` by the smallest rotation taking +z there (the anchors' tensors' rotation), as the carry's
@@ -206,7 +214,7 @@ def test_regression_reproduces_cubic_curvature_fields():
     # gives the cubic's value at every point (rotated into the carried normal's plane), to rounding;
     # the weighted mean of the carried models does not
     rng = np.random.default_rng(5)
-    at = np.c_[rng.uniform(-1, 1, (400, 2)), np.zeros(400)]
+    at = _anchor_square(rng)
     points = np.c_[rng.uniform(-0.5, 0.5, (50, 2)), np.zeros(50)]
     poly = rng.normal(size=(3, 10))
 
@@ -235,7 +243,7 @@ def test_regression_too_few_anchors_for_a_quadratic_takes_the_mean():
     # them, out to the ball's edge, was far worse than the weighted mean of the nearest (a saddle at 1e-5:
     # k1 3.4 % against 0.64 % at the 0.8 % of points that took it), so the regression stops at degree 2
     rng = np.random.default_rng(6)
-    at = np.c_[rng.uniform(-1, 1, (400, 2)), np.zeros(400)]
+    at = _anchor_square(rng)
     points = np.c_[rng.uniform(-0.5, 0.5, (50, 2)), np.zeros(50)]
     coefficients = np.zeros((400, 9))
     coefficients[:, :3] = np.c_[1 + at[:, 0], 0.2 * at[:, 1], 0.5 - at[:, 1]] * 0.6  # a linear field, units of R
@@ -247,11 +255,38 @@ def test_regression_too_few_anchors_for_a_quadratic_takes_the_mean():
     _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
     _, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
     np.testing.assert_array_equal(tensor, mean_tensor)
-    # asked for, a plane is still fitted (and reproduces this linear field where the mean does not)
+    # asked for, a plane is still fitted through 24 anchors (and reproduces this linear field where the mean
+    # does not)
+    dist, idx = cKDTree(at).query(points, 24)
+    args = (points, np.arange(0, idx.size + 1, 24, dtype=np.int64), idx.ravel(), dist.ravel()) + args[4:]
+    _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
     normals, linear, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=1)
     expected = _in_carried_planes(normals, np.c_[1 + points[:, 0], 0.2 * points[:, 1], 0.5 - points[:, 1]])
     np.testing.assert_allclose(linear, expected, atol=1e-9)
     assert np.abs(mean_tensor - expected).max() > 1e-3
+
+
+def test_regression_does_not_extrapolate_beyond_the_anchors():
+    # points on the edge of the anchors' square have their anchors on one side (a half disc: offset 0.27 of
+    # the farthest anchor's distance; inside 0.02): the cubic through them
+    # would extrapolate (a saddle at 1e-5 noise: k1 0.61 % within a quarter ball of its border against
+    # 0.06 % inside), so they take the weighted mean; points inside keep the regression
+    rng = np.random.default_rng(7)
+    at = _anchor_square(rng)
+    points = np.array([[-0.999, 0.0, 0.0], [0.0, 0.999, 0.0], [0.1, -0.2, 0.0], [-0.3, 0.3, 0.0]])
+    coefficients = np.zeros((400, 9))
+    coefficients[:, :3] = np.c_[1 + at[:, 0] ** 3, 0.2 * at[:, 1], 0.5 - at[:, 1] ** 2] * 0.6
+    e1, e2, n = (np.tile(v, (400, 1)) for v in np.eye(3))
+    dist, idx = cKDTree(at).query(points, 24)
+    indptr = np.arange(0, idx.size + 1, 24, dtype=np.int64)
+    args = (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(400, 0.6), np.ones(400),
+            np.zeros((400, 1)))
+    _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
+    normals, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
+    np.testing.assert_array_equal(tensor[:2], mean_tensor[:2])
+    x, y = points[2:, 0], points[2:, 1]
+    expected = _in_carried_planes(normals[2:], np.c_[1 + x**3, 0.2 * y, 0.5 - y**2])
+    np.testing.assert_allclose(tensor[2:], expected, atol=1e-9)
 
 
 def test_narrow_kernels_keep_the_plain_fit_under_very_low_noise():
