@@ -113,7 +113,7 @@ def test_noisy_wide_kernels_use_the_whole_ball():
     errors = compare(sample, res)
     # measured: mean 1.0 %, k1 0.7 %, k2 1.7 % (denoised-3840)
     assert errors["rel_mean"] < 0.02 and errors["rel_k2"] < 0.03
-    assert res.info["scale"].anchors > 0
+    assert res.info["scale"].anchors > 0 and not res.info["scale"].low_noise
     assert np.all(np.isfinite(res.mean)) and np.all(np.isfinite(res.normals))
 
 
@@ -315,7 +315,7 @@ def test_very_low_noise_improves_the_torus():
     sample = surfaces.Torus().sample(20_000, "random", seed=2, noise=1e-5)
     res = heatcurv.estimate(sample.points)
     scale = res.info["scale"]
-    assert in_low_noise_band(scale.relative_noise) and scale.fit == "denoised-240"  # Lepski: 120, widened
+    assert in_low_noise_band(scale.relative_noise) and scale.fit == "denoised-240" and scale.low_noise  # 120, widened
     errors = compare(sample, res)
     assert errors["rel_mean"] < 0.0021 and errors["rel_k2"] < 0.0051 and errors["d1_deg"] < 0.052
 

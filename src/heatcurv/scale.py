@@ -171,6 +171,10 @@ class ScaleReport:
         Points the wide kernel was fitted at (0: every point has its own fit).
     k_min, k_max : int
         Narrowest and widest kernel chosen at any point (``k`` is the median point's).
+    low_noise : bool
+        The very-low-noise path was taken (:attr:`ScaleChoice.low_noise`: the kernel widened
+        :data:`LOW_NOISE_LEVELS` doubling beyond Lepski's choice, the quartic refit at the anchors
+        and the regression of their tensors, :mod:`heatcurv.anchors`).
     """
 
     k: int
@@ -186,6 +190,7 @@ class ScaleReport:
     anchors: int = 0
     k_min: int = 0
     k_max: int = 0
+    low_noise: bool = False
 
     def in_unit(self, unit: float) -> ScaleReport:
         """The report with its lengths multiplied by ``unit`` (the stages' unit back to the input's)."""
@@ -219,7 +224,7 @@ class ScaleReport:
             label = f"{'denoised' if choice.scale.denoise else 'chord'}-{k_median}"
         return cls(
             support_radius=float(finite.max()) if finite.size else float("nan"), anchors=int(anchors),
-            k_min=k_min, k_max=k_max,
+            k_min=k_min, k_max=k_max, low_noise=bool(choice.low_noise),
             k=k_median,
             fit=label,
             radius=float(np.percentile(radius, 99)),

@@ -168,10 +168,21 @@ def test_a_noisy_cloud_writes_its_per_point_kernel_radius(tmp_path):
     out = run("-v", "compute", path, "-o", tmp_path / "out.ply", "--fields", "mean,fit_radius")
     assert out.returncode == 0, out.stderr
     assert re.search(r"wide kernel: .*fitted at \d+ anchors .* support radius", out.stdout), out.stdout
+    assert "very low noise" not in out.stdout
     back = io.read_points(tmp_path / "out.ply")
     res = heatcurv.estimate(sample.points)
     np.testing.assert_allclose(back.fields["fit_radius"], res.fit_radius, rtol=1e-6)
     assert res.info["scale"].median_radius == pytest.approx(np.median(res.fit_radius), rel=1e-9)
+
+
+def test_verbose_says_when_the_very_low_noise_path_ran(tmp_path):
+    # coordinate rounding's noise (1e-5 of the diagonal) takes the low-noise path: --verbose and the report say so
+    points = heatcurv.surfaces.Torus().sample(8000, "random", noise=1e-5, seed=3).points
+    np.save(tmp_path / "rounded.npy", points)
+    out = run("-v", "compute", tmp_path / "rounded.npy", "-o", tmp_path / "out.ply", "--fields", "mean")
+    assert out.returncode == 0, out.stderr
+    assert "very low noise (such as coordinate rounding)" in out.stdout, out.stdout
+    assert heatcurv.estimate(points).info["scale"].low_noise
 
 
 def test_ply_mesh_keeps_its_faces_and_other_formats_warn(tmp_path):

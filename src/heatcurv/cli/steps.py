@@ -210,6 +210,9 @@ def _report_details(res, log: Log) -> None:
             widths = f"{scale.k_min}-{scale.k_max} neighbours by region; " if scale.k_min != scale.k_max else ""
             log.detail(f"  wide kernel: {widths}fitted at {scale.anchors} anchors and carried to every point; "
                        f"support radius {scale.support_radius:.4g} (no point farther changes a point's values)")
+        if scale.get("low_noise"):
+            log.detail("  very low noise (such as coordinate rounding): the kernel one doubling wider than chosen, "
+                       "the anchors' quartic refit and the regression of their tensors")
     orientation = res.info.get("orientation")
     if orientation is not None and orientation.mode != "given":
         log.detail(f"  orientation: {orientation.mode}; {orientation.components} component(s); "
