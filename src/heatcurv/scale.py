@@ -172,9 +172,7 @@ class ScaleReport:
     k_min, k_max : int
         Narrowest and widest kernel chosen at any point (``k`` is the median point's).
     low_noise : bool
-        The very-low-noise path was taken (:attr:`ScaleChoice.low_noise`: the kernel widened
-        :data:`LOW_NOISE_LEVELS` doubling beyond Lepski's choice, the quartic refit at the anchors
-        and the regression of their tensors, :mod:`heatcurv.anchors`).
+        The very-low-noise path ran (:attr:`ScaleChoice.low_noise`, module docstring step 5).
     """
 
     k: int
