@@ -194,6 +194,19 @@ def _anchor_square(rng):
     return np.c_[grid, np.zeros(400)]
 
 
+def _plane_carry_args(at, points, fields, k):
+    """``carry_anchor_fits``'s arguments for anchors ``at`` on the plane z = 0 whose own tensors are ``fields``
+    (shape (len(at), 3): A, B, D), ball radius 0.6, each of ``points`` with its ``k`` nearest anchors."""
+    m = len(at)
+    coefficients = np.zeros((m, 9))
+    coefficients[:, :3] = fields * 0.6  # units of the ball radius
+    e1, e2, n = (np.tile(v, (m, 1)) for v in np.eye(3))
+    dist, idx = cKDTree(at).query(points, k)
+    indptr = np.arange(0, idx.size + 1, k, dtype=np.int64)
+    return (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(m, 0.6), np.ones(m),
+            np.zeros((m, 1)))
+
+
 def _in_carried_planes(normals, fields):
     """Plane tensors ``(A, B, D)`` (shape (n, 3), in the z = 0 plane) rotated into the planes normal to
     ``normals`` by the smallest rotation taking +z there (the anchors' tensors' rotation), as the carry's
@@ -223,14 +236,7 @@ def test_regression_reproduces_cubic_curvature_fields():
         basis = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y, x**3, x * x * y, x * y * y, y**3], 1)
         return basis @ poly.T
 
-    R = 0.6
-    coefficients = np.zeros((400, 9))
-    coefficients[:, :3] = field(at) * R  # units of the ball radius
-    e1, e2, n = (np.tile(v, (400, 1)) for v in np.eye(3))
-    dist, idx = cKDTree(at).query(points, 24)
-    indptr = np.arange(0, idx.size + 1, 24, dtype=np.int64)
-    args = (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(400, R), np.ones(400),
-            np.zeros((400, 1)))
+    args = _plane_carry_args(at, points, field(at), 24)
     normals, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
     expected = field(points)
     np.testing.assert_allclose(tensor, _in_carried_planes(normals, expected), atol=1e-9)
@@ -245,20 +251,14 @@ def test_regression_too_few_anchors_for_a_quadratic_takes_the_mean():
     rng = np.random.default_rng(6)
     at = _anchor_square(rng)
     points = np.c_[rng.uniform(-0.5, 0.5, (50, 2)), np.zeros(50)]
-    coefficients = np.zeros((400, 9))
-    coefficients[:, :3] = np.c_[1 + at[:, 0], 0.2 * at[:, 1], 0.5 - at[:, 1]] * 0.6  # a linear field, units of R
-    e1, e2, n = (np.tile(v, (400, 1)) for v in np.eye(3))
-    dist, idx = cKDTree(at).query(points, 8)
-    indptr = np.arange(0, idx.size + 1, 8, dtype=np.int64)
-    args = (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(400, 0.6), np.ones(400),
-            np.zeros((400, 1)))
+    linear_field = np.c_[1 + at[:, 0], 0.2 * at[:, 1], 0.5 - at[:, 1]]
+    args = _plane_carry_args(at, points, linear_field, 8)
     _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
     _, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
     np.testing.assert_array_equal(tensor, mean_tensor)
     # asked for, a plane is still fitted through 24 anchors (and reproduces this linear field where the mean
     # does not)
-    dist, idx = cKDTree(at).query(points, 24)
-    args = (points, np.arange(0, idx.size + 1, 24, dtype=np.int64), idx.ravel(), dist.ravel()) + args[4:]
+    args = _plane_carry_args(at, points, linear_field, 24)
     _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
     normals, linear, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=1)
     expected = _in_carried_planes(normals, np.c_[1 + points[:, 0], 0.2 * points[:, 1], 0.5 - points[:, 1]])
@@ -274,13 +274,7 @@ def test_regression_does_not_extrapolate_beyond_the_anchors():
     rng = np.random.default_rng(7)
     at = _anchor_square(rng)
     points = np.array([[-0.999, 0.0, 0.0], [0.0, 0.999, 0.0], [0.1, -0.2, 0.0], [-0.3, 0.3, 0.0]])
-    coefficients = np.zeros((400, 9))
-    coefficients[:, :3] = np.c_[1 + at[:, 0] ** 3, 0.2 * at[:, 1], 0.5 - at[:, 1] ** 2] * 0.6
-    e1, e2, n = (np.tile(v, (400, 1)) for v in np.eye(3))
-    dist, idx = cKDTree(at).query(points, 24)
-    indptr = np.arange(0, idx.size + 1, 24, dtype=np.int64)
-    args = (points, indptr, idx.ravel(), dist.ravel(), at, n, e1, e2, coefficients, np.full(400, 0.6), np.ones(400),
-            np.zeros((400, 1)))
+    args = _plane_carry_args(at, points, np.c_[1 + at[:, 0] ** 3, 0.2 * at[:, 1], 0.5 - at[:, 1] ** 2], 24)
     _, mean_tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=0)
     normals, tensor, _, _, _ = carry_anchor_fits(*args, n_mean=8, degree=3)
     np.testing.assert_array_equal(tensor[:2], mean_tensor[:2])
