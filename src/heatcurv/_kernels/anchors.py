@@ -243,6 +243,30 @@ def _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm
 
 
 @njit(**ROW_CORE, inline="always")
+def _rotated_frame(a, normals, e1, e2, target, u, v):
+    """Anchor ``a``'s tangent frame ``e1, e2`` turned by the smallest rotation taking its normal to ``target``.
+
+    ``x -> x + w x x + w x (w x x) / (1 + cos)`` with ``w = n_a x target``, ``cos = n_a . target``
+    (exact on a sphere), into ``u`` and ``v`` (shape (3,)).
+    """
+    w0 = normals[a, 1] * target[2] - normals[a, 2] * target[1]
+    w1 = normals[a, 2] * target[0] - normals[a, 0] * target[2]
+    w2 = normals[a, 0] * target[1] - normals[a, 1] * target[0]
+    cos = normals[a, 0] * target[0] + normals[a, 1] * target[1] + normals[a, 2] * target[2]
+    f = 1.0 / (1.0 + cos)
+    for which in range(2):
+        src = e1 if which == 0 else e2
+        v0, v1, v2 = src[a, 0], src[a, 1], src[a, 2]
+        c0 = w1 * v2 - w2 * v1
+        c1 = w2 * v0 - w0 * v2
+        c2 = w0 * v1 - w1 * v0
+        out = u if which == 0 else v
+        out[0] = v0 + c0 + f * (w1 * c2 - w2 * c1)
+        out[1] = v1 + c1 + f * (w2 * c0 - w0 * c2)
+        out[2] = v2 + c2 + f * (w0 * c1 - w1 * c0)
+
+
+@njit(**ROW_CORE, inline="always")
 def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v,
                        with_tensor):
     """:func:`_carry_one` to first order in the offset, for noisy models (:data:`EXACT_CARRY_SIGMA`).
@@ -269,25 +293,7 @@ def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, rad
     b11 = (c[0] + 3 * c[5] * x + c[6] * y) / R
     b12 = (c[1] + c[6] * x + c[7] * y) / R
     b22 = (c[2] + c[7] * x + 3 * c[8] * y) / R
-    # smallest rotation taking the anchor's normal to the carried one: v -> v + w x v + w x (w x v) / (1 + cos)
-    w0 = normals[a, 1] * nrm[2] - normals[a, 2] * nrm[1]
-    w1 = normals[a, 2] * nrm[0] - normals[a, 0] * nrm[2]
-    w2 = normals[a, 0] * nrm[1] - normals[a, 1] * nrm[0]
-    cos = normals[a, 0] * nrm[0] + normals[a, 1] * nrm[1] + normals[a, 2] * nrm[2]
-    f = 1.0 / (1.0 + cos)
-    for which in range(2):
-        src = e1 if which == 0 else e2
-        v0, v1, v2 = src[a, 0], src[a, 1], src[a, 2]
-        c0 = w1 * v2 - w2 * v1
-        c1 = w2 * v0 - w0 * v2
-        c2 = w0 * v1 - w1 * v0
-        r0 = v0 + c0 + f * (w1 * c2 - w2 * c1)
-        r1 = v1 + c1 + f * (w2 * c0 - w0 * c2)
-        r2 = v2 + c2 + f * (w0 * c1 - w1 * c0)
-        if which == 0:
-            frame_u[0], frame_u[1], frame_u[2] = r0, r1, r2
-        else:
-            frame_v[0], frame_v[1], frame_v[2] = r0, r1, r2
+    _rotated_frame(a, normals, e1, e2, nrm, frame_u, frame_v)
     # T = b11 u u^T + b12 (u v^T + v u^T) + b22 v v^T (u, v: the carried frame), upper triangle
     for t in range(6):
         r, c = _ROW[t], _COL[t]
@@ -321,21 +327,7 @@ def _own_tensor(a, target, frame, normals, e1, e2, coefficients, radius, tensor,
     """
     c = coefficients[a]
     b11, b12, b22 = c[0] / radius[a], c[1] / radius[a], c[2] / radius[a]
-    w0 = normals[a, 1] * target[2] - normals[a, 2] * target[1]
-    w1 = normals[a, 2] * target[0] - normals[a, 0] * target[2]
-    w2 = normals[a, 0] * target[1] - normals[a, 1] * target[0]
-    cos = normals[a, 0] * target[0] + normals[a, 1] * target[1] + normals[a, 2] * target[2]
-    f = 1.0 / (1.0 + cos)
-    for which in range(2):
-        src = e1 if which == 0 else e2
-        v0, v1, v2 = src[a, 0], src[a, 1], src[a, 2]
-        c0 = w1 * v2 - w2 * v1
-        c1 = w2 * v0 - w0 * v2
-        c2 = w0 * v1 - w1 * v0
-        out = u if which == 0 else v
-        out[0] = v0 + c0 + f * (w1 * c2 - w2 * c1)
-        out[1] = v1 + c1 + f * (w2 * c0 - w0 * c2)
-        out[2] = v2 + c2 + f * (w0 * c1 - w1 * c0)
+    _rotated_frame(a, normals, e1, e2, target, u, v)
     # the rotated frame's vectors in the target's frame
     p0 = u[0] * frame[0] + u[1] * frame[1] + u[2] * frame[2]
     p1 = v[0] * frame[0] + v[1] * frame[1] + v[2] * frame[2]
