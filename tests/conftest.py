@@ -6,6 +6,23 @@ from scipy.spatial import cKDTree
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.neighbourhood import knn_neighbourhood
+from records import Records
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--update-records",
+        action="store_true",
+        help="rewrite tests/records.json with the errors measured by the tests that run, instead of checking them",
+    )
+
+
+@pytest.fixture(scope="session")
+def records(request):
+    """The accuracy records (tests/records.py): ``records.check(key, metric=error, ...)``."""
+    table = Records(update=request.config.getoption("--update-records"))
+    yield table
+    table.write()
 
 
 @pytest.fixture(scope="session")

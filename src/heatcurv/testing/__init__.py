@@ -21,7 +21,15 @@ judge an estimate against the exact values of :mod:`heatcurv.surfaces`.
 from __future__ import annotations
 
 from .baseline import RCOND_MIN, QuadricOptions, QuadricResult, quadric_curvature
-from .errors import aligned_exact, compare, default_margin, direction_error_deg, paper_error, relative_l1
+from .errors import (
+    aligned_exact,
+    compare,
+    default_margin,
+    direction_error_deg,
+    neighbour_margin,
+    paper_error,
+    relative_l1,
+)
 
 __all__ = [
     "QuadricOptions",
@@ -31,6 +39,7 @@ __all__ = [
     "compare",
     "default_margin",
     "direction_error_deg",
+    "neighbour_margin",
     "paper_error",
     "quadric_curvature",
     "relative_l1",

@@ -6,7 +6,8 @@ computed the same way (formerly ``heatcurv.evaluation``):
 * eq 5.1 of the paper: ``mean_i ||k_i| - |k*_i||`` (absolute, unsigned);
 * the signed relative L1 error ``mean|k - k*| / mean|k*|``;
 * eq 4.1: the mean angle between estimated and exact principal directions
-  (as lines: the sign of a direction is arbitrary);
+  (as lines: the sign of a direction is arbitrary), from ``atan2`` so that
+  angles down to rounding (1e-14 deg) are resolved;
 * the relative error of the total area.
 
 Signs are compared after aligning the exact normals with the estimated ones
@@ -18,7 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["aligned_exact", "relative_l1", "paper_error", "direction_error_deg", "default_margin", "compare"]
+__all__ = [
+    "aligned_exact",
+    "relative_l1",
+    "paper_error",
+    "direction_error_deg",
+    "default_margin",
+    "neighbour_margin",
+    "compare",
+]
 
 
 def aligned_exact(sample, result) -> dict:
@@ -63,9 +72,16 @@ def paper_error(estimate: np.ndarray, exact: np.ndarray) -> float:
 
 
 def direction_error_deg(estimate: np.ndarray, exact: np.ndarray) -> float:
-    """Eq 4.1: mean angle between direction lines, degrees; shapes (n, 3)."""
-    c = np.clip(np.abs(np.einsum("ij,ij->i", estimate, exact)), 0.0, 1.0)
-    return float(np.degrees(np.mean(np.arccos(c)))) if c.size else float("nan")
+    """Eq 4.1: mean angle between direction lines, degrees; shapes (n, 3).
+
+    ``atan2(|a x b|, |a . b|)``: exact to rounding at small angles, where
+    ``arccos`` of a dot product near 1 cannot resolve less than ~1e-6 deg.
+    """
+    if not estimate.size:
+        return float("nan")
+    sine = np.linalg.norm(np.cross(estimate, exact), axis=1)
+    cosine = np.abs(np.einsum("ij,ij->i", estimate, exact))
+    return float(np.degrees(np.mean(np.arctan2(sine, cosine))))
 
 
 def default_margin(result) -> float:
@@ -95,6 +111,29 @@ def default_margin(result) -> float:
     return result.options.alpha * float(np.max(result.spacing))
 
 
+def neighbour_margin(points: np.ndarray, k: int = 40) -> float:
+    """A border margin fixed by the sampling alone: the 99th percentile of the ``k``-th neighbour distance.
+
+    Unlike :func:`default_margin` it does not depend on the estimate, so the
+    points judged as interior (and the border band judged separately) stay
+    the same when the estimator widens or narrows its balls.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    k : int, optional
+        Neighbours, self excluded (40: the quadric baseline's neighbourhood).
+
+    Returns
+    -------
+    float
+    """
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(points).query(points, k + 1)
+    return float(np.percentile(d[:, -1], 99))
+
+
 def compare(sample, result, margin: float | None = None) -> dict:
     """All error measures of ``result`` against ``sample``'s exact values.
 
@@ -117,7 +156,10 @@ def compare(sample, result, margin: float | None = None) -> dict:
         (every point), ``d1_deg`` (interior, non-umbilic), ``normal_deg``,
         ``orientation`` (fraction of normals on the aligned exact side),
         ``area`` (relative error of the total; biased by the border on open
-        surfaces), ``reliable`` (fraction).
+        surfaces), ``reliable`` (fraction); on the border band (the points
+        within ``margin`` of the border; NaN on closed surfaces):
+        ``border_rel_<f>`` for f in mean, k1, k2, ``border_d1_deg`` and
+        ``border_normal_deg``.
     """
     ex = aligned_exact(sample, result)
     if margin is None:
@@ -135,4 +177,11 @@ def compare(sample, result, margin: float | None = None) -> dict:
     out["orientation"] = float(np.mean(np.einsum("ij,ij->i", result.normals, ex["normals"]) > 0))
     out["area"] = float(result.area.sum() / sample.total_area - 1.0)
     out["reliable"] = float(np.mean(result.reliable))
+    band = ~inner
+    nan = float("nan")
+    for name in ("mean", "k1", "k2"):
+        out[f"border_rel_{name}"] = relative_l1(getattr(result, name)[band], ex[name][band]) if band.any() else nan
+    dirs = band & ~sample.umbilic
+    out["border_d1_deg"] = direction_error_deg(result.d1[dirs], ex["d1"][dirs])
+    out["border_normal_deg"] = direction_error_deg(result.normals[band], ex["normals"][band])
     return out
