@@ -91,19 +91,44 @@ def test_carried_values_match_fits_at_every_point_on_a_graph():
 
 
 def test_support_radius_bounds_what_a_point_depends_on():
-    # the halo a tiled run needs: moving points beyond a point's support radius changes nothing at it
-    sample = surfaces.Torus().sample(12_000, "random", seed=4, noise=0.004)
-    res = heatcurv.estimate(sample.points, scale=960)
+    # the halo a tiled run needs: with the cloud-wide choices fixed (the frame the sampling keys are computed
+    # in, the kernel widths: heatcurv.choices, as a tile gets them), moving every point farther than the support
+    # radius from a point changes none of its values, bit for bit. Without them the moved points move the
+    # centroid, so every sampling key and the anchors drawn with them (measured: the largest field moved
+    # 1-11 % at five probes).
+    from heatcurv.choices import FrameStats
+    from heatcurv.survey import merge_surveys, survey_part
+
+    points = surfaces.Torus().sample(12_000, "random", seed=4, noise=0.004).points
+    res = heatcurv.estimate(points, scale=960)
     report = res.info["scale"]
     assert report.anchors > 0 and np.isfinite(report.support_radius)
-    assert report.support_radius < 2.0 * res.fit_radius.max()
-    probe = int(np.argmin(np.linalg.norm(sample.points - sample.points[0], axis=1)))
-    far = np.linalg.norm(sample.points - sample.points[probe], axis=1) > 3 * report.support_radius
-    moved = sample.points.copy()
-    moved[far] += np.random.default_rng(0).normal(scale=0.01, size=(far.sum(), 3))
-    again = heatcurv.estimate(moved, scale=960)
-    # (the scale choice and orientation are global; with scale fixed only the geometry near the probe matters)
-    assert again.mean[probe] == pytest.approx(res.mean[probe], rel=1e-9)
+    assert report.support_radius < 2.0 * res.fit_radius.max()  # measured 2.98 against 1.57
+    stats = FrameStats()
+    stats.add(points)
+    choices = merge_surveys([survey_part(points, np.ones(len(points), dtype=bool), stats.frame(), scale=960)],
+                            stats.frame(), scale=960)
+    # three probes 0.3 and 0.7 apart; the points moved are those farther than the support radius from all of them
+    near = np.argsort(np.linalg.norm(points - points[0], axis=1))
+    probes = near[[0, 40, 200]]
+    distance = np.linalg.norm(points[:, None, :] - points[probes], axis=2).min(axis=1)
+    rng = np.random.default_rng(0)
+
+    def moved_beyond(radius):
+        moved = points.copy()
+        far = distance > radius
+        moved[far] += rng.normal(scale=0.01, size=(far.sum(), 3))
+        return heatcurv.estimate(moved, choices=choices, scale=960), far
+
+    again, far = moved_beyond(report.support_radius)
+    assert far.sum() > 5000 and distance[far].min() < 1.001 * report.support_radius  # a band right at the radius
+    fields = ("normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area", "fit_radius", "border", "outlier",
+              "reliable", "spacing", "neighbours")
+    for name in fields:
+        np.testing.assert_array_equal(getattr(again, name)[probes], getattr(res, name)[probes], err_msg=name)
+    # and the bound is not vacuous: points moved from half the radius on do change the probes' values
+    inside, _ = moved_beyond(0.5 * report.support_radius)
+    assert not np.array_equal(inside.mean[probes], res.mean[probes])
 
 
 def test_noisy_wide_kernels_use_the_whole_ball():
