@@ -119,7 +119,9 @@ scans at least the main table's margin from their holes, up to
 ``--eval-points`` evaluation points) against the mean-curvature target of the
 smallest tuned noise level at or above theirs (0.03 %: 5 %, 0.3 %: 10 %).
 ``vs q40`` lists the columns among mean, k1, k2 and d1 where the default is
-worse than the quadric.  About 4 minutes on the 2-core development machine.
+worse than the quadric; on noisy clouds the noise table's fixed-k oracle
+(``run_oracle``) and its two verdicts (``oracle``) calibrate how hard the cloud
+is.  About 2 minutes on the 2-core development machine.
 
 Error measures (on interior points; main table :func:`heatcurv.testing.compare`,
 the noise tables the same measures at their evaluation points)
@@ -924,7 +926,7 @@ def heldout_margin(sample) -> float:
 def heldout_table(bench, estimators, eval_points: int):
     """The held-out clouds (``HELDOUT``): heatcurv default, the k = 40 quadric and, on clean clouds, the paper."""
     header = ["cloud", "sampler", "n", "noise%", "seed", "est", "mean%", "k1%", "k2%", "K%", "d1deg", "nrmdeg",
-              "area%", "orient%", "rel%", "NaN", "points", "t[s]", "target", "verdict", "vs q40"]
+              "area%", "orient%", "rel%", "NaN", "points", "t[s]", "target", "verdict", "vs q40", "oracle"]
     keys = ("mean", "k1", "k2", "gaussian", "d1", "normal", "area")
     rows = []
     for name, params, sampler, n, noise, seed in HELDOUT:
@@ -951,7 +953,7 @@ def heldout_table(bench, estimators, eval_points: int):
             counts = bench.heldout_passes.setdefault(est, [0, 0])
             if err:
                 bench.log(f"    {est:8s} ERROR {err}")
-                rows.append(head + [est] + ["-"] * 12 + [target, f"ERROR {err[:60]}", "-"])
+                rows.append(head + [est] + ["-"] * 12 + [target, f"ERROR {err[:60]}", "-", "-"])
                 counts[1] += 1
                 continue
             if at is None:
@@ -969,23 +971,52 @@ def heldout_table(bench, estimators, eval_points: int):
             row = head + [est] + [fmt(m[k]) for k in keys]
             row += [f"{m['orientation']:.2f}", f"{m['reliable']:.1f}", str(m["nan"]), str(measured)]
             row += [f"{t:.2f}" + ("*" if warned else ""), target]
-            row += ["PASS" if not fails else "FAIL " + ",".join(fails), "-"]
+            row += ["PASS" if not fails else "FAIL " + ",".join(fails), "-", "-"]
             if est == "default":
                 default_row = row
             rows.append(row)
         if default_row is not None and "quadric" in found:
             d, q = found["default"], found["quadric"]
             worse = [k for k in ORACLE_JUDGED if np.isfinite(d[k]) and np.isfinite(q[k]) and d[k] > q[k]]
-            default_row[-1] = "worse: " + ",".join(worse) if worse else "none worse"
+            default_row[-2] = "worse: " + ",".join(worse) if worse else "none worse"
+        if at is not None:
+            heldout_oracle_rows(bench, sample, at, sub, head, found.get("default"), default_row, rows)
     title = (
         "Held-out clouds (HELDOUT in benchmarks/accuracy.py: no threshold was tuned on them; noise = std / "
         "bounding-box diagonal; noise 0: the main table's interior margin, all interior points, its targets; "
         f"noise > 0: the noise table's margin (scans: at least the main table's), up to {eval_points} "
         "evaluation points, target mean <= that of the smallest tuned noise level at or above the cloud's; "
         "points: the points measured; paper: clean clouds only; vs q40: of mean, k1, k2, d1, the columns where "
-        "the default's error exceeds the k = 40 quadric's)"
+        "the default's error exceeds the k = 40 quadric's; oracle, noise > 0 only: the noise table's fixed-k quadric "
+        "oracle at the evaluation points, best k per column with hindsight, k in row (k), +: the widest k tried, and "
+        "its two verdicts)"
     )
     return title, header, rows
+
+
+def heldout_oracle_rows(bench, sample, at, sub, head, default_metrics, default_row, rows) -> None:
+    """The noise table's oracle on a noisy held-out cloud: its rows, and its verdicts in the default's row."""
+    oracle = run_oracle(sample, at, sub, bench.log)
+    bench.oracle_calls += len(oracle["per_k"])
+    best, ks = oracle["best"], oracle["k"]
+    if default_metrics is not None and default_row is not None:
+        if oracle["per_k"]:
+            v = oracle_verdict(default_metrics, oracle)
+            k1 = oracle["one_k"]
+            v1 = oracle_verdict(default_metrics, {"best": oracle["per_k"][k1]})
+            default_row[-1] = f"{v}; one k ({k1}): {v1}"
+            bench.heldout_oracle_passes[0 if v == "PASS" else 1] += 1
+            bench.heldout_one_k_passes[0 if v1 == "PASS" else 1] += 1
+        else:
+            default_row[-1] = "ERROR"
+    keys = ("mean", "k1", "k2", "gaussian", "d1", "normal")
+    ladder = "/".join(map(str, oracle_ks(len(sample))))
+    rows.append(head + ["oracle"] + [fmt(best[k]) for k in keys] + ["n/a", "-", "-", "-", str(at.size)]
+                + [f"{oracle['seconds']:.2f}", f"k {ladder}",
+                   "ERROR " + oracle["error"][:60] if oracle["error"] else "-", "-", "-"])
+    top = max(oracle["per_k"], default=None)  # the widest fit that ran: "+", a wider one might do better
+    rows.append([""] * 5 + ["(k)"] + [f"{ks[k]}{'+' if ks[k] == top else ''}" if ks[k] else "-" for k in keys]
+                + [""] * 10)
 
 
 @dataclass
@@ -1000,6 +1031,8 @@ class Bench:
     one_k_passes: list = field(default_factory=lambda: [0, 0])
     lownoise_passes: list = field(default_factory=lambda: [0, 0])
     heldout_passes: dict = field(default_factory=dict)
+    heldout_oracle_passes: list = field(default_factory=lambda: [0, 0])
+    heldout_one_k_passes: list = field(default_factory=lambda: [0, 0])
 
 
 # ---------------------------------------------------------------------------
@@ -1191,6 +1224,9 @@ def main(argv=None) -> int:
         summary.append(f"low noise: {bench.lownoise_passes[0]} PASS, {bench.lownoise_passes[1]} FAIL")
     if "heldout" in which:
         summary += [f"heldout {est}: {p[0]} PASS, {p[1]} FAIL" for est, p in bench.heldout_passes.items()]
+        summary.append(f"heldout default vs oracle: {bench.heldout_oracle_passes[0]} PASS, "
+                       f"{bench.heldout_oracle_passes[1]} FAIL; one k per cloud: {bench.heldout_one_k_passes[0]} "
+                       f"PASS, {bench.heldout_one_k_passes[1]} FAIL")
     targets = (
         "targets: mean <= 0.5 %, k1/k2 <= 1 %, K <= 2 %, d1 <= 0.5 deg, area <= 0.5 % (closed, complete "
         "samples), orientation >= 99.9 %, no NaN; noise 0.12 %: mean <= 5 %, 0.6 %: mean <= 10 %; "
