@@ -2,7 +2,7 @@
 tiled run exact."""
 
 import numpy as np
-from tiles_helpers import ALL_FIELDS
+from tiles_helpers import ALL_FIELDS, exact
 
 import heatcurv
 from heatcurv.scale import in_low_noise_band
@@ -23,5 +23,5 @@ def test_low_noise_cloud_equals_in_memory(tmp_path):
     assert in_low_noise_band(scale.relative_noise) and 0 < scale.anchors < 20_000
     report = compute_file(src, out, tile_size=5000, scheduler="serial", dtype="float64", fields=ALL_FIELDS)
     assert report.tiles >= 4
-    agreement = tiled_agreement(out, memory, rtol=1e-6)
-    assert {name: a["share"] for name, a in agreement.items()} == dict.fromkeys(agreement, 1.0)
+    agreement = tiled_agreement(out, memory, rtol=0.0)  # bit for bit (measured)
+    assert exact(agreement) == dict.fromkeys(agreement, (0, 0.0))

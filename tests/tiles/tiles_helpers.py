@@ -5,6 +5,11 @@ ALL_FIELDS = ("nx", "ny", "nz", "mean", "gaussian", "k1", "k2", "d1x", "d1y", "d
               "reliable", "border", "outlier", "spacing", "neighbours", "fit_radius")
 
 
+def exact(agreement):
+    """Per field of a ``tiled_agreement(..., rtol=0.0)`` report, (points that differ, largest relative difference)."""
+    return {name: (a["bad"], a["worst"]) for name, a in agreement.items()}
+
+
 def read_fields(path):
     """Every column of an output file, by name (x y z too)."""
     from heatcurv.io import read_points
