@@ -22,7 +22,7 @@ def cad():
 def test_cad_part_is_outward_across_its_sharp_edges(cad):
     part, res = cad
     outward = np.einsum("ij,ij->i", res.normals, part.normals) > 0
-    assert outward.mean() >= 0.995  # measured 100 %
+    assert outward.all()  # measured: every point (README: "outward across every sharp edge")
     assert res.info["orientation"].ambiguous == 0 and res.outlier.sum() == 0
 
 
@@ -45,6 +45,22 @@ def test_cad_part_sharp_edges_are_found(cad):
     assert features.mask[part.sharp].mean() >= 0.95  # measured 99 % of the points near an edge
     far = part.edge_distance > 2 * res.info["scale"].median_radius
     assert features.mask[far].mean() <= 0.01  # and none of the smooth faces
+
+
+def test_lidar_tile_up_on_ground_roofs_and_walls_and_its_random_half_agrees():
+    # README: "a LiDAR tile oriented up on 100 % of ground and roofs and 99.7 % of walls, and its random half
+    # agreeing on all of them"; measured: ground 16,324 and roofs 1,883 every point, walls 955 of 958 (99.69 %);
+    # the half agrees on every ground, roof and wall point (the crowns, volumetric, on 76 %)
+    tile = surfaces.lidar_tile(20000, seed=0)
+    res = heatcurv.estimate(tile.points, orient="up")
+    half = np.flatnonzero(np.random.default_rng(0).random(len(tile.points)) < 0.5)
+    part = heatcurv.estimate(tile.points[half], orient="up")
+    same = np.einsum("ij,ij->i", res.normals[half], part.normals) > 0
+    for label, wrong in ((surfaces.GROUND, 0), (surfaces.BUILDING_ROOF, 0), (surfaces.BUILDING_WALL, 3)):
+        on = (tile.labels == label) & ~res.outlier
+        assert on.sum() > 900
+        assert (np.einsum("ij,ij->i", res.normals[on], tile.normals[on]) <= 0).sum() <= wrong, label
+        assert same[on[half] & ~part.outlier].all(), label
 
 
 def test_lidar_tile_survives_the_las_round_trip_and_noise(tmp_path):
