@@ -121,7 +121,8 @@ smallest tuned noise level at or above theirs (0.03 %: 5 %, 0.3 %: 10 %).
 ``vs q40`` lists the columns among mean, k1, k2 and d1 where the default is
 worse than the quadric; on noisy clouds the noise table's fixed-k oracle
 (``run_oracle``) and its two verdicts (``oracle``) calibrate how hard the cloud
-is.  About 2 minutes on the 2-core development machine.
+is.  About 3 minutes on the 2-core development machine (173 s beside other
+jobs, load 7).
 
 Error measures (on interior points; main table :func:`heatcurv.testing.compare`,
 the noise tables the same measures at their evaluation points)
@@ -191,7 +192,8 @@ noise tables add about 10 minutes: per 20k-30k cloud three estimate calls
 and the oracle ladder (6 quadric fits at 3000 points, ~8 s); the two 100k
 torus rows; 12 low-noise and 3 mixed-noise calls.  ``--big`` adds the two
 1M-point torus rows (heatcurv ~1.5 min each at the time of writing, the
-oracle ~1 min).  The wall time is printed at the end.
+oracle ~1 min).  The held-out table adds about 3 minutes.  The wall time is
+printed at the end.
 """
 
 from __future__ import annotations
