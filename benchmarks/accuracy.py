@@ -213,11 +213,17 @@ from types import SimpleNamespace
 
 import numpy as np
 import scipy
-from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import surfaces as hs
-from heatcurv.testing import aligned_exact, compare, direction_error_deg, quadric_curvature, relative_l1
+from heatcurv.testing import (
+    aligned_exact,
+    compare,
+    direction_error_deg,
+    neighbour_margin,
+    quadric_curvature,
+    relative_l1,
+)
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from machine import cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
@@ -340,12 +346,6 @@ def rigid_motion(seed: int, scale: float):
     direction = rng.normal(size=3)
     shift = direction / np.linalg.norm(direction) * 10 ** rng.uniform(6, 7)
     return scale, q, shift
-
-
-def case_margin(points: np.ndarray, k: int = 40) -> float:
-    """99th percentile of the distance to the k-th nearest neighbour (self excluded)."""
-    d, _ = cKDTree(points).query(points, k + 1)
-    return float(np.percentile(d[:, -1], 99))
 
 
 def make_sample(surface: str, sampler: str, n: int, noise: float = 0.0):
@@ -540,12 +540,12 @@ def bbox_diagonal(points: np.ndarray) -> float:
 def eval_margin(sample) -> float:
     """Interior margin of the noise tables: none on closed surfaces, else ``EVAL_MARGIN`` x diagonal.
 
-    At least the main table's margin (``case_margin`` of the clean points); the
+    At least the main table's margin (``neighbour_margin`` of the clean points); the
     same for every estimator and every noise level of a surface.
     """
     if sample.surface.closed:
         return 0.0
-    return max(case_margin(sample.clean_points), EVAL_MARGIN * bbox_diagonal(sample.clean_points))
+    return max(neighbour_margin(sample.clean_points), EVAL_MARGIN * bbox_diagonal(sample.clean_points))
 
 
 def eval_rows(sample, margin: float, count: int | None, seed: int) -> np.ndarray:
@@ -918,10 +918,10 @@ def heldout_target(noise: float) -> float:
 def heldout_margin(sample) -> float:
     """Interior margin: the main table's on clean clouds, the noise table's on noisy ones (scans: at least main's)."""
     if sample.noise == 0.0:
-        return case_margin(sample.points)
+        return neighbour_margin(sample.points)
     margin = eval_margin(sample)
     if sample.sampler == "scan":
-        margin = max(margin, case_margin(sample.clean_points))
+        margin = max(margin, neighbour_margin(sample.clean_points))
     return margin
 
 
@@ -1109,7 +1109,7 @@ def main_table(bench, args, estimators, surfaces, samplers, sizes, plot):
             for n in sizes:
                 tic = time.perf_counter()
                 sample, seed = make_sample(surface, sampler, n)
-                margin = case_margin(sample.points)
+                margin = neighbour_margin(sample.points)
                 area_judged = surface in CLOSED and sampler != "scan"
                 log(
                     f"{surface} {sampler} n={n}: {len(sample)} points, "
