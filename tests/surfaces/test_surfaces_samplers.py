@@ -92,15 +92,18 @@ def test_random_is_area_uniform_paraboloid():
     binomial_check(np.mean(inside), p, n)
 
 
-def test_fibonacci_sphere_is_nearly_uniform():
+def test_fibonacci_sphere_is_nearly_uniform(records):
     for n in (500, 5000):
         p = hs.Sphere().sample(n, "fibonacci").points
         d, _ = cKDTree(p).query(p, 2)
         d = d[:, 1]
-        # measured max/min nearest-neighbour ratio ~1.14 for n = 500 .. 20000
-        assert d.max() / d.min() < 1.2
-        # spacing ~ sqrt(4 pi / n): measured d * sqrt(n) in [3.09, 3.53]
-        assert 3.0 < d.min() * math.sqrt(n) and d.max() * math.sqrt(n) < 3.6
+        # spacing ~ sqrt(4 pi / n), within a narrow spread: the max/min nearest-neighbour ratio's excess over 1
+        # and the smallest distance's shortfall, in %
+        assert d.max() * math.sqrt(n) < math.sqrt(4 * math.pi)
+        records.check(
+            f"surfaces_samplers/sphere-fibonacci-{n}", spread=100 * (d.max() / d.min() - 1),
+            min_spacing=100 * (1 - d.min() * math.sqrt(n) / math.sqrt(4 * math.pi)),
+        )
         # z is exactly stratified: any z band holds its area fraction to within 1/n
         assert abs(np.mean(p[:, 2] > 0.3) - 0.35) <= 1.0 / n
     grid, fib = hs.Sphere().sample(700, "grid"), hs.Sphere().sample(700, "fibonacci")
