@@ -66,7 +66,7 @@ class CurvatureResult:
         (:mod:`heatcurv.scale`; on noisy clouds the anchors' balls carried to
         the point, :mod:`heatcurv.anchors`). The paper's method: the operator's
         ball. ``info["scale"].support_radius`` bounds how far any point's
-        values reach.
+        values reach, with the cloud-wide choices fixed (:mod:`heatcurv.choices`).
     mean_curvature_normal : ndarray, shape (n, 3)
         ``K = L x`` of eq 2.10, approximately ``2 mean * normals``, with ``L``
         the heat-kernel operator of :class:`heatcurv.HeatKernelOperator`

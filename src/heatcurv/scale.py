@@ -164,9 +164,9 @@ class ScaleReport:
     sd : list of float
         Root-mean-square standard deviation of each candidate's mean curvature.
     support_radius : float
-        The largest support radius of any point, length units: no point farther
-        than this from a point changes its fitted values (a tiled run's halo;
-        :mod:`heatcurv.anchors`). The per-point fit's is its ball radius.
+        The largest support radius of any point, length units: with the cloud-wide
+        choices fixed (:mod:`heatcurv.choices`), no point farther than this changes a
+        point's values (a tiled run's halo). The per-point fit's is its ball radius.
     anchors : int
         Points the wide kernel was fitted at (0: every point has its own fit).
     k_min, k_max : int
