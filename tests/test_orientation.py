@@ -162,7 +162,7 @@ def test_per_point_scanner_positions():
         heatcurv.estimate(pts, viewpoint=scanner[:10])
 
 
-def test_moebius_strip_is_flagged_not_guessed():
+def test_moebius_strip_is_flagged_not_guessed(records):
     # a non-orientable surface: no consistent side exists, so the seam must be flagged ambiguous
     rng = np.random.default_rng(5)
     u, v = rng.uniform(0, 2 * np.pi, 20000), rng.uniform(-0.3, 0.3, 20000)
@@ -175,6 +175,7 @@ def test_moebius_strip_is_flagged_not_guessed():
     seam_u = u[got.ambiguous]
     spread = np.abs(np.angle(np.exp(1j * (seam_u - np.angle(np.exp(1j * seam_u).mean())))))
     assert np.median(spread) < 0.2  # one place along the strip, not scattered
+    records.check("orientation/moebius-20000-pca", seam_spread_deg=np.degrees(np.median(spread)))
     res = heatcurv.estimate(pts)
     assert res.info["orientation"].ambiguous > 0
     assert res.reliable.sum() <= len(pts) - res.info["orientation"].ambiguous
@@ -231,7 +232,7 @@ def test_anchor_threshold_is_a_cosine():
     assert np.all(np.einsum("ij,ij->i", res.normals[band], sample.normals[upper][band]) > 0)
 
 
-def test_a_sheet_seen_from_both_sides_is_flagged():
+def test_a_sheet_seen_from_both_sides_is_flagged(records):
     # a thin plate scanned from above and from below, each point facing its own scanner: within one
     # ball the two faces point opposite ways, so no side is right for the plate; flagged, not guessed
     rng = np.random.default_rng(8)
@@ -244,6 +245,10 @@ def test_a_sheet_seen_from_both_sides_is_flagged():
     assert np.all(np.einsum("ij,ij->i", res.normals, scanner - pts) > 0)  # each faces its scanner
     assert res.info["orientation"].ambiguous >= 0.9 * n
     assert res.reliable.mean() <= 0.1
+    records.check(
+        "orientation/two-sided-sheet-8000", unflagged=100 * (1 - res.info["orientation"].ambiguous / n),
+        reliable=100 * res.reliable.mean(),
+    )
 
 
 def test_far_outliers_are_cut_out_of_the_orientation_graph():
