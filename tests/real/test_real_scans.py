@@ -30,10 +30,10 @@ def test_every_sample_is_there(pymeshlab_samples):
         assert (pymeshlab_samples / name).is_file(), name
 
 
-def test_bunny_is_a_closed_scan_with_outward_file_normals(pymeshlab_samples):
+def test_bunny_is_a_closed_scan_with_outward_file_normals(pymeshlab_samples, records):
     start = time.perf_counter()
     mesh = read_mesh(pymeshlab_samples / "bunny.obj")
-    assert time.perf_counter() - start < 3.0  # 3.9 MB of OBJ: about 0.4 s
+    assert time.perf_counter() - start < 3.0  # 3.9 MB of OBJ: 0.4-0.7 s on the 2-core machine, by its load
     assert mesh.vertices.shape == (28088, 3) and mesh.faces.shape == (56172, 3)
     assert mesh.area == pytest.approx(0.9227, rel=1e-4)
     assert np.all(edge_use(mesh) == 2)  # closed, manifold
@@ -41,12 +41,13 @@ def test_bunny_is_a_closed_scan_with_outward_file_normals(pymeshlab_samples):
     assert signed_volume(mesh) > 0  # faces wound outward
     assert mesh.normals is not None
     np.testing.assert_allclose(np.linalg.norm(mesh.normals, axis=1), 1.0, atol=1e-12)
-    agree = np.einsum("ij,ij->i", mesh.normals, mesh.vertex_normals())
-    assert np.min(agree) > 0.9 and np.median(agree) > 0.9999
+    # the file's normals against the mesh's area-weighted vertex normals (the reference of the estimates)
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", mesh.normals, mesh.vertex_normals()), -1, 1)))
+    records.check("real_scans/bunny-file-normals", max_deg=angle.max(), median_deg=np.median(angle))
     assert mesh.vertex_areas().sum() == pytest.approx(mesh.area)
 
 
-def test_face_range_map_faces_its_camera(pymeshlab_samples):
+def test_face_range_map_faces_its_camera(pymeshlab_samples, records):
     path = pymeshlab_samples / "rangemaps" / "face000.ply"
     mesh = read_mesh(path)
     assert mesh.vertices.shape == (85849, 3) and mesh.faces.shape == (166259, 3)
@@ -58,8 +59,11 @@ def test_face_range_map_faces_its_camera(pymeshlab_samples):
     x = mesh.vertices[used]
     towards = (camera - x) / np.linalg.norm(camera - x, axis=1)[:, None]
     facing = np.einsum("ij,ij->i", mesh.vertex_normals()[used], towards)
-    assert np.mean(facing > 0) > 0.999
-    assert np.median(facing) > 0.5  # seen from the front, not grazing
+    # the mesh's normals face the camera, seen from the front, not grazing
+    records.check(
+        "real_scans/face-range-map-camera", backfacing=100 * np.mean(facing <= 0),
+        median_view_deg=np.degrees(np.arccos(np.median(facing))),
+    )
     assert x[:, 2].max() < camera[2] - 700  # the face lies 780 to 900 units down the -z axis
 
 
