@@ -11,6 +11,12 @@ as a selectable backend lives here, for the tests only:
   signature of :func:`heatcurv.chordfit.chord_fit`
   (``tests/test_kernels_chordfit.py``).
 
+Both are written from the formulas the kernels and the paper document and share
+no code with what they check: they import from heatcurv only containers
+(``ChordFit``, ``PrincipalCurvatures``) and the method's documented parameters
+(thresholds, listed in each module's docstring), so a wrong formula in a helper
+of heatcurv cannot hide by appearing on both sides of a comparison.
+
 Import as ``from reference import segment``: pytest's default ``prepend``
 import mode puts ``tests/`` (the directory of ``conftest.py`` and of the test
 modules, which has no ``__init__.py``) on ``sys.path``, so this package is

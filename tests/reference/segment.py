@@ -4,12 +4,13 @@ Same arguments, same returns, vectorised over all pairs at once (the former
 numpy backend, which ran these formulas on blocks of rows; a row's sum does not
 depend on the blocking). They differ from the kernels only in the order the
 floating-point terms are summed, and in the eigensolver (LAPACK's ``eigh``
-here, a 3 x 3 Jacobi iteration there).
+here, a 3 x 3 Jacobi iteration there). Each is written from the formula its
+kernel documents and imports nothing from heatcurv: the flat-top taper too is
+written again here from its definition (:func:`heatcurv.kernel.flat_top`: 1 up to
+``start``, a raised cosine down to 0 at ``u = 1``, 0 beyond).
 """
 
 import numpy as np
-
-from heatcurv.kernel import flat_top
 
 __all__ = [
     "orientation_costs",
@@ -36,9 +37,15 @@ def _segment_sum(indptr, values):
     return out
 
 
+def _flat_top(u, start):
+    """1 for ``u <= start``, ``(1 + cos(pi (u - start) / (1 - start))) / 2`` up to ``u = 1``, 0 from there on."""
+    fall = 0.5 * (1.0 + np.cos(np.pi * (u - start) / (1.0 - start)))
+    return np.select([u <= start, u < 1.0], [1.0, fall], 0.0)
+
+
 def _taper(indptr, distances, radius, start):
     """``flat_top(|xi - xj| / R_i)`` of every pair."""
-    return flat_top(distances / radius[_rows(indptr)], start)
+    return _flat_top(distances / radius[_rows(indptr)], start)
 
 
 def orientation_costs(points, normals, indptr, indices, distances, radius):
