@@ -47,7 +47,7 @@ from heatcurv._kernels.chordfit import (
 from heatcurv.chordfit import ChordFit
 from heatcurv.principal import PrincipalCurvatures
 
-__all__ = ["chord_fit", "tangent_frames", "RIDGE"]
+__all__ = ["chord_fit", "refine_normals", "tangent_frames", "RIDGE"]
 
 #: Tikhonov ridge relative to ``trace(G) / p`` (or to each diagonal entry of ``G``, for the quartic fits).
 RIDGE = 1e-10
@@ -316,6 +316,30 @@ def chord_fit(
     # back to the cloud's units: sigma scales with the radius; Var(H) = sigma^2 factor / R^4
     return ChordFit(principal=principal, normals=normal, sigma=np.sqrt(sigma2) * unit,
                     mean_variance_factor=var / unit**4, coefficients=coefficients)
+
+
+def refine_normals(points, nbhd, normals, weights, *, tilt=True, cubic=True, denoise=False, centres=None):
+    """:func:`heatcurv.chordfit.refine_normals`: one fit's tilt-corrected normals (the first of two passes).
+
+    The chord fit's tilt, or with ``denoise`` the plain height fit's; the normals unchanged without ``tilt``.
+    """
+    normal = np.asarray(normals, dtype=float)
+    if not tilt:
+        return normal
+    points = np.asarray(points, dtype=float)
+    centres = points if centres is None else np.asarray(centres, dtype=float)
+    indptr, indices = np.asarray(nbhd.indptr, dtype=np.int64), np.asarray(nbhd.indices, dtype=np.int64)
+    weights, unit = np.asarray(weights, dtype=float), np.asarray(nbhd.radius, dtype=float)
+    e1, e2 = tangent_frames(normal)
+    x, y, z, dist2 = _local_coordinates(points, centres, indptr, indices, normal, e1, e2, unit)
+    cols = _shape_columns(x, y, tilt, cubic)
+    if denoise:
+        design = np.hstack([-0.5 * (x * x + y * y)[:, None] * cols, np.ones((len(z), 1))])
+        beta = _weighted_lstsq(indptr, design, z, weights)
+    else:
+        moving = dist2 > 0
+        beta = _weighted_lstsq(indptr, cols, np.where(moving, -2.0 * z / np.where(moving, dist2, 1.0), 0.0), weights)
+    return _tilted_normal(beta, e1, e2, normal)
 
 
 def _low_noise_refit(indptr, weights, cols, quartic, r2, z, jet_sigma2):
