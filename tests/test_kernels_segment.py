@@ -91,7 +91,7 @@ def test_eigenvectors_of_the_covariances_match_lapack(torus_cloud):
         vectors, values = compiled.smallest_eigenvectors(cov)
         ref_vectors, ref_values = reference.smallest_eigenvectors(cov)
         sign = np.sign(np.einsum("ij,ij->i", vectors, ref_vectors))
-        np.testing.assert_allclose(vectors * sign[:, None], ref_vectors, atol=1e-12)
+        np.testing.assert_allclose(vectors * sign[:, None], ref_vectors, rtol=0, atol=1e-12)
         np.testing.assert_allclose(values, ref_values, rtol=1e-11, atol=1e-12 * np.abs(ref_values).max())
 
 
@@ -114,13 +114,13 @@ def test_smallest_eigenvectors_against_lapack_on_hard_matrices():
     vectors, values = compiled.smallest_eigenvectors(cov)
     ref_vectors, ref_values = reference.smallest_eigenvectors(cov)
     scale = np.maximum(np.abs(ref_values).max(axis=1, keepdims=True), 1e-300)
-    np.testing.assert_allclose(values / scale, ref_values / scale, atol=1e-12)
+    np.testing.assert_allclose(values / scale, ref_values / scale, rtol=0, atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(vectors, axis=1), 1.0, rtol=1e-14)
     separated = (ref_values[:, 1] - ref_values[:, 0]) > 1e-6 * scale[:, 0]
     assert separated[:101].all() and not separated[101:103].any()
     alignment = np.abs(np.einsum("ij,ij->i", vectors, ref_vectors))
-    np.testing.assert_allclose(alignment[separated], 1.0, atol=1e-10)
-    np.testing.assert_allclose(np.abs(vectors[100]), [0.0, 1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(alignment[separated], 1.0, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(np.abs(vectors[100]), [0.0, 1.0, 0.0], rtol=0, atol=1e-15)
 
 
 def with_references(monkeypatch, fit=False):
@@ -176,7 +176,7 @@ def test_stages_give_the_same_with_the_references(torus_cloud, monkeypatch):
     np.testing.assert_allclose(b["taper"], a["taper"], rtol=1e-12)
     for key in ("pca", "pca_plain"):
         sign = np.sign(np.einsum("ij,ij->i", a[key][0], b[key][0]))
-        np.testing.assert_allclose(b[key][0] * sign[:, None], a[key][0], atol=1e-12)
+        np.testing.assert_allclose(b[key][0] * sign[:, None], a[key][0], rtol=0, atol=1e-12)
         np.testing.assert_allclose(b[key][1], a[key][1], rtol=1e-12, atol=1e-12)
     expected = np.exp(-(nb.distances**2) / np.repeat(h, 40) ** 2) * ball_taper(nb) * areas[nb.indices]
     np.testing.assert_allclose(a["fit_weights"], expected, rtol=1e-13)
@@ -215,7 +215,7 @@ def test_estimate_same_with_the_references(noise, monkeypatch):
     for name in ("mean", "gaussian", "k1", "k2", "area", "spacing", "mean_curvature_normal"):
         ref = getattr(a, name)
         np.testing.assert_allclose(getattr(b, name), ref, rtol=1e-11, atol=1e-11 * np.abs(ref).max())
-    np.testing.assert_allclose(b.normals, a.normals, atol=1e-11)
+    np.testing.assert_allclose(b.normals, a.normals, rtol=0, atol=1e-11)
     assert np.array_equal(a.reliable, b.reliable) and np.array_equal(a.border, b.border)
 
 
