@@ -203,7 +203,6 @@ import dataclasses
 import datetime
 import os
 import platform
-import subprocess
 import sys
 import time
 import warnings
@@ -226,7 +225,7 @@ from heatcurv.testing import (
 )
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from machine import cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
+from machine import commit, cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
 
 ESTIMATORS = {
     "default": lambda p: heatcurv.estimate(p),
@@ -487,19 +486,11 @@ def render(title: str, header: list[str], rows: list[list[str]], markdown: bool)
 
 def machine_info() -> list[str]:
     cpu = cpu_model()
-    commit = "unknown"
-    try:
-        here = os.path.dirname(os.path.abspath(__file__))
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10
-        ).stdout.strip() or "unknown"
-    except (OSError, subprocess.SubprocessError):
-        pass
     return [
         f"date (UTC)   {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M:%S}",
         f"machine      {platform.platform()}, {cpu}, {os.cpu_count()} logical CPUs",
         f"python       {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}",
-        f"heatcurv     {heatcurv.__version__} (commit {commit})",
+        f"heatcurv     {heatcurv.__version__} (commit {commit()})",
     ]
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import platform
+import subprocess
 from pathlib import Path
 
 
@@ -26,6 +27,23 @@ def memory_text() -> str:
     except (OSError, ValueError, IndexError):
         return ""
     return f", {kb / 1024**2:.0f} GiB RAM"
+
+
+def commit() -> str:
+    """The commit this checkout is at: ``"bbc4b93"``, ``"bbc4b93+dirty"`` if src/ or benchmarks/ have uncommitted
+    changes, ``"unknown"`` outside a git checkout (or without git)."""
+    here = Path(__file__).resolve().parent
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], cwd=here, capture_output=True, text=True, timeout=30,
+                              check=True).stdout.strip()
+
+    try:
+        head = git("rev-parse", "--short", "HEAD")
+        dirty = git("status", "--porcelain", "--", ":/src", ":/benchmarks")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (head + "+dirty" if dirty else head) or "unknown"
 
 
 def table(title: str, header: list, rows: list, markdown: bool, heading: str = "### {}") -> str:
