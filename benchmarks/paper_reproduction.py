@@ -109,6 +109,9 @@ from heatcurv.normals import orient_normals, pca_normals
 from heatcurv.operator import HeatKernelOperator
 from heatcurv.options import resolve_options
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from machine import commit  # noqa: E402  (benchmarks/machine.py)
+
 #: Ball radius in units of h (paper: 3.5-4.5; heatcurv's "paper" preset: 4).
 ALPHA = 4.0
 #: The m values of the sweeps (Figs 3 and 5).
@@ -570,7 +573,7 @@ def plot_sweeps(path: str, sizes) -> str:
 def machine() -> str:
     return (f"{platform.platform()}; {platform.machine()} {platform.processor() or ''}".rstrip()
             + f"; {os.cpu_count()} CPUs; Python {platform.python_version()}; numpy {np.__version__}; "
-            f"scipy {scipy.__version__}; heatcurv {heatcurv.__version__}")
+            f"scipy {scipy.__version__}; heatcurv {heatcurv.__version__} (commit {commit()})")
 
 
 def main(argv=None) -> int:

@@ -61,7 +61,6 @@ import argparse
 import datetime
 import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -79,7 +78,7 @@ from heatcurv import surfaces as hs
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from machine import cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
+from machine import commit, cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
 from machine import table as text_table  # noqa: E402
 
 CASES = ("bunny", "face", "face_camera", "bone", "cow", "airplane", "bunny1839", "lidar", "cad")
@@ -748,22 +747,12 @@ def machine() -> list[str]:
     mem = memory_text()
     import numba
 
-    commit = "unknown"
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True,
-                                timeout=10).stdout.strip() or "unknown"
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], cwd=HERE, capture_output=True,
-                               text=True, timeout=10).stdout.strip()
-        if dirty:
-            commit += " + uncommitted changes in src/"
-    except (OSError, subprocess.SubprocessError):
-        pass
     return [
         f"date (UTC)   {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}",
         f"machine      {cpu_model()}, {os.cpu_count()} cores{mem}; {platform.system()} {platform.release()}",
         f"python       {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
         f"numba {numba.__version__}",
-        f"heatcurv     {heatcurv.__version__} (commit {commit})",
+        f"heatcurv     {heatcurv.__version__} (commit {commit()})",
     ]
 
 
