@@ -37,7 +37,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from heatcurv.testing.terminal import run_on_a_terminal  # noqa: E402
-from machine import cpu_model  # noqa: E402  (benchmarks/machine.py)
+from machine import commit, cpu_model  # noqa: E402  (benchmarks/machine.py)
 
 ROOT = HERE.parent
 NOTICE = "heatcurv: compiling"
@@ -104,7 +104,8 @@ def main(argv=None) -> int:
 
     print()
     print(f"Machine: {cpu_model()}, {os.cpu_count()} cores; {platform.system()} {platform.release()}; "
-          f"Python {platform.python_version()}, numpy {numpy.__version__}, numba {numba.__version__}")
+          f"Python {platform.python_version()}, numpy {numpy.__version__}, numba {numba.__version__}; "
+          f"heatcurv at commit {commit()}")
     print(f"`heatcurv demo -n {args.n}` ({where}), each run a new process:")
     print()
     print("| run | wall s | CPU s | compile notice | demo's time for default s |")

@@ -26,7 +26,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from heatcurv.testing import fuzz  # noqa: E402
-from machine import cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
+from machine import commit, cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
 
 
 def machine() -> str:
@@ -35,7 +35,8 @@ def machine() -> str:
 
     versions = f"Python {platform.python_version()}, " + ", ".join(
         f"{name} {version(name)}" for name in ("numpy", "plyfile", "laspy", "lazrs"))
-    return f"{cpu_model()}, {os.cpu_count()} cores{memory_text()}; {platform.system()} {platform.release()}; {versions}"
+    return (f"{cpu_model()}, {os.cpu_count()} cores{memory_text()}; {platform.system()} {platform.release()}; "
+            f"{versions}; heatcurv at commit {commit()}")
 
 
 def grouped(results) -> list:

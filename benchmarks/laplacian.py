@@ -257,11 +257,10 @@ def main():
     import os
 
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    from machine import cpu_model, memory_text  # benchmarks/machine.py
+    from machine import commit, cpu_model, memory_text  # benchmarks/machine.py
 
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     print(f"Machine: {cpu_model()}, {os.cpu_count()} cores{memory_text()}; load average "
-          f"{os.getloadavg()[0]:.1f} at the start; heatcurv {heatcurv.__version__} at commit {commit or '?'}\n")
+          f"{os.getloadavg()[0]:.1f} at the start; heatcurv {heatcurv.__version__} at commit {commit()}\n")
     start = time.perf_counter()
     if "spectra" in args.only:
         spectra_table(args.quick, [w for w in args.clouds.split(",") if w])

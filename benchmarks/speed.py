@@ -69,7 +69,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import peers  # noqa: E402  (benchmarks/peers.py)
-from machine import cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
+from machine import commit, cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
 
 #: Table column -> the default estimator's stages (``res.info["timings"]``) it sums.
 #: ``fit`` is the chord fit's per-block work; before the stages were named one
@@ -236,7 +236,8 @@ def machine() -> str:
         f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
         f"numba {numba.__version__}"
     )
-    return f"{cpu}, {os.cpu_count()} cores{mem}; {platform.system()} {platform.release()}; {versions}"
+    return (f"{cpu}, {os.cpu_count()} cores{mem}; {platform.system()} {platform.release()}; {versions}; "
+            f"heatcurv at commit {commit()}")
 
 
 def fmt(x, digits=2):

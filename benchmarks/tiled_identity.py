@@ -34,7 +34,7 @@ import numpy as np
 
 import heatcurv
 from heatcurv.testing.tiles import tiled_agreement
-from machine import cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
+from machine import commit, cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
 
 
 def torus(n: int, noise: float, seed: int = 1) -> np.ndarray:
@@ -104,7 +104,7 @@ def main() -> None:
             name, make, options = CLOUDS[key]
             rows += run(name, make(args.n), tile_size, options, Path(tmp))
     machine = (f"{cpu_model()}, {os.cpu_count()} cores{memory_text()}, 1-minute load {os.getloadavg()[0]:.1f}; "
-               f"heatcurv {heatcurv.__version__}")
+               f"heatcurv {heatcurv.__version__} at commit {commit()}")
     print()
     print(table(f"Tiled against in-memory ({machine})", list(header), [[str(x) for x in r] for r in rows],
                 args.markdown))

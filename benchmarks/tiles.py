@@ -235,9 +235,12 @@ def main(argv=None) -> None:
 
     import heatcurv
 
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from machine import commit  # benchmarks/machine.py
+
     work = Path(args.dir or tempfile.mkdtemp(prefix="heatcurv_tiles_bench_"))
     work.mkdir(parents=True, exist_ok=True)
-    print(f"heatcurv {heatcurv.__version__}; {platform.processor() or platform.machine()}, "
+    print(f"heatcurv {heatcurv.__version__} (commit {commit()}); {platform.processor() or platform.machine()}, "
           f"{os.cpu_count()} cores; files in {work}", flush=True)
     sizes = [int(s) for s in args.sizes] + ([100_000_000] if args.huge else [])
     rows = []
