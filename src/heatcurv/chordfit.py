@@ -77,10 +77,10 @@ class ChordFit:
         Variance of the fitted mean curvature per unit height-noise variance:
         ``Var(kappa_M) = sigma^2 * factor`` for independent height noise of
         standard deviation ``sigma``.
-    coefficients : ndarray, shape (n, 9) or, for the denoised form, (n, 14)
+    coefficients : ndarray, shape (n, 9) or, for the low-noise refit, (n, 14)
         The last pass's model in the frame ``tangent_frames(normals)``, in units of
         each centre's ball radius: tensor ``a, b, d``, tilt ``t_1, t_2``, cubic
-        ``g_0 .. g_3`` and (denoised form) quartic ``q_0 .. q_4`` (zeros for terms not
+        ``g_0 .. g_3`` and (low-noise refit) quartic ``q_0 .. q_4`` (zeros for terms not
         fitted); :mod:`heatcurv.anchors` evaluates it away from the centre.
     """
 

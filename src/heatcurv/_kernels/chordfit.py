@@ -18,8 +18,8 @@ computes eigenvalues only where the bracket cannot decide).
 
 :func:`heatcurv.chordfit.chord_fit` runs the passes (frames, curvatures, the
 tilt-corrected normal) around :func:`fit` and :func:`weighted_height_residual`.
-The numpy reference of the whole fit is ``tests/reference/chordfit.py``; the
-tests compare the two to 1e-9.
+An independent numpy reimplementation of the whole fit is
+``tests/reference/chordfit.py``; the tests compare the two to 1e-11.
 
 Arrays in, arrays out: this module imports nothing from heatcurv.
 """
