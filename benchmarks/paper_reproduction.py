@@ -591,7 +591,8 @@ def main(argv=None) -> int:
     table_sizes = (256, 1024, 4096) if args.quick else (256, 1024, 4096, 16384)
     summary_sizes = (4096,) if args.quick else (4096, 16384)
     mode = "quick" if args.quick else "full"
-    print(f"heatcurv paper reproduction ({mode} mode)\nmachine: {machine()}", flush=True)
+    machine_line = machine()  # read once: the commit the run started at
+    print(f"heatcurv paper reproduction ({mode} mode)\nmachine: {machine_line}", flush=True)
     print(f"preset 'paper': {preset('paper')}", flush=True)
     print(flush=True)
 
@@ -618,13 +619,13 @@ def main(argv=None) -> int:
     timing = (f"{wall:.1f} s ({n_runs} heatcurv.estimate runs, {est_seconds:.1f} s inside them, "
               f"of which {nc_seconds:.1f} s in the {n_nc} runs whose area solve hit the CG iteration cap)")
     print(f"wall time: {timing}; {mode} mode")
-    print(f"machine: {machine()}")
+    print(f"machine: {machine_line}")
 
     if args.markdown:
         lines = [f"## heatcurv paper reproduction ({mode} mode)", "",
                  f"- command: `python benchmarks/paper_reproduction.py "
                  f"{' '.join(argv if argv is not None else sys.argv[1:])}`",
-                 f"- machine: {machine()}",
+                 f"- machine: {machine_line}",
                  f"- preset `paper`: {preset('paper')}",
                  f"- wall time: {timing}", ""]
         for t in tables:
