@@ -626,11 +626,14 @@ def main(argv=None) -> int:
     if args.child:
         return _child_main(*args.child)
 
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from machine import commit  # benchmarks/machine.py
+
     with tempfile.TemporaryDirectory(prefix="heatcurv-peers-") as directory:
         points_file = save_points(_torus_points(args.n), os.path.join(directory, "torus.npy"))
         print(
             f"random torus, n = {args.n}, timeout {args.timeout:g} s per peer, "
-            f"{os.cpu_count()} CPUs, Python {sys.version.split()[0]}",
+            f"{os.cpu_count()} CPUs, Python {sys.version.split()[0]}, heatcurv at commit {commit()}",
             flush=True,
         )
         rows = run_peers(
