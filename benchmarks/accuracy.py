@@ -664,6 +664,19 @@ def oracle_verdict(m: dict, oracle: dict) -> str:
     return "PASS" if not fails else "FAIL " + ",".join(fails)
 
 
+def oracle_verdicts(m: dict, oracle: dict) -> tuple[bool, bool, str] | None:
+    """The default's two verdicts (best k per column; the one k best for the cloud) and their row text.
+
+    None when no oracle fit ran.
+    """
+    if not oracle["per_k"]:
+        return None
+    per_column = oracle_verdict(m, oracle)
+    one_k = oracle["one_k"]
+    cloud_wide = oracle_verdict(m, {"best": oracle["per_k"][one_k]})
+    return per_column == "PASS", cloud_wide == "PASS", f"{per_column}; one k ({one_k}): {cloud_wide}"
+
+
 def noise_clouds(args, quick: bool, noise_surfaces, noise_n: int) -> list[tuple[str, int, float]]:
     """The noise table's clouds: (surface, n, noise)."""
     clouds = []
@@ -727,15 +740,11 @@ def noise_table(bench, args, estimators, clouds, eval_points: int):
         bench.oracle_calls += len(oracle["per_k"])
         best, ks = oracle["best"], oracle["k"]
         if default_metrics is not None:
-            if oracle["per_k"]:
-                v = oracle_verdict(default_metrics, oracle)
-                k1 = oracle["one_k"]
-                v1 = oracle_verdict(default_metrics, {"best": oracle["per_k"][k1]})
-                default_row[-1] = f"{v}; one k ({k1}): {v1}"
-                bench.oracle_passes[0 if v == "PASS" else 1] += 1
-                bench.one_k_passes[0 if v1 == "PASS" else 1] += 1
-            else:
-                default_row[-1] = "ERROR"
+            verdicts = oracle_verdicts(default_metrics, oracle)
+            default_row[-1] = "ERROR" if verdicts is None else verdicts[2]
+            if verdicts is not None:
+                bench.oracle_passes[0 if verdicts[0] else 1] += 1
+                bench.one_k_passes[0 if verdicts[1] else 1] += 1
         ks_tried = oracle_ks(len(sample), args.oracle_max_k)
         ladder = "/".join(map(str, ks_tried))
         rows.append(head + ["oracle"] + [fmt(best[k]) for k in keys + ("nrms_k1", "nrms_k2")]
@@ -993,15 +1002,11 @@ def heldout_oracle_rows(bench, sample, at, sub, head, default_metrics, default_r
     bench.oracle_calls += len(oracle["per_k"])
     best, ks = oracle["best"], oracle["k"]
     if default_metrics is not None and default_row is not None:
-        if oracle["per_k"]:
-            v = oracle_verdict(default_metrics, oracle)
-            k1 = oracle["one_k"]
-            v1 = oracle_verdict(default_metrics, {"best": oracle["per_k"][k1]})
-            default_row[-1] = f"{v}; one k ({k1}): {v1}"
-            bench.heldout_oracle_passes[0 if v == "PASS" else 1] += 1
-            bench.heldout_one_k_passes[0 if v1 == "PASS" else 1] += 1
-        else:
-            default_row[-1] = "ERROR"
+        verdicts = oracle_verdicts(default_metrics, oracle)
+        default_row[-1] = "ERROR" if verdicts is None else verdicts[2]
+        if verdicts is not None:
+            bench.heldout_oracle_passes[0 if verdicts[0] else 1] += 1
+            bench.heldout_one_k_passes[0 if verdicts[1] else 1] += 1
     keys = ("mean", "k1", "k2", "gaussian", "d1", "normal")
     ladder = "/".join(map(str, oracle_ks(len(sample))))
     rows.append(head + ["oracle"] + [fmt(best[k]) for k in keys] + ["n/a", "-", "-", "-", str(at.size)]
