@@ -25,6 +25,16 @@ def test_select_scale_clean_and_noisy():
             assert choice.sd == sorted(choice.sd, reverse=True)  # wider kernels: less variance
 
 
+@pytest.mark.parametrize("noise, fit", [(0.0, "chord-60"), (1e-6, "denoised-60")])
+def test_the_noise_gate_between_a_clean_ellipsoid_and_a_barely_noisy_one(noise, fit):
+    # clean ellipsoids have the largest residual ratio (chord / denoised) of the clean clouds measured, 1.8-2.0
+    # (this one 1.82), and the chord fit errs half as much there (mean 0.085 % against the denoised fit's
+    # 0.21 %); noise of 1e-6 of the diagonal takes this one's ratio to 3.46, where the chord fit loses (mean
+    # 0.37 against 0.21 %, d1 0.48 against 0.08 deg)
+    sample = surfaces.Ellipsoid().sample(10_000, "random", seed=3, noise=noise)
+    assert heatcurv.estimate(sample.points).info["scale"].fit == fit
+
+
 def test_wide_kernels_are_fitted_with_every_point_of_the_ball():
     # before: kernels wider than 240 neighbours were fitted against a random quarter of the cloud
     sample = surfaces.Sphere().sample(8000, "random", seed=4, noise=0.003)

@@ -131,7 +131,7 @@ RANGES: dict[str, Range] = {
     ),
     "scale_tuning.clean_ratio": Range(
         0.1, 10.0, False,
-        "measured 0.2-1.3 on clean and 2.2-4.4 on noisy clouds: beyond, every cloud is noisy or every one clean",
+        "measured 0-2.0 on clean and 2.2-4.0 on noisy clouds: beyond, every cloud is noisy or every one clean",
     ),
     "scale_tuning.max_k": Range(20, 1_000_000, True, "the widest candidate kernel, as scale (or None)"),
     "scale_tuning.seed": SEED_RANGE,
@@ -228,7 +228,7 @@ class ScaleTuning:
         standard deviations of the narrower one (1.0; pure noise gives 0.67).
     clean_ratio : float
         A cloud is clean when the chord fit's residual is at most this multiple
-        of the denoised fit's (1.6; measured 0.2-1.3 clean, 2.2-4.4 noisy).
+        of the denoised fit's (2.2; measured 0-2.0 clean, 2.2-4.0 noisy).
     max_k : int or None
         Widest candidate kernel; None: a quarter of the cloud, at most
         :data:`heatcurv.scale.WIDEST_KERNEL`.
@@ -239,7 +239,7 @@ class ScaleTuning:
     k_fit: int = 240
     n_sub: int = 2000
     tau: float = 1.0
-    clean_ratio: float = 1.6
+    clean_ratio: float = 2.2
     max_k: int | None = None
     seed: int = 0
 
@@ -363,7 +363,7 @@ class Options:
     ``scale_tuning.k_fit``     20 - 1920           as ``neighbours``
     ``scale_tuning.n_sub``     10 - 10^6           a median over the subsample
     ``scale_tuning.tau``       1e-6 - 100          beyond: no widening / every widening
-    ``scale_tuning.clean_ratio`` 0.1 - 10          measured 0.2-1.3 clean, 2.2-4.4 noisy
+    ``scale_tuning.clean_ratio`` 0.1 - 10          measured 0-2.0 clean, 2.2-4.0 noisy
     ``scale_tuning.max_k``     20 - 10^6 or None   as ``scale``; at least ``neighbours``
     ``scale_tuning.seed``      0 - 2^63-1          numpy's seeds
     =========================  ==================  ============================================

@@ -490,7 +490,7 @@ def select_form(
     *,
     alpha: float = 2.0,
     n_sub: int = 2000,
-    clean_ratio: float = 1.6,
+    clean_ratio: float = 2.2,
     seed: int = 0,
     keys: np.ndarray | None = None,
 ) -> ScaleChoice:
@@ -580,7 +580,7 @@ def select_scale(
     k_fit: int = 240,
     n_sub: int = 2000,
     tau: float = 1.0,
-    clean_ratio: float = 1.6,
+    clean_ratio: float = 2.2,
     fixed_k: int | None = None,
     seed: int = 0,
     workers: int = -1,
@@ -626,17 +626,13 @@ def select_scale(
         Lepski's tolerance: the largest median change, in standard deviations
         of the narrower candidate (pure noise gives about 0.67).
     clean_ratio : float, optional
-        The cloud counts as clean, and the chord fit at ``base_k`` is used,
-        when the chord fit's residual is at most this multiple of the
-        denoised fit's. Without noise both residuals are the model's error
-        and alike (measured ratios 0.2-1.3 on clean random, Fibonacci and grid
-        clouds of 3000-20 000 points); noise enters the chord residual through
-        ``2 z / |x_i - x_j|^2`` amplified, and the ratio jumps to about 4
-        (measured 2.2-4.4 for noise from 1e-6 to 1.2e-3 of the bounding-box
-        diagonal). Strong noise saturates the chord residual (``|kN| <=
-        1/|z|``) and the ratio falls back (1.4 at ``sigma / h = 0.37``), so
-        a cloud with ``sigma / h`` above 1 % never counts as clean (clean
-        clouds measured at most 3.5e-4).
+        The cloud counts as clean, and the chord fit at ``base_k`` is used, when the chord fit's residual is at most
+        this multiple of the denoised fit's. Without noise both residuals are the model's error (measured 0-2.0 on
+        clean clouds of 4000-30 000 points; ellipsoids 1.8-2.0, where the chord fit still errs half as much); noise
+        enters the chord residual through ``2 z / |x_i - x_j|^2`` amplified, and the ratio jumps to about 4 (2.2-2.4
+        at noise 1e-7 of the bounding-box diagonal, where both fits err alike, 3.4-4.0 from 1e-6 to 1e-4). Strong
+        noise saturates the chord residual (``|kN| <= 1/|z|``) and the ratio falls back (1.4 at ``sigma / h = 0.37``),
+        so a cloud with ``sigma / h`` above 1 % never counts as clean (clean clouds measured at most 3.5e-4).
     fixed_k : int, optional
         Use this kernel width instead of choosing one: only the noise is
         measured, to pick the chord fit (clean) or the denoised one.
@@ -747,7 +743,7 @@ def decide_scale(
     base_k: int = 60,
     max_k: int | None = None,
     tau: float = 1.0,
-    clean_ratio: float = 1.6,
+    clean_ratio: float = 2.2,
     fixed_k: int | None = None,
     window: int = WINDOW,
     pairs_per_level: int = PAIRS_PER_LEVEL,
