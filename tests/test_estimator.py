@@ -251,7 +251,7 @@ def test_planar_cloud_has_zero_curvature():
 
 def test_strong_noise_is_never_taken_for_clean(records):
     # at sigma/h ~ 0.37 the chord residual saturates and its ratio to the denoised one
-    # falls to 1.4 (below the clean gate of 1.6); the sigma/h < 1 % gate catches it
+    # falls to 1.4 (below the clean gate's ratio); the sigma/h < 1 % gate catches it
     sample = surfaces.Sphere().sample(20000, "random", seed=0, noise=0.006)
     res = heatcurv.estimate(sample.points)
     assert res.info["scale"]["fit"].startswith("denoised") and res.info["scale"]["k"] >= 960

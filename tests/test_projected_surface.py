@@ -117,7 +117,7 @@ def test_exact_curvature_of_the_implicit_surface():
         np.testing.assert_allclose((ahead - behind) / (2 * step), k[:, None] * d, atol=1e-7)
 
 
-def test_projected_cloud_keeps_the_chord_fit():
+def test_projected_cloud_keeps_the_chord_fit(records):
     points, foot, diagonal = projected_cloud()
     off = np.linalg.norm(points - foot, axis=1) / diagonal
     assert 3e-5 < off.mean() < 5e-5 and np.abs(implicit(foot)).max() < 1e-14
@@ -125,9 +125,9 @@ def test_projected_cloud_keeps_the_chord_fit():
     assert res.info["scale"].fit == "chord-60"
     n, k1, k2, d1 = exact_curvature(foot)
     assert np.all(np.einsum("ij,ij->i", res.normals, n) > 0)  # outward: no flip of the exact values
-    # measured: mean 0.041 %, k1 0.056 %, k2 0.034 %, d1 0.023 deg (the denoised fit at 60: 0.085 %, 0.10 %,
-    # 0.079 %, 0.036 deg); bounds 1.5x
-    assert 100 * relative_l1(res.mean, 0.5 * (k1 + k2)) < 1.5 * 0.041
-    assert 100 * relative_l1(res.k1, k1) < 1.5 * 0.056
-    assert 100 * relative_l1(res.k2, k2) < 1.5 * 0.034
-    assert direction_error_deg(res.d1, d1) < 1.5 * 0.023
+    # the denoised fit at 60 neighbours, which the gate chose before, has about twice these errors
+    records.check(
+        "projected_surface/implicit-30000-offset4e-05",
+        mean=100 * relative_l1(res.mean, 0.5 * (k1 + k2)), k1=100 * relative_l1(res.k1, k1),
+        k2=100 * relative_l1(res.k2, k2), d1_deg=direction_error_deg(res.d1, d1),
+    )
