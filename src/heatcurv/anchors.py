@@ -33,7 +33,7 @@ neighbours: the nearest anchor's model is 0.12 % off in the mean curvature withi
 (:func:`anchors_per_ball`) and each point's tensor is a weighted cubic regression
 of its :data:`REGRESSED_ANCHORS` nearest anchors' *own* tensors, at their centres
 (:func:`carry_degree`): it reproduces any cubic variation of the curvature field.
-Measured on that torus (issue 12, bullet 3; seeds 1-3, with the kernel one doubling
+Measured on that torus (seeds 1-3, with the kernel one doubling
 wider than Lepski's rule chose, :data:`heatcurv.scale.LOW_NOISE_LEVELS`, and the
 denoised form's low-noise refit): mean 0.167-0.176 %, k2 0.39-0.42 %, against
 0.25 % and 0.64 % without the low-noise path.
@@ -77,13 +77,13 @@ ANCHORS_PER_BALL = 16
 #: doublings): 16 with the regression 0.27 / 0.47 (too sparse to regress), 20: 0.15 / 0.24, 24: 0.135 / 0.152,
 #: 32: 0.117 / 0.101, 64: 0.115 / 0.048; a million-point LAZ with millimetre rounding took 3.5-4.1x its kNN
 #: query at 24 per ball in the first form of this path (its refit also in the kernel choice), 100 s at 64 against
-#: a query of 15-17.7 s (bullet 4 of issue 12 allows 4x); now 3.0-3.6x at 24 in CPU seconds (docs/speed.md).
+#: a query of 15-17.7 s (the speed budget is 4x); now 3.0-3.6x at 24 in CPU seconds (docs/speed.md).
 LOW_NOISE_ANCHORS_PER_BALL = 24
 #: Narrowest kernel the low-noise refit is fitted at (``fit_anchors(low_noise=True)``): the narrowest the very-low-
 #: noise path widens to (Lepski's 120 neighbours, one doubling wider: :data:`heatcurv.scale.LOW_NOISE_LEVELS`).
 #: Regions of such a cloud whose kernel the rule kept at 60 keep the plain denoised fit: the refit's 15 unknowns
 #: at 60 neighbours gave a torus at 1e-5 of its diagonal a mean error of 1.80 % against 0.55 % (0.65 against
-#: 0.61 % at 120; measured at the centres, 20 000 points, 2026-11-30).
+#: 0.61 % at 120; measured at the centres, 20 000 points).
 LOW_NOISE_MIN_NEIGHBOURS = 240
 #: Kernels of at most this many times :data:`ANCHORS_PER_BALL` neighbours are fitted at every point
 #: (a 60-neighbour kernel: its pair work is small, and small clouds keep their own fits).

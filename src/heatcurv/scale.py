@@ -432,7 +432,7 @@ NO_NOISE = 1e-6
 #: Doublings of ``k`` a very-low-noise cloud's kernel is widened by beyond the choice of Lepski's rule
 #: (:func:`decide_scale`). The rule compares the plain denoised fits, whose third-order model's bias sets
 #: the width; the low-noise refit (quartic terms) has less, so its kernel can be wider and average more.
-#: Measured (issue 12, low-noise table, 20 000 points; mean / k1 % of the torus and the saddle at noise
+#: Measured (docs/accuracy.md's low-noise table, 20 000 points; mean / k1 % of the torus and the saddle at noise
 #: 1e-5, 3e-5 and 1e-4 of the diagonal): widened by 0: torus 0.43 / 0.26, 0.38 / 0.24, 1.13 / 0.73, saddle
 #: k1 0.115, 0.24, 0.24; by 1: torus 0.162 / 0.103, 0.195 / 0.165, 0.457 / 0.324, saddle k1 0.074, 0.112,
 #: 0.183; by 2: torus 0.135 / 0.123, 0.96 / 0.94, 1.1 / 0.94 (too wide above 1e-5), saddle k1 0.152, 0.144,

@@ -90,8 +90,8 @@ LOGGER_NAME = "heatcurv.kernels"
 #: What compiling the clean path's kernels takes on the 2-core machine of ``benchmarks/first_run.py``.
 COMPILE_SECONDS = 15
 #: ... and the noisy path's on top (the anchors' fit and carry): measured 17 s (a 20 000-point torus with
-#: 0.12 % noise after a clean one, ``NUMBA_CACHE_DIR`` empty: 18.8 s, 1.6 s with the cache, 2026-11-30; 31 s
-#: while the carry was inlined at three call sites).
+#: 0.12 % noise after a clean one, ``NUMBA_CACHE_DIR`` empty: 18.8 s, 1.6 s with the cache; 31 s
+#: with the carry inlined at three call sites).
 NOISY_COMPILE_SECONDS = 17
 #: The notice, logged once per process when the first kernel starts compiling.
 COMPILE_NOTICE = (

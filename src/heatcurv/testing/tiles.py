@@ -1,6 +1,6 @@
 """The comparison harness of tiled runs: a tiled output against the in-memory result, field by field.
 
-Issue 13's target: on a cloud forced into tiles, every field equals the
+The acceptance measure: on a cloud forced into tiles, every field equals the
 in-memory result to ``1e-6`` relative on at least 99.99 % of the points.
 :func:`compare_fields` measures that share per field;
 :func:`tiled_agreement` reads a tiled output file and compares it with a

@@ -1,4 +1,4 @@
-"""Out-of-core and distributed runs: a cloud of any size computed in tiles with halos (issue 13).
+"""Out-of-core and distributed runs: a cloud of any size computed in tiles with halos.
 
 :func:`compute_file` reads a LAS/LAZ, binary PLY or NPY file a chunk at a
 time, sorts its points into tiles in a scratch directory, computes every tile
