@@ -1,7 +1,7 @@
 """The ONE place a tiled run calls the numerical core: survey a tile, merge the surveys, compute a tile.
 
 The driver (:mod:`.driver`) and the tasks (:mod:`.tasks`) call nothing else of
-the core. A tile computes as the whole cloud would, bit for bit,
+the core. A tile computes as the whole cloud would
 because every choice that is not a point's own is made once
 (:mod:`heatcurv.choices`):
 
