@@ -187,8 +187,8 @@ def test_obj_errors_name_the_file(tmp_path, text, match):
 
 
 def test_unknown_extension(tmp_path):
-    with pytest.raises(ValueError, match=r"\.obj and \.ply"):
-        read_mesh(write(tmp_path / "x.off", "OFF\n"))
+    with pytest.raises(ValueError, match=r"\.obj, \.ply and \.off files, not \.stl"):
+        read_mesh(write(tmp_path / "x.stl", "solid x\n"))
 
 
 # --------------------------------------------------------------------------- PLY

@@ -1,4 +1,4 @@
-"""Real scans for the tests: the sample meshes of the pymeshlab wheel, and a small mesh reader.
+"""Real scans for the tests: pymeshlab's sample meshes, CGAL's closed models, and a small mesh reader.
 
 The sample meshes that pymeshlab ships for its own tests are real data of the
 kinds the estimator meets: a structured-light range map of a face with its
@@ -9,10 +9,16 @@ heatcurv does not ship these files: :func:`fetch_pymeshlab_samples` downloads
 the pinned wheel with pip, keeps only the sample meshes in a cache directory
 and deletes the wheel.
 
-:func:`read_mesh` reads the OBJ and PLY triangle meshes into a :class:`Mesh`,
-which knows its exact (piecewise linear) areas, normals and connected
-components, the reference values the tests compare estimates with;
-:func:`range_camera` is the viewpoint of a VCG range map.
+CGAL's closed models of animals and figures with thin parts, the test data
+of normal orientation on closed objects, are fetched from Debian's package
+``libcgal-demo`` by :func:`fetch_cgal_meshes` (:mod:`heatcurv.testing.cgal`,
+whose names this module re-exports); heatcurv does not redistribute them.
+
+:func:`read_mesh` reads the OBJ, PLY and OFF triangle meshes into a
+:class:`Mesh`, which knows its exact (piecewise linear) areas, normals,
+edges, signed volume and connected components, the reference values the
+tests compare estimates with; :func:`range_camera` is the viewpoint of a
+VCG range map.
 
 This module uses numpy, scipy, plyfile and the standard library only, never
 the estimator: the tests judge the estimator against what it computes.
@@ -20,7 +26,6 @@ the estimator: the tests judge the estimator against what it computes.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -36,12 +41,19 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 from plyfile import PlyData, PlyElementParseError
 
+from ._fetching import _MARKER, ScanDataUnavailable, _move_into_place, _occupied, _sha256
+from .cgal import _CGAL_DIRNAME, CGAL_DEBIAN_VERSION, CGAL_MESHES, cgal_cache_dir, fetch_cgal_meshes
+
 __all__ = [
+    "CGAL_DEBIAN_VERSION",
+    "CGAL_MESHES",
     "PYMESHLAB_SAMPLES",
     "PYMESHLAB_VERSION",
     "Mesh",
     "ScanDataUnavailable",
+    "cgal_cache_dir",
     "default_cache_dir",
+    "fetch_cgal_meshes",
     "fetch_pymeshlab_samples",
     "range_camera",
     "read_mesh",
@@ -65,13 +77,11 @@ _WHEEL_TAGS = ("--python-version", "3.11", "--platform", "manylinux_2_35_x86_64"
 _WHEEL_NAME = f"pymeshlab-{PYMESHLAB_VERSION}-cp311-cp311-manylinux_2_35_x86_64.whl"
 _WHEEL_SHA256 = "c3c1b01f101334b14469ace3b004382cd313b80a128f551a1da77e3053f09c30"
 _MEMBER_PREFIX = f"pymeshlab-{PYMESHLAB_VERSION}.data/purelib/pymeshlab/tests/sample_meshes/"
-#: Written last into a complete cache: its presence is what "fetched" means.
-_MARKER = ".heatcurv-fetch.json"
 _PIP_TIMEOUT = 300.0
 
-
-class ScanDataUnavailable(RuntimeError):
-    """The real scans could not be fetched; the message says what failed (network, pip, checksum)."""
+# The CGAL cache and its fetch's temporary directories may live inside the pymeshlab
+# cache (both under $HEATCURV_TEST_DATA): the pymeshlab fetch leaves them alone.
+_NESTED = re.compile(rf"\.?{re.escape(_CGAL_DIRNAME)}(\.fetch-.*)?")
 
 
 # --------------------------------------------------------------------------- fetching
@@ -129,14 +139,6 @@ def _download_wheel(dest: Path, timeout: float) -> Path:
         found = sorted(p.name for p in dest.iterdir())
         raise ScanDataUnavailable(f"pip download did not produce {_WHEEL_NAME} (found {found})")
     return wheel
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _extract_samples(wheel: Path, dest: Path) -> list[str]:
@@ -208,7 +210,7 @@ def fetch_pymeshlab_samples(cache_dir=None, *, timeout: float = _PIP_TIMEOUT) ->
     target = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
     if _is_complete(target):
         return target
-    if target.exists() and (not target.is_dir() or any(target.iterdir())):
+    if _occupied(target, nested=_NESTED):
         raise ScanDataUnavailable(
             f"{target} exists but is not a complete pymeshlab sample cache; remove it to fetch again"
         )
@@ -237,9 +239,7 @@ def fetch_pymeshlab_samples(cache_dir=None, *, timeout: float = _PIP_TIMEOUT) ->
         }
         (tree / _MARKER).write_text(json.dumps(record, indent=1) + "\n")
         try:
-            if target.is_dir():
-                target.rmdir()  # empty (checked above); a rename onto it would fail on some systems
-            os.replace(tree, target)
+            _move_into_place(tree, target)
         except OSError as exc:
             if not _is_complete(target):  # a concurrent fetch that finished first is fine
                 raise ScanDataUnavailable(f"cannot move the samples into {target}: {exc}") from exc
@@ -316,7 +316,9 @@ class Mesh:
 
         Oriented by the faces' winding (counter-clockwise seen from the
         normal's side); zero rows for unused vertices and where the
-        adjacent normals cancel.
+        adjacent normals cancel.  On a closed, consistently wound mesh they
+        point outward exactly when :meth:`signed_volume` is positive;
+        :meth:`outward_vertex_normals` checks that and flips them if needed.
         """
         cross = np.repeat(self._face_cross(), 3, axis=0)  # |cross| = 2 area: area weighting
         out = np.zeros((len(self), 3))
@@ -326,6 +328,65 @@ class Mesh:
         good = norm > 0
         out[good] /= norm[good, None]
         return out
+
+    def outward_vertex_normals(self) -> np.ndarray:
+        """:meth:`vertex_normals` turned outward: negated when :meth:`signed_volume` is negative, shape (n, 3).
+
+        Raises
+        ------
+        ValueError
+            The faces are not consistently wound (:attr:`consistently_wound`)
+            or enclose no volume: then no single sign makes every normal
+            outward.
+        """
+        if not self.consistently_wound:
+            raise ValueError("the faces are not consistently wound: no global sign makes the normals outward")
+        volume = self.signed_volume()
+        if not volume != 0.0:
+            raise ValueError("the mesh encloses no volume: its outside is undefined")
+        normals = self.vertex_normals()
+        return normals if volume > 0 else -normals
+
+    def edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """The undirected edges of the faces and how many faces each borders.
+
+        Returns
+        -------
+        edges : ndarray of int64, shape (e, 2)
+            Vertex index pairs, the smaller first, sorted.
+        faces : ndarray of int64, shape (e,)
+            Faces per edge: 2 inside a closed manifold surface, 1 on a
+            boundary, more at a non-manifold edge.
+        """
+        f = self.faces
+        pairs = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        edges, counts = np.unique(pairs, axis=0, return_counts=True)
+        return edges.astype(np.int64), counts.astype(np.int64)
+
+    @property
+    def closed(self) -> bool:
+        """Whether every edge borders exactly two faces (no boundary, no non-manifold edge)."""
+        return bool(self.faces.size) and bool(np.all(self.edges()[1] == 2))
+
+    @property
+    def consistently_wound(self) -> bool:
+        """Whether no directed edge occurs twice: faces sharing an edge run along it in opposite directions."""
+        f = self.faces
+        directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        return np.unique(directed, axis=0).shape[0] == directed.shape[0]
+
+    def signed_volume(self) -> float:
+        """The volume the faces enclose, positive when they wind counter-clockwise seen from outside.
+
+        The sum over the faces of the signed volumes of the tetrahedra they
+        span with the vertices' centroid: the enclosed volume for a closed,
+        consistently wound mesh (whatever the centre); for a mesh with small
+        holes, the volume closed by cones from the centroid over the holes,
+        whose sign still tells outward winding from inward.
+        """
+        centre = self.vertices[self.used].mean(axis=0) if self.faces.size else np.zeros(3)
+        a, b, c = (self.vertices[self.faces[:, k]] - centre for k in range(3))
+        return float(np.einsum("ij,ij->", a, np.cross(b, c)) / 6.0)
 
     @property
     def used(self) -> np.ndarray:
@@ -507,8 +568,59 @@ def _read_ply(path: Path) -> Mesh:
     return Mesh(vertices, faces, normals)
 
 
+def _read_off(path: Path) -> Mesh:
+    """An ASCII OFF or COFF triangle mesh: vertices ``x y z`` (colours after them ignored), faces ``3 i j k``."""
+    rows = [ln.split("#", 1)[0].split() for ln in path.read_bytes().decode("utf-8", errors="replace").splitlines()]
+    rows = [r for r in rows if r]
+    if not rows:
+        raise ValueError(f"{path}: empty file, not an OFF mesh")
+    keyword, *counts = rows[0]
+    if keyword not in ("OFF", "COFF"):
+        what = "an OFF variant" if keyword.endswith("OFF") else "not an OFF file"
+        raise ValueError(f"{path}: first word {keyword!r}: {what}; read_mesh reads ASCII OFF and COFF only")
+    body = 1
+    if not counts:  # the counts on a line of their own
+        counts = rows[1] if len(rows) > 1 else []
+        body = 2
+    if "BINARY" in counts:
+        raise ValueError(f"{path}: binary OFF is not supported")
+    if len(counts) < 2 or not all(re.fullmatch(r"\d+", c) for c in counts[:3]):
+        raise ValueError(f"{path}: the OFF header needs the vertex and face counts, got {' '.join(counts)!r}")
+    n_vertices, n_faces = int(counts[0]), int(counts[1])
+    have = len(rows) - body
+    if have < n_vertices + n_faces:
+        raise ValueError(
+            f"{path}: truncated: the header announces {n_vertices} vertices and {n_faces} faces, "
+            f"the file has {have} lines after it"
+        )
+    vertex_rows = rows[body:body + n_vertices]
+    face_rows = rows[body + n_vertices:body + n_vertices + n_faces]
+    short = next((k for k, r in enumerate(vertex_rows) if len(r) < 3), None)
+    if short is not None:
+        raise ValueError(f"{path}: vertex {short} has {len(vertex_rows[short])} numbers, expected x y z")
+    try:
+        vertices = np.array([r[:3] for r in vertex_rows], dtype=np.float64).reshape(-1, 3)
+    except ValueError as exc:
+        raise ValueError(f"{path}: unreadable vertex line: {exc}") from None
+    bad = next((k for k, r in enumerate(face_rows) if r[0] != "3" or len(r) < 4), None)
+    if bad is not None:
+        row = face_rows[bad]
+        raise ValueError(
+            f"{path}: face {bad} is {' '.join(row[:8])!r}; read_mesh reads OFF triangle meshes only "
+            "(every face '3 i j k')"
+        )
+    try:
+        faces = np.array([r[1:4] for r in face_rows], dtype=np.int64).reshape(-1, 3)
+    except ValueError as exc:
+        raise ValueError(f"{path}: unreadable face line: {exc}") from None
+    out = np.flatnonzero((faces < 0) | (faces >= n_vertices))
+    if out.size:
+        raise ValueError(f"{path}: a face refers to vertex {int(faces.flat[out[0]])}, but the file has {n_vertices}")
+    return Mesh(vertices, faces)
+
+
 def read_mesh(path) -> Mesh:
-    """Read a triangle or polygon mesh from an OBJ or PLY file.
+    """Read a triangle or polygon mesh from an OBJ, PLY or OFF file.
 
     OBJ: ``v`` (the first three numbers), ``vn`` and ``f`` lines; face corners
     may be ``a``, ``a/b``, ``a//c`` or ``a/b/c``, indices 1-based or negative
@@ -517,7 +629,11 @@ def read_mesh(path) -> Mesh:
     name.  PLY (ASCII or binary, via plyfile): the ``vertex`` element's
     ``x y z`` (and ``nx ny nz``), the ``face`` element's ``vertex_indices`` or
     ``vertex_index`` list; other elements (a range map's ``camera``) are
-    ignored.
+    ignored.  OFF (ASCII ``OFF`` or ``COFF``, ``#`` comments): the header's
+    vertex and face counts, then as many vertex lines (``x y z``, colours
+    after them ignored) and triangle lines (``3 i j k``, 0-based, colours
+    after them ignored); polygons, ``NOFF``/``STOFF``/``4OFF`` and binary
+    OFF are refused.
 
     Parameters
     ----------
@@ -538,7 +654,9 @@ def read_mesh(path) -> Mesh:
         return _read_obj(path)
     if suffix == ".ply":
         return _read_ply(path)
-    raise ValueError(f"{path}: read_mesh reads .obj and .ply files, not {suffix or 'files without extension'}")
+    if suffix == ".off":
+        return _read_off(path)
+    raise ValueError(f"{path}: read_mesh reads .obj, .ply and .off files, not {suffix or 'files without extension'}")
 
 
 def range_camera(path) -> np.ndarray:
