@@ -1,0 +1,381 @@
+"""Normal orientation on closed objects with thin parts: CGAL's twelve animal and figure models.
+
+The clouds are the used vertices of CGAL's closed models (fetched by
+:func:`heatcurv.testing.scans.fetch_cgal_meshes`: armadillo, bear, bull,
+camel, cow, dino, diplodocus, elephant, elk, homer, lion, man; ``lion`` has
+small holes), the truth is the mesh's outward area-weighted vertex normals
+(:meth:`heatcurv.testing.scans.Mesh.outward_vertex_normals`). Each model is
+run in three variants:
+
+``clean``   the vertices as they are;
+``noisy``   Gaussian noise of 0.1 % of the bounding-box diagonal added to
+            every coordinate (``numpy.random.default_rng(0)``);
+``half``    a random half of the vertices (``default_rng(0).permutation``,
+            the first ``n // 2``), to the same truth.
+
+Columns
+
+``points``               the cloud's size;
+``thin %``               points on parts under 3 spacings thick: the
+                         thickness of a vertex is the distance along its
+                         inward normal to the first triangle of the mesh that
+                         does not contain it (a ray cast against the mesh's
+                         triangles near the vertex, numba), the spacing the
+                         median distance from a vertex to its nearest other
+                         vertex; a property of the mesh, the same in every
+                         variant;
+``wrong %``              normal . truth < 0 among all points;
+``wrong on thick %``     the same among the points at least 3 spacings thick;
+``wrong & reliable %``   (heatcurv) wrong and flagged reliable
+                         (``res.reliable``), % of all points;
+``flagged %``            (heatcurv) not reliable;
+``s``                    seconds of the call alone (heatcurv's numba kernels
+                         compiled by a warm-up beforehand).
+
+Methods
+
+``heatcurv``  ``heatcurv.estimate(points)``, the default options (normals
+              oriented outward, :mod:`heatcurv.orientation`); its rows are in
+              input order, exact duplicate vertices share values.
+``open3d``    Open3D: ``estimate_normals(KDTreeSearchParamKNN(30))`` then
+              ``orient_normals_consistent_tangent_plane(30)`` (the minimum
+              spanning tree propagation of Hoppe et al.). Its global sign is
+              arbitrary: its ``wrong %`` columns use the better of the two
+              global signs (chosen on all points of the cloud). Needs
+              ``pip install open3d`` (the ``peers`` extra); skipped with a note
+              when missing.
+
+Usage::
+
+    python benchmarks/orientation.py                        # every model, variant and method
+    python benchmarks/orientation.py --models camel,cow --variants clean --methods heatcurv
+    python benchmarks/orientation.py --markdown
+
+``--data DIR`` picks the cache directory of the models (default
+:func:`heatcurv.testing.scans.cgal_cache_dir`). A full run takes about 3
+minutes on the 2-core machine; the wall time is printed at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import importlib.util
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+import scipy
+from scipy.spatial import cKDTree
+
+import heatcurv
+from heatcurv import surfaces as hs
+from heatcurv.testing.scans import CGAL_MESHES, fetch_cgal_meshes, read_mesh
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from machine import commit, cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
+from machine import table as text_table  # noqa: E402
+
+MODELS = tuple(name.removesuffix(".off") for name in CGAL_MESHES)
+VARIANTS = ("clean", "noisy", "half")
+METHODS = ("heatcurv", "open3d")
+#: parts thinner than this many spacings are "thin"
+THIN_SPACINGS = 3.0
+#: noise of the noisy variant, a fraction of the bounding-box diagonal
+NOISE = 1e-3
+KNN = 30
+
+
+# ---------------------------------------------------------------------------
+# the models and their thickness
+# ---------------------------------------------------------------------------
+
+
+@numba.njit(parallel=True, cache=True)
+def _first_hits(origins, directions, own, start, candidates, v0, e1, e2, faces, eps, cap):  # pragma: no cover
+    """Distance along ``directions[i]`` from ``origins[i]`` to the nearest candidate triangle without vertex ``own[i]``.
+
+    Möller-Trumbore ray-triangle tests against the triangles
+    ``candidates[start[i]:start[i + 1]]``; hits at ``t <= eps`` are ignored;
+    ``inf`` where nothing is hit before ``cap``.
+    """
+    n = origins.shape[0]
+    out = np.full(n, np.inf)
+    for i in numba.prange(n):
+        best = cap
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        for k in range(start[i], start[i + 1]):
+            f = candidates[k]
+            if faces[f, 0] == own[i] or faces[f, 1] == own[i] or faces[f, 2] == own[i]:
+                continue
+            ax, ay, az = e1[f, 0], e1[f, 1], e1[f, 2]
+            bx, by, bz = e2[f, 0], e2[f, 1], e2[f, 2]
+            px, py, pz = dy * bz - dz * by, dz * bx - dx * bz, dx * by - dy * bx
+            det = ax * px + ay * py + az * pz
+            if det == 0.0:
+                continue
+            inv = 1.0 / det
+            sx, sy, sz = origins[i, 0] - v0[f, 0], origins[i, 1] - v0[f, 1], origins[i, 2] - v0[f, 2]
+            u = (sx * px + sy * py + sz * pz) * inv
+            if u < 0.0 or u > 1.0:
+                continue
+            qx, qy, qz = sy * az - sz * ay, sz * ax - sx * az, sx * ay - sy * ax
+            v = (dx * qx + dy * qy + dz * qz) * inv
+            if v < 0.0 or u + v > 1.0:
+                continue
+            t = (bx * qx + by * qy + bz * qz) * inv
+            if eps < t < best:
+                best = t
+        out[i] = best if best < cap else np.inf
+    return out
+
+
+def thickness(mesh, normals: np.ndarray, cap: float) -> np.ndarray:
+    """Distance from each vertex along ``-normals`` to the mesh's other side, ``inf`` beyond ``cap``, shape (n,).
+
+    Only the triangles whose centroid lies within ``cap`` plus the largest
+    centroid-to-corner distance of the vertex can be hit before ``cap``;
+    those are the candidates of each ray.
+    """
+    v, f = mesh.vertices, mesh.faces
+    corners = v[f]
+    centroid = corners.mean(axis=1)
+    reach = float(np.linalg.norm(corners - centroid[:, None], axis=2).max())
+    lists = cKDTree(centroid).query_ball_point(v, r=cap + reach, workers=-1)
+    sizes = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+    start = np.concatenate([[0], np.cumsum(sizes)])
+    candidates = np.concatenate([np.asarray(c, dtype=np.int64) for c in lists])
+    eps = 1e-9 * float(np.linalg.norm(np.ptp(v, axis=0)))
+    return _first_hits(v, -normals, np.arange(len(v)), start, candidates, corners[:, 0],
+                       corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0], f, eps, cap)
+
+
+def load_model(directory: Path, name: str) -> dict:
+    """The model's vertices, outward normals, spacing and thickness mask (the used vertices only)."""
+    mesh = read_mesh(directory / f"{name}.off")
+    normals = mesh.outward_vertex_normals()
+    used = mesh.used
+    spacing = float(np.median(cKDTree(mesh.vertices).query(mesh.vertices, k=2)[0][:, 1]))
+    thick = np.isinf(thickness(mesh, normals, THIN_SPACINGS * spacing))
+    return {"name": name, "points": mesh.vertices[used], "truth": normals[used], "thick": thick[used],
+            "spacing": spacing, "diagonal": float(np.linalg.norm(np.ptp(mesh.vertices, axis=0))),
+            "closed": mesh.closed}
+
+
+def variant(model: dict, kind: str, seed: int = 0):
+    """The cloud, its truth and thickness mask of one variant."""
+    points, truth, thick = model["points"], model["truth"], model["thick"]
+    rng = np.random.default_rng(seed)
+    if kind == "noisy":
+        return points + rng.normal(scale=NOISE * model["diagonal"], size=points.shape), truth, thick
+    if kind == "half":
+        keep = np.sort(rng.permutation(len(points))[: len(points) // 2])
+        return points[keep], truth[keep], thick[keep]
+    return points, truth, thick
+
+
+# ---------------------------------------------------------------------------
+# the methods
+# ---------------------------------------------------------------------------
+
+
+def run_heatcurv(points: np.ndarray):
+    tic = time.perf_counter()
+    res = heatcurv.estimate(points)
+    seconds = time.perf_counter() - tic
+    return res.normals, res.reliable, seconds
+
+
+def run_open3d(points: np.ndarray):
+    import open3d as o3d
+
+    tic = time.perf_counter()
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(KNN))
+    cloud.orient_normals_consistent_tangent_plane(KNN)
+    normals = np.asarray(cloud.normals).copy()
+    return normals, None, time.perf_counter() - tic
+
+
+def warm_up() -> None:
+    """Compile heatcurv's numba kernels (clean and noisy clouds) before any clock starts."""
+    torus = hs.Torus().sample(3000, "random", seed=1).points
+    for points in (torus, torus + np.random.default_rng(2).normal(scale=0.02, size=torus.shape)):
+        heatcurv.estimate(points)
+
+
+def measure(normals: np.ndarray, reliable, truth: np.ndarray, thick: np.ndarray, either_sign: bool) -> dict:
+    """The wrong-side shares (%) of one method's normals; a normal without value (NaN) counts as wrong."""
+    dot = np.einsum("ij,ij->i", normals, truth)
+    wrong = ~(dot >= 0)  # NaN: wrong
+    flipped = False
+    if either_sign and np.count_nonzero(~(dot <= 0)) < np.count_nonzero(wrong):
+        wrong, flipped = ~(dot <= 0), True
+    out = {"wrong": 100.0 * wrong.mean(), "wrong_thick": 100.0 * wrong[thick].mean() if thick.any() else np.nan,
+           "flipped": flipped, "nan": int(np.count_nonzero(~np.isfinite(dot)))}
+    if reliable is not None:
+        out["wrong_reliable"] = 100.0 * np.mean(wrong & reliable)
+        out["flagged"] = 100.0 * np.mean(~reliable)
+    return out
+
+
+# ---------------------------------------------------------------------------
+# tables
+# ---------------------------------------------------------------------------
+
+
+def header_row(methods) -> list[str]:
+    head = ["model", "points", "thin %"]
+    for m in methods:
+        head += [f"{m} wrong %", f"{m} wrong on thick %"]
+        if m == "heatcurv":
+            head += ["heatcurv wrong & reliable %", "heatcurv flagged %"]
+        head += [f"{m} s"]
+    return head
+
+
+def row(name: str, n: int, thin: float, results: dict, methods) -> list[str]:
+    cells = [name, str(n), f"{thin:.2f}"]
+    for m in methods:
+        r = results.get(m)
+        if r is None:
+            cells += ["-"] * (5 if m == "heatcurv" else 3)
+            continue
+        cells += [f"{r['wrong']:.2f}", f"{r['wrong_thick']:.2f}"]
+        if m == "heatcurv":
+            cells += [f"{r['wrong_reliable']:.2f}", f"{r['flagged']:.1f}"]
+        cells += [f"{r['seconds']:.2f}"]
+    return cells
+
+
+def pooled(rows: list[dict], methods) -> dict:
+    """Point-weighted means of every share over the rows (the 'all' line)."""
+    n = np.array([r["n"] for r in rows], dtype=float)
+    out = {}
+    for m in methods:
+        if not all(m in r["results"] for r in rows):
+            continue
+        res = [r["results"][m] for r in rows]
+        nthick = np.array([r["nthick"] for r in rows], dtype=float)
+        entry = {"wrong": float(np.sum(n * [x["wrong"] for x in res]) / n.sum()),
+                 "wrong_thick": float(np.nansum(nthick * [x["wrong_thick"] for x in res]) / nthick.sum()),
+                 "seconds": float(sum(x["seconds"] for x in res))}
+        if m == "heatcurv":
+            entry["wrong_reliable"] = float(np.sum(n * [x["wrong_reliable"] for x in res]) / n.sum())
+            entry["flagged"] = float(np.sum(n * [x["flagged"] for x in res]) / n.sum())
+        out[m] = entry
+    return out
+
+
+def machine_lines() -> list[str]:
+    lines = [
+        f"date (UTC)   {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}",
+        f"machine      {cpu_model()}, {os.cpu_count()} cores{memory_text()}; {platform.system()} {platform.release()}",
+        f"python       {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
+        f"numba {numba.__version__}",
+        f"heatcurv     {heatcurv.__version__} (commit {commit()})",
+    ]
+    if open3d_problem() is None:
+        import open3d
+
+        lines.append(f"open3d       {open3d.__version__}")
+    return lines
+
+
+def open3d_problem() -> str | None:
+    """None if Open3D imports, else why not (not installed, or a system library missing)."""
+    if importlib.util.find_spec("open3d") is None:
+        return "open3d is not installed (pip install open3d)"
+    try:
+        import open3d  # noqa: F401
+    except ImportError as exc:  # e.g. libusb-1.0.so.0 missing
+        return f"open3d does not import: {exc}"
+    return None
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+
+    def names(allowed):
+        def parse(text):
+            chosen = [t.strip() for t in text.split(",") if t.strip()]
+            bad = sorted(set(chosen) - set(allowed))
+            if bad or not chosen:
+                raise argparse.ArgumentTypeError(f"choose from {', '.join(allowed)} (got {text!r})")
+            return chosen
+        return parse
+
+    parser.add_argument("--models", type=names(MODELS), default=list(MODELS), help="comma-separated model names")
+    parser.add_argument("--variants", type=names(VARIANTS), default=list(VARIANTS), help="clean,noisy,half")
+    parser.add_argument("--methods", type=names(METHODS), default=list(METHODS), help="heatcurv,open3d")
+    parser.add_argument("--data", default=None, help="cache directory of the models (default: cgal_cache_dir())")
+    parser.add_argument("--markdown", action="store_true", help="print the tables as Markdown")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    return parser.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    wall = time.perf_counter()
+
+    def log(msg):
+        if not args.quiet:
+            print(msg, file=sys.stderr, flush=True)
+
+    methods = list(args.methods)
+    notes = []
+    if "open3d" in methods and open3d_problem() is not None:
+        methods.remove("open3d")
+        notes.append(f"{open3d_problem()}: its columns are left out")
+    print("Normal orientation on CGAL's closed models")
+    print("\n".join(machine_lines()))
+    print(f"load         1-minute load average {os.getloadavg()[0]:.1f} (other work on the machine slows the times)")
+    print()
+    directory = fetch_cgal_meshes(args.data)
+    if "heatcurv" in methods:
+        warm_up()
+    models = []
+    for name in args.models:
+        tic = time.perf_counter()
+        models.append(load_model(directory, name))
+        m = models[-1]
+        log(f"{name}: {len(m['points'])} points, spacing {m['spacing']:.4g}, thin {100 * (~m['thick']).mean():.2f} %"
+            f" ({time.perf_counter() - tic:.1f} s)")
+    runners = {"heatcurv": run_heatcurv, "open3d": run_open3d}
+    for kind in args.variants:
+        rows = []
+        for model in models:
+            points, truth, thick = variant(model, kind)
+            results = {}
+            for method in methods:
+                normals, reliable, seconds = runners[method](points)
+                r = measure(normals, reliable, truth, thick, either_sign=(method == "open3d"))
+                r["seconds"] = seconds
+                results[method] = r
+                if r["nan"]:
+                    notes.append(f"{kind} {model['name']}: {method} left {r['nan']} normals without value (wrong)")
+                log(f"{kind} {model['name']}: {method} wrong {r['wrong']:.2f} %, {seconds:.2f} s")
+            rows.append({"name": model["name"], "n": len(points), "thin": 100.0 * (~thick).mean(),
+                         "nthick": int(thick.sum()), "results": results})
+        cells = [row(r["name"] + ("" if models[i]["closed"] else " (holes)"), r["n"], r["thin"], r["results"], methods)
+                 for i, r in enumerate(rows)]
+        n_all = sum(r["n"] for r in rows)
+        thin_all = sum(r["thin"] * r["n"] for r in rows) / n_all
+        cells.append(row("all", n_all, thin_all, pooled(rows, methods), methods))
+        title = f"{kind}: % of points whose normal points into the object"
+        if "open3d" in methods:
+            title += " (open3d: the better of its two global signs)"
+        print(text_table(title, header_row(methods), cells, args.markdown))
+    for note in notes:
+        print(f"note: {note}")
+    print(f"wall time {time.perf_counter() - wall:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
