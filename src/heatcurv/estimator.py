@@ -172,7 +172,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         with clock.stage("outliers"):
             outliers = find_outliers(op.points, op.neighbourhood)
         towards = _reference(op, mode, viewpoint)
-        nrm, planarity, orientation = _normal_stages(op, normals, mode, towards, outliers.mask, clock)
+        nrm, planarity, orientation = _normal_stages(op, normals, mode, towards, outliers.mask, clock,
+                                                     whole_cloud=choices is None)
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()
         if opts.fit == "chord":
@@ -218,7 +219,8 @@ def _reference(op: HeatKernelOperator, mode: str, viewpoint):
     return ((v if v.ndim == 1 else v[prepared.first]) - prepared.offset) / prepared.unit
 
 
-def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np.ndarray, clock: StageClock):
+def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np.ndarray, clock: StageClock,
+                   whole_cloud: bool = True):
     """Stages ``normals`` and ``orientation``: oriented unit normals, PCA planarity and the orientation.
 
     Outliers get no weight in the outward vote (one far point would drag the centroid).
@@ -238,7 +240,8 @@ def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: n
     with clock.stage("normals"):
         nrm, planarity = pca_normals(X, nbhd, taper=op.options.taper)
     with clock.stage("orientation"):
-        orientation = orient(X, nrm, nbhd, op.areas, mode=mode, towards=towards, excluded=outlier)
+        orientation = orient(X, nrm, nbhd, op.areas, mode=mode, towards=towards, excluded=outlier,
+                             whole_cloud=whole_cloud)
     return orientation.normals, planarity, orientation
 
 

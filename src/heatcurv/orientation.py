@@ -9,6 +9,12 @@ sign depends on which way along it the normal points. Three policies
     propagated over a minimum spanning tree of the neighbour graph (Hoppe et al.
     1992), then each connected component gets the sign that makes
     ``sum_i A_i n_i . (x_i - c)`` positive (3 x the volume of a closed surface).
+    Where the two sides of a thin part (a leg, an ear) are closer than the
+    ball, one wrong tree edge turns the whole part inside out; so the tree is
+    cut into patches whose sides the generalised winding number chooses
+    together, and the points whose side it contradicts are flagged
+    (:mod:`heatcurv.enclosure`). A cloud whose winding number does not look
+    like a closed surface's (an open sheet) keeps the tree's orientation.
 ``"up"``
     Terrain, buildings, aerial LiDAR: towards ``+z`` (the sky).
 ``"viewpoint"``
@@ -63,6 +69,7 @@ from scipy.sparse import csgraph
 
 from ._kernels import graph as graph_kernels
 from ._kernels import segment as kernels
+from .enclosure import enclose
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood
 
@@ -115,6 +122,15 @@ class OrientationReport:
         largest coordinate positive): right or wrong, their curvature is near 0.
     ambiguous : int
         Points with no consistent side (flagged unreliable).
+    closed : bool or None
+        ``"outward"``: whether the winding number found the cloud to enclose
+        a volume (:mod:`heatcurv.enclosure`); None for the other modes and
+        for a tile's piece of a cloud.
+    turned : int
+        Points whose side the winding number turned over (closed clouds).
+    unsupported : int
+        Points whose side the winding number contradicts (closed clouds;
+        counted in ``ambiguous`` too).
     on_anchors : int
         0 when every point's normal was oriented over the points' graph; else
         the noise swamped the operator's balls and the normals were oriented
@@ -128,6 +144,9 @@ class OrientationReport:
     by_convention: int = 0
     ambiguous: int = 0
     on_anchors: int = 0
+    closed: bool | None = None
+    turned: int = 0
+    unsupported: int = 0
 
     def __getitem__(self, key: str):
         return getattr(self, key)
@@ -187,6 +206,7 @@ def orient(
     towards=None,
     graph_neighbours: int | None = GRAPH_NEIGHBOURS,
     excluded: np.ndarray | None = None,
+    whole_cloud: bool = True,
 ) -> Orientation:
     """Orient unoriented normals by one of :data:`ORIENT_MODES`.
 
@@ -220,6 +240,10 @@ def orient(
         the spanning tree and turn part of a closed surface inside out
         (measured: 272 of the 510 points of a grid-sampled torus with three
         points 25 diagonals away).
+    whole_cloud : bool, optional
+        ``"outward"``: whether ``points`` is the whole cloud, whose inside the
+        winding number decides (:mod:`heatcurv.enclosure`). A tile's piece is
+        not: its pieces' sides are made to agree by :mod:`heatcurv.tiles.orient`.
 
     Returns
     -------
@@ -250,10 +274,17 @@ def orient(
     sign, convention = _component_signs(points, oriented, labels, n_comp, w)
     oriented *= sign[labels][:, None]
 
-    ambiguous = _conflicting(points, oriented, graph)
+    # the winding number decides inside from outside, part by part, and flags what it contradicts
+    unsupported, closed, turned = np.zeros(n, dtype=bool), None, 0
+    if whole_cloud:
+        enclosure = enclose(points, oriented, tree, w, excluded)
+        oriented, unsupported, closed, turned = (
+            enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.flipped)
+    ambiguous = _conflicting(points, oriented, graph) | unsupported
     report = OrientationReport(
         mode=mode, components=_surface_components(labels, excluded),
-        by_convention=int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
+        by_convention=0 if closed else int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
+        closed=closed, turned=turned, unsupported=int(unsupported.sum()),
     )
     return Orientation(oriented, ambiguous, report)
 

@@ -138,6 +138,12 @@ def test_round_two_fits_the_gate_first_and_every_candidate_only_under_noise(tmp_
     assert [name for name, _ in phases] == rounds + ["run_tile"]
     # the gate's round fits the chord and the ladder's first candidate; a noisy cloud's then fits them all
     assert phases[1][1] == {heatcurv.survey.GATE_LEVELS} and (noise == 0.0 or phases[2][1] == {None})
-    # bit for bit (measured), clean or noisy
-    agreement = tiled_agreement(out, heatcurv.estimate(points), rtol=0.0)
-    assert exact(agreement) == dict.fromkeys(agreement, (0, 0.0))
+    # bit for bit (measured), clean or noisy, but for the points whose side the whole cloud's winding number
+    # contradicts (a noisy level here and there): unreliable in memory, where the whole cloud is seen
+    memory = heatcurv.estimate(points)
+    agreement = tiled_agreement(out, memory, rtol=0.0)
+    flagged = memory.info["orientation"].unsupported
+    assert flagged <= 0.001 * len(points)
+    differ = exact(agreement)
+    assert differ.pop("reliable")[0] <= flagged
+    assert differ == dict.fromkeys(differ, (0, 0.0))

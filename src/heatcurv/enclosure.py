@@ -1,0 +1,344 @@
+"""Inside and outside of a closed cloud: the side of every patch chosen by the winding number.
+
+A consistent orientation propagated along a neighbour graph (the spanning tree
+of :mod:`heatcurv.orientation`) is only locally right: where the two sides of
+a part are closer than the neighbourhood (a leg, an ear, a tail), one wrong
+edge turns a whole part inside out, and nothing local reveals it. The
+generalised winding number (:mod:`heatcurv._kernels.winding`) is global: for a
+closed surface oriented outward it is about 1 just inside and 0 just outside;
+inside a part turned inside out it is about -1, and next to it (outside or
+inside) out of ``[0, 1]``. This module uses that field twice.
+
+1. **Patch signs.** The spanning tree is cut into patches (its subtrees inside
+   the cells of a grid, small pieces merged into a neighbour): orientation is
+   consistent inside a patch, and each patch ``r`` gets a sign ``s_r``. At
+   every source point ``i`` (area ``A_i``, patch ``r_i``) two queries sit at
+   ``x_i +- delta_i n_i``; with the signs ``s`` the field there is
+   ``sum_r s_r W_r(q)`` (``W_r``: the field of patch ``r`` as oriented by the
+   tree) and should be 0 on the side the flipped normal ``s_{r_i} n_i`` points
+   to and 1 on the other. Both targets are linear in ``s``
+   (``1/2 -+ s_{r_i}/2``), so the signs minimise one least-squares energy
+   ``sum_i A_i [(f(q_i^+) - 1/2 + s_{r_i}/2)^2 + (f(q_i^-) - 1/2 - s_{r_i}/2)^2]``,
+   in the spirit of Xu et al. 2023 ("Globally consistent normal orientation
+   for point clouds by regularizing the winding-number field"). It is solved
+   relaxed (real ``s``, normal equations), rounded to signs, then improved by
+   single-patch flips while any lowers it, turning a patch away from the tree's
+   side only for a clear gain (:data:`FLIP_MARGIN`). Tree edges across which
+   the normals or the tangent planes disagree (:data:`SURE_AGREEMENT`,
+   :data:`SURE_TILT`) do not join a patch.
+2. **Levels.** With the chosen signs, a point whose outside query is not near
+   0 or whose inside query is not near 1 (:data:`LEVEL_TOLERANCE`) has no
+   side the field supports: a part too thin for ``delta`` (the inside query
+   leaves it), a normal whose direction is wrong (its ball wraps around a thin
+   part), a patch that straddles both sides. Such points are flagged.
+
+Each query's value is summed over point dipoles (Barill et al. 2018, "Fast
+winding numbers for soups and clouds"), except near its own point: the sources
+around ``x_i`` in its tangent plane count as one flat disc of their area,
+whose solid angle on its axis is exact, and no other source counts for more
+than a disc of its own area would (:func:`heatcurv._kernels.winding.winding_numbers`),
+so that neither the sampling next to a query nor noise decides its value.
+
+A cloud is taken to enclose a volume when the levels are close to their
+targets on enough of it (:data:`CLOSED_SHARE`, :data:`CLOSED_TOLERANCE`); an
+open sheet's field is about ``-+1/2`` on its two sides (between 0 and 1/2 on
+both sides of one curved like a bowl), so open clouds keep the tree's
+orientation untouched, and so do closed ones too coarse for their levels to
+be trusted.
+
+The sums are exact over at most :data:`MAX_SOURCES` source points (all of a
+smaller cloud; above that, a subsample chosen by the coordinates alone, its
+areas scaled to the whole). In a larger cloud a patch is flagged as a whole
+when most of its sampled points are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+from ._kernels.winding import clipped_dipole_terms, winding_numbers
+
+__all__ = ["Enclosure", "enclose", "MAX_SOURCES", "CLOSED_SHARE", "LEVEL_TOLERANCE"]
+
+#: Most points the winding sums run over (each is a source and carries two queries).
+MAX_SOURCES = 8000
+#: Fewest points a patch aims at, and the most patches a cloud is cut into.
+PATCH_POINTS, MAX_PATCHES = 30, 300
+#: A query sits this fraction of its tangent-plane disc's radius off the surface.
+QUERY_OFFSET = 0.5
+#: A level further than this from its target (0 outside, 1 inside) contradicts the point's side.
+LEVEL_TOLERANCE = 0.4
+#: A tree edge joins a patch when its normals agree this well and it stays this close to both tangent planes.
+SURE_AGREEMENT, SURE_TILT = 0.5, 0.5
+#: Neighbours a query's tangent-plane disc is made of.
+DISC_NEIGHBOURS = 16
+#: Most a query's offset takes of the depth of the nearest neighbour off the tangent plane.
+ACROSS = 0.5
+#: Queries clear the noise: this many robust standard deviations of the heights of the nearest
+#: ``NOISE_NEIGHBOURS`` neighbours over the tangent plane.
+NOISE_CLEARANCE, NOISE_NEIGHBOURS = 2.0, 6
+#: Energy a patch's flip away from the tree must gain, per unit of its queries' weight.
+FLIP_MARGIN = 0.1
+#: Share of the area whose levels are within ``CLOSED_TOLERANCE`` of their targets from which a cloud
+#: encloses a volume (an open sheet curved like a bowl has levels near 0 and 1/2).
+CLOSED_SHARE, CLOSED_TOLERANCE = 0.3, 0.25
+
+
+@dataclass(frozen=True)
+class Enclosure:
+    """The winding-number orientation of a cloud.
+
+    Attributes
+    ----------
+    normals : ndarray, shape (n, 3)
+        The normals, each patch flipped where the field says so (unchanged when not ``closed``).
+    unsupported : ndarray, shape (n,), bool
+        Points whose side the field contradicts (all False when not ``closed``).
+    closed : bool
+        Whether the levels agree on at least :data:`CLOSED_SHARE` of the area.
+    agreement : float
+        That share, in ``[0, 1]``.
+    flipped : int
+        Points whose normal the patch signs turned over.
+    """
+
+    normals: np.ndarray
+    unsupported: np.ndarray
+    closed: bool
+    agreement: float
+    flipped: int
+
+
+def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, areas: np.ndarray,
+            excluded: np.ndarray | None = None) -> Enclosure:
+    """Choose the side of every patch of the spanning forest by the winding number, and flag what it contradicts.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    normals : ndarray, shape (n, 3)
+        Unit normals, consistent along every edge of ``forest``.
+    forest : scipy.sparse.csr_matrix, shape (n, n)
+        The symmetric spanning forest the normals were propagated over.
+    areas : ndarray, shape (n,)
+        Per-point areas (the dipoles' strengths).
+    excluded : ndarray, shape (n,), bool, optional
+        Points that are neither sources nor flagged (outliers).
+
+    Returns
+    -------
+    Enclosure
+    """
+    n = points.shape[0]
+    excluded = np.zeros(n, dtype=bool) if excluded is None else np.asarray(excluded, dtype=bool)
+    nothing = Enclosure(normals, np.zeros(n, dtype=bool), False, 0.0, 0)
+    if n - excluded.sum() < 16:
+        return nothing
+    patch = patches(points, normals, forest, excluded)
+    n_patch = int(patch.max()) + 1
+    source = _sources(points, patch, excluded)
+    x, nrm, label = points[source], normals[source], patch[source]
+    weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
+    along, against = patch_fields(x, nrm, weight, label, n_patch)
+    G, c = _energy(along, against, label, weight)
+    sign = _patch_signs(G, c, label, weight)
+
+    # the levels with the chosen signs: outside is along the flipped normal
+    own = sign[label]
+    field_along, field_against = along @ sign, against @ sign
+    outside = np.where(own > 0, field_along, field_against)
+    inside = np.where(own > 0, field_against, field_along)
+    agrees = (np.abs(outside) <= LEVEL_TOLERANCE) & (np.abs(inside - 1.0) <= LEVEL_TOLERANCE)
+    sure = (np.abs(outside) <= CLOSED_TOLERANCE) & (np.abs(inside - 1.0) <= CLOSED_TOLERANCE)
+    agreement = float(weight[sure].sum() / weight.sum())
+    if agreement < CLOSED_SHARE:
+        return Enclosure(normals, np.zeros(n, dtype=bool), False, agreement, 0)
+
+    flip = sign[patch] < 0
+    flip[excluded] = False
+    unsupported = np.zeros(n, dtype=bool)
+    if source.size == n - excluded.sum():
+        unsupported[source] = ~agrees
+    else:  # a sampled cloud: a patch whose sampled points mostly disagree is flagged whole
+        disagreeing = np.bincount(label, weights=(~agrees).astype(float), minlength=n_patch)
+        sampled = np.bincount(label, minlength=n_patch)
+        unsupported = (disagreeing > 0.5 * np.maximum(sampled, 1))[patch] & ~excluded
+    oriented = np.where(flip[:, None], -normals, normals)
+    return Enclosure(oriented, unsupported, True, agreement, int(flip.sum()))
+
+
+def patches(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray) -> np.ndarray:
+    """Cut the spanning forest into patches: its subtrees inside grid cells, small ones merged, shape (n,).
+
+    The cells' side is chosen for about ``max(PATCH_POINTS, n / MAX_PATCHES)``
+    points a cell; a piece of fewer than a quarter of that joins the patch
+    across one of its cut tree edges (repeatedly), so every patch is a subtree
+    and the orientation inside it is the tree's. Excluded points get -1.
+    """
+    n = points.shape[0]
+    tree = sp.triu(forest, format="coo")
+    i, j = tree.row.astype(np.int64), tree.col.astype(np.int64)
+    keep = ~(excluded[i] | excluded[j])
+    i, j = i[keep], j[keep]
+    edge = points[j] - points[i]
+    length = np.linalg.norm(edge, axis=1)
+    edge /= np.maximum(length, np.finfo(float).tiny)[:, None]
+    along_i, along_j = np.einsum("ij,ij->i", normals[i], edge), np.einsum("ij,ij->i", normals[j], edge)
+    agreement = np.einsum("ij,ij->i", normals[i], normals[j]) - along_i * along_j
+    sure = (agreement >= SURE_AGREEMENT) & (np.maximum(np.abs(along_i), np.abs(along_j)) <= SURE_TILT)
+    target = max(PATCH_POINTS, (n - excluded.sum()) / MAX_PATCHES)
+    side = np.sqrt(target) * (np.median(length) if length.size else 1.0)
+    cell = _cell_ids(points, side)
+    joined = (cell[i] == cell[j]) & sure
+    label = _components(n, i[joined], j[joined])
+    for _ in range(8):
+        size = np.bincount(label)
+        small = size < target / 4
+        cut = (label[i] != label[j]) & (small[label[i]] | small[label[j]]) & sure
+        if not cut.any():
+            break
+        # each small patch joins across its first cut edge
+        ends = np.concatenate([label[i[cut]], label[j[cut]]])
+        edge = np.concatenate([np.flatnonzero(cut)] * 2)
+        first = np.unique(ends, return_index=True)[1]
+        chosen = np.unique(edge[first][small[ends[first]]])
+        joined[chosen] = True
+        label = _components(n, i[joined], j[joined])
+    label[excluded] = -1
+    used = np.unique(label[label >= 0])
+    relabel = np.full(label.max() + 2, -1)
+    relabel[used] = np.arange(used.size)
+    return relabel[label]
+
+
+def _components(n: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    graph = sp.csr_matrix((np.ones(i.size), (i, j)), shape=(n, n))
+    return csgraph.connected_components(graph, directed=False)[1]
+
+
+def _cell_ids(points: np.ndarray, side: float) -> np.ndarray:
+    """The grid cell of every point, as one integer, shape (n,)."""
+    index = np.floor((points - points.min(axis=0)) / side).astype(np.int64)
+    dims = index.max(axis=0) + 1
+    return np.ravel_multi_index(index.T, dims) if np.prod(dims.astype(float)) < 2**62 else \
+        np.unique(index, axis=0, return_inverse=True)[1].ravel()
+
+
+def _sources(points: np.ndarray, patch: np.ndarray, excluded: np.ndarray) -> np.ndarray:
+    """The points the sums run over: all, or :data:`MAX_SOURCES` chosen by coordinates plus one per patch."""
+    kept = np.flatnonzero(~excluded)
+    if kept.size <= MAX_SOURCES:
+        return kept
+    # a pseudo-random rank from the coordinates alone: the same points whatever the row order
+    bits = np.ascontiguousarray(points[kept]).view(np.uint64).astype(np.uint64)
+    key = (bits * np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], dtype=np.uint64)).sum(
+        axis=1, dtype=np.uint64)
+    key ^= key >> np.uint64(29)
+    chosen = kept[np.argpartition(key, MAX_SOURCES)[:MAX_SOURCES]]
+    one_each = kept[np.unique(patch[kept], return_index=True)[1]]
+    return np.union1d(chosen, one_each)
+
+
+def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int):
+    """Each patch's winding number at every source's two queries, two arrays of shape (m, n_patch).
+
+    Source ``i``'s queries sit at ``x_i +- delta_i n_i``. Summed as point
+    dipoles, the sources next to a query would dominate it and make its value
+    depend on how the points happen to fall; so the sources near ``x_i`` in its
+    tangent plane (among its :data:`DISC_NEIGHBOURS` nearest: within 30 degrees
+    of the plane or within the noise's scatter of it, normals within 60
+    degrees of ``n_i``, and ``i`` itself) are replaced by a flat disc of their
+    total area ``A``, whose exact solid angle on its axis at height ``delta``
+    is ``2 pi (1 - delta / sqrt(delta^2 + A / pi))``, shared among their
+    patches by area. ``delta_i`` is :data:`QUERY_OFFSET` times the disc's
+    radius, at most :data:`ACROSS` times the depth, below or above the
+    tangent plane, of the nearest neighbour off it (the other side of a thin
+    part, or a part close by, which the query must not reach), and at least
+    the noise's scatter: :data:`NOISE_CLEARANCE` robust standard deviations of
+    the heights of the :data:`NOISE_NEIGHBOURS` nearest over the plane.
+
+    Parameters
+    ----------
+    x, nrm : ndarray, shape (m, 3)
+        The sources and their unit normals (oriented as the tree left them).
+    weight : ndarray, shape (m,)
+        Their areas.
+    label : ndarray, shape (m,), int
+        Their patches, ``0 <= label < n_patch``.
+    n_patch : int
+
+    Returns
+    -------
+    along, against : ndarray, shape (m, n_patch)
+        Each patch's field at ``x_i + delta_i n_i`` and at ``x_i - delta_i n_i``.
+    """
+    m = x.shape[0]
+    k = min(DISC_NEIGHBOURS, m - 1)
+    dist, idx = cKDTree(x).query(x, k + 1)  # column 0: the source itself
+    rel = x[idx] - x[:, None, :]
+    height = np.abs(np.einsum("ijk,ik->ij", rel, nrm))
+    # the scatter of the nearest heights: noise (a point off the plane by less is still on the sheet)
+    scatter = NOISE_CLEARANCE * 1.4826 * np.median(height[:, 1:NOISE_NEIGHBOURS + 1], axis=1)
+    in_plane = (height <= np.maximum(0.5 * dist, scatter[:, None])) & (np.einsum("ijk,ik->ij", nrm[idx], nrm) >= 0.5)
+    in_plane[:, 0] = True
+    off_plane = np.where(in_plane, np.inf, height).min(axis=1)
+    disc_area = np.where(in_plane, weight[idx], 0.0).sum(axis=1)
+    radius = np.sqrt(disc_area / np.pi)
+    delta = np.maximum(np.minimum(QUERY_OFFSET * radius, ACROSS * off_plane), scatter)
+    dipoles = nrm * weight[:, None]
+    rows = np.repeat(np.arange(m), k + 1)[in_plane.ravel()]
+    near = idx.ravel()[in_plane.ravel()]
+    share = weight[near] / disc_area[rows]
+    cap = 0.5 * (1.0 - delta / np.sqrt(delta**2 + radius**2))  # the disc's solid angle over 4 pi
+    fields = []
+    for side in (1.0, -1.0):
+        q = x + side * delta[:, None] * nrm
+        field = winding_numbers(q, x, dipoles, label, n_patch)
+        # the near sources as point dipoles out, the disc in (seen from its front: -cap; from behind: +cap)
+        d = x[near] - q[rows]
+        point = clipped_dipole_terms(d, dipoles[near])
+        np.add.at(field, (rows, label[near]), -point - side * cap[rows] * share)
+        fields.append(field)
+    return fields[0], fields[1]
+
+
+def _energy(along: np.ndarray, against: np.ndarray, label: np.ndarray, weight: np.ndarray):
+    """The winding energy as ``s' G s - 2 c' s + const`` (module docstring): ``G``, shape (r, r), ``c``, shape (r,)."""
+    rows = np.arange(label.size)
+    a_along, a_against = along.copy(), against.copy()
+    a_along[rows, label] += 0.5
+    a_against[rows, label] -= 0.5
+    G = a_along.T @ (a_along * weight[:, None]) + a_against.T @ (a_against * weight[:, None])
+    c = 0.5 * (a_along.T @ weight + a_against.T @ weight)
+    return G, c
+
+
+def _patch_signs(G: np.ndarray, c: np.ndarray, label: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """The sign of every patch, shape (n_patch,): the winding energy's minimum, kept near the tree's orientation.
+
+    Flipping patch ``k`` changes the energy ``s' G s - 2 c' s`` by
+    ``4 (G_kk - s_k (G s)_k + c_k s_k)``. The relaxed minimum, rounded, is the
+    start; then single flips are made, the best first, while one lowers the
+    energy, where turning a patch away from the tree's orientation must lower
+    it by :data:`FLIP_MARGIN` times the patch's query weight (a residual of
+    about 1/2 at each of its queries) and turning it back may raise it by as
+    much: evidence too weak to tell (noise, a coarse part) leaves the tree's
+    orientation.
+    """
+    relaxed = np.linalg.lstsq(G, c, rcond=None)[0]
+    sign = np.where(relaxed < 0, -1.0, 1.0)
+    margin = FLIP_MARGIN * 2.0 * np.bincount(label, weights=weight, minlength=sign.size)
+    diag = np.diag(G)
+    for _ in range(4 * sign.size):
+        change = 4.0 * (diag - sign * (G @ sign) + c * sign)
+        cost = change + np.where(sign > 0, margin, -margin)
+        k = int(np.argmin(cost))
+        if cost[k] >= 0.0:
+            break
+        sign[k] = -sign[k]
+    return sign

@@ -1,0 +1,54 @@
+"""Outward orientation of closed objects with thin parts: CGAL's twelve models, their vertices as the cloud.
+
+The truth is each mesh's outward vertex normals. A point is *wrong* when its
+normal points into the object, *wrong and reliable* when it is also flagged
+reliable: the silent error. ``benchmarks/orientation.py`` prints the same
+numbers beside Open3D's, with noisy and half-sampled variants and the split by
+thickness; docs/orientation.md has the table.
+"""
+
+import numpy as np
+import pytest
+
+import heatcurv
+from heatcurv.testing.scans import CGAL_MESHES, read_mesh
+
+MODELS = sorted(name.removesuffix(".off") for name in CGAL_MESHES)
+
+
+@pytest.fixture(scope="module")
+def oriented(cgal_meshes):
+    """Per model: (wrong, reliable, what info["orientation"] reported), over the used vertices."""
+    out = {}
+    for name in MODELS:
+        mesh = read_mesh(cgal_meshes / f"{name}.off")
+        used = mesh.used
+        res = heatcurv.estimate(mesh.vertices[used])
+        wrong = np.einsum("ij,ij->i", res.normals, mesh.outward_vertex_normals()[used]) < 0
+        out[name] = (wrong, res.reliable, res.info["orientation"])
+    return out
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_each_model(name, oriented, records):
+    wrong, reliable, report = oriented[name]
+    records.check(f"real_orientation/{name}", wrong=100 * wrong.mean(), wrong_reliable=100 * (wrong & reliable).mean(),
+                  flagged=100 * (1 - reliable.mean()))
+    if name != "elk":  # the coarsest (1645 points): its winding number does not read as a closed surface's
+        assert report.closed is True
+
+
+def test_what_the_winding_number_fixed(oriented):
+    # measured at 83bead8, before the winding number (the spanning tree alone), over the 120,974 points:
+    # 5.58 % inside out and 3.96 % inside out but reliable; each model: camel 10.38 %, elephant 14.52 %,
+    # bull 10.02 %, cow 10.30 %, dino 14.40 % inside out and reliable
+    wrong = np.concatenate([w for w, _, _ in oriented.values()])
+    silent = np.concatenate([w & r for w, r, _ in oriented.values()])
+    assert wrong.mean() < 0.04 and silent.mean() < 0.02
+    for name, before in (("camel", 10.38), ("elephant", 14.52), ("bull", 10.02), ("cow", 10.30), ("dino", 14.40)):
+        w, r, _ = oriented[name]
+        assert 100 * (w & r).mean() < before / 2, name
+    # nothing lost where the tree was right
+    for name in ("bear", "diplodocus"):
+        w, r, _ = oriented[name]
+        assert w.mean() < 0.007 and (w & r).mean() < 0.0002, name  # before: 0.00 and 0.01 %
