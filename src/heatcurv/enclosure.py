@@ -24,8 +24,8 @@ inside) out of ``[0, 1]``. This module uses that field twice.
    relaxed (real ``s``, normal equations), rounded to signs, then improved by
    single-patch flips while any lowers it, turning a patch away from the tree's
    side only for a clear gain (:data:`FLIP_MARGIN`). Tree edges across which
-   the normals or the tangent planes disagree (:data:`SURE_AGREEMENT`,
-   :data:`SURE_TILT`) do not join a patch.
+   the normals or the tangent planes disagree (:data:`SURE_COST`) do not join
+   a patch.
 2. **Levels.** With the chosen signs, a point whose outside query is not near
    0 or whose inside query is not near 1 (:data:`LEVEL_TOLERANCE`) has no
    side the field supports: a part too thin for ``delta`` (the inside query
@@ -58,23 +58,24 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
+from ._kernels.graph import merged_components
 from ._kernels.winding import clipped_dipole_terms, winding_numbers
 
 __all__ = ["Enclosure", "enclose", "MAX_SOURCES", "CLOSED_SHARE", "LEVEL_TOLERANCE"]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
-MAX_SOURCES = 8000
+MAX_SOURCES = 6000
 #: Fewest points a patch aims at, and the most patches a cloud is cut into.
 PATCH_POINTS, MAX_PATCHES = 30, 300
 #: A query sits this fraction of its tangent-plane disc's radius off the surface.
 QUERY_OFFSET = 0.5
 #: A level further than this from its target (0 outside, 1 inside) contradicts the point's side.
 LEVEL_TOLERANCE = 0.4
-#: A tree edge joins a patch when its normals agree this well and it stays this close to both tangent planes.
-SURE_AGREEMENT, SURE_TILT = 0.5, 0.5
+#: A tree edge joins a patch when its spanning-tree cost (:func:`heatcurv.orientation.orient`:
+#: ``1 - |s_ij|`` plus how far it leaves the tangent planes) is at most this.
+SURE_COST = 0.7
 #: Neighbours a query's tangent-plane disc is made of.
 DISC_NEIGHBOURS = 16
 #: Most a query's offset takes of the depth of the nearest neighbour off the tangent plane.
@@ -124,7 +125,8 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     normals : ndarray, shape (n, 3)
         Unit normals, consistent along every edge of ``forest``.
     forest : scipy.sparse.csr_matrix, shape (n, n)
-        The symmetric spanning forest the normals were propagated over.
+        The symmetric spanning forest the normals were propagated over, its
+        entries the edges' costs.
     areas : ndarray, shape (n,)
         Per-point areas (the dipoles' strengths).
     excluded : ndarray, shape (n,), bool, optional
@@ -139,7 +141,7 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     nothing = Enclosure(normals, np.zeros(n, dtype=bool), False, 0.0, 0)
     if n - excluded.sum() < 16:
         return nothing
-    patch = patches(points, normals, forest, excluded)
+    patch = patches(points, forest, excluded)
     n_patch = int(patch.max()) + 1
     source = _sources(points, patch, excluded)
     x, nrm, label = points[source], normals[source], patch[source]
@@ -172,53 +174,32 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     return Enclosure(oriented, unsupported, True, agreement, int(flip.sum()))
 
 
-def patches(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray) -> np.ndarray:
+def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray) -> np.ndarray:
     """Cut the spanning forest into patches: its subtrees inside grid cells, small ones merged, shape (n,).
 
     The cells' side is chosen for about ``max(PATCH_POINTS, n / MAX_PATCHES)``
     points a cell; a piece of fewer than a quarter of that joins the patch
-    across one of its cut tree edges (repeatedly), so every patch is a subtree
-    and the orientation inside it is the tree's. Excluded points get -1.
+    across one of its cut tree edges (in one pass over them), so every patch
+    is a subtree and the orientation inside it is the tree's. Tree edges
+    across which the normals or the tangent planes disagree join nothing.
+    Excluded points get -1.
     """
     n = points.shape[0]
-    tree = sp.triu(forest, format="coo")
-    i, j = tree.row.astype(np.int64), tree.col.astype(np.int64)
-    keep = ~(excluded[i] | excluded[j])
-    i, j = i[keep], j[keep]
-    edge = points[j] - points[i]
-    length = np.linalg.norm(edge, axis=1)
-    edge /= np.maximum(length, np.finfo(float).tiny)[:, None]
-    along_i, along_j = np.einsum("ij,ij->i", normals[i], edge), np.einsum("ij,ij->i", normals[j], edge)
-    agreement = np.einsum("ij,ij->i", normals[i], normals[j]) - along_i * along_j
-    sure = (agreement >= SURE_AGREEMENT) & (np.maximum(np.abs(along_i), np.abs(along_j)) <= SURE_TILT)
+    i = np.repeat(np.arange(n, dtype=np.int64), np.diff(forest.indptr))
+    j = forest.indices.astype(np.int64)
+    keep = (i < j) & ~(excluded[i] | excluded[j])  # each undirected edge once
+    i, j, cost = i[keep], j[keep], forest.data[keep]
+    length = np.linalg.norm(points[j] - points[i], axis=1)
+    sure = cost <= SURE_COST
     target = max(PATCH_POINTS, (n - excluded.sum()) / MAX_PATCHES)
     side = np.sqrt(target) * (np.median(length) if length.size else 1.0)
     cell = _cell_ids(points, side)
-    joined = (cell[i] == cell[j]) & sure
-    label = _components(n, i[joined], j[joined])
-    for _ in range(8):
-        size = np.bincount(label)
-        small = size < target / 4
-        cut = (label[i] != label[j]) & (small[label[i]] | small[label[j]]) & sure
-        if not cut.any():
-            break
-        # each small patch joins across its first cut edge
-        ends = np.concatenate([label[i[cut]], label[j[cut]]])
-        edge = np.concatenate([np.flatnonzero(cut)] * 2)
-        first = np.unique(ends, return_index=True)[1]
-        chosen = np.unique(edge[first][small[ends[first]]])
-        joined[chosen] = True
-        label = _components(n, i[joined], j[joined])
+    label = merged_components(n, i, j, (cell[i] == cell[j]) & sure, sure, int(target / 4))
     label[excluded] = -1
     used = np.unique(label[label >= 0])
     relabel = np.full(label.max() + 2, -1)
     relabel[used] = np.arange(used.size)
     return relabel[label]
-
-
-def _components(n: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-    graph = sp.csr_matrix((np.ones(i.size), (i, j)), shape=(n, n))
-    return csgraph.connected_components(graph, directed=False)[1]
 
 
 def _cell_ids(points: np.ndarray, side: float) -> np.ndarray:
@@ -310,11 +291,12 @@ def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.n
 def _energy(along: np.ndarray, against: np.ndarray, label: np.ndarray, weight: np.ndarray):
     """The winding energy as ``s' G s - 2 c' s + const`` (module docstring): ``G``, shape (r, r), ``c``, shape (r,)."""
     rows = np.arange(label.size)
-    a_along, a_against = along.copy(), against.copy()
-    a_along[rows, label] += 0.5
-    a_against[rows, label] -= 0.5
-    G = a_along.T @ (a_along * weight[:, None]) + a_against.T @ (a_against * weight[:, None])
-    c = 0.5 * (a_along.T @ weight + a_against.T @ weight)
+    A = np.concatenate([along, against])  # one row per query
+    A[rows, label] += 0.5
+    A[label.size + rows, label] -= 0.5
+    w = np.concatenate([weight, weight])
+    G = A.T @ (A * w[:, None])
+    c = 0.5 * (A.T @ w)
     return G, c
 
 

@@ -4,7 +4,7 @@ import os
 
 import numpy as np
 import pytest
-from tiles_helpers import ALL_FIELDS, exact, read_fields
+from tiles_helpers import ALL_FIELDS, exact, exact_but_flagged_by_the_winding_number, read_fields
 
 import heatcurv
 from heatcurv.errors import HeatcurvError
@@ -178,7 +178,8 @@ def test_noisy_cloud_with_duplicates_equals_in_memory(tmp_path):
     report = compute_file(src, out, tile_size=1000, scheduler="serial", dtype="float64", fields=ALL_FIELDS)
     assert report.tiles >= 4
     agreement = tiled_agreement(out, memory, rtol=0.0)
-    assert exact(agreement) == dict.fromkeys(agreement, (0, 0.0))
+    differ = exact_but_flagged_by_the_winding_number(agreement, memory, rows_per_point=2)  # 400 rows twice
+    assert differ == dict.fromkeys(differ, (0, 0.0))
 
 
 def test_estimator_options_of_a_tiled_run():
