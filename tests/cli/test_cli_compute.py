@@ -8,6 +8,7 @@ from cli_helpers import WRITTEN, run
 
 import heatcurv
 from heatcurv import io
+from heatcurv.data import bunny_path
 
 
 def test_compute_sphere_mean_curvature_is_one(sphere_fields_ply):
@@ -286,3 +287,15 @@ def test_las_input_is_oriented_up_by_default(tmp_path):
     out = run("compute", str(src), "-o", str(tmp_path / "out.ply"), "--orient", "outward", "-v")
     assert out.returncode == 0, out.stderr
     assert "orienting normals up" not in out.stdout and "orientation: outward" in out.stdout
+
+
+def test_compute_says_what_the_winding_number_did(tmp_path):
+    # the shipped bunny scan: its thin ears are where the spanning tree and the winding number disagree
+    res = heatcurv.estimate(io.read_points(str(bunny_path())).points)
+    report = res.info["orientation"]
+    assert report.closed and report.turned > 0 and report.unsupported > 0
+    out = run("compute", bunny_path(), "-o", tmp_path / "b.ply")
+    assert out.returncode == 0, out.stderr
+    text = out.stdout + out.stderr
+    assert f"{report.turned} point(s) of parts the spanning tree had turned inside out were turned outward" in text
+    assert f"{report.ambiguous} point(s) have no consistent side" in text and "the winding number contradicts" in text

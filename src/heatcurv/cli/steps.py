@@ -182,9 +182,13 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
     log.info(f"surface area {res.area.sum():.6g} (reliable points: {res.area[res.reliable].sum():.6g}), "
              "in the cloud's unit squared")
     orientation = res.info.get("orientation")
+    if orientation is not None and orientation.turned:
+        log.info(f"{orientation.turned} point(s) of parts the spanning tree had turned inside out were turned "
+                 "outward by the winding number")
     if orientation is not None and orientation.ambiguous:
+        why = ", or a side the winding number contradicts" if orientation.unsupported else ""
         log.info(f"{orientation.ambiguous} point(s) have no consistent side for their normal (two sheets closer "
-                 "than the kernel, or no way to tell up from down): flagged unreliable")
+                 f"than the kernel, or no way to tell up from down{why}): flagged unreliable")
     if log.verbose:
         _report_details(res, log)
     return res
