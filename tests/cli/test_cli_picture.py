@@ -70,3 +70,21 @@ def test_render_errors(tmp_path, bunny_fields, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and err.startswith("heatcurv: error: ") and message in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_render_draws_unreliable_points_grey(tmp_path, bunny_fields):
+    cloud = io.read_points(bunny_fields)
+    unreliable = int((cloud.fields["reliable"] == 0).sum())
+    assert unreliable > 0
+    grey = run("render", bunny_fields, "-o", tmp_path / "grey.png", "--field", "mean", "--size", "600x400")
+    assert grey.returncode == 0, grey.stderr
+    assert f"{unreliable} unreliable point(s) drawn grey" in grey.stdout
+    coloured = run("render", bunny_fields, "-o", tmp_path / "all.png", "--field", "mean", "--size", "600x400",
+                   "--unreliable", "coloured")
+    assert coloured.returncode == 0 and "drawn grey" not in coloured.stdout
+    # the colour range comes from the reliable points only: the unreliable ones hold the extremes
+    limits = [float(o.stdout.rsplit("colours ", 1)[1].split(" ..")[0]) for o in (grey, coloured)]
+    assert abs(limits[0]) < abs(limits[1])
+    # a mask field or an input property is drawn as it is
+    mask = run("render", bunny_fields, "-o", tmp_path / "mask.png", "--field", "reliable", "--size", "600x400")
+    assert mask.returncode == 0 and "drawn grey" not in mask.stdout

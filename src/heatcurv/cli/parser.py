@@ -177,6 +177,10 @@ def _add_render(add) -> None:
                         help="compute the field even if the file holds one of that name")
     parser.add_argument("--feature-threshold", type=in_range("feature_threshold"), metavar="DEGREES",
                         help="threshold of --field feature, 0-180 (default: automatic)")
+    parser.add_argument("--unreliable", choices=("grey", "coloured"), default="grey",
+                        help="how to draw the points heatcurv does not trust (its 'reliable' field, read from "
+                        "the file or computed) in a picture of a computed field: grey, left out of the colour "
+                        "range, or coloured like the others (default: %(default)s)")
     _add_picture_options(parser)
     add_estimator_options(parser)
     _add_global_options(parser, suppress=True)

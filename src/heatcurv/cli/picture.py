@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import HeatcurvError
 from .console import EXIT_OK, Log
-from .fields import COMPUTED_FIELDS, FEATURE_FIELDS
+from .fields import COMPUTED_FIELDS, DEFAULT_FIELDS, FEATURE_FIELDS
 from .options import estimator_kwargs
 from .steps import (
     check_output_path,
@@ -70,10 +70,17 @@ def _check_field_options(args) -> None:
 
 
 def _field_values(args, cloud, options: dict, log: Log):
-    """``(values, camera_normals)``: the field read from the file, else computed (with the computed normals)."""
+    """``(values, camera_normals, reliable)``: the field read from the file, else computed.
+
+    ``camera_normals`` are the file's or the computed normals; ``reliable``
+    the file's ``reliable`` field or the computed one, as a bool mask (None
+    when there is none).
+    """
     field = args.field
     values = None if args.recompute else field_from_file(cloud, field)
     camera_normals = file_normals(cloud)
+    reliable = field_from_file(cloud, "reliable")
+    reliable = None if reliable is None else np.asarray(reliable) != 0
     if values is not None:
         log.info(f"field {field!r} read from {args.input}")
     elif field in COMPUTED_FIELDS:
@@ -85,6 +92,7 @@ def _field_values(args, cloud, options: dict, log: Log):
         feat = detect_features(res, args.feature_threshold, 10.0, log) if field in FEATURE_FIELDS else None
         values = full_rows(computed_values(res, feat, field), rows, len(cloud))
         camera_normals = full_rows(res.normals, rows, len(cloud))
+        reliable = full_rows(res.reliable, rows, len(cloud)) == 1
     else:
         present = ["x", "y", "z"] + (["nx", "ny", "nz"] if cloud.normals is not None else []) + (
             ["red", "green", "blue"] if cloud.colours is not None else []) + list(cloud.fields)
@@ -92,7 +100,17 @@ def _field_values(args, cloud, options: dict, log: Log):
             f"{args.input} has no field {field!r} and heatcurv does not compute it; the file holds "
             f"{', '.join(present)}; heatcurv computes {', '.join(COMPUTED_FIELDS)}"
         )
-    return values, camera_normals
+    return values, camera_normals, reliable
+
+
+def _grey_unreliable(values, reliable, field: str, log: Log):
+    """``values`` with the unreliable points' as NaN (drawn grey), for the normals, curvatures and areas."""
+    if reliable is None or field not in DEFAULT_FIELDS or field == "reliable":
+        return values
+    grey = ~reliable & np.isfinite(values)
+    if grey.any():
+        log.info(f"{int(grey.sum())} unreliable point(s) drawn grey (--unreliable coloured draws them coloured)")
+    return np.where(grey, np.nan, values)
 
 
 def run(args, log: Log) -> int:
@@ -104,7 +122,9 @@ def run(args, log: Log) -> int:
     field = args.field
     options = estimator_kwargs(args)
     cloud = read_cloud(args.input, log)
-    values, camera_normals = _field_values(args, cloud, options, log)
+    values, camera_normals, reliable = _field_values(args, cloud, options, log)
+    if args.unreliable == "grey":
+        values = _grey_unreliable(np.asarray(values, dtype=np.float64), reliable, field, log)
     vertical = "z" if (cloud.format or "") in ("las", "laz") else "y"
     label = field_style(field).label
     title = args.title if args.title is not None else f"{label} of {Path(args.input).name}"
