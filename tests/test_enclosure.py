@@ -50,10 +50,14 @@ def test_levels_of_a_closed_surface(noise, records):
     # clear the noise, a point next to a query counts at most as a disc): a few in ten thousand beyond
     # the tolerance at 0.3 % noise, which flags them
     s, area = _sample("torus", 6000, noise=noise)
-    along, against = patch_fields(s.points, s.normals, area, np.zeros(6000, dtype=np.int64), 1)
+    along, against, _ = patch_fields(s.points, s.normals, area, np.zeros(6000, dtype=np.int64), 1)
     off = np.maximum(np.abs(along[:, 0]), np.abs(against[:, 0] - 1))
     assert np.mean(off > LEVEL_TOLERANCE) <= (0 if noise == 0 else 0.003)
     records.check(f"enclosure/torus-levels-noise{noise:g}", median=np.median(off), p999=np.quantile(off, 0.999))
+
+
+def _balls(points):
+    return knn_neighbourhood(points, min(60, len(points) - 1))
 
 
 def _forest(points, normals, turned=None):
@@ -62,7 +66,7 @@ def _forest(points, normals, turned=None):
     The normals a forest hands on agree along each of its edges: a part turned as a whole is joined to
     the rest by no edge, as when the tree itself turned it across an edge between two sides.
     """
-    forest = _spanning_forest(points, normals, knn_neighbourhood(points, min(60, len(points) - 1)).spread(10))
+    forest = _spanning_forest(points, normals, _balls(points).spread(10))
     if turned is not None:
         forest = forest.tocoo()
         keep = turned[forest.row] == turned[forest.col]
@@ -76,7 +80,7 @@ def test_a_part_turned_inside_out_is_turned_back(records):
     s, area = _sample("torus", 6000)
     turned = s.points[:, 0] > 0.6
     normals = np.where(turned[:, None], -s.normals, s.normals)
-    result = enclose(s.points, normals, _forest(s.points, s.normals, turned), area)
+    result = enclose(s.points, normals, _forest(s.points, s.normals, turned), area, _balls(s.points))
     assert isinstance(result, Enclosure) and result.closed
     outward = np.einsum("ij,ij->i", result.normals, s.normals) > 0
     assert outward.all()
@@ -89,7 +93,7 @@ def test_a_part_turned_inside_out_is_turned_back(records):
 
 def test_noise_turns_nothing():
     s, area = _sample("torus", 6000, noise=0.0012)
-    result = enclose(s.points, s.normals, _forest(s.points, s.normals), area)
+    result = enclose(s.points, s.normals, _forest(s.points, s.normals), area, _balls(s.points))
     assert result.closed and result.flipped == 0
     assert result.unsupported.mean() <= 0.001  # a noisy level here and there is flagged, nothing turned
 
@@ -98,7 +102,7 @@ def test_noise_turns_nothing():
 def test_an_open_sheet_is_left_alone(name, sampler):
     s, _ = _sample(name, 4096, sampler)
     area = np.ones(4096)
-    result = enclose(s.points, s.normals, _forest(s.points, s.normals), area)
+    result = enclose(s.points, s.normals, _forest(s.points, s.normals), area, _balls(s.points))
     assert not result.closed and result.flipped == 0
     assert result.normals is s.normals and not result.unsupported.any()
 
@@ -109,7 +113,7 @@ def test_excluded_points_are_neither_turned_nor_flagged():
     normals = np.where(turned[:, None], -s.normals, s.normals)
     excluded = np.zeros(3000, dtype=bool)
     excluded[::50] = True
-    result = enclose(s.points, normals, _forest(s.points, s.normals, turned), area, excluded)
+    result = enclose(s.points, normals, _forest(s.points, s.normals, turned), area, _balls(s.points), excluded)
     assert np.array_equal(result.normals[excluded], normals[excluded])
     assert not result.unsupported[excluded].any()
     kept = ~excluded
@@ -119,7 +123,7 @@ def test_excluded_points_are_neither_turned_nor_flagged():
 def test_tiny_cloud_is_left_alone():
     pts = np.random.default_rng(0).normal(size=(10, 3))
     normals = pts / np.linalg.norm(pts, axis=1)[:, None]
-    result = enclose(pts, normals, _forest(pts, normals), np.ones(10))
+    result = enclose(pts, normals, _forest(pts, normals), np.ones(10), _balls(pts))
     assert not result.closed and result.normals is normals
 
 

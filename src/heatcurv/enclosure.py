@@ -30,7 +30,11 @@ inside) out of ``[0, 1]``. This module uses that field twice.
    0 or whose inside query is not near 1 (:data:`LEVEL_TOLERANCE`) has no
    side the field supports: a part too thin for ``delta`` (the inside query
    leaves it), a normal whose direction is wrong (its ball wraps around a thin
-   part), a patch that straddles both sides. Such points are flagged.
+   part), a patch that straddles both sides. Such points are flagged, and so
+   is a point whose disc (below) holds more than :data:`SPREAD_SHARE` of
+   flagged points: a small spot turned inside out amid right ones has levels
+   that agree (the field of a hole in a closed surface is 1/2 on both sides,
+   and the spot's own disc adds the jump), its neighbours' do not.
 
 Each query's value is summed over point dipoles (Barill et al. 2018, "Fast
 winding numbers for soups and clouds"), except near its own point: the sources
@@ -48,8 +52,8 @@ be trusted.
 
 The sums are exact over at most :data:`MAX_SOURCES` source points (all of a
 smaller cloud; above that, a subsample chosen by the coordinates alone, its
-areas scaled to the whole). In a larger cloud a patch is flagged as a whole
-when most of its sampled points are.
+areas scaled to the whole). In a larger cloud a point is flagged when most of
+the sources in its ball are.
 """
 
 from __future__ import annotations
@@ -62,6 +66,7 @@ from scipy.spatial import cKDTree
 
 from ._kernels.graph import merged_components
 from ._kernels.winding import clipped_dipole_terms, winding_numbers
+from .neighbourhood import Neighbourhood
 
 __all__ = ["Enclosure", "enclose", "MAX_SOURCES", "CLOSED_SHARE", "LEVEL_TOLERANCE"]
 
@@ -85,6 +90,8 @@ ACROSS = 0.5
 NOISE_CLEARANCE, NOISE_NEIGHBOURS = 2.0, 6
 #: Energy a patch's flip away from the tree must gain, per unit of its queries' weight.
 FLIP_MARGIN = 0.1
+#: A source whose disc holds more than this share of disagreeing sources is flagged too.
+SPREAD_SHARE = 0.2
 #: Share of the area whose levels are within ``CLOSED_TOLERANCE`` of their targets from which a cloud
 #: encloses a volume (an open sheet curved like a bowl has levels near 0 and 1/2).
 CLOSED_SHARE, CLOSED_TOLERANCE = 0.3, 0.25
@@ -116,7 +123,7 @@ class Enclosure:
 
 
 def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, areas: np.ndarray,
-            excluded: np.ndarray | None = None) -> Enclosure:
+            neighbourhood: Neighbourhood, excluded: np.ndarray | None = None) -> Enclosure:
     """Choose the side of every patch of the spanning forest by the winding number, and flag what it contradicts.
 
     Parameters
@@ -129,6 +136,9 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
         entries the edges' costs.
     areas : ndarray, shape (n,)
         Per-point areas (the dipoles' strengths).
+    neighbourhood : Neighbourhood
+        The points' balls: in a sampled cloud, a point is flagged when most
+        of the sources in its ball are.
     excluded : ndarray, shape (n,), bool, optional
         Points that are neither sources nor flagged (outliers).
 
@@ -146,7 +156,7 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     source = _sources(points, patch, excluded)
     x, nrm, label = points[source], normals[source], patch[source]
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
-    along, against = patch_fields(x, nrm, weight, label, n_patch)
+    along, against, (disc_rows, disc_members) = patch_fields(x, nrm, weight, label, n_patch)
     G, c = _energy(along, against, label, weight)
     sign = _patch_signs(G, c, label, weight)
 
@@ -163,15 +173,42 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
 
     flip = sign[patch] < 0
     flip[excluded] = False
-    unsupported = np.zeros(n, dtype=bool)
-    if source.size == n - excluded.sum():
-        unsupported[source] = ~agrees
-    else:  # a sampled cloud: a patch whose sampled points mostly disagree is flagged whole
-        disagreeing = np.bincount(label, weights=(~agrees).astype(float), minlength=n_patch)
-        sampled = np.bincount(label, minlength=n_patch)
-        unsupported = (disagreeing > 0.5 * np.maximum(sampled, 1))[patch] & ~excluded
+    # a source disagrees when its levels do, or many of its disc's do (a flipped spot's own levels agree)
+    bad = ~agrees
+    share = np.bincount(disc_rows, weights=bad[disc_members], minlength=bad.size) / np.bincount(
+        disc_rows, minlength=bad.size)
+    bad |= share > SPREAD_SHARE
+    unsupported = _unsupported(source, bad, neighbourhood, excluded)
     oriented = np.where(flip[:, None], -normals, normals)
     return Enclosure(oriented, unsupported, True, agreement, int(flip.sum()))
+
+
+def _unsupported(source: np.ndarray, bad: np.ndarray, neighbourhood: Neighbourhood, excluded: np.ndarray):
+    """The points flagged, shape (n,), bool: the disagreeing sources, and in a sampled cloud the others by their balls.
+
+    A point that is not a source is flagged when more than half of the
+    sources in its ball disagree (none when its ball holds no source). Only
+    the rows of points near a disagreeing source are read.
+    """
+    n = excluded.shape[0]
+    unsupported = np.zeros(n, dtype=bool)
+    unsupported[source] = bad
+    if source.size == n - excluded.sum() or not bad.any():
+        return unsupported
+    is_source = np.zeros(n, dtype=bool)
+    is_source[source] = True
+    # the points whose balls hold a disagreeing source: rows of the balls of those sources (balls are about symmetric)
+    near = np.zeros(n, dtype=bool)
+    flagged = source[bad]
+    near[neighbourhood.take_rows(flagged).indices] = True
+    near &= ~is_source & ~excluded
+    rows = np.flatnonzero(near)
+    balls = neighbourhood.take_rows(rows)
+    slot = np.repeat(np.arange(rows.size), balls.counts)
+    sources = np.bincount(slot, weights=is_source[balls.indices], minlength=rows.size)
+    against = np.bincount(slot, weights=unsupported[balls.indices], minlength=rows.size)
+    unsupported[rows] = against > 0.5 * sources
+    return unsupported
 
 
 def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray) -> np.ndarray:
@@ -257,6 +294,9 @@ def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.n
     -------
     along, against : ndarray, shape (m, n_patch)
         Each patch's field at ``x_i + delta_i n_i`` and at ``x_i - delta_i n_i``.
+    disc : (ndarray, ndarray)
+        The discs' members as pairs: source ``disc[1][p]`` is in the disc of
+        source ``disc[0][p]`` (each source is in its own).
     """
     m = x.shape[0]
     k = min(DISC_NEIGHBOURS, m - 1)
@@ -285,7 +325,7 @@ def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.n
         point = clipped_dipole_terms(d, dipoles[near])
         np.add.at(field, (rows, label[near]), -point - side * cap[rows] * share)
         fields.append(field)
-    return fields[0], fields[1]
+    return fields[0], fields[1], (rows, near)
 
 
 def _energy(along: np.ndarray, against: np.ndarray, label: np.ndarray, weight: np.ndarray):

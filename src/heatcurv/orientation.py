@@ -277,7 +277,7 @@ def orient(
     # the winding number decides inside from outside, part by part, and flags what it contradicts
     unsupported, closed, turned = np.zeros(n, dtype=bool), None, 0
     if whole_cloud:
-        enclosure = enclose(points, oriented, tree, w, excluded)
+        enclosure = enclose(points, oriented, tree, w, nbhd, excluded)
         oriented, unsupported, closed, turned = (
             enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.flipped)
     ambiguous = _conflicting(points, oriented, graph) | unsupported
