@@ -44,7 +44,7 @@ def test_what_the_winding_number_fixed(oriented):
     # bull 10.02 %, cow 10.30 %, dino 14.40 % inside out and reliable
     wrong = np.concatenate([w for w, _, _ in oriented.values()])
     silent = np.concatenate([w & r for w, r, _ in oriented.values()])
-    assert wrong.mean() < 0.04 and silent.mean() < 0.02
+    assert wrong.mean() < 0.04 and silent.mean() < 0.01  # today 3.76 % and 0.70 %
     for name, before in (("camel", 10.38), ("elephant", 14.52), ("bull", 10.02), ("cow", 10.30), ("dino", 14.40)):
         w, r, _ = oriented[name]
         assert 100 * (w & r).mean() < before / 2, name
