@@ -54,7 +54,8 @@ and which then turns one side inside out (measured on a 28k-point bunny scan:
 3.6 % of the normals, on the back of an ear).
 
 Where no consistent side exists (two sheets closer than the ball, points
-no anchor reaches within :data:`LOCAL_HOPS` rounds), the points are flagged
+no anchor reaches within :data:`LOCAL_HOPS` rounds, a side the winding
+number of a closed cloud contradicts), the points are flagged
 *ambiguous*, never silently guessed: :attr:`Orientation.ambiguous`, and
 ``estimate`` marks them unreliable.
 """
@@ -161,8 +162,10 @@ class Orientation:
     normals : ndarray, shape (n, 3)
         The input normals, flipped where needed.
     ambiguous : ndarray, shape (n,), bool
-        No consistent side: in-plane neighbours pointing the other way, or
-        (``"up"``, ``"viewpoint"``) no anchor within :data:`LOCAL_HOPS` edges.
+        No consistent side: in-plane neighbours pointing the other way,
+        (``"up"``, ``"viewpoint"``) no anchor within :data:`LOCAL_HOPS` edges,
+        or (``"outward"``, a closed cloud) a side the winding number
+        contradicts (:attr:`OrientationReport.unsupported`).
     report : OrientationReport
     reach : ndarray, shape (n,), optional
         ``"up"`` and ``"viewpoint"``: how far from each point (in the points'
