@@ -135,3 +135,17 @@ def test_the_report_says_what_the_winding_number_did():
     assert sheet.info["orientation"].closed is False
     up = heatcurv.estimate(surfaces.get("paraboloid").sample(4096, "grid", seed=3).points, orient="up")
     assert up.info["orientation"].closed is None
+
+
+def test_nested_surfaces_bound_one_solid_and_apart_ones_their_own():
+    # two concentric spheres bound a hollow shell: the inner one faces the cavity (out of the solid, as a
+    # mesh of a hollow solid is oriented), mean curvature -1/r; side by side each faces out of its own ball
+    outer = surfaces.Sphere(radius=2.0).sample(6000, "random", seed=1).points
+    inner = surfaces.Sphere(radius=1.0).sample(3000, "random", seed=2).points
+    for shift, inward in (([0, 0, 0], True), ([5, 0, 0], False)):
+        res = heatcurv.estimate(np.vstack([outer, inner + shift]))
+        assert res.info["orientation"].closed and res.info["orientation"].turned == (3000 if inward else 0)
+        assert np.all(np.einsum("ij,ij->i", res.normals[:6000], outer) > 0)
+        away = np.einsum("ij,ij->i", res.normals[6000:], inner) > 0
+        assert np.all(away != inward)
+        assert np.median(res.mean[6000:]) == pytest.approx(-1.0 if inward else 1.0, rel=1e-6)
