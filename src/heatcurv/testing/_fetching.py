@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
+import shutil
+import tempfile
 from pathlib import Path
 
 #: Written last into a complete cache: its presence is what "fetched" means.
@@ -48,3 +51,68 @@ def _move_into_place(tree: Path, target: Path) -> None:
     if target.is_dir():
         target.rmdir()  # empty; a rename onto it would fail on some systems
     os.replace(tree, target)
+
+
+def fetch_into(target: Path, *, what: str, cache_name: str, is_complete, download, sha256: str, extract,
+               record: dict, nested: re.Pattern | None = None) -> Path:
+    """Download an archive, check its SHA-256, extract files from it and rename them into ``target``, marker last.
+
+    Parameters
+    ----------
+    target : pathlib.Path
+        The cache directory.
+    what, cache_name : str
+        How the messages name the files (``"CGAL models"``) and the cache (``"CGAL model"``).
+    is_complete : callable
+        ``is_complete(directory) -> bool``: whether a directory is a complete cache.
+    download : callable
+        ``download(directory) -> Path``: the archive, downloaded into ``directory``.
+    sha256 : str
+        The archive's expected SHA-256.
+    extract : callable
+        ``extract(archive, directory) -> list``: writes the kept files into ``directory``, returns their names.
+    record : dict
+        What the completion marker records besides ``files``.
+    nested : re.Pattern, optional
+        Names of entries another cache may hold in ``target`` (left in place).
+
+    Returns
+    -------
+    pathlib.Path
+        ``target``.
+
+    Raises
+    ------
+    ScanDataUnavailable
+        Any step failed; the message says which.
+    """
+    if is_complete(target):
+        return target
+    if _occupied(target, nested):
+        raise ScanDataUnavailable(f"{target} exists but is not a complete {cache_name} cache; remove it to fetch again")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        work = Path(tempfile.mkdtemp(prefix=f".{target.name}.fetch-", dir=target.parent))
+    except OSError as exc:
+        raise ScanDataUnavailable(f"cannot create the cache directory {target}: {exc}") from exc
+    try:
+        downloaded, tree = work / "download", work / "files"
+        downloaded.mkdir()
+        tree.mkdir()
+        archive = download(downloaded)
+        digest = _sha256(archive)
+        if digest != sha256:
+            raise ScanDataUnavailable(f"{archive.name} has SHA-256 {digest}, expected {sha256}")
+        files = extract(archive, tree)
+        archive.unlink()
+        (tree / _MARKER).write_text(json.dumps({**record, "files": files}, indent=1) + "\n")
+        try:
+            _move_into_place(tree, target)
+        except OSError as exc:
+            if not is_complete(target):  # a concurrent fetch that finished first is fine
+                raise ScanDataUnavailable(f"cannot move the {what} into {target}: {exc}") from exc
+    except OSError as exc:
+        raise ScanDataUnavailable(f"fetching the {what} into {target} failed: {exc}") from exc
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return target

@@ -17,17 +17,15 @@ re-exports its public names.
 from __future__ import annotations
 
 import io
-import json
 import os
 import shutil
 import subprocess
 import tarfile
-import tempfile
 import urllib.error
 import urllib.request
 from pathlib import Path
 
-from ._fetching import _MARKER, ScanDataUnavailable, _move_into_place, _occupied, _sha256
+from ._fetching import _MARKER, ScanDataUnavailable, fetch_into
 
 __all__ = ["CGAL_DEBIAN_VERSION", "CGAL_MESHES", "cgal_cache_dir", "fetch_cgal_meshes"]
 
@@ -236,41 +234,8 @@ def fetch_cgal_meshes(cache_dir=None, *, timeout: float = _TIMEOUT) -> Path:
         test to skip with.
     """
     target = Path(cache_dir).expanduser() if cache_dir is not None else cgal_cache_dir()
-    if _cgal_is_complete(target):
-        return target
-    if _occupied(target):
-        raise ScanDataUnavailable(f"{target} exists but is not a complete CGAL model cache; remove it to fetch again")
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        work = Path(tempfile.mkdtemp(prefix=f".{target.name}.fetch-", dir=target.parent))
-    except OSError as exc:
-        raise ScanDataUnavailable(f"cannot create the cache directory {target}: {exc}") from exc
-    try:
-        download, tree = work / "deb", work / "meshes"
-        download.mkdir()
-        tree.mkdir()
-        deb = _download_deb(download, timeout)
-        digest = _sha256(deb)
-        if digest != _DEB_SHA256:
-            raise ScanDataUnavailable(f"{deb.name} has SHA-256 {digest}, expected {_DEB_SHA256}")
-        files = _extract_cgal_meshes(deb, tree)
-        deb.unlink()
-        record = {
-            "package": "libcgal-demo",
-            "version": CGAL_DEBIAN_VERSION,
-            "deb": _DEB_NAME,
-            "sha256": _DEB_SHA256,
-            "source": f"CGAL 5.5.1 data directory ({_DEB_DATA_TARBALL} in the package)",
-            "files": files,
-        }
-        (tree / _MARKER).write_text(json.dumps(record, indent=1) + "\n")
-        try:
-            _move_into_place(tree, target)
-        except OSError as exc:
-            if not _cgal_is_complete(target):  # a concurrent fetch that finished first is fine
-                raise ScanDataUnavailable(f"cannot move the CGAL models into {target}: {exc}") from exc
-    except OSError as exc:
-        raise ScanDataUnavailable(f"fetching the CGAL models into {target} failed: {exc}") from exc
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
-    return target
+    record = {"package": "libcgal-demo", "version": CGAL_DEBIAN_VERSION, "deb": _DEB_NAME, "sha256": _DEB_SHA256,
+              "source": f"CGAL 5.5.1 data directory ({_DEB_DATA_TARBALL} in the package)"}
+    return fetch_into(target, what="CGAL models", cache_name="CGAL model", is_complete=_cgal_is_complete,
+                      download=lambda directory: _download_deb(directory, timeout), sha256=_DEB_SHA256,
+                      extract=_extract_cgal_meshes, record=record)

@@ -26,13 +26,11 @@ the estimator: the tests judge the estimator against what it computes.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import shutil
 import subprocess
 import sys
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from itertools import chain
@@ -41,7 +39,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 from plyfile import PlyData, PlyElementParseError
 
-from ._fetching import _MARKER, ScanDataUnavailable, _move_into_place, _occupied, _sha256
+from ._fetching import _MARKER, ScanDataUnavailable, fetch_into
 from .cgal import _CGAL_DIRNAME, CGAL_DEBIAN_VERSION, CGAL_MESHES, cgal_cache_dir, fetch_cgal_meshes
 
 __all__ = [
@@ -208,46 +206,11 @@ def fetch_pymeshlab_samples(cache_dir=None, *, timeout: float = _PIP_TIMEOUT) ->
         message says which, for a test to skip with.
     """
     target = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
-    if _is_complete(target):
-        return target
-    if _occupied(target, nested=_NESTED):
-        raise ScanDataUnavailable(
-            f"{target} exists but is not a complete pymeshlab sample cache; remove it to fetch again"
-        )
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        work = Path(tempfile.mkdtemp(prefix=f".{target.name}.fetch-", dir=target.parent))
-    except OSError as exc:
-        raise ScanDataUnavailable(f"cannot create the cache directory {target}: {exc}") from exc
-    try:
-        download, tree = work / "wheel", work / "samples"
-        download.mkdir()
-        tree.mkdir()
-        wheel = _download_wheel(download, timeout)
-        digest = _sha256(wheel)
-        if digest != _WHEEL_SHA256:
-            raise ScanDataUnavailable(f"{wheel.name} has SHA-256 {digest}, expected {_WHEEL_SHA256}")
-        files = _extract_samples(wheel, tree)
-        wheel.unlink()
-        record = {
-            "package": "pymeshlab",
-            "version": PYMESHLAB_VERSION,
-            "wheel": _WHEEL_NAME,
-            "sha256": _WHEEL_SHA256,
-            "license": "GPL-3.0",
-            "files": files,
-        }
-        (tree / _MARKER).write_text(json.dumps(record, indent=1) + "\n")
-        try:
-            _move_into_place(tree, target)
-        except OSError as exc:
-            if not _is_complete(target):  # a concurrent fetch that finished first is fine
-                raise ScanDataUnavailable(f"cannot move the samples into {target}: {exc}") from exc
-    except OSError as exc:
-        raise ScanDataUnavailable(f"fetching the pymeshlab samples into {target} failed: {exc}") from exc
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
-    return target
+    record = {"package": "pymeshlab", "version": PYMESHLAB_VERSION, "wheel": _WHEEL_NAME, "sha256": _WHEEL_SHA256,
+              "license": "GPL-3.0"}
+    return fetch_into(target, what="pymeshlab samples", cache_name="pymeshlab sample", is_complete=_is_complete,
+                      download=lambda directory: _download_wheel(directory, timeout), sha256=_WHEEL_SHA256,
+                      extract=_extract_samples, record=record, nested=_NESTED)
 
 
 # --------------------------------------------------------------------------- meshes
