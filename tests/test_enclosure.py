@@ -131,8 +131,9 @@ def test_the_report_says_what_the_winding_number_did():
     closed = heatcurv.estimate(surfaces.get("torus").sample(4000, "random", seed=3).points)
     report = closed.info["orientation"]
     assert report.mode == "outward" and report.closed is True and report.turned == 0 and report.unsupported == 0
-    sheet = heatcurv.estimate(surfaces.get("paraboloid").sample(4096, "grid", seed=3).points)
+    sheet = heatcurv.estimate(surfaces.get("paraboloid").sample(4096, "grid", seed=3).points, orient="outward")
     assert sheet.info["orientation"].closed is False
+    assert "open: each component's outward vote" in sheet.info["orientation"].reason
     up = heatcurv.estimate(surfaces.get("paraboloid").sample(4096, "grid", seed=3).points, orient="up")
     assert up.info["orientation"].closed is None
 

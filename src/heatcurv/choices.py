@@ -14,12 +14,15 @@ at their seams:
 * the **kernel widths**: the noise level and Lepski's choice, made at sample
   centres over the whole cloud (:func:`heatcurv.scale.select_scale`; a tiled
   run measures the centres tile by tile, :mod:`heatcurv.survey`);
+* the **orientation policy** of ``orient="auto"`` without a viewpoint
+  (:func:`heatcurv.orientation.auto_policy`: "up" for an open surface over
+  the horizontal plane, else "outward"), decided on the same sample centres;
 * the **medians** the reliability flags compare against (the misfit baselines
   and the resolution check, :mod:`heatcurv.estimator`), taken over every point
   after the fit.
 
 :func:`heatcurv.estimate` makes all of them from the points it holds; given
-:class:`CloudChoices` it takes the frame and the kernel widths from them.
+:class:`CloudChoices` it takes the frame, the kernel widths and the orientation policy from them.
 """
 
 from __future__ import annotations
@@ -168,7 +171,10 @@ class CloudChoices:
     scale : heatcurv.scale.ScaleChoice or None
         The kernel widths, with the sample centres they were chosen at
         (``centres``, ``k_centre``); None: chosen from the points at hand.
+    orientation : heatcurv.orientation.AutoPolicy or None
+        What ``orient="auto"`` without a viewpoint orients by; None: decided on the points at hand.
     """
 
     frame: CloudFrame
     scale: object | None = None
+    orientation: object | None = None

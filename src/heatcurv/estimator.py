@@ -45,13 +45,13 @@ from .neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_pe
 from .normals import pca_normals
 from .operator import HeatKernelOperator
 from .options import rename_aliases, resolve_options
-from .orientation import Orientation, OrientationReport, as_viewpoint, orient, row_reach
+from .orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient, row_reach
 from .outliers import Outliers, find_outliers
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
 from .reliability import ReliabilityInputs, cloud_flags
 from .results import CurvatureResult
-from .sampling import geometric_keys
+from .sampling import geometric_keys, key_sample
 from .scale import ScaleReport, select_form, select_scale
 from .validation import prepare_normals
 
@@ -131,9 +131,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         ``scale`` (``"auto"`` or a neighbour count; ``res.info["scale"]``
         reports the choice), ``scale_tuning`` (:class:`heatcurv.ScaleTuning`),
         ``orient`` (which side the normals point to: ``"auto"``, the
-        default, is ``"viewpoint"`` when a viewpoint is given, else
-        ``"outward"``; ``"up"`` for terrain and aerial scans, towards +z;
-        :mod:`heatcurv.orientation`),
+        default, is ``"viewpoint"`` when a viewpoint is given, else ``"up"``
+        (+z) for an open surface over the horizontal plane and
+        ``"outward"`` for anything else; ``info["orientation"].reason``
+        says which; :mod:`heatcurv.orientation`),
         ``area_solver``, ``taper``, ``min_neighbours`` (6) and ``workers``
         (threads; -1: all cores). ``neighbors`` and ``min_neighbors`` are
         accepted as deprecated aliases.
@@ -171,6 +172,11 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             check_kernel(op.neighbourhood, op.h, opts, keys)  # refuse a kernel that leaves nothing to fit
         with clock.stage("outliers"):
             outliers = find_outliers(op.points, op.neighbourhood)
+        policy = None
+        if mode == "auto":
+            with clock.stage("orientation", report=False):
+                policy = _auto_policy(op, keys, choices)
+            mode = policy.mode
         towards = _reference(op, mode, viewpoint)
         nrm, planarity, orientation = _normal_stages(op, normals, mode, towards, outliers.mask, clock,
                                                      whole_cloud=choices is None)
@@ -188,11 +194,15 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         if mode == "viewpoint" and normals is None:
             # a scanner sees only surfaces facing it: the fit's refined normals must too
             fitted = _facing_viewpoint(fitted, op.points, towards)
+    orientation = replace(orientation, report=_explained(orientation.report, policy, op.points.shape[0]))
     return _result(op, fitted, planarity, K, orientation, outliers, clock.timings, whole_cloud=choices is None)
 
 
 def _orientation_mode(orient_option: str, normals, viewpoint) -> str:
-    """The orientation policy of this call: ``"given"``, ``"outward"``, ``"up"`` or ``"viewpoint"``."""
+    """The orientation policy of this call: ``"given"``, ``"outward"``, ``"up"``, ``"viewpoint"``, or ``"auto"``.
+
+    ``"auto"`` (no viewpoint, no normals) is decided on the cloud's sample by :func:`_auto_policy`.
+    """
     if normals is not None:
         if viewpoint is not None:
             raise HeatcurvError("give either normals or a viewpoint, not both")
@@ -201,13 +211,47 @@ def _orientation_mode(orient_option: str, normals, viewpoint) -> str:
                                 "as they are (leave orient='auto')")
         return "given"
     if orient_option == "auto":
-        return "outward" if viewpoint is None else "viewpoint"
+        return "auto" if viewpoint is None else "viewpoint"
     if orient_option == "viewpoint" and viewpoint is None:
         raise HeatcurvError("orient='viewpoint' needs viewpoint=(x, y, z), the scanner's position")
     if orient_option != "viewpoint" and viewpoint is not None:
         raise HeatcurvError(f"a viewpoint orients the normals towards the scanner; it cannot be combined with "
                             f"orient={orient_option!r}")
     return orient_option
+
+
+def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices) -> AutoPolicy:
+    """``orient="auto"`` without a viewpoint: ``"up"`` or ``"outward"`` (:func:`heatcurv.orientation.auto_policy`).
+
+    Decided on the scale choice's sample centres (the ``n_sub`` points of
+    smallest keys), or taken from ``choices`` (a tiled run's survey decided it
+    on the same centres of the whole cloud).
+    """
+    if choices is not None and getattr(choices, "orientation", None) is not None:
+        return choices.orientation
+    tuning = op.options.scale_tuning
+    return auto_policy(op.points[key_sample(keys, tuning.n_sub, tuning.seed)])
+
+
+def _explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> OrientationReport:
+    """``report`` with its :attr:`~heatcurv.orientation.OrientationReport.reason` (auto "up": and its convention)."""
+    if report.mode == "given":
+        return replace(report, reason="the given normals, as they are")
+    if report.mode == "viewpoint":
+        return replace(report, reason="towards the viewpoint")
+    if report.mode == "up":
+        if policy is None:
+            return replace(report, reason="orient='up': towards +z")
+        return replace(report, reason=policy.reason, by_convention=n)  # turning the cloud may change the choice
+    if report.closed:
+        why = "encloses a volume: away from it (winding number)"
+    elif report.closed is None:
+        why = "outward: each piece as the tree orients it (a part of a cloud)"
+    else:
+        why = "open: each component's outward vote, its convex side out"
+        if report.by_convention:
+            why += "; nearly flat components by the least-variance-axis convention"
+    return replace(report, reason=why if policy is None else f"{policy.reason}; {why}")
 
 
 def _reference(op: HeatKernelOperator, mode: str, viewpoint):

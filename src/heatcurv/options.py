@@ -320,7 +320,10 @@ class Options:
         Which side the estimated normals point to (:mod:`heatcurv.orientation`):
         away from the enclosed volume, towards +z, or towards the scanner
         (``estimate(viewpoint=...)``); ``"auto"`` is ``"viewpoint"`` when a
-        viewpoint is given, else ``"outward"``.
+        viewpoint is given, else ``"up"`` for an open surface over the
+        horizontal plane (terrain, roofs) and ``"outward"`` for anything else
+        (:func:`heatcurv.orientation.auto_policy`;
+        ``info["orientation"].reason`` says which).
     area_solver : {"auto", "cg", "bicgstab", "direct"}
         Solver of ``H A = 1``.
     taper : bool
@@ -426,8 +429,8 @@ class Options:
                                         cli=False)
     orient: str = _option(
         "auto", "which side the normals point to: outward (closed objects), up (+z: terrain, buildings, aerial "
-        "LiDAR), viewpoint (towards the scanner); auto: viewpoint when one is given, else outward "
-        "(the command line: up for LAS/LAZ)",
+        "LiDAR), viewpoint (towards the scanner); auto: viewpoint when one is given, else up for an open "
+        "surface over the horizontal plane and outward for anything else (the command line: up for LAS/LAZ)",
         choices=("auto", "outward", "up", "viewpoint"),
     )
     area_solver: str = _option(

@@ -40,6 +40,7 @@ from .neighbourhood import Neighbourhood
 from .normals import pca_normals
 from .operator import HeatKernelOperator
 from .options import Options, rename_aliases, resolve_options
+from .orientation import auto_policy
 from .outliers import find_outliers
 from .sampling import geometric_keys, shifted_keys
 from .scale import CentreFits, CentreFitter, Scale, _ladder, decide_scale, level_sizes
@@ -220,14 +221,15 @@ def merge_surveys(surveys: list, frame: CloudFrame, **options) -> CloudChoices:
 
 
 def _decide(fits, positions: np.ndarray, frame: CloudFrame, opts) -> CloudChoices:
-    """:func:`heatcurv.scale.decide_scale` once for the cloud, on fits at its sample centres (``positions``)."""
+    """:func:`heatcurv.scale.decide_scale` and :func:`heatcurv.orientation.auto_policy` once for the cloud, at its
+    sample centres (``positions``)."""
     tuning = opts.scale_tuning
     choice = decide_scale(
         fits, positions, frame.n_points, base_k=int(opts.neighbours), max_k=tuning.max_k, tau=tuning.tau,
         clean_ratio=tuning.clean_ratio, fixed_k=None if opts.scale == "auto" else int(opts.scale),
         workers=opts.workers,
     )
-    return CloudChoices(frame, choice)
+    return CloudChoices(frame, choice, auto_policy(positions))
 
 
 # ----------------------------------------------------------------------------------------------------

@@ -186,7 +186,7 @@ def test_estimator_options_of_a_tiled_run():
     """heatcurv.tiles.driver.estimator_options: what every tile gets, checked before any pass over the file."""
     from heatcurv.tiles.driver import estimator_options
 
-    # LAS/LAZ orient up by default, as on the command line; other formats keep "auto" (outward)
+    # LAS/LAZ orient up by default, as on the command line; other formats keep "auto" (the survey decides)
     assert estimator_options("default", None, {}, "las")["orient"] == "up"
     assert "orient" not in estimator_options("default", None, {}, "npy")
     assert estimator_options("default", (1, 2, 3), {}, "las")["viewpoint"] == [1.0, 2.0, 3.0]

@@ -222,7 +222,9 @@ def _report_details(res, log: Log) -> None:
     if orientation is not None and orientation.mode != "given":
         log.detail(f"  orientation: {orientation.mode}; {orientation.components} component(s); "
                    f"{orientation.anchored} point(s) read off the reference direction, "
-                   f"{orientation.by_convention} by the flat-patch convention, {orientation.ambiguous} ambiguous")
+                   f"{orientation.by_convention} by a convention on the coordinates, {orientation.ambiguous} ambiguous")
+        if orientation.reason:
+            log.detail(f"  orientation chosen: {orientation.reason}")
     solve = res.info.get("area_solve")
     if res.options.area_method == "system" and solve is not None:
         log.detail(f"  area system H A = 1: {solve.solver}, {solve.iterations} iterations, "

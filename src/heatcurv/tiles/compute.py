@@ -262,7 +262,7 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
     out = {name: np.asarray(fields[name])[core] for name in RESULT_FIELDS}
     out["support"] = np.asarray(res.info["reach"])[core]
     out["halo_normals"] = res.normals[~core]
-    outward = orients_outward(options)
+    outward = orients_outward(options, context["choices"])
     out["patch"] = _patches(points, res.spacing, options) if outward else np.zeros(len(points), np.int64)
     return out
 
@@ -310,10 +310,16 @@ def describe(context: dict) -> dict:
     return out
 
 
-def orients_outward(options: dict) -> bool:
-    """Whether the options orient outward (the one policy that is not decided point by point)."""
+def orients_outward(options: dict, choices) -> bool:
+    """Whether the options orient outward (the one policy that is not decided point by point).
+
+    ``orient="auto"`` without a viewpoint follows the survey's choice (``choices.orientation``).
+    """
     orient = options.get("orient") or "auto"
-    return orient == "outward" or (orient == "auto" and options.get("viewpoint") is None)
+    if orient == "auto" and options.get("viewpoint") is None:
+        policy = getattr(choices, "orientation", None)
+        return policy is None or policy.mode == "outward"
+    return orient == "outward"
 
 
 def _patches(points: np.ndarray, spacing: np.ndarray, options: dict) -> np.ndarray:

@@ -502,7 +502,7 @@ def compute_file(
         timings["reliability"] = time.perf_counter() - tic
 
         flips, orientation = None, None
-        if compute.orients_outward(est):
+        if compute.orients_outward(est, context["choices"]):
             from .orient import seam_flips
 
             bar.stage("orientation")
