@@ -80,6 +80,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
 
 from ._kernels import graph as graph_kernels
 from ._kernels import segment as kernels
@@ -279,20 +280,23 @@ def auto_policy(centres: np.ndarray) -> AutoPolicy:
     -------
     AutoPolicy
     """
-    from .normals import pca_normals  # normals orient given normals with this module
-
     centres = np.asarray(centres, dtype=np.float64)
     centres = centres[np.lexsort(centres.T[::-1])]
     q = centres.shape[0]
     if q < 4:
         return AutoPolicy("outward", 0.0, 0.0)
-    nbhd = knn_neighbourhood(centres, min(AUTO_NEIGHBOURS, q - 1), workers=1)
-    normals, _ = pca_normals(centres, nbhd)
-    tree = _spanning_forest(centres, normals, nbhd)
-    n_comp, labels = csgraph.connected_components(tree, directed=False)
+    k = min(AUTO_NEIGHBOURS, q - 1)
+    tree = cKDTree(centres)
+    nbhd = knn_neighbourhood(centres, k, tree=tree, workers=1)
+    # plain PCA of each point and its k nearest: the eigenvector of the smallest eigenvalue
+    near = centres[tree.query(centres, k + 1)[1]]
+    spread = near - near.mean(axis=1, keepdims=True)
+    normals = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))[1][:, :, 0]
+    forest = _spanning_forest(centres, normals, nbhd)
+    n_comp, labels = csgraph.connected_components(forest, directed=False)
     roots = np.zeros(q, dtype=bool)
     roots[np.unique(labels, return_index=True)[1]] = True
-    parity, _ = _parity_from_roots(tree, centres, normals, roots)
+    parity, _ = _parity_from_roots(forest, centres, normals, roots)
     up = np.where(parity, -normals[:, 2], normals[:, 2])
     facing_up = np.bincount(labels, weights=up >= ANCHOR_COSINE, minlength=n_comp)
     facing_down = np.bincount(labels, weights=up <= -ANCHOR_COSINE, minlength=n_comp)
