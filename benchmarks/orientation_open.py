@@ -140,7 +140,8 @@ def main(argv=None) -> int:
         rows.append(cells(measure(name)))
         print(f"  {name}: done", file=sys.stderr, flush=True)
     print(f"date (UTC)   {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}")
-    print(f"machine      {cpu_model()}, {os.cpu_count()} cores{memory_text()}; {platform.system()} {platform.release()}")
+    system = f"{platform.system()} {platform.release()}"
+    print(f"machine      {cpu_model()}, {os.cpu_count()} cores{memory_text()}; {system}")
     print(f"python       {platform.python_version()}, numpy {np.__version__}")
     print(f"heatcurv     {heatcurv.__version__} (commit {commit()})\n")
     if args.markdown:

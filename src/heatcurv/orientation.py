@@ -24,11 +24,11 @@ sign depends on which way along it the normal points. Three policies
 given; otherwise :func:`auto_policy` looks at a sample of the cloud (the
 scale choice's sample centres, :func:`heatcurv.sampling.key_sample`, so
 that a tiled run decides alike): an open surface spread over the horizontal
-plane (terrain, roofs, a range scan from above: most normals within 72.5
-degrees of vertical, and almost none of those facing down once the sample is
+plane (terrain, roofs, a range scan from above: most normals within 45
+degrees of vertical, and almost none facing down once the sample is
 consistently oriented) is oriented ``"up"``; anything else ``"outward"``. A
 closed surface is never taken for terrain: by the divergence theorem its
-outward normals have ``sum_i A_i n_z,i = 0``, as much area facing down as up.
+outward normals have ``sum_i A_i n_z,i = 0``, as much facing down as up.
 An ``"outward"`` cloud the winding number finds open keeps each component's
 outward vote (its convex side out), or the flat-patch convention;
 :attr:`OrientationReport.reason` says which rule oriented the cloud.
@@ -90,7 +90,7 @@ from .neighbourhood import Neighbourhood, knn_neighbourhood
 
 __all__ = [
     "ORIENT_MODES", "ANCHOR_COSINE", "GRAPH_NEIGHBOURS", "LOCAL_HOPS", "Orientation", "OrientationReport", "orient",
-    "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy", "AUTO_ANCHOR_SHARE", "AUTO_DOWN_SHARE",
+    "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy", "AUTO_SHARE", "AUTO_DOWN_SHARE",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
@@ -113,13 +113,19 @@ CONFLICT_IN_PLANE, CONFLICT_ALIGNED = 0.5, 0.7
 #: Share of the compared neighbours pointing the other way that makes a
 #: point's orientation ambiguous.
 CONFLICT_SHARE = 0.3
-#: ``orient="auto"`` orients ``"up"`` when at least this share of the sample's normals are anchors
-#: of ``"up"`` (``|n_z| >= ANCHOR_COSINE``; a sphere: 70 %, a terrain tile: 95 %, an upright tube: 0) ...
-AUTO_ANCHOR_SHARE = 0.5
-#: ... and at most this share of those anchors face down once the sample is consistently oriented
-#: (measured on 2000-point samples: closed objects 42-50 %, a LiDAR tile 0.3-1.3 %, the same tile turned
-#: 30/50/20 degrees about x/y/z 2.0-3.5 %, a face range map 0 %, the same turned 7 %).
-AUTO_DOWN_SHARE = 0.05
+#: ``orient="auto"`` orients ``"up"`` when at least this share of the sample's normals lie within
+#: 45 degrees of vertical (``|n_z| >= AUTO_VERTICAL_COSINE``; 2000-point samples: the LiDAR tile
+#: 92-93 %, a face range map seen from +z 66 %, the tile turned 30/50/20 degrees about x/y/z 7-9 %,
+#: a sphere 29-30 %) ...
+AUTO_SHARE, AUTO_VERTICAL_COSINE = 0.5, float(np.sqrt(0.5))
+#: ... and, once the sample is consistently oriented, at most this share of the vertical components
+#: ``|n_z|`` of its flat points faces down (the LiDAR tile and the face range map 0.0 %; the face
+#: turned 30/50/20 degrees 7.1-7.6 %, where "up" would turn its chin against its forehead; closed
+#: surfaces, whose ``sum_i A_i n_z,i = 0``: spheres, tori, CAD part, CGAL models 24-50 %).
+AUTO_DOWN_SHARE = 0.03
+#: A sample point is flat when its smallest PCA eigenvalue is at most this times the middle one: tree
+#: crowns, whose normals are noise, are not.
+AUTO_FLATNESS = 0.15
 #: Nearest sample points each sample normal and the sample's spanning tree use.
 AUTO_NEIGHBOURS = 16
 #: Outward vote below this share of ``sum_i A_i |n_i . (x_i - c)|``: the
@@ -235,22 +241,24 @@ class AutoPolicy:
     ----------
     mode : str
         ``"up"`` or ``"outward"``.
-    anchors : float
-        Share of the sample's normals within 72.5 degrees of vertical (``|n_z| >= ANCHOR_COSINE``).
+    vertical : float
+        Share of the sample's normals within 45 degrees of vertical (``|n_z| >= AUTO_VERTICAL_COSINE``).
     down : float
-        Share of those facing down once the sample is consistently oriented
-        (per connected component, the smaller of the up and down counts).
+        Once the sample is consistently oriented (per connected component,
+        either side), the share of ``sum_i |n_z,i|`` over its flat points on
+        those facing down (the smaller of the two sums): 0 for a surface over
+        the horizontal plane, 1/2 for a closed one.
     """
 
     mode: str
-    anchors: float
+    vertical: float
     down: float
 
     @property
     def reason(self) -> str:
         """Why, in words: the report's :attr:`OrientationReport.reason`."""
-        measured = (f"{100 * self.anchors:.0f} % of the sampled normals within 72.5 degrees of vertical, "
-                    f"{100 * self.down:.1f} % of those facing down once consistently oriented")
+        measured = (f"{100 * self.vertical:.0f} % of the sampled normals within 45 degrees of vertical; "
+                    f"consistently oriented, {100 * self.down:.1f} % of their vertical extent faces down")
         if self.mode == "up":
             return f"auto: an open surface over the horizontal plane, oriented up (+z) ({measured})"
         return f"auto: not a surface over the horizontal plane ({measured})"
@@ -262,12 +270,13 @@ def auto_policy(centres: np.ndarray) -> AutoPolicy:
     A surface whose consistent orientation puts every normal's ``n_z`` on the
     same side is a graph over the horizontal plane (terrain, roofs, a scan
     from above), where "up" is the side everyone expects; a closed surface has
-    ``sum_i A_i n_z,i = 0`` (divergence theorem), as much area facing down as
-    up, whichever way it is turned. So the sample's PCA normals (its
-    :data:`AUTO_NEIGHBOURS` nearest) are oriented consistently by the
-    spanning tree of :func:`orient` and counted: ``"up"`` when at least
-    :data:`AUTO_ANCHOR_SHARE` of them are anchors of ``"up"`` and at most
-    :data:`AUTO_DOWN_SHARE` of those face down.
+    ``sum_i A_i n_z,i = 0`` (divergence theorem), as much facing down as up,
+    whichever way it is turned. So the sample's PCA normals (each point's
+    :data:`AUTO_NEIGHBOURS` nearest) are oriented consistently by the spanning
+    tree of :func:`orient`, and the cloud is oriented ``"up"`` when at least
+    :data:`AUTO_SHARE` of them lie within 45 degrees of vertical and at most
+    :data:`AUTO_DOWN_SHARE` of the ``sum |n_z|`` of the flat ones
+    (:data:`AUTO_FLATNESS`: not a tree crown's scatter) faces down.
 
     Parameters
     ----------
@@ -291,19 +300,23 @@ def auto_policy(centres: np.ndarray) -> AutoPolicy:
     # plain PCA of each point and its k nearest: the eigenvector of the smallest eigenvalue
     near = centres[tree.query(centres, k + 1)[1]]
     spread = near - near.mean(axis=1, keepdims=True)
-    normals = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))[1][:, :, 0]
+    eigenvalues, eigenvectors = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))
+    normals = eigenvectors[:, :, 0]
+    flat = eigenvalues[:, 0] <= AUTO_FLATNESS * eigenvalues[:, 1]
     forest = _spanning_forest(centres, normals, nbhd)
     n_comp, labels = csgraph.connected_components(forest, directed=False)
     roots = np.zeros(q, dtype=bool)
     roots[np.unique(labels, return_index=True)[1]] = True
     parity, _ = _parity_from_roots(forest, centres, normals, roots)
-    up = np.where(parity, -normals[:, 2], normals[:, 2])
-    facing_up = np.bincount(labels, weights=up >= ANCHOR_COSINE, minlength=n_comp)
-    facing_down = np.bincount(labels, weights=up <= -ANCHOR_COSINE, minlength=n_comp)
-    anchors = float((facing_up + facing_down).sum())
-    down = float(np.minimum(facing_up, facing_down).sum() / anchors) if anchors else 0.0
-    share = anchors / q
-    mode = "up" if share >= AUTO_ANCHOR_SHARE and down <= AUTO_DOWN_SHARE else "outward"
+    nz = np.where(parity, -normals[:, 2], normals[:, 2])
+    # per component, the smaller of the upward and downward sums of n_z over its flat points (either
+    # side: the tree's root chose it)
+    upward = np.bincount(labels, weights=np.clip(nz, 0.0, None) * flat, minlength=n_comp)
+    downward = np.bincount(labels, weights=np.clip(-nz, 0.0, None) * flat, minlength=n_comp)
+    total = float((upward + downward).sum())
+    down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
+    share = float(np.mean(np.abs(nz) >= AUTO_VERTICAL_COSINE))
+    mode = "up" if share >= AUTO_SHARE and down <= AUTO_DOWN_SHARE else "outward"
     return AutoPolicy(mode, share, down)
 
 
