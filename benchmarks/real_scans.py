@@ -5,7 +5,8 @@ The scans
 ``bunny``        pymeshlab's ``bunny.obj``: a closed range scan of the Stanford bunny, 28 088 vertices;
 ``face``         pymeshlab's ``rangemaps/face000.ply``: one range map of a face (85 849 vertices,
                  stray points and holes) with its camera; run twice, with the default
-                 orientation (``face``, outward) and towards the camera (``face_camera``,
+                 orientation (``face``: up, a surface over the horizontal plane) and towards
+                 the camera (``face_camera``,
                  ``viewpoint=range_camera(path)``);
 ``bone`` ``cow`` ``airplane``  pymeshlab's closed low-poly models (``bone.ply``, ``cow.obj``,
                  ``airplane.obj``); the cloud is their used vertices (those of a triangle);
@@ -554,7 +555,7 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
             {**mean_kw, **front, "value_range": limits, "title": "face000: mean curvature, from the camera"},
             {**mean_kw, **side, "value_range": limits, "title": "turned 60 degrees"},
         ], out("mean"))
-        made.append((out("mean").name, f"face000.ply ({n} points): mean curvature (default, outward run), seen "
+        made.append((out("mean").name, f"face000.ply ({n} points): mean curvature (default run), seen "
                      "from its camera and turned by 60 degrees."))
         flip = 1.0 if m["orient"] >= 50.0 else -1.0
         render_panels(pts, [
@@ -907,7 +908,9 @@ def explain(cases, r) -> list[str]:
         "  cloud's median). `reliable` is not a promise, though: see the limitations below (thin parts).",
         "* **`orient`**: which side the normals point to, and with them the sign of the curvatures",
         "  (positive mean curvature: the surface bends away from its normal, like a sphere with outward",
-        "  normals). `\"outward\"`, the default without a viewpoint, carries one side from neighbour to",
+        "  normals). The default, `\"auto\"`, orients an open surface over the horizontal plane `\"up\"`",
+        "  and anything else `\"outward\"` ([orientation.md](orientation.md)). `\"outward\"` carries one side",
+        "  from neighbour to",
         "  neighbour over each connected piece and turns the piece to point away from the volume it",
         "  encloses; on a closed cloud the generalised winding number of the whole cloud then turns the",
         "  parts the first step turned inside out (legs, ears) and flags the points whose side it",
@@ -940,7 +943,8 @@ def explain(cases, r) -> list[str]:
             f"* **face000.ply** (one range map, {fmt(m['n'])} points, {m['seconds']:.1f} s): {fmt(m['n_unused'])} "
             f"points lie in no triangle of the scanner's mesh (stray points). heatcurv flags {fmt(m['outliers'])} "
             f"points as outliers: {pfmt(m['unused_outlier'])} % of the strays and {pfmt(m['used_outlier'], 2)} % "
-            f"of the mesh's vertices. Without a camera the normals are oriented outward of the piece; "
+            f"of the mesh's vertices. Without a camera the default orients the face up (+z), a surface over the "
+            "horizontal plane; "
             f"{pfmt(m['orient'], 2)} % face the camera's side like the mesh's; of the {fmt(m['wrong'])} that "
             f"do not, {fmt(m.get('wrong_small_pieces', 0))} lie in the mesh's smaller pieces (islands apart from "
             f"the face, oriented on their own). {pfmt(m['reliable'])} % of the points are reliable: the others "

@@ -73,6 +73,7 @@ def test_a_lidar_tile_without_options_is_oriented_up_and_says_why():
     report = auto.info["orientation"]
     assert report.mode == "up" and report.closed is None
     assert report.reason.startswith("auto: an open surface over the horizontal plane")
+    assert report.policy.mode == "up" and report.policy.down <= AUTO_DOWN_SHARE
     # a convention on the coordinates: every point counted, so that a turned cloud may differ
     assert report.by_convention == auto.info["n_distinct"]  # duplicates counted once
     assert np.array_equal(auto.normals, up.normals) and np.array_equal(auto.mean, up.mean)
@@ -84,6 +85,7 @@ def test_a_closed_cloud_without_options_is_outward_and_says_why():
     report = res.info["orientation"]
     assert report.mode == "outward" and report.closed is True and report.by_convention == 0
     assert report.reason.startswith("auto: not a surface over the horizontal plane")
+    assert report.policy.mode == "outward" and report.policy.down >= 0.4
     assert report.reason.endswith("encloses a volume: away from it (winding number)")
 
 

@@ -172,14 +172,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             check_kernel(op.neighbourhood, op.h, opts, keys)  # refuse a kernel that leaves nothing to fit
         with clock.stage("outliers"):
             outliers = find_outliers(op.points, op.neighbourhood)
-        policy = None
-        if mode == "auto":
-            with clock.stage("orientation", report=False):
-                policy = _auto_policy(op, keys, choices)
-            mode = policy.mode
         towards = _reference(op, mode, viewpoint)
-        nrm, planarity, orientation = _normal_stages(op, normals, mode, towards, outliers.mask, clock,
-                                                     whole_cloud=choices is None)
+        nrm, planarity, orientation, policy = _normal_stages(op, normals, mode, towards, outliers.mask, clock,
+                                                             keys, choices)
+        mode = orientation.report.mode
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()
         if opts.fit == "chord":
@@ -242,7 +238,8 @@ def _explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> 
     if report.mode == "up":
         if policy is None:
             return replace(report, reason="orient='up': towards +z")
-        return replace(report, reason=policy.reason, by_convention=n)  # turning the cloud may change the choice
+        # turning the cloud may change the choice
+        return replace(report, reason=policy.reason, by_convention=n, policy=policy)
     if report.closed:
         why = "encloses a volume: away from it (winding number)"
     elif report.closed is None:
@@ -251,7 +248,7 @@ def _explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> 
         why = "open: each component's outward vote, its convex side out"
         if report.by_convention:
             why += "; nearly flat components by the least-variance-axis convention"
-    return replace(report, reason=why if policy is None else f"{policy.reason}; {why}")
+    return replace(report, reason=why if policy is None else f"{policy.reason}; {why}", policy=policy)
 
 
 def _reference(op: HeatKernelOperator, mode: str, viewpoint):
@@ -264,29 +261,34 @@ def _reference(op: HeatKernelOperator, mode: str, viewpoint):
 
 
 def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np.ndarray, clock: StageClock,
-                   whole_cloud: bool = True):
+                   keys: np.ndarray, choices=None):
     """Stages ``normals`` and ``orientation``: oriented unit normals, PCA planarity and the orientation.
 
-    Outliers get no weight in the outward vote (one far point would drag the centroid).
+    ``mode="auto"`` is decided first (:func:`_auto_policy`). Outliers get no
+    weight in the outward vote (one far point would drag the centroid). Given
+    ``choices`` (a part of a cloud), the winding number is not run.
 
     Returns
     -------
     normals : ndarray, shape (m, 3)
     planarity : ndarray, shape (m,)
     orientation : Orientation
+    policy : AutoPolicy or None
+        What ``"auto"`` chose, None for the other modes.
     """
     X, nbhd, prepared = op.points, op.neighbourhood, op.prepared
     if given is not None:
         with clock.stage("normals"):
             nrm = prepare_normals(given, prepared)
         kept = Orientation(nrm, np.zeros(X.shape[0], dtype=bool), OrientationReport("given"))
-        return nrm, np.ones(X.shape[0]), kept
+        return nrm, np.ones(X.shape[0]), kept, None
     with clock.stage("normals"):
         nrm, planarity = pca_normals(X, nbhd, taper=op.options.taper)
     with clock.stage("orientation"):
-        orientation = orient(X, nrm, nbhd, op.areas, mode=mode, towards=towards, excluded=outlier,
-                             whole_cloud=whole_cloud)
-    return orientation.normals, planarity, orientation
+        policy = _auto_policy(op, keys, choices) if mode == "auto" else None
+        orientation = orient(X, nrm, nbhd, op.areas, mode=mode if policy is None else policy.mode, towards=towards,
+                             excluded=outlier, whole_cloud=choices is None)
+    return orientation.normals, planarity, orientation, policy
 
 
 def _facing_viewpoint(fitted: _Fitted, points: np.ndarray, towards: np.ndarray) -> _Fitted:

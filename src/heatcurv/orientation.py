@@ -165,6 +165,8 @@ class OrientationReport:
         counted in ``ambiguous`` too).
     reason : str
         Which rule chose the sides, in words (``orient="auto"``: why this mode).
+    policy : AutoPolicy or None
+        ``orient="auto"`` without a viewpoint: the choice and the numbers it was made on.
     on_anchors : int
         0 when every point's normal was oriented over the points' graph; else
         the noise swamped the operator's balls and the normals were oriented
@@ -182,6 +184,7 @@ class OrientationReport:
     turned: int = 0
     unsupported: int = 0
     reason: str = ""
+    policy: AutoPolicy | None = None
 
     def __getitem__(self, key: str):
         return getattr(self, key)
