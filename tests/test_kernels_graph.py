@@ -1,11 +1,11 @@
-"""heatcurv._kernels.graph: the compiled spanning forest and components against SciPy's, entry for entry."""
+"""heatcurv._kernels.graph: the compiled spanning forest and components against SciPy's, entry for entry; kept pairs."""
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from heatcurv._kernels.graph import connected_components, minimum_spanning_forest
+from heatcurv._kernels.graph import connected_components, minimum_spanning_forest, pairs_between_kept
 
 
 def scipy_forest(indptr, indices, cost):
@@ -73,3 +73,15 @@ def test_components_labelled_as_scipy(n, k, islands):
         want = csgraph.connected_components(graph, directed=False)
         got = connected_components(indptr, indices, mask)
         assert got[0] == want[0] and np.array_equal(got[1], want[1])
+
+
+@pytest.mark.parametrize("share", [0.0, 0.01, 0.3, 1.0])
+def test_pairs_between_kept_vertices_as_numpy_selects_them(share):
+    indptr, indices, _ = random_graph(3000, 10, seed=4, islands=20)
+    excluded = np.random.default_rng(5).random(3000) < share
+    rows = np.repeat(np.arange(3000), np.diff(indptr))
+    expected = np.flatnonzero(~excluded[rows] & ~excluded[indices])
+    new_indptr, kept = pairs_between_kept(indptr, indices, excluded)
+    np.testing.assert_array_equal(kept, expected)
+    np.testing.assert_array_equal(np.diff(new_indptr), np.bincount(rows[expected], minlength=3000))
+    assert new_indptr[0] == 0 and np.all(np.diff(new_indptr)[excluded] == 0)

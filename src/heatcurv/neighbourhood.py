@@ -20,6 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ._deprecation import renamed_keyword
+from ._kernels.graph import pairs_between_kept
 from .errors import HeatcurvError
 
 __all__ = [
@@ -203,13 +204,10 @@ class Neighbourhood:
         """
         if not excluded.any():
             return self
-        keep = ~excluded[self.rows] & ~excluded[self.indices]
-        counts = np.bincount(self.rows[keep], minlength=self.n_points)
-        indptr = np.zeros(self.n_points + 1, dtype=self.indptr.dtype)
-        np.cumsum(counts, out=indptr[1:])
+        indptr, keep = pairs_between_kept(self.indptr, self.indices, excluded)
         return Neighbourhood(
-            indptr=indptr, indices=self.indices[keep], distances=self.distances[keep], radius=self.radius,
-            augmented=self.augmented, by_distance=self.by_distance,
+            indptr=indptr.astype(self.indptr.dtype, copy=False), indices=self.indices[keep],
+            distances=self.distances[keep], radius=self.radius, augmented=self.augmented, by_distance=self.by_distance,
         )
 
     def _sorted_by_distance(self) -> bool:

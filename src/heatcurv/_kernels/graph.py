@@ -15,6 +15,9 @@ sorting the costs; Boruvka sorts nothing.
 the components of some edges, then lets every component still smaller than a
 size grow across the other edges, in one pass over them.
 
+:func:`pairs_between_kept` drops the entries that touch excluded vertices (the
+outliers cut out of the orientation graph) in one pass.
+
 :func:`connected_components` (the outliers' mutual-neighbour graph) joins the
 edges' ends in a union-find and numbers the components as SciPy's
 ``csgraph.connected_components`` does, in the order of their first vertex,
@@ -30,7 +33,7 @@ from numba import njit
 
 from . import as_floats, as_indices, as_pointers
 
-__all__ = ["minimum_spanning_forest", "connected_components", "merged_components"]
+__all__ = ["minimum_spanning_forest", "connected_components", "merged_components", "pairs_between_kept"]
 
 
 def minimum_spanning_forest(indptr, indices, cost) -> np.ndarray:
@@ -226,3 +229,42 @@ def _merged(n, i, j, joined, mergeable, min_size, labels):
             first[root] = count
             count += 1
         labels[v] = first[root]
+
+
+def pairs_between_kept(indptr, indices, excluded) -> tuple[np.ndarray, np.ndarray]:
+    """The entries of a CSR graph whose two ends are both kept, as new row pointers and entry positions.
+
+    Parameters
+    ----------
+    indptr, indices : ndarray
+        CSR graph of ``n = len(indptr) - 1`` vertices.
+    excluded : ndarray, shape (n,), bool
+        Vertices whose rows and whose appearances in other rows are dropped.
+
+    Returns
+    -------
+    indptr : ndarray, shape (n + 1,), int64
+        Row pointers of the kept entries (excluded rows empty).
+    kept : ndarray, shape (m,), int64
+        Positions of the kept entries in ``indices``, in order.
+    """
+    indptr = as_pointers(indptr)
+    n = indptr.shape[0] - 1
+    excluded = np.ascontiguousarray(excluded, dtype=np.bool_)
+    new_indptr = np.zeros(n + 1, dtype=np.int64)
+    kept = np.empty(indptr[-1], dtype=np.int64)
+    m = _kept_pairs(n, indptr, as_indices(indices, n), excluded, new_indptr, kept)
+    return new_indptr, kept[:m]
+
+
+@njit(cache=True, nogil=True)
+def _kept_pairs(n, indptr, indices, excluded, new_indptr, kept):
+    m = 0
+    for i in range(n):
+        if not excluded[i]:
+            for p in range(indptr[i], indptr[i + 1]):
+                if not excluded[indices[p]]:
+                    kept[m] = p
+                    m += 1
+        new_indptr[i + 1] = m
+    return m
