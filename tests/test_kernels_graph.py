@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from heatcurv._kernels.graph import connected_components, minimum_spanning_forest, pairs_between_kept
+from heatcurv._kernels.graph import connected_components, forest_parity, minimum_spanning_forest, pairs_between_kept
 
 
 def scipy_forest(indptr, indices, cost):
@@ -85,3 +85,28 @@ def test_pairs_between_kept_vertices_as_numpy_selects_them(share):
     np.testing.assert_array_equal(kept, expected)
     np.testing.assert_array_equal(np.diff(new_indptr), np.bincount(rows[expected], minlength=3000))
     assert new_indptr[0] == 0 and np.all(np.diff(new_indptr)[excluded] == 0)
+
+
+def test_forest_parity_is_the_flips_on_the_path_from_the_root():
+    indptr, indices, cost = random_graph(3000, 6, seed=6, islands=30)
+    n = 3000
+    tree = csgraph.minimum_spanning_tree(sp.csr_matrix((cost, indices, indptr), shape=(n, n)))
+    forest = (tree + tree.T).tocsr()
+    rng = np.random.default_rng(7)
+    points, normals = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    _, labels = csgraph.connected_components(forest, directed=False)
+    roots = np.zeros(n, dtype=bool)
+    roots[np.unique(labels, return_index=True)[1]] = True
+    parity = forest_parity(forest.indptr, forest.indices, roots, points, normals)
+    # reference: each tree's breadth-first order from its root, a node's flip read off its parent
+    expected = np.zeros(n, dtype=bool)
+    for root in np.flatnonzero(roots):
+        order, parent = csgraph.breadth_first_order(forest, root, directed=False, return_predecessors=True)
+        for v in order[1:]:
+            u = parent[v]
+            e = (points[v] - points[u]) / np.linalg.norm(points[v] - points[u])
+            agreement = normals[u] @ normals[v] - (normals[u] @ e) * (normals[v] @ e)
+            expected[v] = expected[u] ^ (agreement < 0)
+    np.testing.assert_array_equal(parity, expected)
+    assert parity.any() and not parity[roots].any()

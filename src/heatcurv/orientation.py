@@ -313,7 +313,7 @@ def auto_policy(centres: np.ndarray) -> AutoPolicy:
     n_comp, labels = csgraph.connected_components(forest, directed=False)
     roots = np.zeros(q, dtype=bool)
     roots[np.unique(labels, return_index=True)[1]] = True
-    parity, _ = _parity_from_roots(forest, centres, normals, roots)
+    parity = graph_kernels.forest_parity(forest.indptr, forest.indices, roots, centres, normals)
     nz = np.where(parity, -normals[:, 2], normals[:, 2])
     # per component, the smaller of the upward and downward sums of n_z over its flat points (either
     # side: the tree's root chose it)
@@ -397,7 +397,7 @@ def orient(
     # every component is rooted at its first point
     roots = np.zeros(n, dtype=bool)
     roots[np.unique(labels, return_index=True)[1]] = True
-    parity, _ = _parity_from_roots(tree, points, normals, roots)
+    parity = graph_kernels.forest_parity(tree.indptr, tree.indices, roots, points, normals)
     oriented = normals * np.where(parity, -1.0, 1.0)[:, None]
 
     # the sign of each component: outward vote, else the flat convention
@@ -612,38 +612,6 @@ def _spanning_forest(points: np.ndarray, normals: np.ndarray, graph: Neighbourho
     # the kept entries as CSR, rows in order: each row starts after the kept entries before its first
     tree = sp.csr_matrix((cost[kept], graph.indices[kept], np.searchsorted(kept, graph.indptr)), shape=(n, n))
     return (tree + tree.T).tocsr()
-
-
-def _parity_from_roots(tree: sp.csr_matrix, points: np.ndarray, normals: np.ndarray, roots: np.ndarray):
-    """Flip parity of every node relative to its nearest root along the forest, and that root.
-
-    A node flips relative to its parent when :func:`_edge_agreement` is
-    negative. A virtual node joined to every root makes one breadth-first search cover
-    the forest; each node's predecessor chain then ends at the root fewest
-    edges away. Flips accumulate along the chain by pointer jumping
-    (vectorised, O(n log depth)).
-
-    Returns
-    -------
-    parity : ndarray, shape (n,), bool
-        Whether the node's normal must be flipped to agree with its root's.
-    root : ndarray, shape (n,), int64
-    """
-    n = tree.shape[0]
-    r = np.flatnonzero(roots)
-    link = sp.csr_matrix((np.ones(r.size), (np.full(r.size, n), r)), shape=(n + 1, n + 1))
-    forest = sp.bmat([[tree, None], [None, sp.csr_matrix((1, 1))]]).tocsr() + link + link.T
-    _, pred = csgraph.breadth_first_order(forest, n, directed=False, return_predecessors=True)
-    pred = pred[:n].astype(np.int64)
-    pred[roots] = r
-    flip = _edge_agreement(points, normals, np.arange(n), pred) < 0
-    parity, ptr = flip.copy(), pred.copy()
-    while True:
-        parent = ptr[ptr]
-        if np.array_equal(parent, ptr):
-            return parity, ptr
-        parity = parity ^ parity[ptr]
-        ptr = parent
 
 
 def _edge_agreement(points, normals, i, j) -> np.ndarray:

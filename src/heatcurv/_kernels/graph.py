@@ -15,6 +15,9 @@ sorting the costs; Boruvka sorts nothing.
 the components of some edges, then lets every component still smaller than a
 size grow across the other edges, in one pass over them.
 
+:func:`forest_parity` carries one side of the normals from each root over a
+forest by a depth-first walk.
+
 :func:`pairs_between_kept` drops the entries that touch excluded vertices (the
 outliers cut out of the orientation graph) in one pass.
 
@@ -28,12 +31,16 @@ Arrays in, arrays out: this module imports nothing from heatcurv.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
 from . import as_floats, as_indices, as_pointers
 
-__all__ = ["minimum_spanning_forest", "connected_components", "merged_components", "pairs_between_kept"]
+__all__ = [
+    "minimum_spanning_forest", "connected_components", "merged_components", "pairs_between_kept", "forest_parity",
+]
 
 
 def minimum_spanning_forest(indptr, indices, cost) -> np.ndarray:
@@ -268,3 +275,63 @@ def _kept_pairs(n, indptr, indices, excluded, new_indptr, kept):
                     m += 1
         new_indptr[i + 1] = m
     return m
+
+
+def forest_parity(indptr, indices, roots, points, normals) -> np.ndarray:
+    """Whether each normal must flip to agree with its tree's root, walking a spanning forest, shape (n,), bool.
+
+    Along a forest edge ``{i, j}`` the side flips when the normals disagree,
+    ``s_ij = n_i . n_j - (n_i . e)(n_j . e) < 0`` (``e`` the unit edge; ``s_ij``
+    is symmetric), so a node's parity is that of the flips on its path from the
+    root, which in a forest is unique.
+
+    Parameters
+    ----------
+    indptr, indices : ndarray
+        The forest as a symmetric CSR graph (each edge stored both ways).
+    roots : ndarray, shape (n,), bool
+        One vertex of every tree (a tree without one keeps parity False).
+    points, normals : ndarray, shape (n, 3)
+
+    Returns
+    -------
+    ndarray, shape (n,), bool
+    """
+    indptr = as_pointers(indptr)
+    n = indptr.shape[0] - 1
+    parity = np.zeros(n, dtype=np.bool_)
+    _walk(n, indptr, as_indices(indices, n), np.ascontiguousarray(roots, dtype=np.bool_), as_floats(points),
+          as_floats(normals), parity)
+    return parity
+
+
+@njit(cache=True, nogil=True)
+def _walk(n, indptr, indices, roots, points, normals, parity):
+    seen = np.zeros(n, dtype=np.bool_)
+    stack = np.empty(n, dtype=np.int64)
+    for r in range(n):
+        if not roots[r] or seen[r]:
+            continue
+        seen[r] = True
+        top = 0
+        stack[0] = r
+        while top >= 0:
+            u = stack[top]
+            top -= 1
+            for p in range(indptr[u], indptr[u + 1]):
+                v = indices[p]
+                if seen[v]:
+                    continue
+                seen[v] = True
+                e0 = points[v, 0] - points[u, 0]
+                e1 = points[v, 1] - points[u, 1]
+                e2 = points[v, 2] - points[u, 2]
+                length = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+                dot = normals[u, 0] * normals[v, 0] + normals[u, 1] * normals[v, 1] + normals[u, 2] * normals[v, 2]
+                if length > 0.0:
+                    along_u = (normals[u, 0] * e0 + normals[u, 1] * e1 + normals[u, 2] * e2) / length
+                    along_v = (normals[v, 0] * e0 + normals[v, 1] * e1 + normals[v, 2] * e2) / length
+                    dot -= along_u * along_v
+                parity[v] = parity[u] ^ (dot < 0.0)
+                top += 1
+                stack[top] = v
