@@ -299,3 +299,21 @@ def test_compute_says_what_the_winding_number_did(tmp_path):
     text = out.stdout + out.stderr
     assert f"{report.turned} point(s) of parts the spanning tree had turned inside out were turned outward" in text
     assert f"{report.ambiguous} point(s) have no consistent side" in text and "the winding number contradicts" in text
+
+
+def test_compute_says_which_side_the_default_chose(tmp_path):
+    # an NPY terrain (no LAS header to say "aerial"): the default still orients it up, and says why
+    tile = heatcurv.surfaces.lidar_tile(6000, seed=4)
+    np.save(tmp_path / "tile.npy", tile.points)
+    out = run("compute", tmp_path / "tile.npy", "-o", tmp_path / "up.ply", "-v")
+    assert out.returncode == 0, out.stderr
+    assert "normals oriented up (+z): the cloud is an open surface over the horizontal plane" in out.stdout
+    assert "orientation chosen: auto: an open surface over the horizontal plane" in out.stdout
+    up = io.read_points(tmp_path / "up.ply")
+    assert (up.normals[tile.labels == 2, 2] > 0).mean() >= 0.995
+    # the same terrain stood on its side is no longer terrain: outward by each piece's convex side
+    np.save(tmp_path / "side.npy", tile.points[:, [0, 2, 1]])
+    out = run("compute", tmp_path / "side.npy", "-o", tmp_path / "side.ply")
+    assert out.returncode == 0, out.stderr
+    assert "normals oriented outward of each piece (its convex side)" in out.stdout
+    assert "normals oriented up" not in out.stdout

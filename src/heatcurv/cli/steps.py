@@ -182,6 +182,13 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
     log.info(f"surface area {res.area.sum():.6g} (reliable points: {res.area[res.reliable].sum():.6g}), "
              "in the cloud's unit squared")
     orientation = res.info.get("orientation")
+    policy = getattr(orientation, "policy", None)
+    if policy is not None and policy.mode == "up":
+        log.info("normals oriented up (+z): the cloud is an open surface over the horizontal plane "
+                 "(--orient outward for a closed object, --viewpoint X,Y,Z for a scanner position)")
+    elif policy is not None and orientation.closed is False:
+        log.info("normals oriented outward of each piece (its convex side): the cloud is open and not a surface over "
+                 "the horizontal plane (--orient up for terrain, --viewpoint X,Y,Z for a scanner position)")
     if orientation is not None and orientation.turned:
         log.info(f"{orientation.turned} point(s) of parts the spanning tree had turned inside out were turned "
                  "outward by the winding number")
