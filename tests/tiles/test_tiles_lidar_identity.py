@@ -53,6 +53,7 @@ def test_lidar_tile_in_tiles_equals_in_memory(lidar_file, tmp_path, orient):
     if not orient:
         # no option, an NPY file: the survey's sample centres chose "up" as the in-memory run's did
         assert memory.info["orientation"].mode == "up" and "horizontal plane" in memory.info["orientation"].reason
+        assert report.context["auto_orientation"] == "up"
     if "viewpoint" not in orient:
         # the walls out of their buildings, the ground and the roofs up (measured: every point)
         surface = scene.labels != heatcurv.surfaces.VEGETATION

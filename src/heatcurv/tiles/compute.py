@@ -304,6 +304,9 @@ def describe(context: dict) -> dict:
         "centroid": (frame.centroid * frame.unit + frame.offset).tolist(), "rms_radius": frame.rms_radius * frame.unit,
         "kernel": scale.scale.label, "sigma": scale.sigma * frame.unit, "relative_noise": scale.relative_noise,
     }
+    policy = getattr(choices, "orientation", None)
+    if policy is not None:  # what orient="auto" without a viewpoint chose (heatcurv.orientation.auto_policy)
+        out["auto_orientation"] = policy.mode
     if scale.k_centre is not None:
         widths, counts = np.unique(scale.k_centre, return_counts=True)
         out["widths"] = {str(int(k)): int(c) for k, c in zip(widths, counts)}  # centres choosing each width
