@@ -36,8 +36,8 @@ OVER_THE_GROUND = {
 @pytest.mark.parametrize("name", sorted(CLOSED))
 @pytest.mark.parametrize("turn", [False, True], ids=["as-is", "turned"])
 def test_a_closed_surface_faces_down_as_much_as_up(name, turn):
-    # sum_i A_i n_z = 0 on a closed surface: about half the anchors face down (measured 47.6-49.9 % on
-    # these), eight times the share that still counts as terrain
+    # sum_i A_i n_z = 0 on a closed surface: about half of sum |n_z| faces down (measured 48.2-49.9 % on
+    # these, turned or not), a hundred times the share that still counts as terrain
     points = CLOSED[name]()
     policy = auto_policy(_sample(_turned(points) if turn else points))
     assert policy.mode == "outward"
@@ -46,6 +46,7 @@ def test_a_closed_surface_faces_down_as_much_as_up(name, turn):
 
 @pytest.mark.parametrize("name", sorted(OVER_THE_GROUND))
 def test_an_open_surface_over_the_ground_faces_up(name):
+    # measured: nothing facing down on any of them; 58 % (the cap) to 93 % (the tile) within 45 degrees of vertical
     policy = auto_policy(_sample(OVER_THE_GROUND[name]()))
     assert policy.mode == "up" and policy.vertical >= AUTO_SHARE and policy.down <= AUTO_DOWN_SHARE
 
