@@ -38,6 +38,19 @@ def test_npz_xyz_key_and_extras(tmp_path):
         read_points(tmp_path / "b.npz")
 
 
+@pytest.mark.parametrize("points_rows, field_rows", [(1, 120), (120, 119), (120, 121), (120, 5)])
+def test_npz_per_point_arrays_of_another_length_are_refused(tmp_path, points_rows, field_rows):
+    # a truncated or mismatched member used to be dropped as "metadata", or the cloud cut to the points' rows
+    rng = np.random.default_rng(6)
+    path = tmp_path / "a.npz"
+    np.savez(path, points=rng.random((points_rows, 3)), mean=rng.random(field_rows), offset=np.zeros(3))
+    with pytest.raises(HeatcurvError, match=rf"a\.npz: 'mean' has {field_rows} rows but 'points' has {points_rows}"):
+        read_points(path)
+    # up to 4 rows is metadata (an offset, a viewpoint, a 4 x 4 transform), as beside matching fields
+    np.savez(path, points=rng.random((120, 3)), mean=rng.random(120), offset=np.zeros(3), pose=np.eye(4))
+    assert list(read_points(path).fields) == ["mean"]
+
+
 def test_npz_members_that_are_not_arrays_are_skipped(tmp_path):
     import zipfile
 

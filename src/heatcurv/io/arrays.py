@@ -297,6 +297,11 @@ def _read_member(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo):
     return array.reshape(shape[::-1]).transpose() if fortran else array.reshape(shape)
 
 
+#: Numeric NPZ members of at most this many rows (an offset, a viewpoint, a 4 x 4 transform) are
+#: metadata, ignored; longer ones are per-point arrays and must have one row per point.
+_NPZ_METADATA_ROWS = 4
+
+
 def _read_npz(path: Path, fmt: str) -> PointCloud:
     if _magic(path, 4) not in (b"PK\x03\x04", b"PK\x05\x06"):
         raise _read_error(path, "not a valid NPZ file (not a zip archive of NumPy arrays)")
@@ -368,8 +373,13 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
             )
         columns.update({name: _native(colours[:, k]) for k, name in enumerate(_COLOUR_NAMES)})
     for name, values in arrays.items():
-        if values.dtype.kind not in "biuf" or values.ndim not in (1, 2) or values.shape[0] != n:
-            continue  # not a per-point array (metadata): ignored
+        if values.dtype.kind not in "biuf" or values.ndim not in (1, 2) or values.shape[0] <= _NPZ_METADATA_ROWS < n:
+            continue  # not a per-point array (a scalar, text, an offset or a small transform): ignored
+        if values.shape[0] != n:
+            raise _read_error(
+                path, f"'{name}' has {values.shape[0]} rows but '{key}' has {n}: every per-point array of an "
+                "NPZ cloud must have one row per point (a truncated or mismatched member)"
+            )
         if values.ndim == 1:
             columns.setdefault(name, _native(values))
         else:
