@@ -249,3 +249,45 @@ def test_temporary_name_names_heatcurv_the_host_and_the_process(tmp_path):
     match = temporary_name_pattern("my-file.v2.png").fullmatch(seen[0])
     assert match and match["host"] == _host() and match["pid"] == str(os.getpid())
     assert seen[0].startswith(".my-file.v2.png.heatcurv-") and seen[0].endswith(".tmp")
+
+
+_LAZ_CHILD = """
+import os, signal, sys, threading
+import laspy
+import numpy as np
+from pathlib import Path
+from heatcurv.cli.main import Terminated, signals_as_interrupts
+from heatcurv.io import write_points
+
+write = laspy.LasData.write
+
+def write_then_signal(self, *args, **kwargs):
+    # the signal arrives 0.3 s into laspy's write, while lazrs compresses (about 2 s for 6 M points)
+    threading.Timer(0.3, os.kill, (os.getpid(), getattr(signal, sys.argv[2]))).start()
+    return write(self, *args, **kwargs)
+
+laspy.LasData.write = write_then_signal
+points = np.random.default_rng(0).random((6_000_000, 3)) * 100.0
+try:
+    with signals_as_interrupts():
+        write_points(Path(sys.argv[1]), points)
+except Terminated as exc:
+    sys.exit(128 + exc.signum)
+except KeyboardInterrupt:
+    sys.exit(130)
+print("finished", flush=True)
+"""
+
+
+@pytest.mark.parametrize("name, status", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_an_interrupted_laz_write_is_an_interruption_not_a_write_error(tmp_path, name, status):
+    # lazrs calls back into Python to write: the handler's exception came back as "IoError: Failed to call
+    # write", a write error (exit 2) instead of the interruption
+    path = tmp_path / "result.laz"
+    path.write_bytes(b"previous result")
+    child = subprocess.Popen([sys.executable, "-c", _LAZ_CHILD, str(path), name], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    out, err = child.communicate(timeout=120)
+    assert child.returncode == status, (out, err)
+    assert "Failed to call write" not in err
+    assert leftovers(tmp_path) == [path.name] and path.read_bytes() == b"previous result"

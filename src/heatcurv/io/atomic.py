@@ -34,6 +34,7 @@ import re
 import signal
 import socket
 import tempfile
+import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -111,6 +112,55 @@ def remove_stale_temporaries(path) -> list[Path]:
         except OSError:
             continue
     return removed
+
+
+@contextmanager
+def stop_signals_noted():
+    """Note which of Ctrl-C, SIGTERM and SIGHUP arrive in the block; each still runs its own handler.
+
+    Yields a list that receives the numbers of the signals. A library that
+    calls back into Python (lazrs writing a LAZ file) may swallow the
+    exception a handler raises and report a failed write instead; after it,
+    :func:`raise_noted_stop` raises the interruption again. Only in the main
+    thread (Python runs handlers there); elsewhere nothing is noted.
+    """
+    arrived: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield arrived
+        return
+    previous = {}
+
+    def note(signum, frame):
+        arrived.append(signum)
+        handler = previous.get(signum)
+        if callable(handler):
+            handler(signum, frame)
+        elif handler == signal.SIG_DFL:
+            signal.signal(signum, signal.SIG_DFL)  # the default action: end the process, as without this block
+            signal.raise_signal(signum)
+
+    try:
+        for signum in _HELD_SIGNALS:
+            previous[signum] = signal.signal(signum, note)
+        yield arrived
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
+
+
+def raise_noted_stop(arrived: list) -> None:
+    """Raise the interruption of the first signal noted by :func:`stop_signals_noted` again (nothing if none).
+
+    The signal's handler of the time runs once more (Ctrl-C's raises
+    KeyboardInterrupt; the ``heatcurv`` command's SIGTERM handler its own
+    interruption); a handler that raises nothing leaves a KeyboardInterrupt.
+    """
+    if not arrived:
+        return
+    handler = signal.getsignal(arrived[0])
+    if callable(handler):
+        handler(arrived[0], None)
+    raise KeyboardInterrupt
 
 
 @contextmanager

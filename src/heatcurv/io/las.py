@@ -18,6 +18,7 @@ from ._common import (
     _stored_dtype,
     _write_error,
 )
+from .atomic import raise_noted_stop, stop_signals_noted
 from .las_header import LasLayout, LasStructureError, check_las_file
 
 # LAS point formats without RGB -> the same format with RGB
@@ -309,7 +310,12 @@ def _write_las(stream, output: _Output, path: Path) -> None:
             ) from None
     for name, values in extra.items():
         las[name] = values.astype(np.uint8) if values.dtype.kind == "b" else values
-    try:
-        las.write(stream, do_compress=path.suffix.lower() == ".laz")
-    except Exception as exc:
-        raise _write_error(path, f"laspy: {_one_line(exc)}") from None
+    failure = None
+    with stop_signals_noted() as arrived:
+        try:
+            las.write(stream, do_compress=path.suffix.lower() == ".laz")
+        except Exception as exc:
+            failure = exc
+    raise_noted_stop(arrived)  # lazrs reports Ctrl-C or SIGTERM during its writes as a failed write
+    if failure is not None:
+        raise _write_error(path, f"laspy: {_one_line(failure)}") from None
