@@ -309,12 +309,8 @@ def auto_policy(centres: np.ndarray) -> AutoPolicy:
     eigenvalues, eigenvectors = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))
     normals = eigenvectors[:, :, 0]
     flat = eigenvalues[:, 0] <= AUTO_FLATNESS * eigenvalues[:, 1]
-    forest = _spanning_forest(centres, normals, nbhd)
-    n_comp, labels = csgraph.connected_components(forest, directed=False)
-    roots = np.zeros(q, dtype=bool)
-    roots[np.unique(labels, return_index=True)[1]] = True
-    parity = graph_kernels.forest_parity(forest.indptr, forest.indices, roots, centres, normals)
-    nz = np.where(parity, -normals[:, 2], normals[:, 2])
+    oriented, _, labels = _tree_sides(centres, normals, nbhd)
+    nz, n_comp = oriented[:, 2], int(labels.max()) + 1
     # per component, the smaller of the upward and downward sums of n_z over its flat points (either
     # side: the tree's root chose it)
     upward = np.bincount(labels, weights=np.clip(nz, 0.0, None) * flat, minlength=n_comp)
@@ -392,13 +388,8 @@ def orient(
     if reference is not None:
         return _orient_locally(points, normals, graph, reference, mode, excluded)
 
-    tree = _spanning_forest(points, normals, graph)
-    n_comp, labels = csgraph.connected_components(tree, directed=False)
-    # every component is rooted at its first point
-    roots = np.zeros(n, dtype=bool)
-    roots[np.unique(labels, return_index=True)[1]] = True
-    parity = graph_kernels.forest_parity(tree.indptr, tree.indices, roots, points, normals)
-    oriented = normals * np.where(parity, -1.0, 1.0)[:, None]
+    oriented, tree, labels = _tree_sides(points, normals, graph)
+    n_comp = int(labels.max()) + 1
 
     # the sign of each component: outward vote, else the flat convention
     sign, convention = _component_signs(points, oriented, labels, n_comp, w)
@@ -612,6 +603,26 @@ def _spanning_forest(points: np.ndarray, normals: np.ndarray, graph: Neighbourho
     # the kept entries as CSR, rows in order: each row starts after the kept entries before its first
     tree = sp.csr_matrix((cost[kept], graph.indices[kept], np.searchsorted(kept, graph.indptr)), shape=(n, n))
     return (tree + tree.T).tocsr()
+
+
+def _tree_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood):
+    """One side carried over the minimum spanning forest of ``graph``, from the first point of each tree.
+
+    Returns
+    -------
+    oriented : ndarray, shape (n, 3)
+        ``normals``, each flipped or not to agree with its tree's root (:func:`_edge_agreement` along the edges).
+    forest : scipy.sparse.csr_matrix, shape (n, n)
+        The symmetric forest (:func:`_spanning_forest`).
+    labels : ndarray, shape (n,)
+        The tree (connected component) of every point.
+    """
+    forest = _spanning_forest(points, normals, graph)
+    _, labels = csgraph.connected_components(forest, directed=False)
+    roots = np.zeros(points.shape[0], dtype=bool)
+    roots[np.unique(labels, return_index=True)[1]] = True
+    parity = graph_kernels.forest_parity(forest.indptr, forest.indices, roots, points, normals)
+    return normals * np.where(parity, -1.0, 1.0)[:, None], forest, labels
 
 
 def _edge_agreement(points, normals, i, j) -> np.ndarray:
