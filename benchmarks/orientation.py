@@ -26,9 +26,9 @@ Columns
                          variant;
 ``wrong %``              normal . truth < 0 among all points;
 ``wrong on thick %``     the same among the points at least 3 spacings thick;
-``wrong & reliable %``   (heatcurv) wrong and flagged reliable
+``wrong & reliable %``   (heatcurv, tiled) wrong and flagged reliable
                          (``res.reliable``), % of all points;
-``flagged %``            (heatcurv) not reliable;
+``flagged %``            (heatcurv, tiled) not reliable;
 ``s``                    seconds of the call alone (heatcurv's numba kernels
                          compiled by a warm-up beforehand).
 
@@ -37,6 +37,10 @@ Methods
 ``heatcurv``  ``heatcurv.estimate(points)``, the default options (normals
               oriented outward, :mod:`heatcurv.orientation`); its rows are in
               input order, exact duplicate vertices share values.
+``tiled``     ``heatcurv.compute_file`` of the same cloud (an NPY file) forced into
+              at least 4 tiles (``tile_size = n // 4``, the serial scheduler):
+              a tiled run's orientation (:mod:`heatcurv.tiles.orient`, then the
+              winding number over every tile's sources, :mod:`heatcurv.tiles.winding`).
 ``open3d``    Open3D: ``estimate_normals(KDTreeSearchParamKNN(30))`` then
               ``orient_normals_consistent_tangent_plane(30)`` (the minimum
               spanning tree propagation of Hoppe et al.). Its global sign is
@@ -83,7 +87,9 @@ from machine import table as text_table  # noqa: E402
 
 MODELS = tuple(name.removesuffix(".off") for name in CGAL_MESHES)
 VARIANTS = ("clean", "noisy", "half")
-METHODS = ("heatcurv", "open3d")
+METHODS = ("heatcurv", "tiled", "open3d")
+#: the methods that flag points (their "wrong & reliable" and "flagged" columns)
+FLAGGING = ("heatcurv", "tiled")
 #: parts thinner than this many spacings are "thin"
 THIN_SPACINGS = 3.0
 #: noise of the noisy variant, a fraction of the bounding-box diagonal
@@ -191,6 +197,22 @@ def run_heatcurv(points: np.ndarray):
     return res.normals, res.reliable, seconds
 
 
+def run_tiled(points: np.ndarray):
+    import tempfile
+
+    from heatcurv.io import read_points
+
+    with tempfile.TemporaryDirectory() as work:
+        src, dst = Path(work) / "cloud.npy", Path(work) / "out.ply"
+        np.save(src, points)
+        tic = time.perf_counter()
+        heatcurv.compute_file(src, dst, tile_size=max(len(points) // 4, 500), scheduler="serial", dtype="float64",
+                              progress=False, fields=("nx", "ny", "nz", "reliable"))
+        seconds = time.perf_counter() - tic
+        out = read_points(dst)
+    return out.normals, out.fields["reliable"].astype(bool), seconds
+
+
 def run_open3d(points: np.ndarray):
     import open3d as o3d
 
@@ -233,8 +255,8 @@ def header_row(methods) -> list[str]:
     head = ["model", "points", "thin %"]
     for m in methods:
         head += [f"{m} wrong %", f"{m} wrong on thick %"]
-        if m == "heatcurv":
-            head += ["heatcurv wrong & reliable %", "heatcurv flagged %"]
+        if m in FLAGGING:
+            head += [f"{m} wrong & reliable %", f"{m} flagged %"]
         head += [f"{m} s"]
     return head
 
@@ -244,10 +266,10 @@ def row(name: str, n: int, thin: float, results: dict, methods) -> list[str]:
     for m in methods:
         r = results.get(m)
         if r is None:
-            cells += ["-"] * (5 if m == "heatcurv" else 3)
+            cells += ["-"] * (5 if m in FLAGGING else 3)
             continue
         cells += [f"{r['wrong']:.2f}", f"{r['wrong_thick']:.2f}"]
-        if m == "heatcurv":
+        if m in FLAGGING:
             cells += [f"{r['wrong_reliable']:.2f}", f"{r['flagged']:.1f}"]
         cells += [f"{r['seconds']:.2f}"]
     return cells
@@ -265,7 +287,7 @@ def pooled(rows: list[dict], methods) -> dict:
         entry = {"wrong": float(np.sum(n * [x["wrong"] for x in res]) / n.sum()),
                  "wrong_thick": float(np.nansum(nthick * [x["wrong_thick"] for x in res]) / nthick.sum()),
                  "seconds": float(sum(x["seconds"] for x in res))}
-        if m == "heatcurv":
+        if m in FLAGGING:
             entry["wrong_reliable"] = float(np.sum(n * [x["wrong_reliable"] for x in res]) / n.sum())
             entry["flagged"] = float(np.sum(n * [x["flagged"] for x in res]) / n.sum())
         out[m] = entry
@@ -312,7 +334,7 @@ def parse_args(argv=None):
 
     parser.add_argument("--models", type=names(MODELS), default=list(MODELS), help="comma-separated model names")
     parser.add_argument("--variants", type=names(VARIANTS), default=list(VARIANTS), help="clean,noisy,half")
-    parser.add_argument("--methods", type=names(METHODS), default=list(METHODS), help="heatcurv,open3d")
+    parser.add_argument("--methods", type=names(METHODS), default=list(METHODS), help="heatcurv,tiled,open3d")
     parser.add_argument("--data", default=None, help="cache directory of the models (default: cgal_cache_dir())")
     parser.add_argument("--markdown", action="store_true", help="print the tables as Markdown")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
@@ -337,7 +359,7 @@ def main(argv=None) -> int:
     print(f"load         1-minute load average {os.getloadavg()[0]:.1f} (other work on the machine slows the times)")
     print()
     directory = fetch_cgal_meshes(args.data)
-    if "heatcurv" in methods:
+    if "heatcurv" in methods or "tiled" in methods:
         warm_up()
     models = []
     for name in args.models:
@@ -346,7 +368,7 @@ def main(argv=None) -> int:
         m = models[-1]
         log(f"{name}: {len(m['points'])} points, spacing {m['spacing']:.4g}, thin {100 * (~m['thick']).mean():.2f} %"
             f" ({time.perf_counter() - tic:.1f} s)")
-    runners = {"heatcurv": run_heatcurv, "open3d": run_open3d}
+    runners = {"heatcurv": run_heatcurv, "tiled": run_tiled, "open3d": run_open3d}
     for kind in args.variants:
         rows = []
         for model in models:

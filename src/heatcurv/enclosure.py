@@ -68,7 +68,10 @@ from ._kernels.graph import merged_components
 from ._kernels.winding import clipped_dipole_terms, winding_numbers
 from .neighbourhood import Neighbourhood
 
-__all__ = ["Enclosure", "enclose", "MAX_SOURCES", "CLOSED_SHARE", "LEVEL_TOLERANCE"]
+__all__ = [
+    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "source_keys", "MAX_SOURCES", "CLOSED_SHARE",
+    "LEVEL_TOLERANCE",
+]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
 MAX_SOURCES = 6000
@@ -154,8 +157,58 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     patch = patches(points, forest, excluded)
     n_patch = int(patch.max()) + 1
     source = _sources(points, patch, excluded)
-    x, nrm, label = points[source], normals[source], patch[source]
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
+    sides = patch_sides(points[source], normals[source], weight, patch[source], n_patch)
+    if not sides.closed:
+        return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0)
+    flip = sides.sign[patch] < 0
+    flip[excluded] = False
+    unsupported = _unsupported(source, sides.bad, neighbourhood, excluded)
+    oriented = np.where(flip[:, None], -normals, normals)
+    return Enclosure(oriented, unsupported, True, sides.agreement, int(flip.sum()))
+
+
+@dataclass(frozen=True)
+class PatchSides:
+    """The winding number's verdict on a sample of sources (:func:`patch_sides`).
+
+    Attributes
+    ----------
+    sign : ndarray, shape (n_patch,)
+        ``+1`` to keep each patch's normals, ``-1`` to flip them.
+    bad : ndarray, shape (m,), bool
+        Sources whose levels (with those signs) contradict their side, or
+        whose disc holds more than :data:`SPREAD_SHARE` of such sources.
+    agreement : float
+        Share of the sources' weight whose levels are within
+        :data:`CLOSED_TOLERANCE` of their targets.
+    closed : bool
+        ``agreement >= CLOSED_SHARE``: the sources enclose a volume.
+    """
+
+    sign: np.ndarray
+    bad: np.ndarray
+    agreement: float
+    closed: bool
+
+
+def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int) -> PatchSides:
+    """Each patch's side and each source's verdict, from the winding number of the sources (module docstring).
+
+    Parameters
+    ----------
+    x, nrm : ndarray, shape (m, 3)
+        The sources and their unit normals, consistent inside every patch.
+    weight : ndarray, shape (m,)
+        Their areas, scaled so that they sum to the whole cloud's area.
+    label : ndarray, shape (m,), int
+        Their patches, ``0 <= label < n_patch`` (a patch without sources keeps its side).
+    n_patch : int
+
+    Returns
+    -------
+    PatchSides
+    """
     along, against, (disc_rows, disc_members) = patch_fields(x, nrm, weight, label, n_patch)
     G, c = _energy(along, against, label, weight)
     sign = _patch_signs(G, c, label, weight)
@@ -168,19 +221,12 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     agrees = (np.abs(outside) <= LEVEL_TOLERANCE) & (np.abs(inside - 1.0) <= LEVEL_TOLERANCE)
     sure = (np.abs(outside) <= CLOSED_TOLERANCE) & (np.abs(inside - 1.0) <= CLOSED_TOLERANCE)
     agreement = float(weight[sure].sum() / weight.sum())
-    if agreement < CLOSED_SHARE:
-        return Enclosure(normals, np.zeros(n, dtype=bool), False, agreement, 0)
-
-    flip = sign[patch] < 0
-    flip[excluded] = False
     # a source disagrees when its levels do, or many of its disc's do (a flipped spot's own levels agree)
     bad = ~agrees
     share = np.bincount(disc_rows, weights=bad[disc_members], minlength=bad.size) / np.bincount(
         disc_rows, minlength=bad.size)
     bad |= share > SPREAD_SHARE
-    unsupported = _unsupported(source, bad, neighbourhood, excluded)
-    oriented = np.where(flip[:, None], -normals, normals)
-    return Enclosure(oriented, unsupported, True, agreement, int(flip.sum()))
+    return PatchSides(sign, bad, agreement, agreement >= CLOSED_SHARE)
 
 
 def _unsupported(source: np.ndarray, bad: np.ndarray, neighbourhood: Neighbourhood, excluded: np.ndarray):
@@ -211,11 +257,13 @@ def _unsupported(source: np.ndarray, bad: np.ndarray, neighbourhood: Neighbourho
     return unsupported
 
 
-def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray) -> np.ndarray:
+def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray,
+            cloud_points: int | None = None) -> np.ndarray:
     """Cut the spanning forest into patches: its subtrees inside grid cells, small ones merged, shape (n,).
 
-    The cells' side is chosen for about ``max(PATCH_POINTS, n / MAX_PATCHES)``
-    points a cell; a piece of fewer than a quarter of that joins the patch
+    The cells' side is chosen for about ``max(PATCH_POINTS, N / MAX_PATCHES)``
+    points a cell, ``N`` the points not excluded, or ``cloud_points`` when
+    ``points`` are a part (a tile) of a cloud of that many; a piece of fewer than a quarter of that joins the patch
     across one of its cut tree edges (in one pass over them), so every patch
     is a subtree and the orientation inside it is the tree's. Tree edges
     across which the normals or the tangent planes disagree join nothing.
@@ -228,7 +276,7 @@ def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray) -> 
     i, j, cost = i[keep], j[keep], forest.data[keep]
     length = np.linalg.norm(points[j] - points[i], axis=1)
     sure = cost <= SURE_COST
-    target = max(PATCH_POINTS, (n - excluded.sum()) / MAX_PATCHES)
+    target = max(PATCH_POINTS, (n - excluded.sum() if cloud_points is None else cloud_points) / MAX_PATCHES)
     side = np.sqrt(target) * (np.median(length) if length.size else 1.0)
     cell = _cell_ids(points, side)
     label = merged_components(n, i, j, (cell[i] == cell[j]) & sure, sure, int(target / 4))
@@ -252,14 +300,23 @@ def _sources(points: np.ndarray, patch: np.ndarray, excluded: np.ndarray) -> np.
     kept = np.flatnonzero(~excluded)
     if kept.size <= MAX_SOURCES:
         return kept
-    # a pseudo-random rank from the coordinates alone: the same points whatever the row order
-    bits = np.ascontiguousarray(points[kept]).view(np.uint64).astype(np.uint64)
+    chosen = kept[np.argpartition(source_keys(points[kept]), MAX_SOURCES)[:MAX_SOURCES]]
+    one_each = kept[np.unique(patch[kept], return_index=True)[1]]
+    return np.union1d(chosen, one_each)
+
+
+def source_keys(points: np.ndarray) -> np.ndarray:
+    """A pseudo-random rank of every point from its coordinates alone, shape (n,), uint64.
+
+    The same points rank alike whatever the row order and whichever part of
+    the cloud holds them (a tile), so a sample of the lowest ranks is the same
+    sample everywhere.
+    """
+    bits = np.ascontiguousarray(points, dtype=np.float64).view(np.uint64).astype(np.uint64)
     key = (bits * np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], dtype=np.uint64)).sum(
         axis=1, dtype=np.uint64)
     key ^= key >> np.uint64(29)
-    chosen = kept[np.argpartition(key, MAX_SOURCES)[:MAX_SOURCES]]
-    one_each = kept[np.unique(patch[kept], return_index=True)[1]]
-    return np.union1d(chosen, one_each)
+    return key
 
 
 def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int):

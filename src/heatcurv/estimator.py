@@ -118,7 +118,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         ``reliable`` then leaves out the two flags that compare a point with
         medians over the whole cloud (:mod:`heatcurv.reliability`):
         ``info["reliability"]`` holds their inputs and ``info["reach"]`` how
-        far each point's values reach (input units). Default: made from ``points``.
+        far each point's values reach (input units); oriented outward,
+        ``info["winding_patch"]`` the pieces whose sides the winding number
+        chooses over the whole cloud (:mod:`heatcurv.tiles.winding`).
+        Default: made from ``points``.
     **options
         Any field of :class:`heatcurv.Options`, where each is documented once:
         ``alpha`` (ball radius ``r = alpha h``; paper 4, default 2), ``m``
@@ -266,7 +269,8 @@ def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: n
 
     ``mode="auto"`` is decided first (:func:`_auto_policy`). Outliers get no
     weight in the outward vote (one far point would drag the centroid). Given
-    ``choices`` (a part of a cloud), the winding number is not run.
+    ``choices`` (a part of a cloud), the winding number is not run here: the
+    orientation's patches are cut for :mod:`heatcurv.tiles.winding`.
 
     Returns
     -------
@@ -287,7 +291,8 @@ def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: n
     with clock.stage("orientation"):
         policy = _auto_policy(op, keys, choices) if mode == "auto" else None
         orientation = orient(X, nrm, nbhd, op.areas, mode=mode if policy is None else policy.mode, towards=towards,
-                             excluded=outlier, whole_cloud=choices is None)
+                             excluded=outlier, whole_cloud=choices is None,
+                             cloud_points=None if choices is None else choices.frame.n_points)
     return orientation.normals, planarity, orientation, policy
 
 
@@ -566,6 +571,8 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
         support = nbhd.radius if fitted.support is None else fitted.support
         near = nbhd.radius if orientation.reach is None else np.maximum(nbhd.radius, orientation.reach)
         extra["reach"] = back(support + near) * unit
+        if orientation.patch is not None:  # "outward": the pieces the winding number signs over the whole cloud
+            extra["winding_patch"] = back(orientation.patch)
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count, "resolution": resolution, **extra,

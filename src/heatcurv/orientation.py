@@ -84,7 +84,7 @@ from scipy.spatial import cKDTree
 
 from ._kernels import graph as graph_kernels
 from ._kernels import segment as kernels
-from .enclosure import enclose
+from .enclosure import enclose, patches
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood, knn_neighbourhood
 
@@ -217,12 +217,17 @@ class Orientation:
         is the support plus the ball radius for the normals (neighbours' balls
         taken as about as wide as the point's own). None for ``"outward"``,
         whose spanning tree is global.
+    patch : ndarray, shape (n,), int, optional
+        ``"outward"`` on a part of a cloud (a tile): the pieces of the spanning
+        forest whose sides the winding number chooses over the whole cloud
+        (:func:`heatcurv.enclosure.patches`; -1 for excluded points). None otherwise.
     """
 
     normals: np.ndarray
     ambiguous: np.ndarray
     report: OrientationReport
     reach: np.ndarray | None = None
+    patch: np.ndarray | None = None
 
 
 def as_viewpoint(viewpoint, n: int | None = None) -> np.ndarray:
@@ -333,6 +338,7 @@ def orient(
     graph_neighbours: int | None = GRAPH_NEIGHBOURS,
     excluded: np.ndarray | None = None,
     whole_cloud: bool = True,
+    cloud_points: int | None = None,
 ) -> Orientation:
     """Orient unoriented normals by one of :data:`ORIENT_MODES`.
 
@@ -369,7 +375,12 @@ def orient(
     whole_cloud : bool, optional
         ``"outward"``: whether ``points`` is the whole cloud, whose inside the
         winding number decides (:mod:`heatcurv.enclosure`). A tile's piece is
-        not: its pieces' sides are made to agree by :mod:`heatcurv.tiles.orient`.
+        not: its pieces' sides are made to agree by :mod:`heatcurv.tiles.orient`,
+        and the winding number's patches (:attr:`Orientation.patch`) are cut
+        here and signed over the whole cloud by :mod:`heatcurv.tiles.winding`.
+    cloud_points : int, optional
+        Points of the whole cloud (``whole_cloud`` False): the patches are cut
+        to the size the whole cloud's would have.
 
     Returns
     -------
@@ -396,8 +407,10 @@ def orient(
     oriented *= sign[labels][:, None]
 
     # the winding number decides inside from outside, part by part, and flags what it contradicts
-    unsupported, closed, turned = np.zeros(n, dtype=bool), None, 0
-    if whole_cloud:
+    unsupported, closed, turned, patch = np.zeros(n, dtype=bool), None, 0, None
+    if not whole_cloud:
+        patch = patches(points, tree, np.zeros(n, dtype=bool) if excluded is None else excluded, cloud_points)
+    else:
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded)
         oriented, unsupported, closed, turned = (
             enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.flipped)
@@ -407,7 +420,7 @@ def orient(
         by_convention=0 if closed else int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
         closed=closed, turned=turned, unsupported=int(unsupported.sum()),
     )
-    return Orientation(oriented, ambiguous, report)
+    return Orientation(oriented, ambiguous, report, patch=patch)
 
 
 def _orient_locally(points, normals, graph, reference, mode, excluded) -> Orientation:

@@ -10,7 +10,7 @@ import heatcurv
 from heatcurv.errors import HeatcurvError
 from heatcurv.testing.tiles import compare_fields, result_columns, tiled_agreement
 from heatcurv.tiles import compute_file
-from heatcurv.tiles.output import STORED_KEYS
+from heatcurv.tiles.output import SOURCE_KEYS, STORED_KEYS
 from heatcurv.tiles.tasks import FAULT_VARIABLE
 
 
@@ -101,10 +101,11 @@ def test_ctrl_c_removes_temporaries_and_keeps_finished_tiles(torus_file, tmp_pat
         compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, scheduler="serial")
     work = tmp_path / ".out.ply.heatcurv-tiles"
     assert sorted(os.listdir(work / "tiles")) == ["tile_00000.npz"]
-    # the finished tile's rows are in results.rec, kept for the resume; its file holds the seam vote's inputs only
+    # the finished tile's rows are in results.rec, kept for the resume; its file holds the seam vote's and
+    # (a closed torus, oriented outward) the winding step's inputs only
     assert (work / "results.rec").exists() and not (tmp_path / "out.ply").exists()
     with np.load(work / "tiles" / "tile_00000.npz") as data:
-        assert sorted(data.files) == sorted(STORED_KEYS + ("stored",))
+        assert sorted(data.files) == sorted(STORED_KEYS + SOURCE_KEYS + ("stored",))
     # interrupted before any tile finished: nothing is kept
     monkeypatch.setenv(FAULT_VARIABLE, "interrupt:0")
     with pytest.raises(KeyboardInterrupt):

@@ -251,7 +251,9 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
         reach (its values depend on no point farther); ``halo_normals``
         (m - c, 3) of the halo rows; ``patch`` (m,) int: the connected pieces
         of the tile's surface, each of which the outward orientation signed on
-        its own (one label 0 unless the orientation is ``outward``).
+        its own (one label 0 unless the orientation is ``outward``);
+        ``winding_patch`` (m,) int or None: ``outward``, the pieces of the
+        tile's spanning forest the winding step signs (:mod:`.winding`).
     """
     res = estimate(points, choices=context["choices"], **options)
     fields = {name: getattr(res, name) for name in RESULT_FIELDS if hasattr(res, name)}
@@ -264,6 +266,7 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
     out["halo_normals"] = res.normals[~core]
     outward = orients_outward(options, context["choices"])
     out["patch"] = _patches(points, res.spacing, options) if outward else np.zeros(len(points), np.int64)
+    out["winding_patch"] = res.info.get("winding_patch") if outward else None
     return out
 
 

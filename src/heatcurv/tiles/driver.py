@@ -17,7 +17,9 @@
    index-addressed ``results.rec``, and every :data:`SLIM_POINTS` core points
    ``results.rec`` is fsynced and the stored tiles' files slimmed
    (:func:`.output.slim_tiles`).
-4. ``orientation``: for ``outward``, the flip bits (:mod:`.orient`).
+4. ``orientation``: for ``outward``, the flip bits of the seams (:mod:`.orient`),
+   then a closed cloud's inside and outside by the winding number over every
+   tile's sources (:mod:`.winding`: more flips, and flags).
 5. ``write``: the output in input order, atomically (:mod:`.output`).
 
 Scratch and resume
@@ -27,7 +29,8 @@ Scratch files live in ``<scratch>/.<output name>.heatcurv-tiles/``
 identity, options hash, tiling, statistics), ``context.pkl``, ``points.f8``,
 ``rows.i8``, ``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
 tile: its done marker; once its rows are copied into ``results.rec`` it keeps
-only the seam vote's inputs, :data:`.output.STORED_KEYS`). A run whose scratch
+only the seam vote's and the winding step's inputs, :data:`.output.STORED_KEYS`
+and :data:`.output.SOURCE_KEYS`). A run whose scratch
 directory holds a plan with the same source file (path, size, modification
 time), options and tile size resumes: finished tiles are not recomputed
 (``resume=None``, the default; ``True`` requires such a plan, ``False`` starts
@@ -156,7 +159,9 @@ class TiledReport:
     context : dict
         The global choices every tile got (:func:`.compute.merge_surveys`).
     orientation : dict or None
-        The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`).
+        The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`),
+        with the winding step's: ``closed``, ``agreement`` and, for a closed cloud,
+        ``turned`` and ``unsupported`` (:func:`.winding.flag_unsupported`).
     parameters : dict
         Everything written into the output's VLR / PLY comment.
     scratch : str
@@ -504,11 +509,21 @@ def compute_file(
         flips, orientation = None, None
         if compute.orients_outward(est, context["choices"]):
             from .orient import seam_flips
+            from .winding import flag_unsupported, winding_sides
 
             bar.stage("orientation")
             tic = time.perf_counter()
-            keys, flip, orientation = seam_flips({t: tile_path(work, t) for t in range(n_tiles)}, results_path)
-            flips = (keys, flip)
+            tile_files = {t: tile_path(work, t) for t in range(n_tiles)}
+            keys, flip, orientation = seam_flips(tile_files, results_path)
+            flips = [("patch", keys, flip)]
+            # a closed cloud's inside and outside, by the winding number over every tile's sources
+            sides = winding_sides(tile_files, keys, flip)
+            orientation["closed"] = bool(sides is not None and sides.closed)
+            if sides is not None:
+                orientation["agreement"] = sides.agreement
+            if sides is not None and sides.closed:
+                flips.append(("winding", sides.keys, sides.flip))
+                orientation.update(flag_unsupported(results_path, source, context["choices"].frame, sides))
             timings["orientation"] = time.perf_counter() - tic
         parameters = {
             "heatcurv": _version(), "tiled": True, "options": est, "tile_size": tile_size, "tiles": n_tiles,

@@ -45,11 +45,12 @@ __all__ = [
     "read_results", "output_columns", "write_output",
 ]
 
-#: One record per input row of ``results.rec``: every result field, the patch key, whether it was computed.
+#: One record per input row of ``results.rec``: every result field, the seam and winding patch keys
+#: (:mod:`.orient`, :mod:`.winding`), whether it was computed.
 RECORD = np.dtype(
     [(name, "u1" if dt is np.bool_ else np.dtype(dt).str, (cols,)) if cols > 1
      else (name, "u1" if dt is np.bool_ else np.dtype(dt).str) for name, (cols, dt) in RESULT_FIELDS.items()]
-    + [("patch", "<i8"), ("computed", "u1")]
+    + [("patch", "<i8"), ("winding", "<i8"), ("computed", "u1")]
 )
 #: The fields written by default, in the order of ``heatcurv compute`` (heatcurv.cli.fields.DEFAULT_FIELDS).
 DEFAULT_FIELDS = (
@@ -86,6 +87,9 @@ def create_results(path, count: int, *, keep: bool = False) -> bool:
 #: (:func:`heatcurv.tiles.orient.seam_flips`) and the ``stored`` mark. The per-point fields, about
 #: 170 bytes a core point, would double the scratch (at 100M points 17 of 39 GB).
 STORED_KEYS = ("volume_labels", "volumes", "halo_rows", "halo_normals", "halo_patch")
+#: What a tile oriented ``outward`` keeps for the winding step (:func:`heatcurv.tiles.winding.tile_sources`).
+SOURCE_KEYS = ("winding_rows", "winding_x", "winding_normals", "winding_area", "winding_label", "winding_seam",
+               "winding_total")
 
 
 def is_stored(tile_file) -> bool:
@@ -107,6 +111,7 @@ def store_tile(path, tile_file, tile: int) -> int:
         for name in RESULT_FIELDS:
             block[name] = data[name]
         block["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"]
+        block["winding"] = (np.int64(tile) << PATCH_SHIFT) | data["winding"]
         block["computed"] = 1
     order = np.argsort(rows)
     rows, block = rows[order], block[order]
@@ -136,7 +141,7 @@ def slim_tiles(path, tile_files) -> None:
         with np.load(tile_file) as data:
             if "stored" in data.files:
                 continue
-            kept = {name: data[name] for name in STORED_KEYS}
+            kept = {name: data[name] for name in STORED_KEYS + SOURCE_KEYS if name in data.files}
             count = np.int64(len(data["rows"]))
         temporary = f"{tile_file}.{os.getpid()}.tmp.npz"
         try:
@@ -229,16 +234,20 @@ def output_columns(block: np.ndarray, wanted, dtype) -> dict:
 
 
 def _results_chunks(results_path, count: int, flips, size: int = CHUNK_POINTS):
+    """``(start, records)`` in input order, each record turned over where an odd number of ``flips`` say so.
+
+    ``flips``: ``(column, keys, flipped)`` triples (the seam flips by ``patch``,
+    the winding step's by ``winding``), or None.
+    """
     for start in range(0, count, size):
         stop = min(count, start + size)
         block = read_results(results_path, start, stop)
-        if flips is not None:
-            keys, flipped = flips
+        flip = np.zeros(len(block), dtype=bool)
+        for column, keys, flipped in flips or ():
             if len(keys):
-                at = np.clip(np.searchsorted(keys, block["patch"]), 0, len(keys) - 1)
-                flip = (keys[at] == block["patch"]) & flipped[at] & (block["computed"] == 1)
-                block = _flipped(block, flip)
-        yield start, block
+                at = np.clip(np.searchsorted(keys, block[column]), 0, len(keys) - 1)
+                flip ^= (keys[at] == block[column]) & flipped[at]
+        yield start, _flipped(block, flip & (block["computed"] == 1))
 
 
 def write_output(stream, dst, source: Source, stats, results_path, wanted, dtype, flips, parameters: dict) -> None:
