@@ -69,8 +69,8 @@ from ._kernels.winding import clipped_dipole_terms, winding_numbers
 from .neighbourhood import Neighbourhood
 
 __all__ = [
-    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "source_keys", "MAX_SOURCES", "CLOSED_SHARE",
-    "LEVEL_TOLERANCE",
+    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "source_keys", "source_threshold", "MAX_SOURCES",
+    "CLOSED_SHARE", "LEVEL_TOLERANCE",
 ]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
@@ -317,6 +317,17 @@ def source_keys(points: np.ndarray) -> np.ndarray:
         axis=1, dtype=np.uint64)
     key ^= key >> np.uint64(29)
     return key
+
+
+def source_threshold(cloud_points: int) -> np.uint64:
+    """The rank (:func:`source_keys`) up to which a point of a cloud of ``cloud_points`` is a source.
+
+    About :data:`MAX_SOURCES` of the cloud's points rank that low (all of a smaller cloud): a part of the
+    cloud (a tile) picks its share of the sample from its own points.
+    """
+    if cloud_points <= MAX_SOURCES:
+        return np.uint64(2**64 - 1)
+    return np.uint64((2**64 * MAX_SOURCES) // cloud_points)
 
 
 def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int):

@@ -119,8 +119,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         medians over the whole cloud (:mod:`heatcurv.reliability`):
         ``info["reliability"]`` holds their inputs and ``info["reach"]`` how
         far each point's values reach (input units); oriented outward,
-        ``info["winding_patch"]`` the pieces whose sides the winding number
-        chooses over the whole cloud (:mod:`heatcurv.tiles.winding`).
+        ``info["winding"]`` what the winding number needs over the whole
+        cloud (:mod:`heatcurv.tiles.winding`): each point's patch, whether it
+        is a source, its normal as the spanning tree oriented it and its
+        weight (area, input units).
         Default: made from ``points``.
     **options
         Any field of :class:`heatcurv.Options`, where each is documented once:
@@ -571,8 +573,11 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
         support = nbhd.radius if fitted.support is None else fitted.support
         near = nbhd.radius if orientation.reach is None else np.maximum(nbhd.radius, orientation.reach)
         extra["reach"] = back(support + near) * unit
-        if orientation.patch is not None:  # "outward": the pieces the winding number signs over the whole cloud
-            extra["winding_patch"] = back(orientation.patch)
+        if orientation.patch is not None:  # "outward": what the winding number needs over the whole cloud
+            source = np.zeros(prepared.n_input, dtype=bool)
+            source[prepared.first[orientation.sources]] = True  # one row per set of duplicates
+            extra["winding"] = {"patch": back(orientation.patch), "source": source,
+                                "normals": back(orientation.normals), "weight": back(orientation.weights) * unit**2}
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count, "resolution": resolution, **extra,

@@ -84,7 +84,7 @@ from scipy.spatial import cKDTree
 
 from ._kernels import graph as graph_kernels
 from ._kernels import segment as kernels
-from .enclosure import enclose, patches
+from .enclosure import enclose, patches, source_keys, source_threshold
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood, knn_neighbourhood
 
@@ -221,6 +221,11 @@ class Orientation:
         ``"outward"`` on a part of a cloud (a tile): the pieces of the spanning
         forest whose sides the winding number chooses over the whole cloud
         (:func:`heatcurv.enclosure.patches`; -1 for excluded points). None otherwise.
+    sources : ndarray, shape (n,), bool, optional
+        With ``patch``: the part's share of the winding number's sources
+        (:func:`heatcurv.enclosure.source_threshold`).
+    weights : ndarray, shape (n,), optional
+        With ``patch``: the sources' dipole strengths (the areas, 0 for excluded points).
     """
 
     normals: np.ndarray
@@ -228,6 +233,8 @@ class Orientation:
     report: OrientationReport
     reach: np.ndarray | None = None
     patch: np.ndarray | None = None
+    sources: np.ndarray | None = None
+    weights: np.ndarray | None = None
 
 
 def as_viewpoint(viewpoint, n: int | None = None) -> np.ndarray:
@@ -407,9 +414,12 @@ def orient(
     oriented *= sign[labels][:, None]
 
     # the winding number decides inside from outside, part by part, and flags what it contradicts
-    unsupported, closed, turned, patch = np.zeros(n, dtype=bool), None, 0, None
+    unsupported, closed, turned, part = np.zeros(n, dtype=bool), None, 0, {}
     if not whole_cloud:
-        patch = patches(points, tree, np.zeros(n, dtype=bool) if excluded is None else excluded, cloud_points)
+        cut = np.zeros(n, dtype=bool) if excluded is None else excluded
+        total = n if cloud_points is None else cloud_points
+        part = {"patch": patches(points, tree, cut, cloud_points), "weights": w,
+                "sources": ~cut & (source_keys(points) <= source_threshold(total))}
     else:
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded)
         oriented, unsupported, closed, turned = (
@@ -420,7 +430,7 @@ def orient(
         by_convention=0 if closed else int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
         closed=closed, turned=turned, unsupported=int(unsupported.sum()),
     )
-    return Orientation(oriented, ambiguous, report, patch=patch)
+    return Orientation(oriented, ambiguous, report, **part)
 
 
 def _orient_locally(points, normals, graph, reference, mode, excluded) -> Orientation:

@@ -252,8 +252,9 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
         (m - c, 3) of the halo rows; ``patch`` (m,) int: the connected pieces
         of the tile's surface, each of which the outward orientation signed on
         its own (one label 0 unless the orientation is ``outward``);
-        ``winding_patch`` (m,) int or None: ``outward``, the pieces of the
-        tile's spanning forest the winding step signs (:mod:`.winding`).
+        ``winding`` dict or None: ``outward``, what the winding step needs
+        (:mod:`.winding`; the estimate's ``info["winding"]``, None where the
+        normals were oriented on anchors).
     """
     res = estimate(points, choices=context["choices"], **options)
     fields = {name: getattr(res, name) for name in RESULT_FIELDS if hasattr(res, name)}
@@ -266,7 +267,7 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
     out["halo_normals"] = res.normals[~core]
     outward = orients_outward(options, context["choices"])
     out["patch"] = _patches(points, res.spacing, options) if outward else np.zeros(len(points), np.int64)
-    out["winding_patch"] = res.info.get("winding_patch") if outward else None
+    out["winding"] = res.info.get("winding") if outward else None
     return out
 
 

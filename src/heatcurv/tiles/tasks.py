@@ -321,20 +321,16 @@ def run_tile(spec: dict) -> dict:
     volumes = np.bincount(inverse, weights=np.nan_to_num(terms), minlength=len(labels))
     arrays = {name: np.asarray(out[name]) for name in compute.RESULT_FIELDS}
     # the winding step's patches (each within one seam piece) and sources (heatcurv.tiles.winding)
-    winding = inverse
-    if out.get("winding_patch") is not None:
-        pieces = np.column_stack([patch[core], np.asarray(out["winding_patch"], dtype=np.int64)[core]])
-        winding = np.unique(pieces, axis=0, return_inverse=True)[1].ravel()
     if compute.orients_outward(options, context["choices"]):
         frame = context["choices"].frame
-        arrays.update(tile_sources(
-            frame.to_stage(points[core]), rows[core], arrays["normals"], arrays["area"] / frame.unit**2,
-            arrays["outlier"], winding, patch[core], frame.n_points,
-        ))
+        arrays.update(tile_sources(frame, points[core], rows[core], patch[core], arrays,
+                                   None if out["winding"] is None else {k: v[core] for k, v in out["winding"].items()}))
+    else:
+        arrays["winding"] = np.zeros(c, dtype=np.int64)
     path = tile_path(scratch, tile)
     temporary = f"{path}.{os.getpid()}.tmp.npz"
     try:
-        np.savez(temporary, rows=rows[core], patch=patch[core], winding=winding.astype(np.int64),
+        np.savez(temporary, rows=rows[core], patch=patch[core],
                  halo_rows=rows[~core], halo_normals=np.asarray(out["halo_normals"]), halo_patch=patch[~core],
                  volume_labels=labels, volumes=volumes, **arrays)
         os.replace(temporary, path)

@@ -11,9 +11,12 @@ reliable.
 A tile cuts its own spanning forest into patches of the size the whole
 cloud's would have (:func:`heatcurv.enclosure.patches`, each also within one
 seam piece of :mod:`.orient`) and keeps a sample of its core points as
-sources: those whose coordinate rank (:func:`heatcurv.enclosure.source_keys`,
-the same for a point in any tile) is below a threshold chosen for about
-:data:`heatcurv.enclosure.MAX_SOURCES` sources over the whole cloud. The driver,
+sources, with the normals and areas the winding number reads in memory (the
+spanning tree's PCA normals, the operator's areas): those whose coordinate
+rank (:func:`heatcurv.enclosure.source_keys`, the same for a point in any
+tile) is at most a threshold chosen for about
+:data:`heatcurv.enclosure.MAX_SOURCES` sources over the whole cloud
+(:func:`heatcurv.enclosure.source_threshold`). The driver,
 once the seam flips are known, gathers every tile's sources, turns their
 normals by the seam flips, and solves the same energy for the sides of all
 patches of all tiles (:func:`heatcurv.enclosure.patch_sides`). A closed cloud's
@@ -33,52 +36,58 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..enclosure import MAX_SOURCES, patch_sides, source_keys
+from ..enclosure import patch_sides, source_keys, source_threshold
 from .output import PATCH_SHIFT, SOURCE_KEYS, read_results, write_records
 
 __all__ = ["WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
 
 
-def _threshold(cloud_points: int) -> np.uint64:
-    """The rank below which a point is a source: about :data:`MAX_SOURCES` of ``cloud_points`` (all of fewer)."""
-    if cloud_points <= MAX_SOURCES:
-        return np.uint64(2**64 - 1)
-    return np.uint64((2**64 * MAX_SOURCES) // cloud_points)
-
-
-def tile_sources(stage_points: np.ndarray, rows: np.ndarray, normals: np.ndarray, areas: np.ndarray,
-                 excluded: np.ndarray, label: np.ndarray, seam: np.ndarray, cloud_points: int) -> dict:
-    """A tile's share of the winding step's sources: the arrays of :data:`.output.SOURCE_KEYS`.
+def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, results: dict,
+                 winding: dict | None) -> dict:
+    """A tile's winding patch of every core row and its share of the sources (:data:`.output.SOURCE_KEYS`).
 
     Parameters
     ----------
-    stage_points : ndarray, shape (c, 3)
-        The tile's core points in the whole cloud's frame
-        (:meth:`heatcurv.choices.CloudFrame.to_stage`).
+    frame : heatcurv.choices.CloudFrame
+        The whole cloud's frame.
+    points : ndarray, shape (c, 3)
+        The tile's core points, input coordinates.
     rows : ndarray, shape (c,), int
         Their input rows.
-    normals : ndarray, shape (c, 3)
-        Their normals as the tile oriented them.
-    areas : ndarray, shape (c,)
-        Their areas, in the frame's unit.
-    excluded : ndarray, shape (c,), bool
-        Outliers: neither sources nor counted in the area.
-    label, seam : ndarray, shape (c,), int
-        Their winding patch and seam piece within the tile.
-    cloud_points : int
-        Points of the whole cloud.
+    seam : ndarray, shape (c,), int
+        Their seam pieces (:mod:`.orient`).
+    results : dict
+        Their result fields (``normals``, ``area``, ``outlier``).
+    winding : dict or None
+        The core rows of the estimate's ``info["winding"]`` (``patch``,
+        ``source``, ``normals``, ``weight``). None (normals oriented on
+        anchors): the seam pieces are the patches, and the sources are drawn
+        from the results alike.
 
     Returns
     -------
     dict
-        ``winding_*`` arrays of the sources, and ``winding_total``: the summed
-        area of the core points not excluded (the sources' areas are scaled to it).
+        ``winding`` (c,): each row's patch, unique within the tile and within
+        one seam piece; the sources' ``winding_rows``, ``winding_x`` (the
+        frame's coordinates), ``winding_normals`` (as the tile oriented them),
+        ``winding_area`` (the frame's unit), ``winding_label``,
+        ``winding_seam``; ``winding_total``: the summed area of the core rows
+        (excluded ones weigh 0), to which the sources' areas are scaled.
     """
-    chosen = ~excluded & (source_keys(stage_points) <= _threshold(cloud_points))
+    if winding is None:
+        excluded = np.asarray(results["outlier"], dtype=bool)
+        label = np.unique(seam, return_inverse=True)[1].ravel()
+        source = ~excluded & (source_keys(frame.to_stage(points)) <= source_threshold(frame.n_points))
+        normals, weight = results["normals"], np.where(excluded, 0.0, np.abs(results["area"]))
+    else:
+        pieces = np.column_stack([seam, np.asarray(winding["patch"], dtype=np.int64)])
+        label = np.unique(pieces, axis=0, return_inverse=True)[1].ravel()
+        source, normals, weight = np.asarray(winding["source"], dtype=bool), winding["normals"], winding["weight"]
+    weight = np.abs(weight) / frame.unit**2
     return {
-        "winding_rows": rows[chosen], "winding_x": stage_points[chosen], "winding_normals": normals[chosen],
-        "winding_area": np.abs(areas[chosen]), "winding_label": label[chosen], "winding_seam": seam[chosen],
-        "winding_total": np.array(np.abs(areas[~excluded]).sum()),
+        "winding": label.astype(np.int64), "winding_rows": rows[source], "winding_x": frame.to_stage(points[source]),
+        "winding_normals": normals[source], "winding_area": weight[source], "winding_label": label[source],
+        "winding_seam": seam[source], "winding_total": np.array(weight.sum()),
     }
 
 
