@@ -122,7 +122,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         ``info["winding"]`` what the winding number needs over the whole
         cloud (:mod:`heatcurv.tiles.winding`): each point's patch, whether it
         is a source, its normal as the spanning tree oriented it and its
-        weight (area, input units).
+        weight (area, input units; on one row of a set of duplicates).
         Default: made from ``points``.
     **options
         Any field of :class:`heatcurv.Options`, where each is documented once:
@@ -574,10 +574,12 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
         near = nbhd.radius if orientation.reach is None else np.maximum(nbhd.radius, orientation.reach)
         extra["reach"] = back(support + near) * unit
         if orientation.patch is not None:  # "outward": what the winding number needs over the whole cloud
-            source = np.zeros(prepared.n_input, dtype=bool)
-            source[prepared.first[orientation.sources]] = True  # one row per set of duplicates
+            # one row per set of duplicates is a source and carries the area
+            source, weight = np.zeros(prepared.n_input, dtype=bool), np.zeros(prepared.n_input)
+            source[prepared.first[orientation.sources]] = True
+            weight[prepared.first] = orientation.weights * unit**2
             extra["winding"] = {"patch": back(orientation.patch), "source": source,
-                                "normals": back(orientation.normals), "weight": back(orientation.weights) * unit**2}
+                                "normals": back(orientation.normals), "weight": weight}
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count, "resolution": resolution, **extra,

@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 import pytest
-from tiles_helpers import exact, exact_but_flagged_by_the_winding_number
+from tiles_helpers import exact
 
 from heatcurv.errors import HeatcurvError
 from heatcurv.tiles import compute, tasks
@@ -138,9 +138,9 @@ def test_round_two_fits_the_gate_first_and_every_candidate_only_under_noise(tmp_
     assert [name for name, _ in phases] == rounds + ["run_tile"]
     # the gate's round fits the chord and the ladder's first candidate; a noisy cloud's then fits them all
     assert phases[1][1] == {heatcurv.survey.GATE_LEVELS} and (noise == 0.0 or phases[2][1] == {None})
-    # bit for bit (measured), clean or noisy, but for the points whose side the whole cloud's winding number
-    # contradicts (a noisy level here and there): unreliable in memory, where the whole cloud is seen
+    # bit for bit (measured), clean or noisy, the points whose side the whole cloud's winding number contradicts
+    # (a noisy level here and there) flagged alike: every tile's share of the sources is the in-memory run's
     memory = heatcurv.estimate(points)
     agreement = tiled_agreement(out, memory, rtol=0.0)
-    differ = exact_but_flagged_by_the_winding_number(agreement, memory)
+    differ = exact(agreement)
     assert differ == dict.fromkeys(differ, (0, 0.0))

@@ -10,17 +10,6 @@ def exact(agreement):
     return {name: (a["bad"], a["worst"]) for name, a in agreement.items()}
 
 
-def exact_but_flagged_by_the_winding_number(agreement, memory, rows_per_point=1):
-    """:func:`exact`, without ``reliable``, which may differ on the rows of the points the in-memory run's
-    winding number flagged (``info["orientation"].unsupported``: it sees the whole cloud, a tile cannot); those
-    are a few noisy points of a closed cloud, at most 0.3 % of them."""
-    flagged = memory.info["orientation"].unsupported
-    assert flagged <= 0.003 * memory.info["n_distinct"]
-    differ = exact(agreement)
-    assert differ.pop("reliable")[0] <= flagged * rows_per_point
-    return differ
-
-
 def read_fields(path):
     """Every column of an output file, by name (x y z too)."""
     from heatcurv.io import read_points

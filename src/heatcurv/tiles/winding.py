@@ -165,9 +165,9 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
 def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: int = 1 << 20) -> dict:
     """Clear ``reliable`` in ``results.rec`` where the winding number contradicts a point's side (closed clouds).
 
-    A source is flagged when it disagrees (:attr:`WindingSides.bad`); any other
-    point when more than half of the sources within its fit radius do (none
-    when no source is that near).
+    A source is flagged when it disagrees (:attr:`WindingSides.bad`), and so
+    are its exact duplicates; any other point when more than half of the
+    sources within its fit radius do (none when no source is that near).
 
     Parameters
     ----------
@@ -202,6 +202,10 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
             total = tree.query_ball_point(x[near], radius[near], return_length=True)
             against = bad_tree.query_ball_point(x[near], radius[near], return_length=True)
             flagged[near] = against > 0.5 * total
+            # a duplicate of a source (only one row of a set is) takes its flag
+            distance, nearest = tree.query(x[near])
+            twin = distance == 0.0
+            flagged[np.flatnonzero(near)[twin]] = sides.bad[nearest[twin]]
         lo, hi = np.searchsorted(sides.rows, [start, stop])
         flagged[sides.rows[lo:hi] - start] = sides.bad[lo:hi]
         flagged &= computed
