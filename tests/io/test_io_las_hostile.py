@@ -517,6 +517,7 @@ def _altered(data, kind):
         "insert_1": lambda: _insert(data, inside, b"\x00"),
         "insert_6": lambda: _insert(data, inside, b"\x07" * 6),
         "appended_5": lambda: data + b"\x00" * 5,
+        "appended_40": lambda: data + b"\x01" * 40,
         # one byte in, the last one out: the size fits, records 6 on are read one byte late
         "shifted": lambda: _insert(data, inside, b"\x00")[:-1],
         "count_1": lambda: lay.set("<Q", 247, 1),
@@ -559,6 +560,7 @@ EXPECTED = {
         "insert_1": _SIZES.format(extra=1, count=120, why="not a whole number of records"),
         "insert_6": _SIZES.format(extra=6, count=120, why="not a whole number of records"),
         "appended_5": _SIZES.format(extra=5, count=120, why="not a whole number of records"),
+        "appended_40": _SIZES.format(extra=40, count=120, why="not a whole number of records"),
         "shifted": _BOX.format(record=6, axis=r"[XYZ]", side=r"(above|below)", word=r"(maximum|minimum)",
                                bound=r"[\d.]+", many=r"\d+"),
         "count_1": _SIZES.format(extra=119 * 52, count=1, why="room for 119 more"),
@@ -571,6 +573,9 @@ EXPECTED = {
         "insert_1": r"the chunk table lists 256 chunks, the 4053 bytes of compressed points hold at most 78",
         "insert_6": r"the chunk table lists no chunks for 120 points$",
         "shifted": r"the chunk table lists 256 chunks, the 4053 bytes of compressed points hold at most 78",
+        # liblas leaves 32 bytes after the chunk table: up to that, accepted (test below)
+        "appended_40": r"the 40 bytes between the chunk table and the end of the file are unexplained \(a LAZ "
+                       r"writer leaves at most 32\)$",
         "count_1": r"chunk 1 of 1 of the compressed points says it holds 120 points, the chunk table and header "
                    r"give 1$",
         "count_119": r"chunk 1 of 1 of the compressed points says it holds 120 points, the chunk table and "
@@ -596,6 +601,18 @@ def test_heatcurv_file_altered_in_one_way(tmp_path, ext, kind):
     assert message.startswith(f"cannot read {path}: "), message
     problem = message[len(f"cannot read {path}: "):]
     assert re.search(EXPECTED[ext][kind], problem), f"{problem!r} does not match {EXPECTED[ext][kind]!r}"
+
+
+def test_bytes_after_a_laz_chunk_table_up_to_what_liblas_leaves(tmp_path):
+    """liblas writes 32 bytes after the chunk table: accepted; the points read as without them."""
+    path = heatcurv_file(tmp_path, "laz")
+    data = path.read_bytes()
+    expected = read_points(path).points
+    path.write_bytes(data + b"\x01" * 32)
+    np.testing.assert_array_equal(read_points(path).points, expected)
+    path.write_bytes(data + b"\x01" * 33)
+    with pytest.raises(HeatcurvError, match=r"the 33 bytes between the chunk table and the end of the file"):
+        read_points(path)
 
 
 def test_heatcurv_file_layout_the_expectations_assume(tmp_path):

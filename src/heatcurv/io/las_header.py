@@ -89,6 +89,9 @@ _BYTE14 = 14
 #: more than a few hundred megabytes.
 MAX_POINTS_PER_COMPRESSED_BYTE = 4096
 
+#: Bytes a LAZ writer may leave after the chunk table: liblas leaves 32 (the other writers measured, none).
+CHUNK_TABLE_SLACK = 32
+
 #: Above this, a fixed chunk size larger than the point count selects lazrs's
 #: sequential decoder: the parallel one allocates ``chunk_size * record_length``
 #: bytes for the last chunk whatever the number of points in it.
@@ -398,6 +401,37 @@ def _read_chunk_table(reader: _Reader, start_of_points: int, laszip: _LasZip):
         ) from None
 
 
+def _chunk_table_length(table_bytes: bytes, laszip: _LasZip, entries) -> int:
+    """The bytes of ``table_bytes`` the chunk table takes: the shortest prefix that decodes to ``entries``.
+
+    The table's entries are arithmetic-coded, so its length is not stored;
+    lazrs fails on a prefix cut inside it and reads the whole table from
+    exactly the bytes its encoder wrote.
+    """
+    import io
+
+    import lazrs
+
+    vlr = lazrs.LazVlr(laszip.record_data)
+
+    def decodes(length: int) -> bool:
+        try:
+            return lazrs.read_chunk_table(io.BytesIO(struct.pack("<q", 8) + table_bytes[:length]), vlr) == entries
+        except (KeyboardInterrupt, SystemExit):
+            raise
+        except BaseException:  # lazrs errors, pyo3 panics
+            return False
+
+    low, high = 8, len(table_bytes)
+    while low < high:
+        middle = (low + high) // 2
+        if decodes(middle):
+            high = middle
+        else:
+            low = middle + 1
+    return low
+
+
 def _check_laz(
     reader: _Reader, offset: int, end: int, point_count: int, record_length: int, laszip: _LasZip
 ) -> bool:
@@ -408,10 +442,12 @@ def _check_laz(
             "truncated at the start of the compressed points (no room for the chunk table offset)"
         )
     table = struct.unpack("<q", reader.read(offset, 8))[0]
+    end_of_table = end
     if table <= offset:
         # a streaming writer could not go back: lazrs then reads the offset at the end
         if size >= offset + 16:
             table = struct.unpack("<q", reader.read(size - 8, 8))[0]
+            end_of_table = size - 8
         if table <= offset:
             raise LasStructureError(
                 "the LAZ file has no chunk table (its writer could not store where the table "
@@ -471,6 +507,14 @@ def _check_laz(
             f"the chunk table gives {_plural(total, 'byte')} of compressed points, "
             f"the file holds {compressed} before the table"
         )
+    if table < end_of_table:
+        spare = end_of_table - table - _chunk_table_length(reader.read(table, end_of_table - table), laszip, entries)
+        if spare > CHUNK_TABLE_SLACK:
+            where = "the extended VLRs" if end < size else "the end of the file"
+            raise LasStructureError(
+                f"the {_plural(spare, 'byte')} between the chunk table and {where} are unexplained "
+                f"(a LAZ writer leaves at most {CHUNK_TABLE_SLACK})"
+            )
     if variable:
         counts = [points for points, _bytes in entries]
         if sum(counts) != point_count:
