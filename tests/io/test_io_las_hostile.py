@@ -207,7 +207,7 @@ def mutations(samples):
         add(f"{stem}_scaleX_negative.{ext}", lay.set("<d", 131, -0.001),
             r"point record 1 of 120 lies outside the header's bounding box: its X \(5119\d\d\.\d+\) is "
             r"[\d.]+ below the box's X minimum \(5120\d\d\.\d+\), more than one scale step \(0\.001\); "
-            r"120 points are outside")
+            r"120 of the 120 points are outside")
         # point counts
         count_at = 247 if lay.minor >= 4 else 107
         count_fmt = "<Q" if lay.minor >= 4 else "<I"
@@ -538,8 +538,8 @@ _SIZES = (r"the point data holds \d+ bytes, {extra} more than the {count} points
           r"announces \({why}\): the point count, the record length or the offset to the points is wrong, "
           r"or bytes were inserted$")
 _BOX = (r"point record {record} of 120 lies outside the header's bounding box: its {axis} \([\d.]+\) is [\d.]+ "
-        r"{side} the box's {axis} {word} \({bound}\), more than one scale step \(1e-06\); {many} points are "
-        r"outside: the records are misaligned, or the header does not describe these points$")
+        r"{side} the box's {axis} {word} \({bound}\), more than one scale step \(1e-06\); {many} of the 120 "
+        r"points are outside: the records are misaligned, or the header does not describe these points$")
 _FORMAT = (r"the point record length \(52 bytes\) is not the {size} bytes of point format {f} plus the 16 its "
            r"ExtraBytes VLR describes \({total}\)$")
 _COMMON = {

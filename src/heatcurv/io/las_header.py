@@ -743,7 +743,7 @@ def check_las_file(path) -> LasLayout:
         return LasLayout(**layout, sequential=sequential)
 
 
-def check_points_in_box(layout: LasLayout, points: np.ndarray, integers) -> None:
+def check_points_in_box(layout: LasLayout, points: np.ndarray, integers, first_record: int = 0) -> None:
     """Check decoded points against the header's bounding box, one scale step of rounding allowed.
 
     Records read from the wrong position (a count, a record length or an offset
@@ -761,6 +761,8 @@ def check_points_in_box(layout: LasLayout, points: np.ndarray, integers) -> None
         The decoded coordinates.
     integers : sequence of 3 ndarrays, shape (n,)
         The records' X, Y and Z integers.
+    first_record : int
+        The file's index of the first of these points (a chunk of the file).
 
     Raises
     ------
@@ -785,11 +787,14 @@ def check_points_in_box(layout: LasLayout, points: np.ndarray, integers) -> None
     value = float(points[first, axis])
     lo, hi = layout.box[axis]
     side, word, bound = ("below", "minimum", lo) if value < lo else ("above", "maximum", hi)
+    n = points.shape[0]
+    rows = "" if first_record == 0 and n == layout.point_count else f" of records {first_record + 1}-{first_record + n}"
     name = "XYZ"[axis]
     raise LasStructureError(
-        f"point record {first + 1} of {points.shape[0]} lies outside the header's bounding box: its {name} "
+        f"point record {first_record + first + 1} of {max(layout.point_count, first_record + points.shape[0])} lies "
+        f"outside the header's bounding box: its {name} "
         f"({value:.10g}) is {abs(value - bound):.3g} {side} the box's {name} {word} ({bound:.10g}), more than "
         f"one scale step ({abs(layout.scales[axis]):.3g}); "
-        f"{int(outside.sum())} points are outside: the records are misaligned, or the header does not "
-        "describe these points"
+        f"{int(outside.sum())} of the {n} points{rows} are outside: the records are misaligned, or the header "
+        "does not describe these points"
     )
