@@ -681,10 +681,12 @@ def check_las_file(path) -> LasLayout:
             end_of_evlrs = _walk_evlrs(reader, evlr_start, evlr_count)
             end_of_points = evlr_start
         elif minor == 3:
-            # LAS 1.3 keeps one extended VLR, the waveform data packets, after the points
+            # LAS 1.3 keeps one extended VLR, the waveform data packets, after the points; a start inside
+            # the points (the field was new in 1.3, some writers leave it unset) is not one
             waveform = struct.unpack_from("<Q", head, 227)[0]
             end_of_evlrs = size
-            if offset < waveform <= size:
+            points_end = offset + (0 if compressed else point_count * record_length)
+            if max(offset + 1, points_end) <= waveform < size:
                 end_of_evlrs = _walk_evlrs(reader, waveform, 1)
                 end_of_points = waveform
         else:
