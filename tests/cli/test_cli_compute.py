@@ -317,3 +317,21 @@ def test_compute_says_which_side_the_default_chose(tmp_path):
     assert out.returncode == 0, out.stderr
     assert "normals oriented outward of each piece (its convex side)" in out.stdout
     assert "normals oriented up" not in out.stdout
+
+
+def test_compute_refuses_a_las_whose_records_are_misaligned(tmp_path):
+    """One byte inserted in the points of a LAS: exit 2, one line, no output (it used to compute garbage, exit 0)."""
+    points = heatcurv.surfaces.Sphere().sample(400, "fibonacci").points * 2 + 10
+    source = tmp_path / "sphere.las"
+    io.write_points(source, points)
+    data = source.read_bytes()
+    offset, record_length = int.from_bytes(data[96:100], "little"), int.from_bytes(data[105:107], "little")
+    at = offset + 7 * record_length + 3
+    source.write_bytes(data[:at] + b"\x00" + data[at:])
+    out = run("compute", source, "-o", tmp_path / "out.ply")
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert out.stderr == (
+        f"heatcurv: error: cannot read {source}: the point data holds {400 * record_length + 1} bytes, 1 more than "
+        f"the 400 points of {record_length} bytes the header announces (not a whole number of records): the point "
+        "count, the record length or the offset to the points is wrong, or bytes were inserted\n")
+    assert not (tmp_path / "out.ply").exists()

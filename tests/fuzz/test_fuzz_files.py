@@ -97,8 +97,10 @@ def test_every_format_family_has_its_own_mutators():
         if family not in ("text", "obj"):  # the text formats get the encoding and token mutators
             assert names, family
     assert {"npz-bomb", "npz-member"} <= own["npz"]
-    assert {"las-point-count", "las-vlr-count", "las-point-offset", "las-record-length", "las-scale"} <= own["las"]
+    assert {"las-point-count", "las-vlr-count", "las-point-offset", "las-record-length", "las-scale",
+            "las-point-format", "las-misalign"} <= own["las"]
     assert "laz-chunk-table" in own["laz"]
+    assert fuzz.EXACT_OR_REFUSED <= set(fuzz.MUTATORS)
 
 
 # ------------------------------------------------------------------------ the harness itself can fail
@@ -211,3 +213,53 @@ def test_announced_points():
     assert fuzz.announced_points("pts", b"12\n1 2 3\n") == {12}
     assert fuzz.announced_points("pts", b"1 2 3\n") is None
     assert fuzz.announced_points("text", b"1 2 3\n") is None
+
+
+# ------------------------------------------------------------- accepted files compared attribute by attribute
+def test_attribute_differences_name_every_changed_missing_and_new_attribute(tmp_path):
+    files = fuzz.seed_files(tmp_path)
+    cloud = read_points(files["las-1.4-fmt6"])
+    original = fuzz.attribute_digests(cloud)
+    assert {"points", "normals", "field intensity", "field mean"} <= set(original)
+    assert fuzz.attribute_differences(original, dict(original)) == ""
+    cloud.fields["intensity"] = cloud.fields["intensity"].copy()
+    cloud.fields["intensity"][7] += 1
+    cloud.fields["ExtraBytes"] = np.zeros(fuzz.N_SEED, np.uint8)
+    cloud.normals = None
+    assert fuzz.attribute_differences(original, fuzz.attribute_digests(cloud)) == (
+        "attributes differ from the original: field intensity; missing: normals; new: field ExtraBytes")
+    # same values in another dtype are another attribute
+    cloud = read_points(files["las-1.4-fmt6"])
+    cloud.points = cloud.points.astype(np.float32)
+    assert fuzz.attribute_differences(original, fuzz.attribute_digests(cloud)) == (
+        "attributes differ from the original: points")
+
+
+def test_cross_check_catches_a_misread_point_format(tmp_path, monkeypatch):
+    """Without the header checks, a changed point format reads the same coordinates and garbage attributes:
+    the campaign's cross-check reports it although the point count agrees."""
+    import struct
+
+    from heatcurv.io import las
+    from heatcurv.io.las_header import LasLayout
+
+    seed = fuzz.seed_files(tmp_path)["las-1.4-fmt6"]
+    data = seed.read_bytes()
+    original = fuzz.attribute_digests(read_points(seed))
+    path = tmp_path / "format1.las"
+    path.write_bytes(data[:104] + bytes([1]) + data[105:])
+    record_length = struct.unpack_from("<H", data, 105)[0]
+    monkeypatch.setattr(las, "check_las_file", lambda p: LasLayout((1, 4), 1, record_length, fuzz.N_SEED, False))
+    summary = fuzz.read_summary(path)
+    assert summary["points"] == fuzz.N_SEED
+    contradiction = fuzz._contradiction(fuzz.VARIANTS["las-1.4-fmt6"], path.read_bytes(), summary,
+                                        "las-point-format", original)
+    # the coordinates and the count agree; the normals and the field behind them are garbage
+    assert contradiction == (
+        "attributes differ from the original: normals, field mean; missing: field overlap, field scanner_channel, "
+        "field scan_angle; new: field scan_angle_rank, field ExtraBytes_0, field ExtraBytes_1")
+    # the same file through the reader as it is: refused
+    monkeypatch.undo()
+    with pytest.raises(HeatcurvError, match=r"the point record length \(46 bytes\) is not the 28 bytes of point "
+                                            r"format 1 plus the 16 its ExtraBytes VLR describes \(44\)"):
+        read_points(path)

@@ -192,11 +192,9 @@ def mutations(samples):
             r"the point record length \(0 bytes\) is shorter than the \d+ bytes of point format")
         add(f"{stem}_format_35.{ext}", lay.set("<B", 104, 35 | (0x80 if ext == "laz" else 0)),
             r"unknown point format 35")
-        big_record = (
-            r"truncated: the header announces 120 points of 65535 bytes, the file holds room for 0"
-            if ext == "las" else r"the laszip VLR describes points of \d+ bytes, the header says 65535"
-        )
-        add(f"{stem}_record_huge.{ext}", lay.set("<H", 105, 0xFFFF), big_record)
+        add(f"{stem}_record_huge.{ext}", lay.set("<H", 105, 0xFFFF),
+            r"the point record length \(65535 bytes\) is not the \d+ bytes of point format \d, and no "
+            r"ExtraBytes VLR describes the rest")
         for k, axis in enumerate("XYZ"):
             add(f"{stem}_scale{axis}_0.{ext}", lay.set("<d", 131 + 8 * k, 0.0),
                 rf"the {axis} scale factor is 0: every {axis} coordinate would be 0")
@@ -205,7 +203,11 @@ def mutations(samples):
                 rf"the Y scale factor is {word}, not a finite number")
             add(f"{stem}_offsetZ_{word}.{ext}", lay.set("<d", 171, value),
                 rf"the Z offset is {word}, not a finite number")
-        add(f"{stem}_scaleX_negative.{ext}", lay.set("<d", 131, -0.001), "negative scale")
+        # the points mirrored about the offset: outside the header's box (a mirrored file's box mirrors too)
+        add(f"{stem}_scaleX_negative.{ext}", lay.set("<d", 131, -0.001),
+            r"point record 1 of 120 lies outside the header's bounding box: its X \(5119\d\d\.\d+\) is "
+            r"[\d.]+ below the box's X minimum \(5120\d\d\.\d+\), more than one scale step \(0\.001\); "
+            r"120 of the 120 points are outside")
         # point counts
         count_at = 247 if lay.minor >= 4 else 107
         count_fmt = "<Q" if lay.minor >= 4 else "<I"
@@ -366,10 +368,6 @@ def test_targeted_mutations(outcomes, samples, tmp_path):
                 original.write_bytes(samples[source])
                 assert outcome[0] == "ok" and outcome[1] == N, outcome
                 np.testing.assert_array_equal(outcome[2], read_points(original).points[:3])
-            elif name.endswith("_scaleX_negative.las") or name.endswith("_scaleX_negative.laz"):
-                # negative scales are legal LAS (a mirrored axis)
-                assert outcome[0] == "ok" and outcome[1] == N, outcome
-                assert outcome[2][0][0] < 512000  # x = offset - X * 0.001: mirrored
             else:
                 _assert_one_line_error(outcome, path, pattern)
             assert outcome[3] < 10, f"{outcome[3]:.1f} s"
@@ -489,4 +487,209 @@ def test_in_process_error_type(samples, tmp_path):
     path = tmp_path / "zero.las"
     path.write_bytes(lay.set("<d", 147, 0.0))
     with pytest.raises(HeatcurvError, match=r"zero\.las: the Z scale factor is 0"):
+        read_points(path)
+
+
+# ------------------------------------------- files written by heatcurv, altered in one way
+def heatcurv_file(directory, ext):
+    """120 points in the box 8-12 with normals (extra bytes), colours and a field, written by write_points."""
+    from heatcurv.io import write_points
+
+    rng = np.random.default_rng(3)
+    points = 8 + 4 * rng.random((N, 3))
+    normals = rng.normal(size=(N, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    path = directory / f"heatcurv.{ext}"
+    write_points(path, points, {"mean": rng.random(N)}, normals=normals,
+                 colours=rng.integers(0, 256, (N, 3)))
+    return path
+
+
+def _insert(data, at, extra):
+    return data[:at] + extra + data[at:]
+
+
+def _altered(data, kind):
+    """``data`` (a heatcurv LAS/LAZ: format 7, 16 bytes of extra dimensions) altered in one way."""
+    lay = Layout(data)
+    inside = lay.offset + 5 * lay.record_length + 3  # in record 6 (LAS); in the first chunk (LAZ)
+    return {
+        "insert_1": lambda: _insert(data, inside, b"\x00"),
+        "insert_6": lambda: _insert(data, inside, b"\x07" * 6),
+        "appended_5": lambda: data + b"\x00" * 5,
+        "appended_40": lambda: data + b"\x01" * 40,
+        # one byte in, the last one out: the size fits, records 6 on are read one byte late
+        "shifted": lambda: _insert(data, inside, b"\x00")[:-1],
+        "count_1": lambda: lay.set("<Q", 247, 1),
+        "count_119": lambda: lay.set("<Q", 247, N - 1),
+        "scaleY_1e-300": lambda: lay.set("<d", 139, 1e-300),
+        "scaleY_5e-324": lambda: lay.set("<d", 139, 5e-324),
+        "scaleZ_1e300": lambda: lay.set("<d", 147, 1e300),
+        **{f"format_{f}": (lambda f=f: lay.set("<B", 104, f | (data[104] & 0xC0))) for f in (0, 1, 2, 3, 6)},
+        "vlr_count_0": lambda: lay.set("<I", 100, 0),
+        "vlr_count_less": lambda: lay.set("<I", 100, lay.vlrs - 1),
+        "box_x_max_10": lambda: lay.set("<d", 179, 10.0),
+        "box_y_max_nan": lambda: lay.set("<d", 195, math.nan),
+        "box_x_min_13": lambda: lay.set("<d", 187, 13.0),
+    }[kind]()
+
+
+_SIZES = (r"the point data holds \d+ bytes, {extra} more than the {count} points of 52 bytes the header "
+          r"announces \({why}\): the point count, the record length or the offset to the points is wrong, "
+          r"or bytes were inserted$")
+_BOX = (r"point record {record} of 120 lies outside the header's bounding box: its {axis} \([\d.]+\) is [\d.]+ "
+        r"{side} the box's {axis} {word} \({bound}\), more than one scale step \(1e-06\); {many} of the 120 "
+        r"points are outside: the records are misaligned, or the header does not describe these points$")
+_FORMAT = (r"the point record length \(52 bytes\) is not the {size} bytes of point format {f} plus the 16 its "
+           r"ExtraBytes VLR describes \({total}\)$")
+_COMMON = {
+    "scaleY_1e-300": r"the Y scale factor 1e-300 is finer than double precision resolves at the coordinates' "
+                     r"magnitude \(1[01]\.\d\): every Y would collapse onto a few values around the offset$",
+    "scaleY_5e-324": r"the Y scale factor 4\.94e-324 is finer than double precision resolves",
+    "scaleZ_1e300": r"the Z scale factor 1e\+300 is so large that a record's Z can be beyond the range of "
+                    r"double precision$",
+    **{f"format_{f}": _FORMAT.format(size=size, f=f, total=size + 16)
+       for f, size in ((0, 20), (1, 28), (2, 26), (3, 34), (6, 30))},
+    "box_x_max_10": _BOX.format(record=r"\d+", axis="X", side="above", word="maximum", bound="10", many=r"\d+"),
+    "box_y_max_nan": r"the header's bounding box is not finite \(Y from [\d.]+ to nan\)$",
+    "box_x_min_13": r"the header's bounding box has an X minimum \(13\) above its maximum \([\d.]+\)$",
+}
+EXPECTED = {
+    "las": {
+        **_COMMON,
+        "insert_1": _SIZES.format(extra=1, count=120, why="not a whole number of records"),
+        "insert_6": _SIZES.format(extra=6, count=120, why="not a whole number of records"),
+        "appended_5": _SIZES.format(extra=5, count=120, why="not a whole number of records"),
+        "appended_40": _SIZES.format(extra=40, count=120, why="not a whole number of records"),
+        "shifted": _BOX.format(record=6, axis=r"[XYZ]", side=r"(above|below)", word=r"(maximum|minimum)",
+                               bound=r"[\d.]+", many=r"\d+"),
+        "count_1": _SIZES.format(extra=119 * 52, count=1, why="room for 119 more"),
+        "count_119": _SIZES.format(extra=52, count=119, why="room for 1 more"),
+        "vlr_count_0": r"the header counts 0 VLRs, but the 822 bytes after the header, before the points, hold "
+                       r"1 more VLR \('LASF_Spec' record 4\): the VLR count is wrong$",
+    },
+    "laz": {
+        **_COMMON,
+        "insert_1": r"the chunk table lists 256 chunks, the 4053 bytes of compressed points hold at most 78",
+        "insert_6": r"the chunk table lists no chunks for 120 points$",
+        "shifted": r"the chunk table lists 256 chunks, the 4053 bytes of compressed points hold at most 78",
+        # liblas leaves 32 bytes after the chunk table: up to that, accepted (test below)
+        "appended_40": r"the 40 bytes between the chunk table and the end of the file are unexplained \(a LAZ "
+                       r"writer leaves at most 32\)$",
+        "count_1": r"chunk 1 of 1 of the compressed points says it holds 120 points, the chunk table and header "
+                   r"give 1$",
+        "count_119": r"chunk 1 of 1 of the compressed points says it holds 120 points, the chunk table and "
+                     r"header give 119$",
+        "vlr_count_0": r"the header counts 0 VLRs, but the 928 bytes after the header, before the points, hold "
+                       r"2 more VLRs \('LASF_Spec' record 4, 'laszip encoded' record 22204\): the VLR count is "
+                       r"wrong$",
+        "vlr_count_less": r"the header counts 1 VLR, but the 106 bytes after them, before the points, hold 1 "
+                          r"more VLR \('laszip encoded' record 22204\): the VLR count is wrong$",
+    },
+}
+
+
+@pytest.mark.parametrize("ext,kind", [(ext, kind) for ext in EXPECTED for kind in EXPECTED[ext]])
+def test_heatcurv_file_altered_in_one_way(tmp_path, ext, kind):
+    """Each alteration of a file heatcurv wrote: one error saying what does not add up."""
+    data = heatcurv_file(tmp_path, ext).read_bytes()
+    path = tmp_path / f"{kind}.{ext}"
+    path.write_bytes(_altered(data, kind))
+    with pytest.raises(HeatcurvError) as caught:
+        read_points(path)
+    message = str(caught.value)
+    assert message.startswith(f"cannot read {path}: "), message
+    problem = message[len(f"cannot read {path}: "):]
+    assert re.search(EXPECTED[ext][kind], problem), f"{problem!r} does not match {EXPECTED[ext][kind]!r}"
+
+
+def test_bytes_after_a_laz_chunk_table_up_to_what_liblas_leaves(tmp_path):
+    """liblas writes 32 bytes after the chunk table: accepted; the points read as without them."""
+    path = heatcurv_file(tmp_path, "laz")
+    data = path.read_bytes()
+    expected = read_points(path).points
+    path.write_bytes(data + b"\x01" * 32)
+    np.testing.assert_array_equal(read_points(path).points, expected)
+    path.write_bytes(data + b"\x01" * 33)
+    with pytest.raises(HeatcurvError, match=r"the 33 bytes between the chunk table and the end of the file"):
+        read_points(path)
+
+
+def test_heatcurv_file_layout_the_expectations_assume(tmp_path):
+    """The messages above quote this layout: LAS 1.4 format 7, 36 + 16 bytes a record, its VLRs."""
+    for ext, vlrs, offset in (("las", 1, 1197), ("laz", 2, 1303)):
+        lay = Layout(heatcurv_file(tmp_path, ext).read_bytes())
+        assert (lay.minor, lay.data[104] & 0x3F, lay.record_length, lay.vlrs, lay.offset) == (4, 7, 52, vlrs, offset)
+
+
+def test_mirrored_axis_with_its_own_box_reads(tmp_path):
+    """A negative scale is legal LAS: the points mirrored about the offset, the box with them."""
+    path = tmp_path / "mirrored.las"
+    las = build(path, 3, "1.2")
+    lay = Layout(path.read_bytes())
+    mirrored = lay.set("<d", 131, -0.001)
+    high, low = struct.unpack_from("<2d", mirrored, 179)
+    mirrored = Layout(Layout(mirrored).set("<d", 179, 2 * 512000.0 - low)).set("<d", 187, 2 * 512000.0 - high)
+    path.write_bytes(mirrored)
+    # 1e-9: a few units in the last place of coordinates near 5e5 (spacing 1.2e-10)
+    np.testing.assert_allclose(read_points(path).points[:, 0], 2 * 512000.0 - np.asarray(las.x), rtol=0, atol=1e-9)
+
+
+def test_box_of_the_unscaled_integers_reads(tmp_path):
+    """Some writers (ALSXX_PP) store the record integers' box, unscaled: accepted, the points as stored."""
+    path = tmp_path / "unscaled.las"
+    las = build(path, 3, "1.2")
+    data = path.read_bytes()
+    integers = (las.X, las.Y, las.Z)
+    box = [float(f(v)) for v in integers for f in (np.max, np.min)]
+    path.write_bytes(data[:179] + struct.pack("<6d", *box) + data[227:])
+    np.testing.assert_array_equal(read_points(path).points[:, 2], las.z)
+    # the same box one unit too small is not the integers' box: refused
+    box[0] -= 2
+    path.write_bytes(data[:179] + struct.pack("<6d", *box) + data[227:])
+    with pytest.raises(HeatcurvError, match=r"lies outside the header's bounding box: its X"):
+        read_points(path)
+
+
+def test_laszip_items_of_another_point_format(tmp_path):
+    """The laszip VLR says RGBNIR14 where the header's format 7 has RGB14 (same sizes): refused."""
+    data = heatcurv_file(tmp_path, "laz").read_bytes()
+    lay = Layout(data)
+    second_item = lay.laszip + 34 + 6
+    assert struct.unpack_from("<HH", data, second_item) == (11, 6)
+    path = tmp_path / "items.laz"
+    path.write_bytes(lay.set("<H", second_item, 12))
+    with pytest.raises(HeatcurvError, match=r"the laszip VLR compresses POINT14 RGBNIR14 items, point format 7 is "
+                                            r"POINT14 RGB14: the header's point format is not the compressed one$"):
+        read_points(path)
+
+
+def test_waveform_record_of_las_13_is_accounted_for(tmp_path):
+    """LAS 1.3 keeps its waveform data packets after the points: not unexplained bytes, but bytes after it are."""
+    path = tmp_path / "wave.las"
+    build(path, 1, "1.3")
+    data = bytearray(path.read_bytes())
+    struct.pack_into("<Q", data, 227, len(data))
+    record = struct.pack("<H16sHQ32s", 0, b"LASF_Spec", 65535, 100, b"waveforms") + b"w" * 100
+    path.write_bytes(bytes(data) + record)
+    assert read_points(path).points.shape == (N, 3)
+    path.write_bytes(bytes(data) + record + b"\x00" * 3)
+    with pytest.raises(HeatcurvError, match=r"the 3 bytes after the last extended VLR \(from byte \d+ to the end "
+                                            r"of the file\) are unexplained$"):
+        read_points(path)
+
+
+def test_undescribed_extra_bytes_are_refused(tmp_path):
+    """Record bytes beyond the point format that no ExtraBytes VLR describes: refused, not read as garbage."""
+    path = tmp_path / "undescribed.las"
+    build(path, 6, "1.4")
+    data = path.read_bytes()
+    lay = Layout(data)
+    head = bytearray(data[: lay.offset])
+    struct.pack_into("<H", head, 105, 34)
+    records = np.frombuffer(data[lay.offset:], np.uint8).reshape(N, 30)
+    padded = np.hstack([records, np.zeros((N, 4), np.uint8)])
+    path.write_bytes(bytes(head) + padded.tobytes())
+    with pytest.raises(HeatcurvError, match=r"the point record length \(34 bytes\) is not the 30 bytes of point "
+                                            r"format 6, and no ExtraBytes VLR describes the rest$"):
         read_points(path)

@@ -110,3 +110,28 @@ def test_truncated_ply_and_npy_are_refused(points, tmp_path):
     (tmp_path / "t.ply").write_bytes(raw[:-80])
     with pytest.raises(HeatcurvError, match=r"cannot read .*t\.ply: truncated"):
         open_source(tmp_path / "t.ply")
+
+
+@pytest.mark.parametrize("ext", [".las", ".laz"])
+def test_las_chunks_name_the_first_point_outside_the_box(tmp_path, ext):
+    """A streamed LAS/LAZ is checked against its header's box chunk by chunk; the record is the file's."""
+    import struct
+
+    rng = np.random.default_rng(5)
+    points = 8 + 4 * rng.random((2500, 3))
+    points[:1000, 0] = 8 + 2.9 * rng.random(1000)  # the first chunk inside X <= 11
+    path = tmp_path / f"box{ext}"
+    write_points(path, points)
+    data = bytearray(path.read_bytes())
+    struct.pack_into("<d", data, 179, 11.0)  # X maximum: 11 instead of about 12
+    path.write_bytes(bytes(data))
+    first = int(np.argmax(points[:, 0] > 11.0 + 1e-6))  # in the second chunk
+    source = open_source(path)
+    chunks = source.chunks(1000)
+    start, block, _ = next(chunks)
+    assert start == 0 and block.shape == (1000, 3)
+    with pytest.raises(HeatcurvError, match=rf"box{ext}: point record {first + 1} of 2500 lies outside the header's "
+                                            r"bounding box: its X \([\d.]+\) is [\d.]+ above the box's X maximum "
+                                            r"\(11\), more than one scale step \(1e-06\); \d+ of the 1000 points of "
+                                            r"records 1001-2000 are outside"):
+        next(chunks)

@@ -19,7 +19,7 @@ from ._common import (
     _write_error,
 )
 from .atomic import raise_noted_stop, stop_signals_noted
-from .las_header import LasLayout, LasStructureError, check_las_file
+from .las_header import LasLayout, LasStructureError, check_las_file, check_points_in_box
 
 # LAS point formats without RGB -> the same format with RGB
 _LAS_WITH_RGB = {0: 2, 1: 3, 2: 2, 3: 3, 4: 5, 5: 5, 6: 7, 7: 7, 8: 8, 9: 10, 10: 10}
@@ -90,6 +90,7 @@ def _read_las(path: Path, fmt: str) -> PointCloud:
                 [np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)]
             ).astype(np.uint16)
         header = las.header
+        integers = (las.X, las.Y, las.Z)
     except OSError as exc:
         if exc.errno not in (errno.EINVAL, errno.EOVERFLOW, None):
             raise  # the disk or the permissions, not the file's content
@@ -105,8 +106,16 @@ def _read_las(path: Path, fmt: str) -> PointCloud:
             f"truncated: the header announces {header.point_count} points, "
             f"the file holds {points.shape[0]}",
         )
+    if points.shape[0] != header.point_count:
+        raise _read_error(
+            path, f"the header announces {header.point_count} points, {points.shape[0]} were decoded"
+        )
     if points.shape[0] == 0:
         raise _read_error(path, "the file holds no points")
+    try:
+        check_points_in_box(layout, points, integers)
+    except LasStructureError as exc:
+        raise _read_error(path, str(exc)) from None
     normals = None
     role_of = {}
     for name in columns:

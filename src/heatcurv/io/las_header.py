@@ -9,15 +9,28 @@ for LAZ, reads the laszip VLR, the chunk table and the head of every chunk,
 and checks every size and count against the file size, so that what laspy
 and lazrs allocate afterwards stays proportional to the file:
 
-- uncompressed points: ``point_count * record_length`` fits in the file;
-- LAZ: the point count is at most :data:`MAX_POINTS_PER_COMPRESSED_BYTE`
+- every byte is accounted for: the point record length is the point format's
+  size plus the extra bytes the ExtraBytes VLR describes; the bytes between the
+  last VLR and the points hold no further VLR (the VLR count left one out);
+  uncompressed points take exactly ``point_count * record_length`` bytes up to
+  the extended VLRs (LAS 1.3: the waveform record) or the end of the file, and
+  the extended VLRs end where the file ends;
+- the header's numbers are usable: scales non-zero, finite, a normal number no
+  finer than double precision resolves at the coordinates' magnitude, and not
+  so coarse that a record's integer leaves the double range; offsets and
+  bounding box finite, each minimum at most its maximum;
+- LAZ: the laszip items are those of the header's point format (plus the
+  extra bytes); the point count is at most :data:`MAX_POINTS_PER_COMPRESSED_BYTE`
   times the compressed bytes; the chunk count matches the point count and the
-  chunk size; the chunk table's byte counts fit in the compressed data; every
+  chunk size; the chunk table's byte counts add up to the compressed data; every
   layer size of a layered (LAS 1.4 formats 6-10) chunk fits in its chunk;
   a fixed chunk size far beyond the point count selects lazrs's sequential
   decoder (the parallel one allocates a whole chunk for the last one);
 - whatever the counts, the decompressed points must fit in the machine's
   physical memory.
+
+After decoding, :func:`check_points_in_box` checks every point against the
+header's bounding box (one scale step of rounding allowed).
 
 Layouts: ASPRS LAS 1.4 R15 (public header, VLR and EVLR headers) and the LAZ
 format as written by LASzip and lazrs (laszip VLR, chunk table, layered chunks).
@@ -28,7 +41,10 @@ from __future__ import annotations
 import math
 import os
 import struct
+import sys
 from dataclasses import dataclass
+
+import numpy as np
 
 from ._common import _one_line
 
@@ -40,6 +56,21 @@ _VLR_HEADER = 54
 _EVLR_HEADER = 60
 _LASZIP_USER_ID = b"laszip encoded"
 _LASZIP_RECORD_ID = 22204
+_SPEC_USER_ID = b"LASF_Spec"
+_EXTRA_BYTES_RECORD_ID = 4
+_EXTRA_BYTES_DESCRIPTOR = 192
+# bytes of the extra-bytes data types 1..10; types 11..20 and 21..30 are deprecated 2- and 3-element arrays of them
+_EXTRA_TYPE_SIZE = (1, 1, 2, 2, 4, 4, 8, 8, 4, 8)
+# what LAS 1.0-1.2 writers (and LAStools) put between the VLRs and the points: the point data start signature
+_POINT_SIGNATURE = b"\xdd\xcc"
+# laszip item types: the items of each point format 0..10, extra bytes aside (BYTE 0, BYTE14 14)
+_ITEM_NAMES = {6: "POINT10", 7: "GPSTIME11", 8: "RGB12", 9: "WAVEPACKET13", 10: "POINT14", 11: "RGB14",
+               12: "RGBNIR14", 13: "WAVEPACKET14"}
+_EXTRA_ITEMS = (0, 14)
+_FORMAT_ITEMS = ((6,), (6, 7), (6, 8), (6, 7, 8), (6, 7, 9), (6, 7, 8, 9), (10,), (10, 11), (10, 12), (10, 13),
+                 (10, 12, 13))
+# the largest magnitude of a record's 32-bit coordinate integer
+_LARGEST_INTEGER = 2.0**31
 _VARIABLE_CHUNKS = 0xFFFFFFFF
 # layers of a layered (LAZ v3/v4) item, by item type; Byte14 has one per byte
 _LAYERS = {10: 9, 11: 1, 12: 2, 13: 1}
@@ -57,6 +88,9 @@ _BYTE14 = 14
 #: is refused, while a flipped count byte in a 7 kB file can no longer ask for
 #: more than a few hundred megabytes.
 MAX_POINTS_PER_COMPRESSED_BYTE = 4096
+
+#: Bytes a LAZ writer may leave after the chunk table: liblas leaves 32 (the other writers measured, none).
+CHUNK_TABLE_SLACK = 32
 
 #: Above this, a fixed chunk size larger than the point count selects lazrs's
 #: sequential decoder: the parallel one allocates ``chunk_size * record_length``
@@ -80,6 +114,10 @@ class LasLayout:
     #: LAZ: decode with lazrs's sequential decoder instead of the parallel one
     sequential: bool = False
     file_size: int = 0
+    scales: tuple = (1.0, 1.0, 1.0)
+    offsets: tuple = (0.0, 0.0, 0.0)
+    #: the header's bounding box, ((min, max) of X, of Y, of Z)
+    box: tuple = ()
 
 
 def _plural(count: int, word: str) -> str:
@@ -125,15 +163,23 @@ def _user_id(raw: bytes, what: str) -> str:
         raise LasStructureError(f"the user id of {what} is not text ({head[:16]!r})") from None
 
 
-def _walk_vlrs(reader: _Reader, start: int, end: int, count: int) -> bytes | None:
-    """Check the ``count`` VLRs between ``start`` and ``end``; return the laszip VLR's data."""
+def _walk_vlrs(reader: _Reader, start: int, end: int, count: int) -> tuple:
+    """Check the ``count`` VLRs between ``start`` and ``end``.
+
+    Returns
+    -------
+    laszip, extra_bytes : bytes or None
+        The data of the laszip VLR, and of the ExtraBytes VLRs put together (laspy reads them all).
+    position : int
+        Where the last VLR ends.
+    """
     room = (end - start) // _VLR_HEADER
     if count > room:
         raise LasStructureError(
             f"the header announces {count} VLRs, the {_plural(end - start, 'byte')} between "
             f"the header and the point data hold at most {room}"
         )
-    laszip = None
+    laszip = extra_bytes = None
     position = start
     for k in range(count):
         what = f"VLR {k + 1} of {count}"
@@ -149,13 +195,68 @@ def _walk_vlrs(reader: _Reader, start: int, end: int, count: int) -> bytes | Non
                 f"{what} ({user_id!r}, record {record_id}) announces {length} bytes of data, "
                 f"running past the start of the point data (byte {end})"
             )
-        if head[2:18].split(b"\0")[0] == _LASZIP_USER_ID and record_id == _LASZIP_RECORD_ID:
+        raw_user_id = head[2:18].split(b"\0")[0]
+        if raw_user_id == _LASZIP_USER_ID and record_id == _LASZIP_RECORD_ID:
             laszip = reader.read(position + _VLR_HEADER, length)
+        if raw_user_id == _SPEC_USER_ID and record_id == _EXTRA_BYTES_RECORD_ID:
+            extra_bytes = (extra_bytes or b"") + reader.read(position + _VLR_HEADER, length)
         position += _VLR_HEADER + length
-    return laszip
+    return laszip, extra_bytes, position
 
 
-def _walk_evlrs(reader: _Reader, start: int, count: int) -> None:
+def _hidden_vlrs(reader: _Reader, start: int, end: int) -> list:
+    """The VLRs that fill the bytes from ``start`` to ``end`` (the points), if they are VLRs.
+
+    Real writers leave zeros, the 2-byte point data start signature or leftovers
+    of their memory between the last VLR and the points; a chain of VLR headers
+    (a text user id, NUL-padded) that ends exactly at the points (or at the
+    signature before them) is VLRs the header's VLR count leaves out.
+
+    Returns
+    -------
+    list of (str, int)
+        The user id and record id of each, or an empty list.
+    """
+    found = []
+    position = start
+    while position + _VLR_HEADER <= end and len(found) < 64:
+        head = reader.read(position, _VLR_HEADER)
+        user_id = head[2:18].split(b"\0")[0]
+        if not user_id or not all(32 <= c < 127 for c in user_id) or head[2 + len(user_id):18].strip(b"\0"):
+            return []
+        record_id, length = struct.unpack_from("<HH", head, 18)
+        found.append((user_id.decode(), record_id))
+        position += _VLR_HEADER + length
+        if position == end or (position == end - 2 and reader.read(position, 2) == _POINT_SIGNATURE):
+            return found
+    return []
+
+
+def _described_extra_bytes(data: bytes | None) -> int:
+    """The bytes per point an ExtraBytes VLR's descriptors describe (laspy's reading of their types)."""
+    if data is None:
+        return 0
+    if len(data) % _EXTRA_BYTES_DESCRIPTOR:
+        raise LasStructureError(
+            f"the ExtraBytes VLR holds {_plural(len(data), 'byte')}, not a whole number of "
+            f"{_EXTRA_BYTES_DESCRIPTOR}-byte descriptors"
+        )
+    total = 0
+    for k in range(len(data) // _EXTRA_BYTES_DESCRIPTOR):
+        data_type, options = data[_EXTRA_BYTES_DESCRIPTOR * k + 2], data[_EXTRA_BYTES_DESCRIPTOR * k + 3]
+        if data_type == 0:  # undocumented bytes: their number is the options field
+            total += options
+        elif data_type <= 30:
+            total += _EXTRA_TYPE_SIZE[(data_type - 1) % 10] * ((data_type - 1) // 10 + 1)
+        else:
+            raise LasStructureError(
+                f"extra dimension {k + 1} of the ExtraBytes VLR has the unknown data type {data_type}"
+            )
+    return total
+
+
+def _walk_evlrs(reader: _Reader, start: int, count: int) -> int:
+    """Check the ``count`` extended VLRs from ``start``; return where the last one ends."""
     room = (reader.size - start) // _EVLR_HEADER
     if count > room:
         raise LasStructureError(
@@ -179,10 +280,19 @@ def _walk_evlrs(reader: _Reader, start: int, count: int) -> None:
                 f"running past the end of the file ({_plural(reader.size, 'byte')})"
             )
         position += _EVLR_HEADER + length
+    return position
 
 
-def _check_numbers(scales, offsets) -> None:
-    for axis, scale, offset in zip("XYZ", scales, offsets):
+def _check_numbers(scales, offsets, box) -> None:
+    """Scales, offsets and the bounding box: finite, and scales that resolve distinct coordinates.
+
+    A record's coordinate is ``integer * scale + offset`` in double precision:
+    a scale below the double spacing at the coordinates' magnitude (or a
+    subnormal one) maps every integer onto the same few values, the axis
+    collapses onto its offset; a scale whose ``2**31`` multiple overflows
+    gives infinite coordinates.
+    """
+    for axis, scale, offset, (low, high) in zip("XYZ", scales, offsets, box):
         if scale == 0:
             raise LasStructureError(
                 f"the {axis} scale factor is 0: every {axis} coordinate would be 0"
@@ -191,6 +301,27 @@ def _check_numbers(scales, offsets) -> None:
             raise LasStructureError(f"the {axis} scale factor is {scale}, not a finite number")
         if not math.isfinite(offset):
             raise LasStructureError(f"the {axis} offset is {offset}, not a finite number")
+        if not (math.isfinite(low) and math.isfinite(high)):
+            raise LasStructureError(
+                f"the header's bounding box is not finite ({axis} from {low} to {high})"
+            )
+        if low > high:
+            raise LasStructureError(
+                f"the header's bounding box has an {axis} minimum ({low:.10g}) above its maximum ({high:.10g})"
+            )
+        step = abs(scale)
+        magnitude = max(abs(offset), abs(low), abs(high))
+        if step < max(sys.float_info.min, sys.float_info.epsilon * magnitude):
+            raise LasStructureError(
+                f"the {axis} scale factor {scale:.3g} is finer than double precision resolves at the "
+                f"coordinates' magnitude ({magnitude:.3g}): every {axis} would collapse onto a few values "
+                f"around the offset"
+            )
+        if not math.isfinite(abs(offset) + step * _LARGEST_INTEGER):
+            raise LasStructureError(
+                f"the {axis} scale factor {scale:.3g} is so large that a record's {axis} can be beyond the "
+                "range of double precision"
+            )
 
 
 @dataclass(frozen=True)
@@ -238,6 +369,19 @@ def _parse_laszip(data: bytes | None, record_length: int) -> _LasZip:
     return _LasZip(compressor, chunk_size, items, bytes(data))
 
 
+def _check_items(laszip: _LasZip, point_format: int) -> None:
+    """The laszip items must be those of the header's point format (the extra bytes aside)."""
+    kinds = tuple(item_type for item_type, _size, _version in laszip.items if item_type not in _EXTRA_ITEMS)
+    expected = _FORMAT_ITEMS[point_format]
+    if kinds != expected:
+        def names(types):
+            return " ".join(_ITEM_NAMES.get(t, f"type {t}") for t in types) or "no point"
+        raise LasStructureError(
+            f"the laszip VLR compresses {names(kinds)} items, point format {point_format} is "
+            f"{names(expected)}: the header's point format is not the compressed one"
+        )
+
+
 def _read_chunk_table(reader: _Reader, start_of_points: int, laszip: _LasZip):
     """The chunk table as lazrs reads it: [(point_count, byte_count)] per chunk."""
     import lazrs
@@ -257,6 +401,37 @@ def _read_chunk_table(reader: _Reader, start_of_points: int, laszip: _LasZip):
         ) from None
 
 
+def _chunk_table_length(table_bytes: bytes, laszip: _LasZip, entries) -> int:
+    """The bytes of ``table_bytes`` the chunk table takes: the shortest prefix that decodes to ``entries``.
+
+    The table's entries are arithmetic-coded, so its length is not stored;
+    lazrs fails on a prefix cut inside it and reads the whole table from
+    exactly the bytes its encoder wrote.
+    """
+    import io
+
+    import lazrs
+
+    vlr = lazrs.LazVlr(laszip.record_data)
+
+    def decodes(length: int) -> bool:
+        try:
+            return lazrs.read_chunk_table(io.BytesIO(struct.pack("<q", 8) + table_bytes[:length]), vlr) == entries
+        except (KeyboardInterrupt, SystemExit):
+            raise
+        except BaseException:  # lazrs errors, pyo3 panics
+            return False
+
+    low, high = 8, len(table_bytes)
+    while low < high:
+        middle = (low + high) // 2
+        if decodes(middle):
+            high = middle
+        else:
+            low = middle + 1
+    return low
+
+
 def _check_laz(
     reader: _Reader, offset: int, end: int, point_count: int, record_length: int, laszip: _LasZip
 ) -> bool:
@@ -267,10 +442,12 @@ def _check_laz(
             "truncated at the start of the compressed points (no room for the chunk table offset)"
         )
     table = struct.unpack("<q", reader.read(offset, 8))[0]
+    end_of_table = end
     if table <= offset:
         # a streaming writer could not go back: lazrs then reads the offset at the end
         if size >= offset + 16:
             table = struct.unpack("<q", reader.read(size - 8, 8))[0]
+            end_of_table = size - 8
         if table <= offset:
             raise LasStructureError(
                 "the LAZ file has no chunk table (its writer could not store where the table "
@@ -325,11 +502,19 @@ def _check_laz(
             f"the chunk table lists {number_of_chunks} chunks but holds {len(entries)}"
         )
     total = sum(byte_count for _points, byte_count in entries)
-    if total > compressed:
+    if total != compressed:
         raise LasStructureError(
             f"the chunk table gives {_plural(total, 'byte')} of compressed points, "
-            f"the file holds {compressed}"
+            f"the file holds {compressed} before the table"
         )
+    if table < end_of_table:
+        spare = end_of_table - table - _chunk_table_length(reader.read(table, end_of_table - table), laszip, entries)
+        if spare > CHUNK_TABLE_SLACK:
+            where = "the extended VLRs" if end < size else "the end of the file"
+            raise LasStructureError(
+                f"the {_plural(spare, 'byte')} between the chunk table and {where} are unexplained "
+                f"(a LAZ writer leaves at most {CHUNK_TABLE_SLACK})"
+            )
     if variable:
         counts = [points for points, _bytes in entries]
         if sum(counts) != point_count:
@@ -436,6 +621,8 @@ def check_las_file(path) -> LasLayout:
             )
         scales = struct.unpack_from("<3d", head, 131)
         offsets = struct.unpack_from("<3d", head, 155)
+        high_x, low_x, high_y, low_y, high_z, low_z = struct.unpack_from("<6d", head, 179)
+        box = ((low_x, high_x), (low_y, high_y), (low_z, high_z))
         point_count = legacy_count
         evlr_start = evlr_count = 0
         if minor >= 4:
@@ -445,7 +632,16 @@ def check_las_file(path) -> LasLayout:
                     f"the legacy point count ({legacy_count}) and the 64-bit point count "
                     f"({point_count}) of the LAS 1.{minor} header disagree"
                 )
-        laszip_data = _walk_vlrs(reader, header_size, offset, vlr_count)
+        laszip_data, extra_bytes_data, end_of_vlrs = _walk_vlrs(reader, header_size, offset, vlr_count)
+        hidden = _hidden_vlrs(reader, end_of_vlrs, offset)
+        if hidden:
+            names = ", ".join(f"{user_id!r} record {record_id}" for user_id, record_id in hidden[:3])
+            after = "them" if vlr_count else "the header"
+            raise LasStructureError(
+                f"the header counts {_plural(vlr_count, 'VLR')}, but the "
+                f"{_plural(offset - end_of_vlrs, 'byte')} after {after}, before the points, hold "
+                f"{_plural(len(hidden), 'more VLR')} ({names}): the VLR count is wrong"
+            )
 
         compressed = bool(raw_format & 0x80) and not raw_format & 0x40  # as laspy decides
         point_format = raw_format & 0x3F
@@ -458,7 +654,17 @@ def check_las_file(path) -> LasLayout:
                 f"the point record length ({_plural(record_length, 'byte')}) is shorter than "
                 f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format}"
             )
-        _check_numbers(scales, offsets)
+        described = _described_extra_bytes(extra_bytes_data)
+        expected_length = _FORMAT_SIZE[point_format] + described
+        if record_length != expected_length:
+            if described:
+                what = (f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format} plus the "
+                        f"{described} its ExtraBytes VLR describes ({expected_length})")
+            else:
+                what = (f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format}, and no "
+                        "ExtraBytes VLR describes the rest")
+            raise LasStructureError(f"the point record length ({_plural(record_length, 'byte')}) is not {what}")
+        _check_numbers(scales, offsets, box)
 
         end_of_points = size
         if minor >= 4 and evlr_count > 0:
@@ -472,8 +678,24 @@ def check_las_file(path) -> LasLayout:
                     f"truncated: the extended VLRs would start at byte {evlr_start}, "
                     f"the file has {_plural(size, 'byte')}"
                 )
-            _walk_evlrs(reader, evlr_start, evlr_count)
+            end_of_evlrs = _walk_evlrs(reader, evlr_start, evlr_count)
             end_of_points = evlr_start
+        elif minor == 3:
+            # LAS 1.3 keeps one extended VLR, the waveform data packets, after the points; a start inside
+            # the points (the field was new in 1.3, some writers leave it unset) is not one
+            waveform = struct.unpack_from("<Q", head, 227)[0]
+            end_of_evlrs = size
+            points_end = offset + (0 if compressed else point_count * record_length)
+            if max(offset + 1, points_end) <= waveform < size:
+                end_of_evlrs = _walk_evlrs(reader, waveform, 1)
+                end_of_points = waveform
+        else:
+            end_of_evlrs = size
+        if end_of_evlrs < size:
+            raise LasStructureError(
+                f"the {_plural(size - end_of_evlrs, 'byte')} after the last extended VLR (from byte "
+                f"{end_of_evlrs} to the end of the file) are unexplained"
+            )
 
         layout = dict(
             version=(major, minor),
@@ -482,22 +704,36 @@ def check_las_file(path) -> LasLayout:
             point_count=point_count,
             compressed=compressed,
             file_size=size,
+            scales=scales,
+            offsets=offsets,
+            box=box,
         )
         if point_count == 0:
             return LasLayout(**layout)
         sequential = False
         if compressed:
             laszip = _parse_laszip(laszip_data, record_length)
+            _check_items(laszip, point_format)
             sequential = _check_laz(
                 reader, offset, end_of_points, point_count, record_length, laszip
             )
         else:
             room = (end_of_points - offset) // record_length
+            where = " before its extended VLRs" if end_of_points < size else ""
             if point_count > room:
-                where = " before its extended VLRs" if end_of_points < size else ""
                 raise LasStructureError(
                     f"truncated: the header announces {point_count} points of "
                     f"{record_length} bytes, the file holds room for {room}{where}"
+                )
+            unexplained = end_of_points - offset - point_count * record_length
+            if unexplained:
+                hint = (f"room for {unexplained // record_length} more" if unexplained % record_length == 0
+                        else "not a whole number of records")
+                raise LasStructureError(
+                    f"the point data{where} holds {_plural(end_of_points - offset, 'byte')}, "
+                    f"{unexplained} more than the {point_count} points of {record_length} bytes the header "
+                    f"announces ({hint}): the point count, the record length or the offset to the points is "
+                    "wrong, or bytes were inserted"
                 )
         memory = _physical_memory()
         if memory is not None and point_count * record_length > memory:
@@ -507,3 +743,60 @@ def check_las_file(path) -> LasLayout:
                 f"{_size(memory)} of memory of this machine"
             )
         return LasLayout(**layout, sequential=sequential)
+
+
+def check_points_in_box(layout: LasLayout, points: np.ndarray, integers, first_record: int = 0) -> None:
+    """Check decoded points against the header's bounding box, one scale step of rounding allowed.
+
+    Records read from the wrong position (a count, a record length or an offset
+    that shifts them) decode into coordinates far outside the box the header
+    announces. Writers round the box or compute it from coordinates before
+    they are put on the scale's grid, by up to one scale step; some (ALSXX_PP)
+    store the box of the record integers, unscaled: a box that holds the
+    integers themselves is accepted.
+
+    Parameters
+    ----------
+    layout : LasLayout
+        The checked header (:func:`check_las_file`).
+    points : ndarray, shape (n, 3)
+        The decoded coordinates.
+    integers : sequence of 3 ndarrays, shape (n,)
+        The records' X, Y and Z integers.
+    first_record : int
+        The file's index of the first of these points (a chunk of the file).
+
+    Raises
+    ------
+    LasStructureError
+        Naming the first point outside the box, by how much, and on which axis.
+    """
+    if not layout.box or points.shape[0] == 0:
+        return
+    low = np.array([lo for lo, _hi in layout.box]) - np.abs(layout.scales)
+    high = np.array([hi for _lo, hi in layout.box]) + np.abs(layout.scales)
+    outside = ((points < low) | (points > high)).any(axis=1)
+    if not outside.any():
+        return
+    unscaled = all(
+        np.all((np.asarray(values) >= lo - 1) & (np.asarray(values) <= hi + 1))
+        for values, (lo, hi) in zip(integers, layout.box)
+    )
+    if unscaled:
+        return
+    first = int(np.argmax(outside))
+    axis = int(np.argmax((points[first] < low) | (points[first] > high)))
+    value = float(points[first, axis])
+    lo, hi = layout.box[axis]
+    side, word, bound = ("below", "minimum", lo) if value < lo else ("above", "maximum", hi)
+    n = points.shape[0]
+    rows = "" if first_record == 0 and n == layout.point_count else f" of records {first_record + 1}-{first_record + n}"
+    name = "XYZ"[axis]
+    raise LasStructureError(
+        f"point record {first_record + first + 1} of {max(layout.point_count, first_record + points.shape[0])} lies "
+        f"outside the header's bounding box: its {name} "
+        f"({value:.10g}) is {abs(value - bound):.3g} {side} the box's {name} {word} ({bound:.10g}), more than "
+        f"one scale step ({abs(layout.scales[axis]):.3g}); "
+        f"{int(outside.sum())} of the {n} points{rows} are outside: the records are misaligned, or the header "
+        "does not describe these points"
+    )

@@ -27,11 +27,15 @@ NPZ                         ``npz-bomb`` (zip bombs: 256 MiB of zeros, a
                             ``zip-fields``
 LAS, LAZ                    ``las-point-count``, ``las-vlr-count``,
                             ``las-point-offset``, ``las-record-length``,
-                            ``las-scale`` (0, NaN, inf, ...), ``las-offset-bbox``,
-                            ``las-format`` (point format, version, header
-                            size), ``las-vlr``
+                            ``las-scale`` (0, NaN, inf, 1e-300, ...),
+                            ``las-offset-bbox`` (offsets, a box too small,
+                            NaN), ``las-format`` (point format, version,
+                            header size), ``las-vlr``, ``las-point-format``
+                            (another format, same record length),
+                            ``las-misalign`` (bytes inserted in the points,
+                            VLR bytes duplicated, records shifted)
 LAZ                         ``laz-chunk-table`` (offset, chunk count, version),
-                            ``laz-vlr`` (the laszip record's fields)
+                            ``laz-vlr`` (the laszip record's fields, item types)
 ==========================  ====================================================
 """
 
@@ -548,7 +552,7 @@ def _las_point_count(data, rng):
 @_mutator("las-vlr-count", families=("las", "laz"))
 def _las_vlr_count(data, rng):
     vlrs = struct.unpack_from("<I", data, 100)[0]
-    return _pack(data, "<I", 100, _pick(rng, [0, vlrs + 1, vlrs + 1000, 2**31, 2**32 - 1]))
+    return _pack(data, "<I", 100, _pick(rng, [0, max(vlrs - 1, 0), vlrs + 1, vlrs + 1000, 2**31, 2**32 - 1]))
 
 
 @_mutator("las-point-offset", families=("las", "laz"))
@@ -573,8 +577,12 @@ def _las_scale(data, rng):
 
 @_mutator("las-offset-bbox", families=("las", "laz"))
 def _las_offset_bbox(data, rng):
+    field = int(rng.integers(9))  # the 3 offsets, then max x, min x, max y, min y, max z, min z
+    if rng.random() < 0.4 and field >= 3 and len(data) >= 227:  # a box that leaves points out
+        high, low = struct.unpack_from("<2d", data, 179 + 16 * ((field - 3) // 2))
+        return _pack(data, "<d", 155 + 8 * field, low + (high - low) * _pick(rng, [0.25, 0.5, 0.9]))
     value = _pick(rng, [float("nan"), float("inf"), -float("inf"), 1e308, -1e308])
-    return _pack(data, "<d", 155 + 8 * int(rng.integers(9)), value)
+    return _pack(data, "<d", 155 + 8 * field, value)
 
 
 @_mutator("las-format", families=("las", "laz"))
@@ -594,6 +602,30 @@ def _las_vlr(data, rng):
         return _pack(_pack(data, "<Q", 235, _pick(rng, [0, 1, len(data) - 10, len(data), 2**63 - 1])),
                      "<I", 243, _pick(rng, [0, 1, 1000, 2**32 - 1]))
     return _pack(data, "<H", header_size + 20, _pick(rng, [0, 1, 65535, 1000]))  # first VLR's length
+
+
+@_mutator("las-point-format", families=("las", "laz"))
+def _las_point_format(data, rng):
+    """Another point format with the same record length: the standard fields move, the extra bytes with them."""
+    current = data[104] & 0x3F if len(data) > 104 else 0
+    choices = [f for f in (0, 1, 2, 3, 6, 7, 8) if f != current]
+    return _pack(data, "<B", 104, _pick(rng, choices) | (data[104] & 0xC0))
+
+
+@_mutator("las-misalign", families=("las", "laz"))
+def _las_misalign(data, rng):
+    """Bytes inserted in the points, VLR bytes duplicated, or records shifted with the file's size kept."""
+    header_size, offset = struct.unpack_from("<HI", data, 94)
+    record = max(1, struct.unpack_from("<H", data, 105)[0])
+    inside = offset + record * int(rng.integers(N_SEED)) + int(rng.integers(record))
+    edit = int(rng.integers(3))
+    if edit == 0:  # 1 to a record's length of bytes inside the points
+        return data[:inside] + rng.bytes(_pick(rng, [1, 6, record - 1, record])) + data[inside:]
+    if edit == 1:  # a block of the VLRs duplicated: the offset to the points now falls inside a VLR
+        start = header_size + _position(rng, data[header_size:offset])
+        block = data[start: start + int(rng.integers(1, 129))]
+        return data[:start] + block + data[start:]
+    return (data[:inside] + rng.bytes(int(rng.integers(1, record))) + data[inside:])[: len(data)]
 
 
 def _laszip_vlr(data):
@@ -636,6 +668,7 @@ def _laz_vlr(data, rng):
         (32, "<H", [0, 1, 100, 65535]),  # number of items
         (34, "<H", [0, 99, 65535]),  # first item's type
         (36, "<H", [0, 1, 255, 65535]),  # first item's size
+        (40, "<H", [0, 7, 8, 11, 12, 14]),  # second item's type: another format's item of the same size
     ])
     return _pack(data, fmt, at + offset, _pick(rng, values))
 

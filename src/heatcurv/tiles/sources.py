@@ -88,6 +88,8 @@ class Source:
         if self.kind == "las":
             import laspy
 
+            from ..io.las_header import LasStructureError, check_points_in_box
+
             # base() alone leaves z undecoded: ask for Z too
             select = laspy.DecompressionSelection
             selection = select.base() | select.Z if coordinates_only else select.all()
@@ -100,6 +102,12 @@ class Source:
                             break
                         points = np.empty((k, 3))
                         points[:, 0], points[:, 1], points[:, 2] = record.x, record.y, record.z
+                        if "las_layout" in self.meta:
+                            try:
+                                check_points_in_box(self.meta["las_layout"], points, (record.X, record.Y, record.Z),
+                                                    start)
+                            except LasStructureError as exc:
+                                raise HeatcurvError(f"cannot read {self.path}: {exc}") from None
                         yield start, points, None if coordinates_only else record
                         start += k
             except HeatcurvError:
@@ -204,7 +212,7 @@ def _open_las(path: Path) -> Source:
     from ..io.las_header import LasStructureError, check_las_file
 
     try:
-        check_las_file(path)
+        layout = check_las_file(path)
     except LasStructureError as exc:
         raise HeatcurvError(f"cannot read {path}: {exc}") from None
     try:
@@ -215,7 +223,8 @@ def _open_las(path: Path) -> Source:
     if header.point_count == 0:
         raise HeatcurvError(f"cannot read {path}: the file holds no points")
     columns = [name for name in header.point_format.dimension_names if name not in ("X", "Y", "Z")]
-    return Source(path, "las", int(header.point_count), las_header=header, columns=columns)
+    return Source(path, "las", int(header.point_count), las_header=header, columns=columns,
+                  meta={"las_layout": layout})
 
 
 def _open_ply(path: Path) -> Source:
