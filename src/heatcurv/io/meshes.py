@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io as _stdio
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -19,9 +20,19 @@ from ._common import (
     _cloud_from_columns,
     _colours_to_uint8,
     _is_integral,
+    _quoted,
     _read_error,
 )
-from ._textparse import _decode_text, _first_bad_line, _iter_lines, _load_table, _strip_comment
+from ._textparse import (
+    _IS_NUMERIC,
+    _IS_SEPARATOR,
+    _decode_text,
+    _first_bad_line,
+    _iter_lines,
+    _strip_comment,
+    _token_layout,
+    _whole_numbers,
+)
 
 
 def _read_obj(path: Path, fmt: str) -> PointCloud:
@@ -48,16 +59,76 @@ def _read_obj(path: Path, fmt: str) -> PointCloud:
         raise _read_error(path, f"line {_obj_line_number(text, bad[0] - 1)}: {bad[1]}") from None
     names = {3: ["x", "y", "z"], 4: ["x", "y", "z", "w"], 6: ["x", "y", "z", *_COLOUR_NAMES]}[ncols]
     columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
-    faces = len(re.findall(r"(?m)^[ \t]*f[ \t]", text))
+    faces = _check_obj_faces(path, text, table.shape[0])
     return _cloud_from_columns(
         columns, path, fmt, text_colours=False, meta={"faces": faces} if faces else None
     )
 
 
-def _obj_line_number(text: str, vertex_index: int) -> int:
-    """Line number in the file of the ``vertex_index``-th ``v`` line (error path only)."""
-    for index, match in enumerate(re.finditer(r"(?m)^[ \t]*v[ \t]+", text)):
-        if index == vertex_index:
+# a face corner: the vertex index, then an optional texture and normal index ("i", "i/t", "i//n", "i/t/n")
+_IS_CORNER = np.zeros(256, dtype=bool)
+_IS_CORNER[list(b"0123456789+-/")] = True
+
+
+def _check_obj_faces(path: Path, text: str, n_vertices: int) -> int:
+    """Check the ``f`` lines of an OBJ file: each corner's vertex index names a vertex; returns their number.
+
+    Positive indices count from 1 at the first ``v`` line; negative ones from the last ``v`` line
+    before the face (-1). Texture and normal indices are not checked against ``vt`` and ``vn``.
+    """
+    face_lines = re.findall(r"(?m)^[ \t]*f[ \t]+([^\n]*)$", text)
+    if not face_lines:
+        return 0
+    body = re.sub(r"#[^\n]*", "", "\n".join(face_lines)).encode()
+    starts, ends, first, sizes, lines = _token_layout(body)  # one face per line of ``body``
+    if len(lines) < len(face_lines):
+        empty = int(np.flatnonzero(np.append(lines, len(face_lines)) != np.arange(len(lines) + 1))[0])
+        raise _read_error(path, f"line {_obj_line_number(text, empty, 'f')}: a face ('f') with no vertices")
+    faces = np.repeat(np.arange(len(face_lines)), sizes)  # the face of each token
+    raw = np.frombuffer(body, dtype=np.uint8)
+    bad = np.flatnonzero(~(_IS_CORNER[raw] | _IS_SEPARATOR[raw]))
+    slashes = np.append(np.flatnonzero(raw == ord("/")), len(raw))  # a last one past the end: never inside a token
+    first_slash = np.searchsorted(slashes, starts)
+    n_slashes = np.searchsorted(slashes, ends) - first_slash
+    vertex_end = np.minimum(slashes[first_slash], ends)
+    values, whole = _whole_numbers(body, starts, vertex_end)
+    wrong = ~whole | (n_slashes > 2)
+    if bad.size:
+        wrong[int(np.searchsorted(starts, bad[0], side="right")) - 1] = True
+    wrong = np.flatnonzero(wrong)
+    if wrong.size:
+        k = int(wrong[0])
+        corner = body[starts[k] : ends[k]].decode(errors="replace")
+        raise _read_error(
+            path,
+            f"line {_obj_line_number(text, int(faces[k]), 'f')}: {_quoted(corner)} is not a face corner "
+            "(a vertex index, then optionally '/' texture index and '/' normal index)",
+        )
+    if np.any(values < 0):  # relative: the vertices defined before the face line
+        kinds = np.array(re.findall(r"(?m)^[ \t]*([vf])[ \t]", text))
+        is_vertex = kinds == "v"
+        defined = np.cumsum(is_vertex)[~is_vertex][faces]
+        resolved = np.where(values < 0, defined + values, values - 1)
+    else:
+        defined = None
+        resolved = values - 1
+    wrong = np.flatnonzero((values == 0) | (resolved < 0) | (resolved >= n_vertices))
+    if wrong.size:
+        k = int(wrong[0])
+        if values[k] == 0:
+            problem = "vertex index 0 (OBJ indices start at 1, or count back from -1)"
+        elif values[k] < 0:
+            problem = f"vertex index {values[k]} is out of range: {defined[k]} vertices are defined before the face"
+        else:
+            problem = f"vertex index {values[k]} is out of range: the file has {n_vertices} vertices"
+        raise _read_error(path, f"line {_obj_line_number(text, int(faces[k]), 'f')}: {problem}")
+    return len(face_lines)
+
+
+def _obj_line_number(text: str, index: int, keyword: str = "v") -> int:
+    """Line number in the file of the ``index``-th (0-based) ``keyword`` line (error path only)."""
+    for found, match in enumerate(re.finditer(rf"(?m)^[ \t]*{keyword}[ \t]+", text)):
+        if found == index:
             return text.count("\n", 0, match.start()) + 1
     return 0
 
@@ -86,6 +157,20 @@ def _line_start(text: str, number: int) -> int:
             return len(text)
         start = end + 1
     return start
+
+
+def _line_text(text: str, number: int) -> str:
+    """Line ``number`` (1-based) of ``text``, stripped (error messages only)."""
+    start = _line_start(text, number)
+    end = text.find("\n", start)
+    return text[start : len(text) if end < 0 else end].strip()
+
+
+# a comment runs to the end of its line: removed with the spaces before it, the line itself stays
+# (line numbers unchanged; a line that held only a comment is then empty, like a blank one)
+_OFF_COMMENT = re.compile(r"[ \t\f\v]*(?:#|//)[^\n]*")
+# the values after a face's vertex indices: none, a colour-map index, RGB or RGBA
+_OFF_FACE_COLOUR_SIZES = (0, 1, 3, 4)
 
 
 def _read_off(path: Path, fmt: str) -> PointCloud:
@@ -119,10 +204,19 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
     if n_vertices == 0:
         raise _read_error(path, "the file holds no points")
     n_faces = _off_count(path, tokens, 1, "face", counts_line)
-    # every vertex and face takes a line: counts the file cannot hold are refused before
-    # anything is allocated for them (lines counted loosely: blank and comment lines too)
-    rest = _line_start(text, counts_line + 1)
-    available = text.count("\n", rest) + (0 if text.endswith("\n") or rest >= len(text) else 1)
+    # the third count, of edges, is ignored: real files often give 0 or a wrong number
+
+    # every line after the counts that is not blank holds one vertex, then one face
+    body = text[_line_start(text, counts_line + 1) :]
+    if "#" in body or "//" in body:
+        body = _OFF_COMMENT.sub("", body)
+    body = body.encode()
+    raw = np.frombuffer(body, dtype=np.uint8)
+    line_ends = np.append(np.flatnonzero(raw == 10), len(raw))
+    line_starts = np.append(0, line_ends[:-1] + 1)
+    filled = np.flatnonzero(line_ends > line_starts)  # blank lines are empty (_decode_text), comments removed
+    del raw
+    available = len(filled)
     if n_vertices > available:
         raise _read_error(
             path,
@@ -130,35 +224,53 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
             f"{available} line{'' if available == 1 else 's'} after line {counts_line}",
         )
     if n_faces > available - n_vertices:
+        left = available - n_vertices
         raise _read_error(
             path,
             f"the header announces {n_faces} face{'' if n_faces == 1 else 's'}, the file has "
-            f"{available - n_vertices} line{'' if available - n_vertices == 1 else 's'} "
-            f"after its {n_vertices} vertices",
+            f"{left} line{'' if left == 1 else 's'} after its {n_vertices} vertices",
         )
 
-    first = None
-    for number, line in lines:
-        content = line.split("#", 1)[0].strip()
-        if content:
-            first = (number, content)
-            break
-    if first is None:
-        raise _read_error(
-            path, f"truncated: the header announces {n_vertices} vertices, the file has none"
-        )
-    ncols = len(first[1].split())
-    table = _load_table(path, text, first[0] - 1, ncols, None, max_rows=n_vertices)
-    if table.shape[0] < n_vertices:
-        raise _read_error(
-            path,
-            f"truncated: the header announces {n_vertices} vertices, the file has {table.shape[0]}",
-        )
+    def block(first: int, count: int) -> bytes:
+        """The lines of the ``count`` vertices or faces from the ``first``-th (blank lines among them)."""
+        return body[line_starts[filled[first]] : line_ends[filled[first + count - 1]]]
 
+    def line_number(index: int) -> int:
+        """The line number in the file of the ``index``-th vertex or face."""
+        return counts_line + 1 + int(filled[index])
+
+    first_line = block(0, 1)
+    ncols = len(first_line.split())
     has_texture, has_colour, has_normal = (bool(match.group(k)) for k in (1, 2, 3))
     n_colour = ncols - 3 - 3 * has_normal - 2 * has_texture
     if (has_colour and n_colour not in (3, 4)) or (not has_colour and n_colour != 0):
-        raise _read_error(path, f"line {first[0]}: {ncols} values do not match a {keyword} vertex")
+        raise _read_error(path, f"line {line_number(0)}: {ncols} values do not match a {keyword} vertex")
+    vertices = block(0, n_vertices).decode()
+    try:
+        table = np.loadtxt(_stdio.StringIO(vertices), dtype=np.float64, comments=None, ndmin=2)
+        if table.shape != (n_vertices, ncols):
+            raise ValueError("a line of another length")
+    except ValueError:
+        bad = _first_bad_line(vertices, 0, ncols, None)
+        if bad is None:
+            raise _read_error(path, f"cannot parse the {n_vertices} vertices") from None
+        body_line = int(filled[0]) + bad[0] - 1
+        index = int(np.searchsorted(filled, body_line))
+        raise _read_error(
+            path,
+            f"line {counts_line + 1 + body_line}: {bad[1]} (vertex {index + 1} of the {n_vertices} "
+            "the header announces)",
+        ) from None
+    del vertices
+    if n_faces:
+        _check_off_faces(path, text, block(n_vertices, n_faces), n_vertices, n_faces, line_number(n_vertices))
+    if available > n_vertices + n_faces:
+        raise _read_error(
+            path,
+            f"line {line_number(n_vertices + n_faces)}: more lines than the header announces "
+            f"({n_vertices} vertices and {n_faces} face{'' if n_faces == 1 else 's'})",
+        )
+
     names = ["x", "y", "z"] + (list(_NORMAL_NAMES) if has_normal else [])
     columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
     cloud = _cloud_from_columns(
@@ -181,3 +293,100 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
         cloud.fields["s"] = np.ascontiguousarray(table[:, start])
         cloud.fields["t"] = np.ascontiguousarray(table[:, start + 1])
     return cloud
+
+
+def _uniform_faces_in_range(faces: bytes, n_vertices: int, n_faces: int) -> bool:
+    """Whether every face line is ``k i1 .. ik`` with the same ``k`` and the same colour size, indices in range.
+
+    The common case (all triangles, all quads, one colour for every face), parsed by NumPy's
+    table parser; False for anything else, which :func:`_check_off_faces` then examines token
+    by token.
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # older NumPy parses "1.5" as an int with a warning
+            table = np.loadtxt(_stdio.StringIO(faces.decode()), dtype=np.int64, comments=None, ndmin=2)
+    except (ValueError, Warning, UnicodeDecodeError, OverflowError):
+        return False
+    if table.shape[0] != n_faces or table.shape[1] < 2:
+        return False
+    corners = int(table[0, 0])
+    if not np.all(table[:, 0] == corners) or not 1 <= corners <= table.shape[1] - 1:
+        return False
+    if table.shape[1] - 1 - corners not in _OFF_FACE_COLOUR_SIZES:
+        return False
+    indices = table[:, 1 : 1 + corners]
+    return bool(indices.min() >= 0 and indices.max() < n_vertices)
+
+
+def _check_off_faces(path, text, faces, n_vertices, n_faces, first_line) -> None:
+    """Check the face lines of an OFF file: ``k i1 .. ik`` and an optional colour, indices in range.
+
+    Parameters
+    ----------
+    path : Path
+        The file (for messages).
+    text : str
+        The whole file (to quote a line in a message).
+    faces : bytes
+        The face lines, comments removed (blank lines may be among them).
+    n_vertices, n_faces : int
+        The header's counts: ``faces`` holds ``n_faces`` lines that are not blank.
+    first_line : int
+        The line number in the file of the first face.
+    """
+    if _uniform_faces_in_range(faces, n_vertices, n_faces):
+        return
+    # a mixed or a broken face block: every face and token located, to name the first problem
+    starts, ends, first, sizes, numbers = _token_layout(faces)
+    numbers += first_line  # the line number in the file of each face
+    body = faces
+    corners, whole = _whole_numbers(body, starts[first], ends[first])
+    bad = np.flatnonzero(~whole)
+    if bad.size:
+        number = int(numbers[bad[0]])
+        raise _read_error(
+            path,
+            f"line {number}: expected a face ('k i1 ... ik') after the {n_vertices} vertices "
+            f"the header announces, found {_quoted(_line_text(text, number))}",
+        )
+    bad = np.flatnonzero((corners < 1) | (corners > sizes - 1))
+    if bad.size:
+        k = int(bad[0])
+        problem = (f"a face of {corners[k]} vertices" if corners[k] < 1 else
+                   f"the face announces {corners[k]} vertices, the line holds {sizes[k] - 1} values after it")
+        raise _read_error(path, f"line {numbers[k]}: {problem}")
+    extra = sizes - 1 - corners
+    bad = np.flatnonzero(~np.isin(extra, _OFF_FACE_COLOUR_SIZES))
+    if bad.size:
+        k = int(bad[0])
+        raise _read_error(
+            path,
+            f"line {numbers[k]}: {extra[k]} values after the face's {corners[k]} vertex indices "
+            "(a face colour is 1, 3 or 4 values)",
+        )
+    # the index tokens: the corners[k] tokens after the first token of face k
+    owner = np.repeat(np.arange(len(first)), corners)
+    position = np.repeat(first + 1, corners) + np.arange(len(owner)) - np.repeat(np.cumsum(corners) - corners, corners)
+    indices, whole = _whole_numbers(body, starts[position], ends[position])
+    bad = np.flatnonzero(~whole)
+    if bad.size:
+        k = int(bad[0])
+        token = body[starts[position[k]] : ends[position[k]]].decode(errors="replace")
+        raise _read_error(path, f"line {numbers[owner[k]]}: face vertex index {_quoted(token)} is not a whole number")
+    bad = np.flatnonzero((indices < 0) | (indices >= n_vertices))
+    if bad.size:
+        k = int(bad[0])
+        raise _read_error(
+            path,
+            f"line {numbers[owner[k]]}: face vertex index {indices[k]} is out of range "
+            f"(the header announces {n_vertices} vertices, numbered 0 to {n_vertices - 1})",
+        )
+    if np.any(extra):  # the colours are not read, but must be numbers
+        raw = np.frombuffer(body, dtype=np.uint8)[: ends[first[-1] + sizes[-1] - 1]]
+        bad = np.flatnonzero(~(_IS_NUMERIC[raw] | _IS_SEPARATOR[raw]))
+        if bad.size:
+            token = int(np.searchsorted(starts, bad[0], side="right")) - 1
+            face = int(np.searchsorted(first, token, side="right")) - 1
+            value = body[starts[token] : ends[token]].decode(errors="replace")
+            raise _read_error(path, f"line {numbers[face]}: face colour value {_quoted(value)} is not a number")
