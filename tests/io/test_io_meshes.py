@@ -255,12 +255,12 @@ def test_obj_faces_of_every_form_are_read(tmp_path, faces, count):
 @pytest.mark.parametrize(
     "content,message",
     [
-        (SQUARE_OBJ + "f 1 2 3\nf 2 5 3\n", r"line 9: vertex index 5 is out of range: the file has 4 vertices$"),
-        (SQUARE_OBJ + "f 1 2 3\nf 2/1 3/1 5/1\n", r"line 9: vertex index 5 is out of range: the file has 4 vertices$"),
+        (SQUARE_OBJ + "f 1 2 3\nf 2 5 3\n", r"line 9: vertex index 5 is out of range: the file has 4 v lines$"),
+        (SQUARE_OBJ + "f 1 2 3\nf 2/1 3/1 5/1\n", r"line 9: vertex index 5 is out of range: the file has 4 v lines$"),
         (SQUARE_OBJ + "f -5 -1 -2\n",
-         r"line 8: vertex index -5 is out of range: 4 vertices are defined before the face$"),
+         r"line 8: vertex index -5 is out of range: the face follows 4 v lines$"),
         ("v 0 0 0\nv 1 0 0\nf -1 -2 -3\nv 0 1 0\n",
-         r"line 3: vertex index -3 is out of range: 2 vertices are defined before the face$"),
+         r"line 3: vertex index -3 is out of range: the face follows 2 v lines$"),
         (SQUARE_OBJ + "f 0 1 2\n", r"line 8: vertex index 0 \(OBJ indices start at 1, or count back from -1\)$"),
         (SQUARE_OBJ + "f 1 2 3.5\n", r"line 8: '3\.5' is not a face corner \(a vertex index, then optionally"),
         (SQUARE_OBJ + "f 1 2 3/1/1/1\n", r"line 8: '3/1/1/1' is not a face corner"),

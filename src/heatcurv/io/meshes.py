@@ -1,7 +1,28 @@
 """Mesh files read as point clouds: the vertices of OBJ (``v`` lines) and ASCII OFF.
 
-The faces are not read; their number is ``meta["faces"]``, so that a writer
-can say they are not written.
+The faces are checked, not kept: their number is ``meta["faces"]``, so that a
+writer can say they are not written.
+
+OFF (Geomview's format; ``OFF``, ``COFF``, ``NOFF``, ``STOFF`` and their
+combinations): the keyword, then ``nv nf ne`` (on the keyword's line or the
+next one that is not blank), then ``nv`` vertex lines and ``nf`` face lines
+``k i1 .. ik`` followed by nothing, a colour-map index or an RGB(A) colour;
+``#`` comments and blank lines may stand anywhere. The edge count ``ne`` is
+ignored, as real files often give 0 or a wrong number. A file whose lines do
+not match its counts -- a vertex line with another number of values, a vertex
+count lower or higher than the vertex lines, a face count that does not match,
+a face whose indices are not whole numbers from 0 to ``nv - 1``, a line left
+over -- is refused, the message naming the line.
+
+OBJ: ``v`` lines are the vertices; each ``f`` line's corners (``i``, ``i/t``,
+``i//n``, ``i/t/n``; negative indices count back from the last ``v`` line
+before the face) must name one of them. Texture and normal indices are not
+checked, and other statements (``vn``, ``vt``, ``g``, ``usemtl``, ...) are
+ignored.
+
+Both are parsed by NumPy, not line by line in Python: the vertex block and a
+uniform face block (every face of the same size) by its table parser, a mixed
+face block by the vectorised token layout of :mod:`._textparse`.
 """
 
 from __future__ import annotations
@@ -118,9 +139,11 @@ def _check_obj_faces(path: Path, text: str, n_vertices: int) -> int:
         if values[k] == 0:
             problem = "vertex index 0 (OBJ indices start at 1, or count back from -1)"
         elif values[k] < 0:
-            problem = f"vertex index {values[k]} is out of range: {defined[k]} vertices are defined before the face"
+            problem = f"the face follows {_count(defined[k], 'v line', 'v lines')}"
         else:
-            problem = f"vertex index {values[k]} is out of range: the file has {n_vertices} vertices"
+            problem = f"the file has {_count(n_vertices, 'v line', 'v lines')}"
+        if values[k] != 0:
+            problem = f"vertex index {values[k]} is out of range: {problem}"
         raise _read_error(path, f"line {_obj_line_number(text, int(faces[k]), 'f')}: {problem}")
     return len(face_lines)
 
@@ -146,6 +169,11 @@ def _off_count(path: Path, tokens: list, index: int, what: str, line: int) -> in
     if count < 0:
         raise _read_error(path, f"line {line}: the {what} count {count} is negative")
     return count
+
+
+def _count(number, singular: str, plural: str) -> str:
+    """``'1 vertex'``, ``'2 vertices'``: a count and its noun."""
+    return f"{number} {singular if number == 1 else plural}"
 
 
 def _line_start(text: str, number: int) -> int:
@@ -220,15 +248,8 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
     if n_vertices > available:
         raise _read_error(
             path,
-            f"truncated: the header announces {n_vertices} vertices, the file has "
+            f"truncated: the header announces {_count(n_vertices, 'vertex', 'vertices')}, the file has "
             f"{available} line{'' if available == 1 else 's'} after line {counts_line}",
-        )
-    if n_faces > available - n_vertices:
-        left = available - n_vertices
-        raise _read_error(
-            path,
-            f"the header announces {n_faces} face{'' if n_faces == 1 else 's'}, the file has "
-            f"{left} line{'' if left == 1 else 's'} after its {n_vertices} vertices",
         )
 
     def block(first: int, count: int) -> bytes:
@@ -262,13 +283,20 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
             "the header announces)",
         ) from None
     del vertices
+    if n_faces > available - n_vertices:
+        left = available - n_vertices
+        raise _read_error(
+            path,
+            f"the header announces {n_faces} face{'' if n_faces == 1 else 's'}, the file has "
+            f"{_count(left, 'line', 'lines')} after its {_count(n_vertices, 'vertex', 'vertices')}",
+        )
     if n_faces:
         _check_off_faces(path, text, block(n_vertices, n_faces), n_vertices, n_faces, line_number(n_vertices))
     if available > n_vertices + n_faces:
         raise _read_error(
             path,
             f"line {line_number(n_vertices + n_faces)}: more lines than the header announces "
-            f"({n_vertices} vertices and {n_faces} face{'' if n_faces == 1 else 's'})",
+            f"({_count(n_vertices, 'vertex', 'vertices')} and {_count(n_faces, 'face', 'faces')})",
         )
 
     names = ["x", "y", "z"] + (list(_NORMAL_NAMES) if has_normal else [])
@@ -347,14 +375,15 @@ def _check_off_faces(path, text, faces, n_vertices, n_faces, first_line) -> None
         number = int(numbers[bad[0]])
         raise _read_error(
             path,
-            f"line {number}: expected a face ('k i1 ... ik') after the {n_vertices} vertices "
+            f"line {number}: expected a face ('k i1 ... ik') after the {_count(n_vertices, 'vertex', 'vertices')} "
             f"the header announces, found {_quoted(_line_text(text, number))}",
         )
     bad = np.flatnonzero((corners < 1) | (corners > sizes - 1))
     if bad.size:
         k = int(bad[0])
-        problem = (f"a face of {corners[k]} vertices" if corners[k] < 1 else
-                   f"the face announces {corners[k]} vertices, the line holds {sizes[k] - 1} values after it")
+        problem = (f"a face of {_count(corners[k], 'vertex', 'vertices')}" if corners[k] < 1 else
+                   f"the face announces {_count(corners[k], 'vertex', 'vertices')}, the line holds "
+                   f"{_count(sizes[k] - 1, 'value', 'values')} after it")
         raise _read_error(path, f"line {numbers[k]}: {problem}")
     extra = sizes - 1 - corners
     bad = np.flatnonzero(~np.isin(extra, _OFF_FACE_COLOUR_SIZES))
@@ -380,7 +409,7 @@ def _check_off_faces(path, text, faces, n_vertices, n_faces, first_line) -> None
         raise _read_error(
             path,
             f"line {numbers[owner[k]]}: face vertex index {indices[k]} is out of range "
-            f"(the header announces {n_vertices} vertices, numbered 0 to {n_vertices - 1})",
+            f"(the header announces {_count(n_vertices, 'vertex', 'vertices')}, numbered 0 to {n_vertices - 1})",
         )
     if np.any(extra):  # the colours are not read, but must be numbers
         raw = np.frombuffer(body, dtype=np.uint8)[: ends[first[-1] + sizes[-1] - 1]]
