@@ -275,3 +275,34 @@ def test_obj_faces_naming_missing_vertices_are_refused(tmp_path, content, messag
     path.write_text(content)
     with pytest.raises(HeatcurvError, match=r"^cannot read \S+m\.obj: " + message):
         read_points(path)
+
+
+def test_the_fast_obj_face_parser_agrees_with_the_corner_by_corner_one():
+    # uniform face blocks take a shortcut (bytes.translate and NumPy's table parser); whatever it accepts, the
+    # corner-by-corner parser must accept with the same vertex indices, on random mixtures of valid and broken forms
+    from pathlib import Path
+
+    from heatcurv.io.meshes import _obj_corners, _uniform_obj_corners
+
+    rng = np.random.default_rng(7)
+    forms = ["{a}", "{a}/{b}", "{a}//{b}", "{a}/{b}/{c}", "/{a}", "{a}/", "{a}///{b}", "{a}/{b}/{c}/{d}",
+             "{a}//{b}//{c}", "{a}/{b}//{c}", "//{a}", "{a}//", "-{a}//{b}", "{a}.5", "+{a}/{b}", "{a}/-{b}/{c}",
+             "{a}/{b}/"]
+    accepted = 0
+    for _ in range(3000):
+        chosen = [forms[k] for k in rng.integers(len(forms), size=3)]
+        lines = []
+        for _ in range(int(rng.integers(1, 4))):
+            corners = [chosen[0] if rng.random() < 0.7 else chosen[int(rng.integers(1, 3))]
+                       for _ in range(3 if rng.random() < 0.7 else int(rng.integers(2, 5)))]
+            values = {key: int(rng.integers(1, 50)) for key in "abcd"}
+            lines.append(("\t" if rng.random() < 0.2 else " ").join(c.format(**values) for c in corners))
+        body = "\n".join(lines).encode()
+        fast = _uniform_obj_corners(body, len(lines))
+        if fast is None:
+            continue
+        accepted += 1
+        values, faces = _obj_corners(Path("m.obj"), "", body, len(lines))
+        np.testing.assert_array_equal(values, fast.ravel(), err_msg=repr(body))
+        np.testing.assert_array_equal(faces, np.repeat(np.arange(len(lines)), fast.shape[1]))
+    assert accepted == 232  # of the 3000 blocks, those uniform and well formed (the shortcut is taken)

@@ -168,11 +168,14 @@ def _load_table(
     return table
 
 
-# bytes that separate tokens (the whitespace of ``str.split`` that ASCII holds), and the bytes a number may hold
-_IS_SEPARATOR = np.zeros(256, dtype=bool)
-_IS_SEPARATOR[list(b" \t\n\v\f\r")] = True
-_IS_NUMERIC = np.zeros(256, dtype=bool)
-_IS_NUMERIC[list(b"0123456789+-.eE")] = True
+#: The bytes that separate tokens: ASCII whitespace, as :meth:`bytes.split` sees it.
+SEPARATORS = b" \t\n\v\f\r"
+
+
+def _first_byte_outside(data: bytes, allowed: bytes) -> int:
+    """Offset of the first byte of ``data`` that is not one of ``allowed``, or -1 (one pass, in C)."""
+    rest = data.translate(None, allowed)
+    return data.find(rest[:1]) if rest else -1
 
 
 def _token_layout(data: bytes) -> tuple:
@@ -195,7 +198,7 @@ def _token_layout(data: bytes) -> tuple:
         Per line that holds a token: its 0-based line number in ``data``.
     """
     raw = np.frombuffer(data, dtype=np.uint8)
-    separator = (raw - np.uint8(9) <= 4) | (raw == ord(" "))  # as _IS_SEPARATOR, in two passes
+    separator = (raw - np.uint8(9) <= 4) | (raw == ord(" "))  # SEPARATORS: 9-13 and 32
     mark = ~separator
     mark[1:] &= separator[:-1]
     starts = np.flatnonzero(mark)

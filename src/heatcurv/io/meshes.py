@@ -45,10 +45,10 @@ from ._common import (
     _read_error,
 )
 from ._textparse import (
-    _IS_NUMERIC,
-    _IS_SEPARATOR,
+    SEPARATORS,
     _decode_text,
     _first_bad_line,
+    _first_byte_outside,
     _iter_lines,
     _strip_comment,
     _token_layout,
@@ -86,9 +86,100 @@ def _read_obj(path: Path, fmt: str) -> PointCloud:
     )
 
 
-# a face corner: the vertex index, then an optional texture and normal index ("i", "i/t", "i//n", "i/t/n")
-_IS_CORNER = np.zeros(256, dtype=bool)
-_IS_CORNER[list(b"0123456789+-/")] = True
+# every whitespace byte as a space
+_ALL_SPACES = bytes.maketrans(b"\t\n\v\f\r", b"     ")
+# the bytes of a face corner: the vertex index, then an optional texture and normal index ("i", "i/t", "i//n",
+# "i/t/n")
+_CORNER_BYTES = b"0123456789+-/"
+
+
+def _uniform_obj_corners(body: bytes, n_faces: int):
+    """The vertex indices of OBJ faces of one size whose corners all have one form, or None.
+
+    The common case (all triangles, every corner ``i//n``, say), checked with a few passes of
+    :meth:`bytes.translate` and friends and parsed by NumPy's table parser: every corner then
+    has the same number of slashes, none at the edge of a corner, and its indices are whole
+    numbers. Returns an array of shape (faces, corners), or None for anything else, which
+    :func:`_obj_corners` examines corner by corner.
+    """
+    single = body.replace(b"//", b"/")  # i//n as i/n: the vertex index comes first either way
+    spaced = single.translate(_ALL_SPACES)
+    if (b"//" in single or b"/ " in spaced or b" /" in spaced or spaced.startswith(b"/")
+            or spaced.endswith(b"/")):
+        return None  # "///", or a corner with an empty index
+    outline = b" " + spaced.translate(None, b"0123456789+-") + b" "  # each corner's slashes, alone
+    n_slashes = outline.count(b"/")
+    first = outline.find(b"/")
+    per_corner = outline.find(b" ", first) - first if n_slashes else 0  # the first corner's slashes
+    if per_corner == 1 and b"//" in outline:
+        return None
+    if per_corner == 2 and (b"///" in outline or b" / " in outline):
+        return None
+    if per_corner > 2:
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # older NumPy parses "1.5" as an int with a warning
+            table = np.loadtxt(_stdio.BytesIO(single.replace(b"/", b" ")), dtype=np.int64, comments=None, ndmin=2)
+    except (ValueError, Warning, OverflowError):
+        return None
+    step = per_corner + 1  # numbers per corner
+    if table.shape[0] != n_faces or table.shape[1] % step:
+        return None
+    # every corner with slashes has exactly per_corner of them; those without must not exist
+    corners = table.size // step
+    if n_slashes and outline.count(b"/" * per_corner) != corners:
+        return None
+    doubles = body.count(b"//")
+    if doubles and (doubles != corners or per_corner != 1):  # i//n: one "//" in every corner and no other slash
+        return None
+    return table[:, ::step]
+
+
+def _obj_corners(path: Path, text: str, body: bytes, n_faces: int) -> tuple:
+    """The vertex index of every corner of OBJ faces, and its face: each corner located and checked.
+
+    Parameters
+    ----------
+    path : Path
+        The file (for messages).
+    text : str
+        The whole file (to find a face's line in a message).
+    body : bytes
+        The ``f`` lines without their keyword and comments, one face per line.
+    n_faces : int
+        The number of ``f`` lines.
+
+    Returns
+    -------
+    values, faces : ndarray of int64
+        The vertex index of each corner as written (1-based, or negative), and its face.
+    """
+    starts, ends, first, sizes, lines = _token_layout(body)  # one face per line of ``body``
+    if len(lines) < n_faces:
+        empty = int(np.flatnonzero(np.append(lines, n_faces) != np.arange(len(lines) + 1))[0])
+        raise _read_error(path, f"line {_obj_line_number(text, empty, 'f')}: a face ('f') with no vertices")
+    faces = np.repeat(np.arange(n_faces), sizes)  # the face of each corner
+    raw = np.frombuffer(body, dtype=np.uint8)
+    bad = _first_byte_outside(body, _CORNER_BYTES + SEPARATORS)
+    slashes = np.append(np.flatnonzero(raw == ord("/")), len(raw))  # a last one past the end: never inside a corner
+    first_slash = np.searchsorted(slashes, starts)
+    n_slashes = np.searchsorted(slashes, ends) - first_slash
+    vertex_end = np.minimum(slashes[first_slash], ends)
+    values, whole = _whole_numbers(body, starts, vertex_end)
+    wrong = ~whole | (n_slashes > 2)
+    if bad >= 0:
+        wrong[int(np.searchsorted(starts, bad, side="right")) - 1] = True
+    wrong = np.flatnonzero(wrong)
+    if wrong.size:
+        k = int(wrong[0])
+        corner = body[starts[k] : ends[k]].decode(errors="replace")
+        raise _read_error(
+            path,
+            f"line {_obj_line_number(text, int(faces[k]), 'f')}: {_quoted(corner)} is not a face corner "
+            "(a vertex index, then optionally '/' texture index and '/' normal index)",
+        )
+    return values, faces
 
 
 def _check_obj_faces(path: Path, text: str, n_vertices: int) -> int:
@@ -100,31 +191,16 @@ def _check_obj_faces(path: Path, text: str, n_vertices: int) -> int:
     face_lines = re.findall(r"(?m)^[ \t]*f[ \t]+([^\n]*)$", text)
     if not face_lines:
         return 0
-    body = re.sub(r"#[^\n]*", "", "\n".join(face_lines)).encode()
-    starts, ends, first, sizes, lines = _token_layout(body)  # one face per line of ``body``
-    if len(lines) < len(face_lines):
-        empty = int(np.flatnonzero(np.append(lines, len(face_lines)) != np.arange(len(lines) + 1))[0])
-        raise _read_error(path, f"line {_obj_line_number(text, empty, 'f')}: a face ('f') with no vertices")
-    faces = np.repeat(np.arange(len(face_lines)), sizes)  # the face of each token
-    raw = np.frombuffer(body, dtype=np.uint8)
-    bad = np.flatnonzero(~(_IS_CORNER[raw] | _IS_SEPARATOR[raw]))
-    slashes = np.append(np.flatnonzero(raw == ord("/")), len(raw))  # a last one past the end: never inside a token
-    first_slash = np.searchsorted(slashes, starts)
-    n_slashes = np.searchsorted(slashes, ends) - first_slash
-    vertex_end = np.minimum(slashes[first_slash], ends)
-    values, whole = _whole_numbers(body, starts, vertex_end)
-    wrong = ~whole | (n_slashes > 2)
-    if bad.size:
-        wrong[int(np.searchsorted(starts, bad[0], side="right")) - 1] = True
-    wrong = np.flatnonzero(wrong)
-    if wrong.size:
-        k = int(wrong[0])
-        corner = body[starts[k] : ends[k]].decode(errors="replace")
-        raise _read_error(
-            path,
-            f"line {_obj_line_number(text, int(faces[k]), 'f')}: {_quoted(corner)} is not a face corner "
-            "(a vertex index, then optionally '/' texture index and '/' normal index)",
-        )
+    body = "\n".join(face_lines)
+    if "#" in body:
+        body = re.sub(r"#[^\n]*", "", body)
+    body = body.encode()
+    uniform = _uniform_obj_corners(body, len(face_lines))
+    if uniform is not None:
+        values = uniform.ravel()
+        faces = np.repeat(np.arange(len(face_lines)), uniform.shape[1])  # the face of each corner
+    else:
+        values, faces = _obj_corners(path, text, body, len(face_lines))
     if np.any(values < 0):  # relative: the vertices defined before the face line
         kinds = np.array(re.findall(r"(?m)^[ \t]*([vf])[ \t]", text))
         is_vertex = kinds == "v"
@@ -412,10 +488,9 @@ def _check_off_faces(path, text, faces, n_vertices, n_faces, first_line) -> None
             f"(the header announces {_count(n_vertices, 'vertex', 'vertices')}, numbered 0 to {n_vertices - 1})",
         )
     if np.any(extra):  # the colours are not read, but must be numbers
-        raw = np.frombuffer(body, dtype=np.uint8)[: ends[first[-1] + sizes[-1] - 1]]
-        bad = np.flatnonzero(~(_IS_NUMERIC[raw] | _IS_SEPARATOR[raw]))
-        if bad.size:
-            token = int(np.searchsorted(starts, bad[0], side="right")) - 1
+        bad = _first_byte_outside(body[: ends[first[-1] + sizes[-1] - 1]], b"0123456789+-.eE" + SEPARATORS)
+        if bad >= 0:
+            token = int(np.searchsorted(starts, bad, side="right")) - 1
             face = int(np.searchsorted(first, token, side="right")) - 1
             value = body[starts[token] : ends[token]].decode(errors="replace")
             raise _read_error(path, f"line {numbers[face]}: face colour value {_quoted(value)} is not a number")
