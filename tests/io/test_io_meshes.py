@@ -146,9 +146,12 @@ SQUARE_OFF = "OFF\n# a unit square\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n
         (SQUARE_OFF.replace("4 2 0", "4 1 0").replace("3 0 1 2\n3 1 3 2", "4 0 1 3 2"), 1),  # a quad
         (SQUARE_OFF.replace("3 1 3 2", "4 0 1 3 2 0.5 0.5 0.5"), 2),  # a triangle and a coloured quad
         (SQUARE_OFF.replace("4 2 0", "4 0 0").replace("3 0 1 2\n3 1 3 2\n", ""), 0),  # points only
+        ("CNOFF\n4 2 0\n0 0 0 0 0 1 255 0 0 255\n1 0 0 0 0 1 0 255 0 255\n0 1 0 0 0 1 0 0 255 255\n"
+         "1 1 0 0 0 1 9 9 9 255\n3 0 1 2\n3 1 3 2\n", 2),  # normals and colours
+        ("STOFF\n4 2 0\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n1 1 0 1 1\n3 0 1 2 0.5 0.5 0.5\n3 1 3 2 1 1 1\n", 2),
     ],
     ids=["plain", "counts-on-keyword-line", "edge-count", "trailing-blanks", "crlf", "comments", "rgb",
-         "rgba-floats", "colour-index", "quad", "mixed-polygons", "no-faces"],
+         "rgba-floats", "colour-index", "quad", "mixed-polygons", "no-faces", "cnoff", "stoff"],
 )
 def test_off_files_real_writers_produce_are_read(tmp_path, content, faces):
     path = tmp_path / "m.off"
