@@ -80,3 +80,17 @@ def test_cube_is_the_unit_cube(pymeshlab_samples):
     assert mesh.vertices.shape == (8, 3) and mesh.faces.shape == (12, 3)
     assert mesh.area == pytest.approx(6.0) and signed_volume(mesh) == pytest.approx(1.0)
     assert np.all(np.einsum("ij,ij->i", mesh.vertex_normals(), mesh.vertices) > 0)  # outward from the centre
+
+
+def test_every_obj_and_off_file_is_read_with_the_vertices_and_faces_read_mesh_finds(pymeshlab_samples, cgal_meshes):
+    # read_points checks every face of an OBJ or OFF file against its vertices: each real file must still be read,
+    # with the vertices and the number of faces (all triangles) that the independent mesh reader finds
+    from heatcurv.io import read_points
+
+    files = {path.resolve() for folder in (pymeshlab_samples, cgal_meshes) for pattern in ("*.obj", "*.off")
+             for path in folder.rglob(pattern)}
+    assert len(files) == 17  # 5 OBJ samples of pymeshlab, 12 CGAL models
+    for path in sorted(files):
+        cloud, mesh = read_points(path), read_mesh(path)
+        np.testing.assert_array_equal(cloud.points, mesh.vertices, err_msg=str(path))
+        assert cloud.meta["faces"] == len(mesh.faces), path

@@ -176,8 +176,9 @@ def read_points(path) -> PointCloud:
         Rows holding NaN are kept as they are (``heatcurv.estimate`` reports
         them). PLY: the ``vertex`` element gives the points (its list
         properties are skipped); the other elements (faces) are kept in
-        ``meta`` for :func:`write_points`. OBJ: ``v`` lines only. OFF:
-        vertices only. A mesh's face count is ``meta["faces"]``.
+        ``meta`` for :func:`write_points`. OBJ and OFF: the vertices; the
+        faces are checked against them (see :mod:`heatcurv.io.meshes`) and
+        counted in ``meta["faces"]``, not kept.
 
     Raises
     ------
@@ -185,7 +186,9 @@ def read_points(path) -> PointCloud:
         If the file is missing or unreadable, its extension is not supported,
         it holds no points, it is truncated or not of the format its extension
         says, a text row has the wrong number of values or a non-number (the
-        message gives the line), or it has no x, y, z coordinates.
+        message gives the line), an OBJ or OFF face names a vertex the file
+        does not have or an OFF file's lines do not match its counts, or it
+        has no x, y, z coordinates.
     """
     path = Path(path)
     ext = path.suffix.lower()

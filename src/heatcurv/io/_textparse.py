@@ -166,3 +166,88 @@ def _load_table(
             path, f"line {bad[0]}: {bad[1]}" if bad else f"expected {ncols} values per line"
         )
     return table
+
+
+#: The bytes that separate tokens: ASCII whitespace, as :meth:`bytes.split` sees it.
+SEPARATORS = b" \t\n\v\f\r"
+
+
+def _first_byte_outside(data: bytes, allowed: bytes) -> int:
+    """Offset of the first byte of ``data`` that is not one of ``allowed``, or -1 (one pass, in C)."""
+    rest = data.translate(None, allowed)
+    return data.find(rest[:1]) if rest else -1
+
+
+def _token_layout(data: bytes) -> tuple:
+    """Where the whitespace-separated tokens of ``data`` are, and which lines hold them (vectorised).
+
+    Parameters
+    ----------
+    data : bytes
+        Text with ``\\n`` line ends, comments already removed.
+
+    Returns
+    -------
+    starts, ends : ndarray of int64
+        Offset of each token's first byte and one past its last.
+    first : ndarray of int64
+        Per line that holds a token: the index of its first token.
+    sizes : ndarray of int64
+        Per line that holds a token: its number of tokens.
+    lines : ndarray of int64
+        Per line that holds a token: its 0-based line number in ``data``.
+    """
+    raw = np.frombuffer(data, dtype=np.uint8)
+    separator = (raw - np.uint8(9) <= 4) | (raw == ord(" "))  # SEPARATORS: 9-13 and 32
+    mark = ~separator
+    mark[1:] &= separator[:-1]
+    starts = np.flatnonzero(mark)
+    mark = ~separator
+    mark[:-1] &= separator[1:]
+    ends = np.flatnonzero(mark) + 1
+    del mark, separator
+    newlines = np.flatnonzero(raw == 10)
+    # a token opens a line when a line end lies between it and the token before it
+    opens = np.zeros(len(starts) + 1, dtype=bool)
+    opens[np.searchsorted(starts, newlines)] = True
+    opens[0] = True
+    first = np.flatnonzero(opens[: len(starts)])
+    lines = np.searchsorted(newlines, starts[first])
+    return starts, ends, first, np.diff(first, append=len(starts)), lines
+
+
+def _whole_numbers(data: bytes, starts: np.ndarray, ends: np.ndarray, chunk: int = 1 << 20) -> tuple:
+    """The tokens of ``data`` between ``starts`` and ``ends`` read as integers (vectorised).
+
+    A whole number is an optional sign and 1 to 18 decimal digits. The digits of
+    ``chunk`` tokens at a time are laid out right-aligned in a matrix and
+    multiplied by the powers of ten.
+
+    Returns
+    -------
+    values : ndarray of int64
+        The value of each token; 0 where it is not a whole number.
+    whole : ndarray of bool
+        Which tokens are whole numbers.
+    """
+    raw = np.frombuffer(data, dtype=np.uint8)
+    starts = np.asarray(starts, dtype=np.int64)
+    ends = np.asarray(ends, dtype=np.int64)
+    values = np.zeros(starts.shape, dtype=np.int64)
+    whole = np.zeros(starts.shape, dtype=bool)
+    if not starts.size:
+        return values, whole
+    first = raw[starts]
+    negative = first == ord("-")
+    n_digits = ends - starts - (negative | (first == ord("+")))
+    for at in range(0, len(starts), chunk):
+        part = slice(at, at + chunk)
+        count = n_digits[part]
+        width = int(np.clip(count.max(), 1, 18))
+        place = np.arange(width)
+        used = place >= width - count[:, None]
+        digits = raw[np.maximum(ends[part, None] - width + place, 0)] - np.uint8(ord("0"))  # wraps below '0'
+        whole[part] = (count >= 1) & (count <= 18) & ~np.any(used & (digits > 9), axis=1)
+        values[part] = np.where(used, digits, 0).astype(np.int64) @ (10 ** np.arange(width - 1, -1, -1))
+    values[~whole] = 0
+    return np.where(negative, -values, values), whole

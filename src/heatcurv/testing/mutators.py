@@ -17,7 +17,9 @@ text (the ascii PLY too)    ``utf16``, ``bom``, ``latin1``, ``line-endings``
 PLY                         ``ply-count`` (element counts), ``ply-type``
                             (property types swapped), ``ply-format``,
                             ``ply-header-lines``
-OFF, PTS                    ``off-counts``, ``off-keyword``, ``pts-count``
+OFF, OBJ, PTS               ``off-counts``, ``off-lines`` (vertex and face
+                            lines duplicated, deleted, indices out of range,
+                            ...), ``obj-faces``, ``off-keyword``, ``pts-count``
 NPY                         ``npy-header`` (shape, dtype, fortran_order, stale
                             header length), ``npy-version``
 NPZ                         ``npz-bomb`` (zip bombs: 256 MiB of zeros, a
@@ -344,21 +346,187 @@ def _ply_header_lines(data, rng):
     return b"\n".join(lines) + body
 
 
-# --- OFF and PTS counts
+# --- OFF and PTS counts, OFF and OBJ faces
+_OFF_COUNTS_LINE = re.compile(rb"\s*\d+\s+\d+\s+\d+\s*")
+
+
 @_mutator("off-counts", families=("off",))
 def _off_counts(data, rng):
     lines = data.split(b"\n")
-    k = next((i for i, line in enumerate(lines) if re.fullmatch(rb"\s*\d+\s+\d+\s+\d+\s*", line)), None)
+    k = next((i for i, line in enumerate(lines) if _OFF_COUNTS_LINE.fullmatch(line)), None)
     if k is None:
         return data
     counts = lines[k].split()
-    choices = [str(v).encode() for v in _INTERESTING] + [b"-1", b"x", b"1.5", b"10" * 15]
+    # one more or one fewer than the vertex and face lines (the seed's 120 and 118) among the values
+    near = [str(v).encode() for v in (N_SEED - 3, N_SEED - 2, N_SEED - 1, N_SEED + 1)]
+    choices = [str(v).encode() for v in _INTERESTING] + near + [b"-1", b"x", b"1.5", b"10" * 15]
     if rng.random() < 0.15:
         del lines[k]
     else:
         counts[int(rng.integers(3))] = _pick(rng, choices)
         lines[k] = b" ".join(counts)
     return b"\n".join(lines)
+
+
+def _off_blocks(lines):
+    """Index of the first vertex line of a seed OFF split in lines, and its vertex and face counts."""
+    k = next(i for i, line in enumerate(lines) if _OFF_COUNTS_LINE.fullmatch(line))
+    n_vertices, n_faces = (int(v) for v in lines[k].split()[:2])
+    return k + 1, n_vertices, n_faces
+
+
+def _off_face_tokens(lines, rng):
+    """A random face line of a seed OFF: its index and its tokens."""
+    start, n_vertices, n_faces = _off_blocks(lines)
+    k = start + n_vertices + int(rng.integers(n_faces))
+    return k, lines[k].split()
+
+
+def _off_vertex_duplicated(lines, rng):
+    start, n_vertices, _ = _off_blocks(lines)
+    k = start + int(rng.integers(n_vertices))
+    lines.insert(k, lines[k])
+
+
+def _off_vertex_deleted(lines, rng):
+    start, n_vertices, _ = _off_blocks(lines)
+    del lines[start + int(rng.integers(n_vertices))]
+
+
+def _off_face_duplicated(lines, rng):
+    k, _ = _off_face_tokens(lines, rng)
+    lines.insert(k, lines[k])
+
+
+def _off_face_deleted(lines, rng):
+    k, _ = _off_face_tokens(lines, rng)
+    del lines[k]
+
+
+def _off_index_out_of_range(lines, rng):
+    k, tokens = _off_face_tokens(lines, rng)
+    tokens[1 + int(rng.integers(int(tokens[0])))] = _pick(rng, [str(N_SEED).encode(), b"-1", b"4294967296"])
+    lines[k] = b" ".join(tokens)
+
+
+def _off_index_not_whole(lines, rng):
+    k, tokens = _off_face_tokens(lines, rng)
+    tokens[1 + int(rng.integers(int(tokens[0])))] = _pick(rng, [b"1.5", b"x", b"1e3", b"0x10", b"9" * 30])
+    lines[k] = b" ".join(tokens)
+
+
+def _off_corner_count(lines, rng):
+    k, tokens = _off_face_tokens(lines, rng)
+    tokens[0] = _pick(rng, [b"0", b"4", b"5", b"-3"])
+    lines[k] = b" ".join(tokens)
+
+
+def _off_face_values(lines, rng):
+    k, tokens = _off_face_tokens(lines, rng)
+    lines[k] = b" ".join(tokens + _pick(rng, [[b"7", b"7"], [b"1"] * 5, [b"red", b"0", b"0"]]))
+
+
+def _off_line_appended(lines, rng):
+    while lines and not lines[-1].strip():
+        lines.pop()
+    lines.append(_pick(rng, [b"0 0 0", b"3 0 1 2", b"1"]))
+    lines.append(b"")
+
+
+def _off_harmless(lines, rng):
+    """Edits real files have, which every reader must accept: comments, blank lines, face colours."""
+    start, n_vertices, n_faces = _off_blocks(lines)
+    edit = int(rng.integers(4))
+    if edit == 0:  # a comment line anywhere after the counts
+        lines.insert(start + int(rng.integers(n_vertices + n_faces)), b"# a comment")
+    elif edit == 1:  # blank lines and trailing spaces
+        lines.insert(start + int(rng.integers(n_vertices + n_faces)), b"")
+        lines.extend([b"   ", b"", b"\t"])
+    elif edit == 2:  # an RGB colour on every face
+        for k in range(start + n_vertices, start + n_vertices + n_faces):
+            lines[k] += b" 255 128 0"
+    else:  # the counts on the keyword's line, the edge count wrong
+        keyword = next(i for i in range(start - 1) if lines[i].strip() and not lines[i].startswith(b"#"))
+        lines[keyword] += b" " + b" ".join(lines[start - 1].split()[:2]) + b" 999"
+        del lines[start - 1]
+
+
+#: The edits of ``off-lines``, by name: each changes a seed OFF's lines in place (a list of bytes).
+_OFF_LINE_EDITS = {
+    "vertex-duplicated": _off_vertex_duplicated,
+    "vertex-deleted": _off_vertex_deleted,
+    "face-duplicated": _off_face_duplicated,
+    "face-deleted": _off_face_deleted,
+    "index-out-of-range": _off_index_out_of_range,
+    "index-not-whole": _off_index_not_whole,
+    "corner-count": _off_corner_count,
+    "face-values": _off_face_values,
+    "line-appended": _off_line_appended,
+    "harmless": _off_harmless,
+}
+
+
+def off_line_edit(data: bytes, edit: str, rng) -> bytes:
+    """Apply one edit of :data:`_OFF_LINE_EDITS` to a seed OFF (vertex and face lines without blank lines between)."""
+    lines = data.split(b"\n")
+    if next((True for line in lines if _OFF_COUNTS_LINE.fullmatch(line)), False):
+        _OFF_LINE_EDITS[edit](lines, rng)
+    return b"\n".join(lines)
+
+
+@_mutator("off-lines", families=("off",))
+def _off_lines(data, rng):
+    return off_line_edit(data, _pick(rng, sorted(_OFF_LINE_EDITS)), rng)
+
+
+def _obj_face_lines(lines):
+    return [i for i, line in enumerate(lines) if line.startswith(b"f ")]
+
+
+def _obj_corner(lines, rng, value):
+    """Replace the vertex index of a random corner of a random face with ``value``."""
+    k = _pick(rng, _obj_face_lines(lines))
+    tokens = lines[k].split()
+    at = 1 + int(rng.integers(len(tokens) - 1))
+    tokens[at] = value + tokens[at][len(tokens[at].split(b"/")[0]):]
+    lines[k] = b" ".join(tokens)
+
+
+def _obj_vertex_deleted(lines, rng):
+    vertices = [i for i, line in enumerate(lines) if line.startswith(b"v ")]
+    del lines[vertices[-1] if rng.random() < 0.5 else _pick(rng, vertices)]
+
+
+def _obj_relative(lines, rng):
+    """Every face's vertex indices made relative (negative): a valid file."""
+    n_vertices = sum(line.startswith(b"v ") for line in lines)
+    for k in _obj_face_lines(lines):
+        lines[k] = re.sub(rb"(?<= )(\d+)", lambda m: str(int(m.group(1)) - n_vertices - 1).encode(), lines[k])
+
+
+#: The edits of ``obj-faces``, by name: each changes a seed OBJ's lines in place (a list of bytes).
+_OBJ_FACE_EDITS = {
+    "index-out-of-range": lambda lines, rng: _obj_corner(lines, rng, str(N_SEED + 1).encode()),
+    "index-before-the-start": lambda lines, rng: _obj_corner(lines, rng, str(-N_SEED - 1).encode()),
+    "index-zero": lambda lines, rng: _obj_corner(lines, rng, b"0"),
+    "index-not-whole": lambda lines, rng: _obj_corner(lines, rng, _pick(rng, [b"1.5", b"x", b""])),
+    "corner-malformed": lambda lines, rng: _obj_corner(lines, rng, b"1/2/3/4"),
+    "vertex-deleted": _obj_vertex_deleted,
+    "relative": _obj_relative,
+}
+
+
+def obj_face_edit(data: bytes, edit: str, rng) -> bytes:
+    """Apply one edit of :data:`_OBJ_FACE_EDITS` to a seed OBJ (``v`` and ``f`` lines)."""
+    lines = data.split(b"\n")
+    if _obj_face_lines(lines):
+        _OBJ_FACE_EDITS[edit](lines, rng)
+    return b"\n".join(lines)
+
+
+@_mutator("obj-faces", families=("obj",))
+def _obj_faces(data, rng):
+    return obj_face_edit(data, _pick(rng, sorted(_OBJ_FACE_EDITS)), rng)
 
 
 @_mutator("off-keyword", families=("off",))
@@ -499,6 +667,7 @@ def _npz_member(data, rng):
         [("xyz.npy", points)], [("../points.npy", points)], [("notes.txt", b"hello")] + [("points.npy", points)],
         [("points.npy", _npy_of(np.zeros(N_SEED, dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])))],
         [("points.npy", points), ("nx.npy", _npy_of(np.zeros(7))), ("colors.npy", _npy_of(np.zeros((2, 3))))],
+        [("points.npy", _npy_of(np.zeros((1, 3))))],  # one point beside the seed's 120-row fields
     ])
     return _zip(others + replacement, _pick(rng, [zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED]))
 
