@@ -35,7 +35,7 @@ from .errors import HeatcurvError, HeatcurvWarning
 __all__ = [
     "FLAT_CURVATURE", "MISFIT_FACTOR", "MISFIT_FLOOR", "PRECISION_COVERAGE", "PRECISION_TOLERANCE",
     "RESOLUTION_LIMIT", "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "imprecise",
-    "misfit_baselines", "misfits", "rounding_uncertainty", "resolution",
+    "misfit_baselines", "misfits", "precision_step", "resolution", "rounding_uncertainty",
 ]
 
 #: A point whose chord-fit residual (in units of its spacing) exceeds this multiple of the
