@@ -1,11 +1,13 @@
 """heatcurv.chordfit: the per-row weighted least squares and the chord fit of the default method."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
 from heatcurv import surfaces
-from heatcurv.chordfit import chord_fit, refine_normals, segment_lstsq
+from heatcurv.chordfit import ChordFit, chord_fit, refine_normals, segment_lstsq
 from heatcurv.kernel import tapered_heat_weights
 from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
 
@@ -141,3 +143,28 @@ def test_jacobi_ridge_does_not_depend_on_the_columns_scales():
     np.testing.assert_allclose(found[1], found[0], rtol=1e-11)  # measured: 1.7e-14
     G, r = np.einsum("nip,niq->npq", X * scales, X * scales), np.einsum("nip,ni->np", X * scales, y)
     assert np.abs(ridge_solve(G, r, ridge=1e-6)[0] * scales - found[0]).max() > 1e-3  # the trace's ridge does not
+
+
+def test_blocks_with_and_without_quartic_terms_concatenate_with_zeros():
+    # anchors of several kernel widths: only the wide ones get the low-noise refit's 14 coefficients
+    pts, nb, normals, w = sphere_setup(n=400)
+    fit = chord_fit(pts, nb, normals, w)
+    first, second = fit.take(np.arange(200)), fit.take(np.arange(200, 400))
+    wide = np.arange(200 * 14, dtype=float).reshape(200, 14)
+    joined = ChordFit.concatenate([first, replace(second, coefficients=wide)])
+    assert joined.coefficients.shape == (400, 14)
+    np.testing.assert_array_equal(joined.coefficients[:200, :9], first.coefficients)
+    np.testing.assert_array_equal(joined.coefficients[:200, 9:], 0.0)
+    np.testing.assert_array_equal(joined.coefficients[200:], wide)
+
+
+def test_a_float32_paraboloid_whose_anchors_mix_refitted_widths_is_estimated():
+    # failed with "all the input array dimensions ... must match exactly" (9 against 14 coefficients):
+    # its kernel widths 60-240 put some anchors below the low-noise refit's narrowest kernel
+    import heatcurv
+
+    sample = surfaces.Paraboloid().sample(2000, "random", seed=35627).points
+    far = (sample + 100.0 * np.linalg.norm(np.ptp(sample, axis=0))).astype(np.float32)
+    res = heatcurv.estimate(far)
+    assert (res.info["scale"].k_min, res.info["scale"].k_max) == (60, 240)
+    assert np.isfinite(res.mean).all() and np.isfinite(res.k1).all()

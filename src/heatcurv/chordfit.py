@@ -102,18 +102,27 @@ class ChordFit:
 
     @staticmethod
     def concatenate(parts: list) -> ChordFit:
-        """Join the fits of consecutive blocks of centres into one."""
+        """Join the fits of consecutive blocks of centres into one.
+
+        Blocks fitted with and without the low-noise refit's quartic terms (anchors of
+        several kernel widths, only the wider ones refitted) have 9 and 14 coefficients:
+        the 9-column blocks get zeros for the quartic terms they did not fit.
+        """
         if len(parts) == 1:
             return parts[0]
         cat = lambda get: np.concatenate([get(p) for p in parts])  # noqa: E731
         fields = PrincipalCurvatures.__dataclass_fields__
         pc = PrincipalCurvatures(**{name: cat(lambda p, name=name: getattr(p.principal, name)) for name in fields})
+        coefficients = None
+        if all(p.coefficients is not None for p in parts):
+            width = max(p.coefficients.shape[1] for p in parts)
+            coefficients = cat(lambda p: np.pad(p.coefficients, ((0, 0), (0, width - p.coefficients.shape[1]))))
         return ChordFit(
             principal=pc,
             normals=cat(lambda p: p.normals),
             sigma=cat(lambda p: p.sigma),
             mean_variance_factor=cat(lambda p: p.mean_variance_factor),
-            coefficients=None if any(p.coefficients is None for p in parts) else cat(lambda p: p.coefficients),
+            coefficients=coefficients,
         )
 
 

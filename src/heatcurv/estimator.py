@@ -49,7 +49,17 @@ from .orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoin
 from .outliers import Outliers, find_outliers
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
-from .reliability import ReliabilityInputs, cloud_flags
+from .reliability import (
+    PRECISION_COVERAGE,
+    PRECISION_TOLERANCE,
+    PrecisionReport,
+    ReliabilityInputs,
+    cloud_flags,
+    coordinate_rounding,
+    imprecise,
+    precision_step,
+    rounding_uncertainty,
+)
 from .results import CurvatureResult
 from .sampling import geometric_keys, key_sample
 from .scale import ScaleReport, select_form, select_scale
@@ -82,9 +92,11 @@ class _Fitted:
     orientation: Orientation | None = None
     width: np.ndarray | None = None
     support: np.ndarray | None = None
+    mean_variance_factor: np.ndarray | None = None
 
 
-def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, choices=None, **options):
+def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, choices=None,
+             coordinate_precision=None, **options):
     """Normals, mean, Gaussian and principal curvatures, directions and areas of a point cloud.
 
     Parameters
@@ -124,6 +136,16 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         is a source, its normal as the spanning tree oriented it and its
         weight (area, input units; on one row of a set of duplicates).
         Default: made from ``points``.
+    coordinate_precision : float or array_like of shape (3,), optional
+        The step of the grid the coordinates were rounded to, input units,
+        for all axes or one per axis (a LAS file's scale; 0: exact). Points
+        whose curvature that rounding can move by more than
+        :data:`heatcurv.reliability.PRECISION_TOLERANCE` of its size are not
+        reliable; ``info["precision"]`` (a
+        :class:`heatcurv.reliability.PrecisionReport`) counts them. Default:
+        from the type of ``points``: float32 coordinates (and float64 ones
+        float32 holds exactly) are rounded to float32's spacing, other
+        float64 coordinates are exact (:func:`heatcurv.reliability.coordinate_rounding`).
     **options
         Any field of :class:`heatcurv.Options`, where each is documented once:
         ``alpha`` (ball radius ``r = alpha h``; paper 4, default 2), ``m``
@@ -166,9 +188,11 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     mode = _orientation_mode(opts.orient, normals, viewpoint)
     if viewpoint is not None:
         as_viewpoint(viewpoint, len(points) if hasattr(points, "__len__") else None)  # fail before the work
+    precision_step(coordinate_precision)  # fail before the work
     with threads(opts.workers):
         frame = None if choices is None else choices.frame
         op = HeatKernelOperator.from_points(points, opts, progress, frame)  # validate, neighbours, spacing, areas
+        rounding = coordinate_rounding(points, coordinate_precision)  # the points are valid now
         clock = StageClock(progress, dict(op.timings))
         with clock.stage("kernel_check"):
             frame = frame_of(op.prepared) if frame is None else frame
@@ -186,7 +210,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         if opts.fit == "chord":
             scale = None if choices is None else choices.scale
             fitted = _default_fit_stages(
-                op, nrm, normals is not None, outliers.mask, keys, clock, mode, towards, frame.n_points, scale
+                op, nrm, normals is not None, outliers.mask, keys, clock, mode, towards, frame.n_points, scale,
+                rounded=rounding is not None,
             )
             if fitted.orientation is not None:  # oriented again over the anchors (strong noise)
                 orientation = fitted.orientation
@@ -196,7 +221,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             # a scanner sees only surfaces facing it: the fit's refined normals must too
             fitted = _facing_viewpoint(fitted, op.points, towards)
     orientation = replace(orientation, report=_explained(orientation.report, policy, op.points.shape[0]))
-    return _result(op, fitted, planarity, K, orientation, outliers, clock.timings, whole_cloud=choices is None)
+    return _result(op, fitted, planarity, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
+                   rounding=rounding)
 
 
 def _orientation_mode(orient_option: str, normals, viewpoint) -> str:
@@ -331,6 +357,7 @@ def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, ou
 def _default_fit_stages(
     op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, outlier: np.ndarray, keys: np.ndarray,
     clock: StageClock, mode: str = "outward", towards=None, n_cloud: int | None = None, chosen=None,
+    rounded: bool = False,
 ) -> _Fitted:
     """The default method's chord fit: ``kernel_choice``, then the per-block stages.
 
@@ -355,6 +382,9 @@ def _default_fit_stages(
     chosen : heatcurv.scale.ScaleChoice, optional
         The whole cloud's kernel widths (a tile's :class:`heatcurv.choices.CloudChoices`);
         default: chosen here.
+    rounded : bool, optional
+        The coordinates are rounded (:func:`heatcurv.reliability.coordinate_rounding`): the
+        variance factor also counts the centre point's own height error (:func:`_centre_gain`).
 
     Returns
     -------
@@ -396,6 +426,7 @@ def _default_fit_stages(
     blocks = base.row_blocks(BLOCK_PAIRS) if fixed_radius else block_ranges(n, rows_per_block(k))
 
     areas, border, radius, residual = np.empty(n), np.empty(n, dtype=bool), np.empty(n), np.empty(n)
+    centre = np.zeros(n)
     fits = []
     for lo, hi in blocks:
         centres = X[lo:hi]
@@ -419,12 +450,30 @@ def _default_fit_stages(
             areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, offset, reuse_base)
         radius[lo:hi] = nbhd.radius
         residual[lo:hi] = fit.sigma
+        if rounded and not scale.denoise:
+            centre[lo:hi] = _centre_gain(nbhd, weights)
         fits.append(fit)
         clock.report("fit", hi / n)
     fit = ChordFit.concatenate(fits)
     pc = fit.principal
     report = ScaleReport.from_choice(choice, radius, opts.alpha, opts.radius, support=radius)
-    return _Fitted(fit.normals, pc.mean, pc, areas, border, report, residual, radius, support=radius)
+    return _Fitted(fit.normals, pc.mean, pc, areas, border, report, residual, radius, support=radius,
+                   mean_variance_factor=fit.mean_variance_factor + centre**2)
+
+
+def _centre_gain(nbhd, weights: np.ndarray) -> np.ndarray:
+    """How much the chord fit's mean curvature moves per unit height error of its centre point, shape (rows,).
+
+    The chord curvatures ``2 z_ij / |xi - xj|^2`` all share the centre's height
+    error ``e``; the fit's isotropic term takes their weighted mean, so the mean
+    curvature moves by about ``e * 2 sum_j w_ij / |xi - xj|^2 / sum_j w_ij``: the
+    nearest neighbours dominate it (the denoised form fits an offset for it instead).
+    """
+    rows = nbhd.rows
+    d2 = nbhd.distances**2
+    near = np.bincount(rows, np.divide(weights, d2, out=np.zeros_like(d2), where=d2 > 0), nbhd.n_points)
+    total = np.bincount(rows, weights, nbhd.n_points)
+    return np.divide(2.0 * near, total, out=np.zeros_like(total), where=total > 0)
 
 
 def _anchored_fit_stages(
@@ -493,7 +542,7 @@ def _anchored_fit_stages(
                                      anchors=index.shape[0], k=k_point)
     return _Fitted(
         carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius, reoriented, k_point,
-        carried.support,
+        carried.support, carried.mean_variance_factor,
     )
 
 
@@ -525,11 +574,16 @@ def _corrected_areas(
 
 
 def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, planarity, orientation: Orientation,
-                        outliers: Outliers, areas: np.ndarray) -> ReliabilityInputs:
-    """Each distinct point's contribution to ``reliable`` (:mod:`heatcurv.reliability`), shape (m,) each."""
+                        outliers: Outliers, areas: np.ndarray, coarse: np.ndarray | None = None) -> ReliabilityInputs:
+    """Each distinct point's contribution to ``reliable`` (:mod:`heatcurv.reliability`), shape (m,) each.
+
+    ``coarse``: points whose coordinates are too coarse for their curvature (:func:`_precision`), or None.
+    """
     nbhd, pc = op.neighbourhood, fitted.principal
     local = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~fitted.border
     local &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask
+    if coarse is not None:
+        local &= ~coarse
     m = op.points.shape[0]
     width = np.zeros(m, dtype=np.int64) if fitted.width is None else np.asarray(fitted.width, dtype=np.int64)
     # the median point's sampling spacing s = R sqrt(pi / count) in radii of curvature
@@ -540,8 +594,36 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, planarity, orie
     return ReliabilityInputs(local, residual, width, rho, ~outliers.mask)
 
 
+def _precision(op: HeatKernelOperator, fitted: _Fitted, rounding) -> tuple:
+    """The points too coarse for their curvature (or None) and ``info["precision"]`` (:mod:`heatcurv.reliability`).
+
+    ``rounding``: :func:`heatcurv.reliability.coordinate_rounding` of the input (None: exact coordinates, no report).
+    """
+    if rounding is None:
+        return None, None
+    half_step, source = rounding
+    prepared, pc = op.prepared, fitted.principal
+    # the rounding happened in the input's coordinates: a row's error is its own (before centring)
+    stage_step = (half_step[prepared.first] if half_step.ndim == 2 else half_step) / prepared.unit
+    largest = float(np.max(half_step))
+    rule = (f"{PRECISION_COVERAGE:g} x the mean curvature's standard deviation under the rounding above "
+            f"{PRECISION_TOLERANCE:.0%} of the point's largest |k1|, |k2|")
+    if fitted.mean_variance_factor is None:
+        n = prepared.n_input
+        reason = f"{source}, errors up to {largest:.3g}: not assessed by method='paper' (the chord fit's only)"
+        return None, PrecisionReport(source, largest, 0, np.full(n, np.nan), reason)
+    uncertainty = rounding_uncertainty(stage_step, fitted.normals, fitted.mean_variance_factor)
+    radius = op.neighbourhood.radius if fitted.radius is None else fitted.radius
+    coarse = imprecise(uncertainty, pc.k1, pc.k2, radius)
+    flagged = int(np.count_nonzero(prepared.to_input_order(coarse)))
+    reason = (f"{source}, errors up to {largest:.3g}: {flagged} point(s) unreliable, where {rule} "
+              "(or of a nearly flat point's ball)")
+    return coarse, PrecisionReport(source, largest, flagged, prepared.to_input_order(uncertainty) / prepared.unit,
+                                   reason)
+
+
 def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: Orientation, outliers: Outliers,
-            timings, whole_cloud: bool = True):
+            timings, whole_cloud: bool = True, rounding=None):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
     Outliers stand for no measured surface: area 0, never reliable. The stages
@@ -549,12 +631,14 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
     extents): lengths are multiplied by it, curvatures divided, exactly. When
     the points are only a part of the cloud (``whole_cloud`` False), the flags
     that compare with the whole cloud's medians are left out of ``reliable``
-    and their inputs returned in ``info["reliability"]`` (input order).
+    and their inputs returned in ``info["reliability"]`` (input order). ``rounding``: the input
+    coordinates' rounding (:func:`_precision`; ``info["precision"]``), None if they are exact.
     """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     unit = prepared.unit
     areas = np.where(outliers.mask, 0.0, fitted.areas)
-    inputs = _reliability_inputs(op, fitted, planarity, orientation, outliers, areas)
+    coarse, precision = _precision(op, fitted, rounding)
+    inputs = _reliability_inputs(op, fitted, planarity, orientation, outliers, areas, coarse)
     back = prepared.to_input_order
     if whole_cloud:
         reliable, resolution = cloud_flags(inputs, stacklevel=3)
@@ -584,6 +668,8 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count, "resolution": resolution, **extra,
     }
+    if precision is not None:
+        info["precision"] = precision
     if fitted.scale is not None:
         info["scale"] = fitted.scale.in_unit(unit)
     info["timings"] = timings

@@ -38,9 +38,11 @@ class CurvatureResult:
         neighbourhood is not surface-like (PCA planarity < 0.05), the tensor
         fit was ill-posed, its area came out non-positive, it is a border
         point, an outlier, its normal has no consistent side
-        (``info["orientation"]``), or the chord fit's residual is ten times the
+        (``info["orientation"]``), the chord fit's residual is ten times the
         cloud's median (the ball holds more than one smooth surface: a sharp
-        edge, vegetation); everywhere if the area system did not converge or
+        edge, vegetation), or the rounding of the coordinates (float32, a LAS
+        file's scale) can move its curvature by more than 1 %
+        (``info["precision"]``); everywhere if the area system did not converge or
         the cloud is too coarse for its curvature (``info["resolution"]``; a
         ``HeatcurvWarning`` says so).
     outlier : ndarray, shape (n,), bool

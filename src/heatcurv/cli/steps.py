@@ -128,7 +128,18 @@ def estimate_input(args, log: Log):
     points = cloud.points if rows is None else cloud.points[rows]
     normals = input_normals(cloud, args.normals_from_input, rows)
     options["orient"] = orientation_for(cloud, options, normals is not None, log)
+    options["coordinate_precision"] = coordinate_precision(cloud)
     return cloud, rows, run_estimate(points, normals, options, log, source=args.input)
+
+
+def coordinate_precision(cloud):
+    """The step of the grid a file's coordinates are stored on: a LAS/LAZ file's scales, else None.
+
+    None leaves it to :func:`heatcurv.estimate`, which finds float32 coordinates by
+    their values (the readers return float64 arrays of them).
+    """
+    header = cloud.meta.get("las_header")
+    return None if header is None else np.asarray(header.scales, dtype=np.float64)
 
 
 #: Formats whose clouds have a vertical axis: their normals are oriented up (+z) by default.
@@ -181,6 +192,9 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
     )
     log.info(f"surface area {res.area.sum():.6g} (reliable points: {res.area[res.reliable].sum():.6g}), "
              "in the cloud's unit squared")
+    precision = res.info.get("precision")
+    if precision is not None and precision.flagged:
+        log.info(f"coordinates too coarse for the curvature: {precision.reason}")
     orientation = res.info.get("orientation")
     policy = getattr(orientation, "policy", None)
     if policy is not None and policy.mode == "up":

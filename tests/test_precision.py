@@ -1,0 +1,157 @@
+"""The precision of the input coordinates: float32 and grid-rounded (LAS) points too coarse for their curvature.
+
+A value is "off" when it differs from the estimate of the same points before rounding (float64) by more
+than :data:`PRECISION_TOLERANCE` of the point's curvature scale (the larger of ``|k1|``, ``|k2|`` and
+``FLAT_CURVATURE / fit radius``), in ``k1``, ``k2`` or the mean curvature.
+"""
+
+
+import numpy as np
+import pytest
+
+import heatcurv
+from heatcurv import surfaces
+from heatcurv.errors import HeatcurvError
+from heatcurv.reliability import FLAT_CURVATURE, PRECISION_TOLERANCE, coordinate_rounding, imprecise
+
+
+def off(rounded, exact) -> np.ndarray:
+    """Points whose curvatures the rounding moved by more than the tolerance, shape (n,), bool."""
+    scale = np.maximum(np.maximum(np.abs(exact.k1), np.abs(exact.k2)), FLAT_CURVATURE / exact.fit_radius)
+    moved = np.maximum.reduce([np.abs(rounded.k1 - exact.k1), np.abs(rounded.k2 - exact.k2),
+                               np.abs(rounded.mean - exact.mean)])
+    return moved > PRECISION_TOLERANCE * scale
+
+
+@pytest.fixture(scope="module")
+def torus_2k():
+    return surfaces.Torus(r1=1.0, r2=3.0).sample(2000, "random", seed=1).points
+
+
+@pytest.fixture(scope="module")
+def torus_2k_exact(torus_2k):
+    return heatcurv.estimate(torus_2k)
+
+
+def test_coordinate_rounding_by_type_and_option():
+    rng = np.random.default_rng(0)
+    single = rng.normal(size=(50, 3)).astype(np.float32) * 100
+    half, source = coordinate_rounding(single)
+    assert source == "float32 coordinates" and half.shape == (50, 3)
+    np.testing.assert_array_equal(half, np.spacing(np.abs(single)).astype(np.float64) / 2)
+    # a float64 array of float32 values is the same cloud
+    half64, source64 = coordinate_rounding(single.astype(np.float64))
+    assert source64 == "float64 values float32 holds exactly"
+    np.testing.assert_array_equal(half64, half)
+    # a float64 sample is exact; a list of them too; integers unless told otherwise
+    assert coordinate_rounding(rng.normal(size=(50, 3))) is None
+    assert coordinate_rounding(rng.normal(size=(50, 3)).tolist()) is None
+    assert coordinate_rounding(np.arange(150).reshape(50, 3)) is None
+    assert coordinate_rounding(np.arange(150).reshape(50, 3), 1)[0].tolist() == [0.5, 0.5, 0.5]
+    # given: half the grid's step, per axis
+    half, source = coordinate_rounding(single, 0.01)
+    assert source == "coordinate_precision" and half.tolist() == [0.005, 0.005, 0.005]
+    assert coordinate_rounding(single, [0.01, 0.01, 0.001])[0].tolist() == [0.005, 0.005, 0.0005]
+    assert coordinate_rounding(single, 0) is None  # exact: no auto detection either
+
+
+@pytest.mark.parametrize("value, problem", [
+    (-0.01, r"must be finite and at least 0 \(the step of the grid .*\), got -0.01$"),
+    (float("nan"), r"must be finite and at least 0"),
+    ([0.01, 0.01], r"must be a number or three \(one per axis\), got shape \(2,\)"),
+    ("fine", r"must be a number or three \(one per axis\), got 'fine'"),
+])
+def test_bad_coordinate_precision_is_refused_before_the_work(value, problem):
+    with pytest.raises(HeatcurvError, match=problem):
+        heatcurv.estimate(np.zeros((3, 3)), coordinate_precision=value)  # the points would fail later
+
+
+def test_imprecise_judges_nearly_flat_points_against_the_ball():
+    sigma = np.full(3, 1e-3)  # 5 sigma = 0.005
+    k1, k2 = np.array([1.0, 0.0, 0.0]), np.array([-0.2, 0.0, 0.0])
+    radius = np.array([1.0, 0.01, 1.0])
+    # under 1 % of |k1| = 1; flat: under 1 % of 0.03 / R = 3 (R = 0.01), over 1 % of 0.03 (R = 1)
+    assert imprecise(sigma, k1, k2, radius).tolist() == [False, False, True]
+
+
+def test_float64_clouds_are_not_touched(torus_2k, torus_2k_exact):
+    assert "precision" not in torus_2k_exact.info
+    exact = heatcurv.estimate(torus_2k, coordinate_precision=0)
+    for name in ("normals", "mean", "k1", "k2", "area", "reliable"):
+        np.testing.assert_array_equal(getattr(exact, name), getattr(torus_2k_exact, name), err_msg=name)
+
+
+def test_float32_input_is_float64_of_the_same_values_reliable_included(torus_2k):
+    single = (torus_2k + 1e4).astype(np.float32)
+    narrow, wide = heatcurv.estimate(single), heatcurv.estimate(single.astype(np.float64))
+    for name in ("mean", "k1", "k2", "reliable"):
+        np.testing.assert_array_equal(getattr(narrow, name), getattr(wide, name), err_msg=name)
+    assert narrow.info["precision"].flagged == wide.info["precision"].flagged > 0
+    np.testing.assert_array_equal(narrow.info["precision"].uncertainty, wide.info["precision"].uncertainty)
+
+
+def test_a_torus_on_a_coarse_grid_is_unreliable_where_the_rounding_moves_it(torus_2k, torus_2k_exact):
+    # a LAS file of quantum 0.01 holding a torus of tube radius 1 sampled with 2000 points (spacing 0.2)
+    grid = np.round(torus_2k / 0.01) * 0.01
+    unaware = heatcurv.estimate(grid)  # float64 values: taken as exact
+    aware = heatcurv.estimate(grid, coordinate_precision=0.01)
+    moved = off(aware, torus_2k_exact)
+    # 1159 points off by up to 6 % of their curvature, every one of them reliable unless the grid is known
+    assert int(moved.sum()) == 1159 and int((moved & unaware.reliable).sum()) == 1159
+    assert not (moved & aware.reliable).any()
+    report = aware.info["precision"]
+    assert report.source == "coordinate_precision" and report.largest_error == 0.005
+    assert report.flagged == 2000 and "2000 point(s) unreliable" in report.reason
+
+
+@pytest.mark.parametrize("offset, n_off, n_flagged", [(1e3, 7, 190), (1e4, 596, 2000)])
+def test_float32_far_from_the_origin_is_unreliable_where_the_rounding_moves_it(torus_2k, offset, n_off, n_flagged):
+    # float32 rounds a coordinate by up to 2^-24 of its size: 6e-5 at 1000, 5e-4 at 10 000 units
+    far = torus_2k + offset
+    exact, single = heatcurv.estimate(far), heatcurv.estimate(far.astype(np.float32))
+    moved = off(single, exact)
+    assert int(moved.sum()) == n_off and not (moved & single.reliable).any()
+    assert single.info["precision"].flagged == n_flagged
+
+
+@pytest.mark.parametrize("offset, n_flagged", [(0.0, 32), (1e3, 0)])
+def test_a_well_sampled_float32_torus_keeps_its_reliability(offset, n_flagged):
+    # nothing is off by 1 %: the points flagged at the origin have a neighbour much nearer than the spacing,
+    # which the chord fit's centre term counts at its worst (their measured change is below 0.15 %)
+    far = surfaces.Torus(r1=1.0, r2=3.0).sample(20000, "random", seed=1).points + offset
+    exact, single = heatcurv.estimate(far), heatcurv.estimate(far.astype(np.float32))
+    assert not off(single, exact).any()
+    assert single.info["precision"].flagged == n_flagged
+
+
+def test_the_papers_method_reports_the_precision_it_does_not_assess():
+    sphere = surfaces.Sphere(radius=2.0).sample(4000, "fibonacci").points  # a regular sample: the paper's case
+    res = heatcurv.estimate((sphere + 1e3).astype(np.float32), method="paper")
+    report = res.info["precision"]
+    assert report.source == "float32 coordinates" and report.flagged == 0
+    assert "not assessed by method='paper'" in report.reason and np.isnan(report.uncertainty).all()
+
+
+PROPERTY_SURFACES = {"torus": surfaces.Torus, "paraboloid": surfaces.Paraboloid, "saddle": surfaces.Saddle}
+
+
+@pytest.mark.parametrize("kind, sampler, seed, exponent, n_reliable_off", [
+    ("torus", "random", 20436, 3, 783),
+    ("torus", "fibonacci", 54244, 4, 1932),
+    ("paraboloid", "random", 36018, 1, 10),
+    ("saddle", "fibonacci", 19870, 2, 79),
+])
+def test_float32_property_clouds_keep_no_point_off_by_the_tolerance_reliable(kind, sampler, seed, exponent,
+                                                                             n_reliable_off):
+    # the clouds of the float32 property (tests/fuzz/test_fuzz_properties.py), 10**exponent sizes from the
+    # origin; benchmarks/precision.py measures all of them. These keep the float64 fit's form and anchors:
+    # where the rounding changes those, the values move by the fit's own error, which the flag cannot see
+    points = PROPERTY_SURFACES[kind]().sample(2000, sampler, noise=0.0, seed=seed).points
+    far = points + float(np.linalg.norm(np.ptp(points, axis=0))) * 10.0**exponent
+    single = far.astype(np.float32)
+    exact, rounded = heatcurv.estimate(far), heatcurv.estimate(single)
+    assert (rounded.info["scale"].fit, rounded.info["scale"].anchors) == (exact.info["scale"].fit,
+                                                                          exact.info["scale"].anchors)
+    moved = off(rounded, exact)
+    assert int((moved & heatcurv.estimate(single, coordinate_precision=0).reliable).sum()) == n_reliable_off
+    assert not (moved & rounded.reliable).any()
