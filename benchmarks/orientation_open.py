@@ -40,13 +40,15 @@ Columns
 ``half off, axes %``  the same among the points whose two normal *axes*
                       agree within 30 degrees (a tree crown's PCA axis moves
                       with the sample; its side is then undefined);
+``half off, reliable %``  the same among the points reliable in both runs
+                      (``res.reliable``): the sides heatcurv stands behind;
 ``s``                 seconds of the whole cloud's call (numba compiled by
                       a warm-up).
 
 The second table turns the LiDAR tile, the face, the torus (closed, 20 000
 random points) and the bunny scan shipped with heatcurv (closed, 1839
 points) into 8 random poses (``Rotation.random(random_state=i)``) and counts
-the policies chosen and the worst ``mixed %`` and ``half off, axes %`` over
+the policies chosen and the worst ``mixed %``, ``half off, axes %`` and ``half off, reliable %`` over
 the poses ("rotating an open cloud changes nothing except where the
 convention is up").
 
@@ -144,33 +146,36 @@ def measure(name: str, load=None, rotation=None) -> dict:
     agree = np.einsum("ij,ij->i", whole.normals[keep], truth[keep]) > 0 if keep.any() else None
     cosine = np.einsum("ij,ij->i", whole.normals[half], part.normals)
     axes = np.abs(cosine) >= np.cos(np.radians(30.0))
+    both = whole.reliable[half] & part.reliable
     policy = whole.info["orientation"].policy
     return {
         "cloud": name, "points": len(points), "policy": policy_of(whole),
         "vertical": 100 * policy.vertical, "down": 100 * policy.down,
         "mixed": None if agree is None else 100 * min(agree.mean(), 1 - agree.mean()),
         "wrong": 100 * (1 - agree.mean()) if sided else None,
-        "half": 100 * np.mean(cosine < 0), "half_axes": 100 * np.mean(cosine[axes] < 0), "s": seconds,
+        "half": 100 * np.mean(cosine < 0), "half_axes": 100 * np.mean(cosine[axes] < 0),
+        "half_reliable": 100 * np.mean(cosine[both] < 0), "s": seconds,
     }
 
 
 COLUMNS = ["cloud", "points", "policy", "vertical %", "down %", "mixed %", "wrong %", "half off %",
-           "half off, axes %", "s"]
+           "half off, axes %", "half off, reliable %", "s"]
 POSE_COLUMNS = ["cloud", "poses", "up", "outward (open)", "outward (closed)", "worst mixed %",
-                "worst half off, axes %"]
+                "worst half off, axes %", "worst half off, reliable %"]
 
 
 def cells(r: dict) -> list[str]:
     wrong = "-" if r["wrong"] is None else f"{r['wrong']:.2f}"
     return [r["cloud"], str(r["points"]), r["policy"], f"{r['vertical']:.0f}", f"{r['down']:.1f}",
-            f"{r['mixed']:.2f}", wrong, f"{r['half']:.2f}", f"{r['half_axes']:.2f}", f"{r['s']:.1f}"]
+            f"{r['mixed']:.2f}", wrong, f"{r['half']:.2f}", f"{r['half_axes']:.2f}", f"{r['half_reliable']:.2f}",
+            f"{r['s']:.1f}"]
 
 
 def pose_cells(name: str, results: list) -> list[str]:
     count = {p: sum(r["policy"] == p for r in results) for p in ("up", "outward (open)", "outward (closed)")}
     mixed = [r["mixed"] for r in results if r["mixed"] is not None]
     return [name, str(len(results)), *map(str, count.values()), f"{max(mixed):.2f}" if mixed else "-",
-            f"{max(r['half_axes'] for r in results):.2f}"]
+            f"{max(r['half_axes'] for r in results):.2f}", f"{max(r['half_reliable'] for r in results):.2f}"]
 
 
 def show(header: list, rows: list, markdown: bool) -> None:
