@@ -786,14 +786,15 @@ def noise_table(bench, args, estimators, clouds, eval_points: int):
     return title, header, rows
 
 
-def lownoise_table(bench, surfaces, noises, n: int):
+def lownoise_table(bench, surfaces, noises, n: int, seed_offset: int = 0):
     """The very-low-noise band: heatcurv default on one clean cloud per surface plus tiny noise."""
     header = ["surface", "noise", "n", "mean%", "k1%", "k2%", "d1deg", "mean x", "k1 x", "k2 x", "d1 x", "t[s]",
               "verdict"]
     keys = ("mean", "k1", "k2", "d1")
     rows = []
     for surface in surfaces:
-        seed = seed_of(surface, "lownoise", n)  # one seed: the same clean points at every noise level
+        # one seed: the same clean points at every noise level (``--lownoise-seed-offset``: other clouds)
+        seed = seed_of(surface, "lownoise", n) + seed_offset
         clean = None
         for noise in noises:
             sample = make_surface(surface).sample(n, "random", noise=noise, seed=seed)
@@ -1108,6 +1109,11 @@ def parse_args(argv=None):
     p.add_argument("--eval-points", type=int, metavar="M",
                    help=f"evaluation points of the noise table (default {EVAL_POINTS}; --quick: "
                    f"{QUICK['eval_points']})")
+    p.add_argument("--lownoise-seed-offset", type=int, default=0, metavar="K",
+                   help="add K to every seed of the low-noise table (other clouds of the same surfaces)")
+    p.add_argument("--without-low-noise-path", action="store_true",
+                   help="ablation: the default estimator with its very-low-noise gate "
+                   "(heatcurv.scale.in_low_noise_band) answering no, to measure what the path wins")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return p.parse_args(argv)
 
@@ -1183,6 +1189,10 @@ def main_table(bench, args, estimators, surfaces, samplers, sizes, plot):
 
 def main(argv=None) -> int:
     args = parse_args(argv)
+    if args.without_low_noise_path:
+        import heatcurv.scale
+
+        heatcurv.scale.in_low_noise_band = lambda relative_noise: False  # the ablation: the gate never opens
     wall = time.perf_counter()
     quick = args.quick
     chosen = args.tables or [t for t in TABLES if not (quick and t == "heldout")]
@@ -1228,6 +1238,7 @@ def main(argv=None) -> int:
             QUICK["lownoise_surfaces"] if quick else LOWNOISE_SURFACES,
             QUICK["lownoises"] if quick else LOWNOISES,
             QUICK["lownoise_n"] if quick else LOWNOISE_N,
+            args.lownoise_seed_offset,
         ))
     if "mixed" in which:
         tables.append(mixed_table(bench, QUICK["mixed_n"] if quick else MIXED_N, MIXED_NOISES))
