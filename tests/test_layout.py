@@ -10,8 +10,8 @@ import heatcurv
 PACKAGE = Path(heatcurv.__file__).parent
 #: Packages and modules around the numerical core; the core imports none of them.
 OUTER = ("io", "cli", "render", "surfaces", "testing", "data", "tiles")
-#: Modules that are the package's facades or deprecated aliases, not the core.
-FACADES = ("__init__", "__main__", "pipeline", "evaluation", "baseline")
+#: Modules that are the package's facades, not the core.
+FACADES = ("__init__", "__main__")
 MAX_LINES = 900
 
 
