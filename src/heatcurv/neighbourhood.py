@@ -32,7 +32,7 @@ __all__ = [
 
 #: Pairs a streamed stage holds at once: a block of the default fit with its own
 #: neighbourhood (about 1 KB per pair at its peak, so ~1 GB), the numpy temporaries of
-#: ``Neighbourhood.blockwise`` and of ``chordfit.segment_lstsq``.
+#: ``Neighbourhood.blockwise``.
 BLOCK_PAIRS = 1_000_000
 
 #: Pairs one k-d tree query returns at once (scipy's int64 + float64 arrays, 16 bytes a
