@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
-from heatcurv.testing import aligned_exact, compare, direction_error_deg, neighbour_margin, relative_l1
+from heatcurv.surfaces.accuracy import aligned_exact, compare, direction_error_deg, neighbour_margin, relative_l1
 
 
 def test_result_shapes_and_invariants(torus_sample, torus_default):

@@ -8,7 +8,7 @@ from heatcurv.neighbourhood import ball_neighbourhood
 from heatcurv.normals import orient_normals, orient_towards_viewpoint, pca_normals, tangent_frames
 from heatcurv.operator import build_operator
 from heatcurv.spacing import global_spacing
-from heatcurv.testing import direction_error_deg
+from heatcurv.surfaces.accuracy import direction_error_deg
 
 
 def worst_angle_deg(normals, exact):

@@ -37,9 +37,12 @@ Around the core, which imports none of them:
 ``tiles``              out-of-core and Dask runs: :func:`compute_file`
 ``cli``                the ``heatcurv`` command
 ``render``             pictures of a field
-``surfaces``           analytic surfaces with exact values, samplers, simulated scans
-``testing``            error measures (eqs 4.1, 5.1) and the k-NN quadric baseline
+``surfaces``           analytic surfaces with exact values, samplers, simulated
+                       scans, and error measures against those values (eqs 4.1, 5.1)
 =====================  ======================================================
+
+The test harness (the quadric baseline, the real-scan fetchers, the fuzz campaign)
+lives in the repository's ``tests/support/`` and is not installed.
 """
 
 from . import surfaces

@@ -31,7 +31,7 @@ def run(args, log: Log) -> int:
 def _demo_surface(args, picture) -> int:
     """Both methods on a sample of an analytic surface: the error table, and a picture of the mean curvature."""
     from ..estimator import estimate
-    from ..testing import compare
+    from ..surfaces.accuracy import compare
 
     surface = surfaces.get(args.surface)
     sample = surface.sample(args.n, args.sampler, noise=args.noise, seed=args.seed)
