@@ -9,7 +9,7 @@ Three estimators
 
 * ``default`` -- ``heatcurv.estimate(points)``;
 * ``paper``   -- ``heatcurv.estimate(points, method="paper")``;
-* ``quadric`` -- :func:`heatcurv.testing.quadric_curvature` with ``k = 40``
+* ``quadric`` -- :func:`support.baseline.quadric_curvature` with ``k = 40``
   (PCA normal, least-squares quadric, exact curvature of the quadric)
 
 run on point clouds with exact ground truth (:mod:`heatcurv.surfaces`).
@@ -59,7 +59,7 @@ they are; the log prints the widest ball.)  heatcurv's estimators run on the
 whole cloud and are read at the evaluation points.
 
 The *oracle* is the classical quadric fit
-(:func:`heatcurv.testing.quadric_curvature`) at each fixed k of the ladder
+(:func:`support.baseline.quadric_curvature`) at each fixed k of the ladder
 60, 120, 240, 480, 960, 1920, 3840, capped at ``max(240, n / 10)``, evaluated
 at the evaluation points only (``centres=``: each with its k nearest
 neighbours in the whole cloud; the values equal those of a full evaluation at
@@ -124,12 +124,12 @@ worse than the quadric; on noisy clouds the noise table's fixed-k oracle
 is.  About 3 minutes on the 2-core development machine (173 s beside other
 jobs, load 7).
 
-Error measures (on interior points; main table :func:`heatcurv.testing.compare`,
+Error measures (on interior points; main table :func:`heatcurv.surfaces.accuracy.compare`,
 the noise tables the same measures at their evaluation points)
 
 ``mean k1 k2 K``  relative L1 error ``mean|k - k*| / mean|k*|`` in %, after
                   aligning the exact values with the estimated orientation
-                  (one global flip, :func:`heatcurv.testing.aligned_exact`);
+                  (one global flip, :func:`heatcurv.surfaces.accuracy.aligned_exact`);
                   the noise tables, which compare estimators column by
                   column, turn each estimate into the exact orientation
                   instead (``k1`` is then always the exact ``k1``);
@@ -218,17 +218,12 @@ import scipy
 
 import heatcurv
 from heatcurv import surfaces as hs
-from heatcurv.testing import (
-    aligned_exact,
-    compare,
-    direction_error_deg,
-    neighbour_margin,
-    quadric_curvature,
-    relative_l1,
-)
+from heatcurv.surfaces.accuracy import aligned_exact, compare, direction_error_deg, neighbour_margin, relative_l1
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))  # tests/support
 from machine import commit, cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
+from support.baseline import quadric_curvature  # noqa: E402
 
 ESTIMATORS = {
     "default": lambda p: heatcurv.estimate(p),

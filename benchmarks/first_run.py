@@ -35,9 +35,10 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))  # tests/support: test-only helpers
 
-from heatcurv.testing.terminal import run_on_a_terminal  # noqa: E402
 from machine import commit, cpu_model  # noqa: E402  (benchmarks/machine.py)
+from support.terminal import run_on_a_terminal  # noqa: E402
 
 ROOT = HERE.parent
 NOTICE = "heatcurv: compiling"

@@ -1,6 +1,6 @@
 """The big fuzz campaign of the readers (issue 11): every format, hundreds of mutated files each.
 
-Runs :func:`heatcurv.testing.fuzz.run_campaign` (the test suite's
+Runs :func:`support.fuzz.run_campaign` (the test suite's
 ``tests/fuzz/test_fuzz_files.py`` runs the same with 48 files per variant)
 and prints the machine, the outcome table (variant x outcome counts, the
 accepted files that contradict their own header, the worst time and peak
@@ -24,9 +24,10 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))  # tests/support: the fuzz harness
 
-from heatcurv.testing import fuzz  # noqa: E402
 from machine import commit, cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
+from support import fuzz  # noqa: E402
 
 
 def machine() -> str:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
@@ -28,7 +29,9 @@ import scipy.sparse.linalg as spla
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.testing.mesh_laplacian import torus_reference_eigenvalues
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))  # tests/support
+from support.mesh_laplacian import torus_reference_eigenvalues  # noqa: E402
 
 
 def robust(points):
@@ -254,8 +257,6 @@ def main():
     if args.one:
         one_timing(args.one[0], int(args.one[1]), args.one[2] == "1")
         return
-    import os
-
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from machine import commit, cpu_model, memory_text  # benchmarks/machine.py
 

@@ -43,14 +43,15 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 import heatcurv
-from heatcurv.chordfit import segment_lstsq
 from heatcurv.kernel import tapered_heat_weights
 from heatcurv.neighbourhood import knn_neighbourhood
 from heatcurv.normals import tangent_frames
 from heatcurv.principal import tensor_to_principal
 
 sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # tests/reference: the numpy least squares
 import accuracy as acc  # noqa: E402  (benchmarks/accuracy.py: the low-noise table's clouds and measures)
+from reference.lstsq import segment_lstsq  # noqa: E402
 
 #: The fixed forms (name -> keyword arguments of :func:`fit_form`); ``lam<L>`` and ``auto`` are parsed.
 FORMS = {

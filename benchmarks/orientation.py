@@ -1,10 +1,10 @@
 """Normal orientation on closed objects with thin parts: CGAL's twelve animal and figure models.
 
 The clouds are the used vertices of CGAL's closed models (fetched by
-:func:`heatcurv.testing.scans.fetch_cgal_meshes`: armadillo, bear, bull,
+:func:`support.scans.fetch_cgal_meshes`: armadillo, bear, bull,
 camel, cow, dino, diplodocus, elephant, elk, homer, lion, man; ``lion`` has
 small holes), the truth is the mesh's outward area-weighted vertex normals
-(:meth:`heatcurv.testing.scans.Mesh.outward_vertex_normals`). Each model is
+(:meth:`support.scans.Mesh.outward_vertex_normals`). Each model is
 run in three variants:
 
 ``clean``   the vertices as they are;
@@ -56,7 +56,7 @@ Usage::
     python benchmarks/orientation.py --markdown
 
 ``--data DIR`` picks the cache directory of the models (default
-:func:`heatcurv.testing.scans.cgal_cache_dir`). A full run takes about 3
+:func:`support.scans.cgal_cache_dir`). A full run takes about 3
 minutes on the 2-core machine; the wall time is printed at the end.
 """
 
@@ -78,12 +78,13 @@ from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import surfaces as hs
-from heatcurv.testing.scans import CGAL_MESHES, fetch_cgal_meshes, read_mesh
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))  # tests/support: the real scans
 from machine import commit, cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
 from machine import table as text_table  # noqa: E402
+from support.scans import CGAL_MESHES, fetch_cgal_meshes, read_mesh  # noqa: E402
 
 MODELS = tuple(name.removesuffix(".off") for name in CGAL_MESHES)
 VARIANTS = ("clean", "noisy", "half")

@@ -13,7 +13,7 @@ Clouds
                    (walls out of their buildings), vegetation left out;
 ``face``           the pymeshlab range map ``rangemaps/face000.ply`` (a face
                    seen along +z; 62k vertices), fetched by
-                   :func:`heatcurv.testing.scans.fetch_pymeshlab_samples`;
+                   :func:`support.scans.fetch_pymeshlab_samples`;
                    truth: the range map's vertex normals (either sign);
 ``torus, top``     one scan of the torus (R = 1, r = 0.4; 20 000 rays) from
                    (0, 0, 5), and ``torus, side`` from (5, 0, 0)
@@ -76,6 +76,7 @@ from heatcurv import surfaces
 from heatcurv.data import load_bunny
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # tests/support: the real scans
 from machine import commit, cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
 
 TURN = (30.0, 50.0, 20.0)
@@ -88,7 +89,7 @@ def lidar():
 
 
 def face():
-    from heatcurv.testing.scans import fetch_pymeshlab_samples, read_mesh
+    from support.scans import fetch_pymeshlab_samples, read_mesh
 
     mesh = read_mesh(fetch_pymeshlab_samples() / "rangemaps" / "face000.ply")
     return mesh.vertices[mesh.used], mesh.vertex_normals()[mesh.used], np.ones(int(mesh.used.sum()), bool), False

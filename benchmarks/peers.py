@@ -28,7 +28,7 @@ Peers (:data:`PEERS`, in this order)
     ``robust_laplacian.point_cloud_laplacian(points)`` (package defaults,
     ``n_neighbors=30``): the sparse Laplacian ``L`` and mass matrix ``M``.
 ``heatcurv-quadric``
-    :func:`heatcurv.testing.quadric_curvature` with ``k = 40``: oriented
+    :func:`support.baseline.quadric_curvature` with ``k = 40``: oriented
     normals, principal curvatures and directions from k-NN quadric fits.
 
 Every computation is one cold call in a fresh process (no warm-up run), as a
@@ -502,7 +502,8 @@ def _prepare_robust_laplacian():
 
 
 def _prepare_heatcurv_quadric():
-    from heatcurv.testing import quadric_curvature
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
+    from support.baseline import quadric_curvature  # tests/support: test-only helpers
 
     def compute(points, stages):
         return quadric_curvature(points, k=K)

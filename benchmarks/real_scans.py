@@ -19,7 +19,7 @@ The scans
                  normals, mean curvature, area and sharp edges.
 
 pymeshlab is GPL-3: its sample meshes are fetched at run time by
-:func:`heatcurv.testing.scans.fetch_pymeshlab_samples` (pinned wheel, SHA-256
+:func:`support.scans.fetch_pymeshlab_samples` (pinned wheel, SHA-256
 checked, cached; ``$HEATCURV_TEST_DATA`` or ``--data`` picks the directory),
 never shipped.
 
@@ -79,6 +79,7 @@ from heatcurv import surfaces as hs
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))  # tests/support: the real scans
 from machine import commit, cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
 from machine import table as text_table  # noqa: E402
 
@@ -201,7 +202,7 @@ def registered_reference(mesh, points, iterations: int = 30) -> Reference:
 def load_cases(names, data_dir) -> list[Case]:
     from heatcurv.data import bunny_path
     from heatcurv.io import read_points
-    from heatcurv.testing.scans import fetch_pymeshlab_samples, range_camera, read_mesh
+    from support.scans import fetch_pymeshlab_samples, range_camera, read_mesh
 
     samples = None
     if set(names) - {"lidar", "cad"}:
@@ -794,7 +795,7 @@ def page(cases: list[Case], results: dict, pictures: list, info: list[str], wall
     lines += [
         "",
         "pymeshlab's sample meshes are GPL-3, so heatcurv does not ship them: the script, like the tests in",
-        "`tests/real/`, fetches them at run time with `heatcurv.testing.scans.fetch_pymeshlab_samples()`,",
+        "`tests/real/`, fetches them at run time with `fetch_pymeshlab_samples()` of `tests/support/scans.py`,",
         "which downloads the pinned pymeshlab wheel with pip, checks its SHA-256, keeps only the sample",
         "meshes in a cache directory (`$HEATCURV_TEST_DATA`, else `~/.cache/heatcurv/test-data/`) and",
         "deletes the wheel. The pictures on this page are renderings of heatcurv's output on them.",

@@ -17,7 +17,7 @@ got wrong in tiles: walls and crowns took their side along the spanning tree
 of the whole cloud (99.95 % of 40 000 points in 8 tiles); ``"up"`` is now
 decided within each point's reach (:func:`heatcurv.orientation.local_sides`).
 
-Relative error as in :mod:`heatcurv.testing.tiles` (directions up to sign;
+Relative error as in :mod:`support.tiles` (directions up to sign;
 masks exactly).
 """
 
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import tempfile
 import time
 import warnings
@@ -33,8 +34,10 @@ from pathlib import Path
 import numpy as np
 
 import heatcurv
-from heatcurv.testing.tiles import tiled_agreement
 from machine import commit, cpu_model, memory_text, table  # noqa: E402  (benchmarks/machine.py)
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # tests/support: the tiled comparison
+from support.tiles import tiled_agreement  # noqa: E402
 
 
 def torus(n: int, noise: float, seed: int = 1) -> np.ndarray:

@@ -22,7 +22,7 @@ from heatcurv.areas import density_areas
 from heatcurv.neighbourhood import knn_neighbourhood
 from heatcurv.sampling import geometric_keys
 from heatcurv.scale import LOW_NOISE, NO_NOISE, Scale, fit_at_scale, in_low_noise_band
-from heatcurv.testing import compare
+from heatcurv.surfaces.accuracy import compare
 
 
 def _anchored(points, normals, k, denoise=False):

@@ -7,9 +7,10 @@ import pytest
 from scipy.spatial import cKDTree
 
 from heatcurv import surfaces
-from heatcurv.chordfit import ChordFit, chord_fit, refine_normals, segment_lstsq
+from heatcurv.chordfit import ChordFit, chord_fit, refine_normals
 from heatcurv.kernel import tapered_heat_weights
 from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
+from reference.lstsq import ridge_solve, segment_lstsq
 
 
 def test_segment_lstsq_matches_numpy_per_row():
@@ -121,7 +122,6 @@ def test_jacobi_ridge_does_not_depend_on_the_columns_scales():
     # relative to the trace pulls the small columns' coefficients (a rotated clean paraboloid: k2 1.4e-5 of
     # its largest curvature apart), a ridge relative to each diagonal entry is the same for any column scale
     from heatcurv._kernels.chordfit import solve_compiled
-    from heatcurv.chordfit import ridge_solve
 
     rng = np.random.default_rng(3)
     X = rng.normal(size=(2, 40, 6))

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
-from heatcurv.testing import aligned_exact, compare, direction_error_deg, neighbour_margin, relative_l1
+from heatcurv.surfaces.accuracy import aligned_exact, compare, direction_error_deg, neighbour_margin, relative_l1
 
 
 def test_result_shapes_and_invariants(torus_sample, torus_default):
@@ -56,7 +56,7 @@ def test_sphere_default(sphere_sample, records):
     res = heatcurv.estimate(sphere_sample.points)
     # the chord fit is exact on a sphere: its curvature errors are rounding; the total area is off by
     # the density areas on a lattice
-    assert res.info["scale"]["fit"] == "chord-60"
+    assert res.info["scale"].fit == "chord-60"
     worst = {f"{name}_max": 100 * np.abs(getattr(res, name) - 1.0).max() for name in ("mean", "k1", "k2", "gaussian")}
     normal = direction_error_deg(res.normals, sphere_sample.normals)
     area = 100 * (res.area.sum() / (4 * np.pi) - 1)
@@ -140,18 +140,18 @@ def test_noise_widens_the_kernel(records):
     clean = surfaces.Sphere().sample(10000, "random", seed=3)
     noisy = surfaces.Sphere().sample(10000, "random", seed=3, noise=0.006)
     rc, rn = heatcurv.estimate(clean.points), heatcurv.estimate(noisy.points)
-    assert rc.info["scale"]["fit"] == "chord-60"
-    assert rn.info["scale"]["k"] >= 960 and rn.info["scale"]["fit"].startswith("denoised")
+    assert rc.info["scale"].fit == "chord-60"
+    assert rn.info["scale"].k >= 960 and rn.info["scale"].fit.startswith("denoised")
     err = compare(noisy, rn)
     assert err["rel_mean"] < 0.10  # the target at 0.6 % noise
     records.check(
         "estimator/sphere-random-10000-noise0.006",
         mean=100 * err["rel_mean"], k1=100 * err["rel_k1"], k2=100 * err["rel_k2"], normal_deg=err["normal_deg"],
-        sigma=100 * abs(rn.info["scale"]["sigma"] / noisy.sigma - 1),  # the noise estimate's error
+        sigma=100 * abs(rn.info["scale"].sigma / noisy.sigma - 1),  # the noise estimate's error
     )
     # a fixed scale overrides the choice
     fixed = heatcurv.estimate(noisy.points, scale=120)
-    assert fixed.info["scale"]["k"] == 120
+    assert fixed.info["scale"].k == 120
 
 
 def test_torus_normals_point_outward(torus_sample, torus_default):
@@ -254,7 +254,7 @@ def test_strong_noise_is_never_taken_for_clean(records):
     # falls to 1.4 (below the clean gate's ratio); the sigma/h < 1 % gate catches it
     sample = surfaces.Sphere().sample(20000, "random", seed=0, noise=0.006)
     res = heatcurv.estimate(sample.points)
-    assert res.info["scale"]["fit"].startswith("denoised") and res.info["scale"]["k"] >= 960
+    assert res.info["scale"].fit.startswith("denoised") and res.info["scale"].k >= 960
     err = compare(sample, res)
     assert err["rel_mean"] < 0.10  # the target at 0.6 % noise
     records.check("estimator/sphere-random-20000-noise0.006", mean=100 * err["rel_mean"], k1=100 * err["rel_k1"])

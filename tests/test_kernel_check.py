@@ -9,7 +9,7 @@ import heatcurv
 from heatcurv import HeatcurvError, HeatcurvWarning, surfaces
 from heatcurv.kernel import effective_neighbours
 from heatcurv.kernel_check import SUPPORT_LIMITS, measure_support
-from heatcurv.neighbourhood import knn_neighbourhood
+from heatcurv.neighbourhood import ball_neighbourhood, knn_neighbourhood
 from heatcurv.operator import build_operator
 
 
@@ -34,7 +34,7 @@ def test_effective_neighbours():
 
 def test_take_rows_is_the_subsample_of_the_rows():
     pts = np.random.default_rng(1).random((300, 3))
-    nb = heatcurv.ball_neighbourhood(pts, 0.2, min_neighbours=3)
+    nb = ball_neighbourhood(pts, 0.2, min_neighbours=3)
     rows = np.array([5, 0, 299, 17])
     sub = nb.take_rows(rows)
     for k, r in enumerate(rows):

@@ -21,7 +21,7 @@ import pytest
 from heatcurv import backend
 from heatcurv._kernels import COMPILE_NOTICE, LOGGER_NAME, chordfit, parallel_rows, segment
 from heatcurv.cli.main import compile_notice, notice_stream
-from heatcurv.testing.terminal import run_on_a_terminal
+from support.terminal import run_on_a_terminal
 
 NOTICE_LINE = f"heatcurv: {COMPILE_NOTICE}"
 

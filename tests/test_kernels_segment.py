@@ -211,7 +211,7 @@ def test_estimate_same_with_the_references(noise, monkeypatch):
     # the default estimate runs every kernel, and the chord fit (neighbour_medians only where the
     # outliers' counts leave a point undecided, which may be none)
     assert set(calls) | {"neighbour_medians"} == set(compiled.__all__) | {"chord_fit"}, calls
-    assert a.info["scale"]["fit"] == b.info["scale"]["fit"]
+    assert a.info["scale"].fit == b.info["scale"].fit
     for name in ("mean", "gaussian", "k1", "k2", "area", "spacing", "mean_curvature_normal"):
         ref = getattr(a, name)
         np.testing.assert_allclose(getattr(b, name), ref, rtol=1e-11, atol=1e-11 * np.abs(ref).max())

@@ -1,6 +1,7 @@
-"""The package's shape: one-way imports, a core free of io/cli/render/surfaces/testing/tiles, short modules."""
+"""The package's shape: one-way imports, a core free of io/cli/render/surfaces/tiles, short modules, a short API."""
 
 import ast
+import importlib
 from pathlib import Path
 
 import pytest
@@ -9,9 +10,9 @@ import heatcurv
 
 PACKAGE = Path(heatcurv.__file__).parent
 #: Packages and modules around the numerical core; the core imports none of them.
-OUTER = ("io", "cli", "render", "surfaces", "testing", "data", "tiles")
-#: Modules that are the package's facades or deprecated aliases, not the core.
-FACADES = ("__init__", "__main__", "pipeline", "evaluation", "baseline")
+OUTER = ("io", "cli", "render", "surfaces", "data", "tiles")
+#: Modules that are the package's facades, not the core.
+FACADES = ("__init__", "__main__")
 MAX_LINES = 900
 
 
@@ -97,3 +98,22 @@ def test_compiled_kernels_never_import_their_callers():
 @pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_modules_are_short(path):
     assert len(path.read_text().splitlines()) <= MAX_LINES
+
+
+def test_the_public_api_is_short_and_the_building_blocks_stay_in_their_modules():
+    assert sorted(heatcurv.__all__) == [
+        "CurvatureResult", "FeatureResult", "HeatcurvError", "HeatcurvWarning", "METHODS", "Options",
+        "PointCloudLaplacian", "ScaleTuning", "compute_file", "estimate", "laplacian", "sharp_features", "surfaces",
+    ]
+    assert all(hasattr(heatcurv, name) for name in heatcurv.__all__)
+    # one way to get a Laplacian at the top; the others from their modules
+    for module, name in [("neighbourhood", "ball_neighbourhood"), ("operator", "build_operator"),
+                         ("point_laplacian", "point_cloud_laplacian"), ("laplace_beltrami", "laplace_beltrami_matrix"),
+                         ("normals", "pca_normals"), ("options", "resolve_options")]:
+        assert not hasattr(heatcurv, name), name
+        assert callable(getattr(importlib.import_module(f"heatcurv.{module}"), name))
+
+
+@pytest.mark.parametrize("name", ["pipeline", "baseline", "evaluation", "_deprecation", "testing"])
+def test_no_shim_or_test_harness_is_installed(name):
+    assert not (PACKAGE / f"{name}.py").exists() and not (PACKAGE / name).exists()

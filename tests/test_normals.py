@@ -6,8 +6,9 @@ import heatcurv
 from heatcurv import surfaces
 from heatcurv.neighbourhood import ball_neighbourhood
 from heatcurv.normals import orient_normals, orient_towards_viewpoint, pca_normals, tangent_frames
+from heatcurv.operator import build_operator
 from heatcurv.spacing import global_spacing
-from heatcurv.testing import direction_error_deg
+from heatcurv.surfaces.accuracy import direction_error_deg
 
 
 def worst_angle_deg(normals, exact):
@@ -113,7 +114,7 @@ def test_orientation_graph_spans_scan_lines(records):
     from scipy.sparse import csgraph, csr_matrix
 
     pts = scan_lines_sphere()
-    nb = heatcurv.build_operator(pts).neighbourhood
+    nb = build_operator(pts).neighbourhood
     n = nb.n_points
 
     def components(sub):

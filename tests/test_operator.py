@@ -59,16 +59,6 @@ def test_laplacian_front_end_in_input_order():
         heatcurv.laplacian(np.vstack([pts, pts[:1]]))
 
 
-def test_pipeline_module_is_a_deprecated_alias():
-    import importlib
-    import sys
-
-    sys.modules.pop("heatcurv.pipeline", None)
-    with pytest.warns(DeprecationWarning, match="heatcurv.pipeline is deprecated"):
-        pipeline = importlib.import_module("heatcurv.pipeline")
-    assert pipeline.build_operator is build_operator and pipeline.Options is heatcurv.Options
-
-
 def test_laplacian_annihilates_constants_and_is_symmetric_with_areas(sphere_sample):
     pts = sphere_sample.points[:2000]
     L, area = heatcurv.laplacian(pts)

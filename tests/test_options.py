@@ -1,7 +1,6 @@
-"""Options: one declaration, the presets, validation, the deprecated American spellings."""
+"""Options: one declaration, the presets, validation, unknown names answered with the name meant."""
 
 import dataclasses
-import warnings
 
 import numpy as np
 import pytest
@@ -9,7 +8,6 @@ import pytest
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
 from heatcurv.options import (
-    DEPRECATED_ALIASES,
     METHODS,
     RANGES,
     Options,
@@ -172,25 +170,19 @@ def test_unknown_method():
         resolve_options("fast")
 
 
-@pytest.mark.parametrize(("alias", "name"), sorted(DEPRECATED_ALIASES.items()))
-def test_american_spellings_are_deprecated_aliases(alias, name):
-    with pytest.warns(DeprecationWarning, match=f"{alias}= is deprecated, use {name}="):
-        opts = resolve_options(**{alias: 40})
-    assert getattr(opts, name) == 40
-    with pytest.raises(HeatcurvError, match=f"give {name}= or its deprecated alias {alias}=, not both"):
-        resolve_options(**{alias: 40, name: 40})
+@pytest.mark.parametrize(
+    ("given", "meant"), [("neighbors", "neighbours"), ("min_neighbors", "min_neighbours"), ("orientation", "orient")]
+)
+def test_american_and_misspelt_options_name_the_option_meant(given, meant):
+    with pytest.raises(HeatcurvError, match=rf"^unknown option\(s\) {given} \(did you mean {meant}\?\)$"):
+        resolve_options(**{given: 40})
 
 
-def test_estimate_accepts_the_alias_and_points_the_warning_at_the_caller():
+def test_estimate_refuses_an_unknown_option_before_the_work():
     pts = surfaces.Sphere().sample(800, "fibonacci").points
-    with pytest.warns(DeprecationWarning) as record:
-        old = heatcurv.estimate(pts, neighbors=40)
-    assert record[0].filename == __file__
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        new = heatcurv.estimate(pts, neighbours=40)
-    np.testing.assert_array_equal(old.mean, new.mean)
-    assert new.options.neighbours == 40
+    with pytest.raises(HeatcurvError, match=r"^unknown option\(s\) colour, neighbors \(did you mean neighbours\?\)$"):
+        heatcurv.estimate(pts, neighbors=40, colour="red")
+    assert heatcurv.estimate(pts, neighbours=40).options.neighbours == 40
 
 
 def test_scale_tuning_reaches_the_kernel_choice():

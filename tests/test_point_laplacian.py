@@ -5,7 +5,7 @@ import pytest
 
 import heatcurv
 from heatcurv import HeatcurvError, PointCloudLaplacian, surfaces
-from heatcurv.testing.mesh_laplacian import cotangent_laplacian, mesh_eigenvalues, torus_mesh
+from support.mesh_laplacian import cotangent_laplacian, mesh_eigenvalues, torus_mesh
 
 # spherical-harmonic eigenvalues l (l + 1) of the unit sphere, l = 1..3, with multiplicity 2l + 1
 SPHERE = np.concatenate([[d * (d + 1)] * (2 * d + 1) for d in range(1, 4)])

@@ -19,7 +19,7 @@ error of the denoised fit, which the noise gate (:func:`heatcurv.scale._is_clean
 import numpy as np
 
 import heatcurv
-from heatcurv.testing import direction_error_deg, relative_l1
+from heatcurv.surfaces.accuracy import direction_error_deg, relative_l1
 
 AXES = np.array([1.2, 0.9, 0.7])
 CUBIC, WAVE = 0.3, 0.08

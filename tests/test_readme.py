@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 import heatcurv
-from heatcurv.testing import compare
+from heatcurv.surfaces.accuracy import compare
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 COLUMNS = ("mean", "k1", "k2", "Gaussian", "total area", "d1", "normal")

@@ -37,26 +37,21 @@ Around the core, which imports none of them:
 ``tiles``              out-of-core and Dask runs: :func:`compute_file`
 ``cli``                the ``heatcurv`` command
 ``render``             pictures of a field
-``surfaces``           analytic surfaces with exact values, samplers, simulated scans
-``testing``            error measures (eqs 4.1, 5.1) and the k-NN quadric baseline
+``surfaces``           analytic surfaces with exact values, samplers, simulated
+                       scans, and error measures against those values (eqs 4.1, 5.1)
 =====================  ======================================================
+
+The test harness (the quadric baseline, the real-scan fetchers, the fuzz campaign)
+lives in the repository's ``tests/support/`` and is not installed.
 """
 
 from . import surfaces
-from .areas import point_areas
 from .errors import HeatcurvError, HeatcurvWarning
 from .estimator import estimate
 from .features import FeatureResult, sharp_features
-from .laplace_beltrami import laplace_beltrami_matrix
-from .mean_curvature import mean_curvature, mean_curvature_normal
-from .neighbourhood import Neighbourhood, ball_neighbourhood
-from .normals import orient_normals, pca_normals
-from .operator import HeatKernelOperator, build_operator
-from .options import METHODS, Options, ScaleTuning, resolve_options
-from .point_laplacian import PointCloudLaplacian, laplacian, point_cloud_laplacian
-from .principal import principal_fit
+from .options import METHODS, Options, ScaleTuning
+from .point_laplacian import PointCloudLaplacian, laplacian
 from .results import CurvatureResult
-from .spacing import global_spacing, local_spacing
 
 __version__ = "0.1.0"
 
@@ -70,34 +65,23 @@ def compute_file(src, dst, **options):
 
     return tiled(src, dst, **options)
 
+
+#: The public API: the estimator and its result, the Laplacian and its precomputed form, sharp features,
+#: out-of-core runs, the options and the errors; ``surfaces``, the analytic surfaces every example samples. Every
+#: building block is imported from its own module
+#: (``heatcurv.neighbourhood.ball_neighbourhood``, ``heatcurv.operator.build_operator`` ...).
 __all__ = [
     "CurvatureResult",
     "FeatureResult",
-    "HeatKernelOperator",
     "HeatcurvError",
     "HeatcurvWarning",
     "METHODS",
-    "Neighbourhood",
     "Options",
     "PointCloudLaplacian",
     "ScaleTuning",
-    "ball_neighbourhood",
-    "build_operator",
     "compute_file",
     "estimate",
-    "global_spacing",
-    "laplace_beltrami_matrix",
     "laplacian",
-    "local_spacing",
-    "mean_curvature",
-    "mean_curvature_normal",
-    "orient_normals",
-    "pca_normals",
-    "point_cloud_laplacian",
-    "point_areas",
-    "principal_fit",
-    "resolve_options",
     "sharp_features",
     "surfaces",
-    "__version__",
 ]

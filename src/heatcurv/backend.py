@@ -10,8 +10,7 @@ Decision (recorded here because this module used to hold the switch it replaces)
   runs on threads, which compile twice as fast as numba's ``prange``).
   Without numba, importing heatcurv fails with an ImportError naming it.
 * One implementation per hot stage. There is no numpy twin to select and no
-  process-global backend switch (formerly ``set_backend``, ``backend()`` and
-  ``HEATCURV_BACKEND``), which changed the code other threads ran.
+  process-global backend switch, which would change the code other threads run.
 * The numpy reference implementations live in the tests (``tests/reference/``)
   as oracles: the tests run every kernel and its reference on the same inputs.
 

@@ -44,7 +44,7 @@ from .mean_curvature import mean_curvature
 from .neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_per_block
 from .normals import pca_normals
 from .operator import HeatKernelOperator
-from .options import rename_aliases, resolve_options
+from .options import resolve_options
 from .orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient, row_reach
 from .outliers import Outliers, find_outliers
 from .principal import PrincipalCurvatures, principal_fit
@@ -163,8 +163,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         ``"outward"`` for anything else; ``info["orientation"].reason``
         says which; :mod:`heatcurv.orientation`),
         ``area_solver``, ``taper``, ``min_neighbours`` (6) and ``workers``
-        (threads; -1: all cores). ``neighbors`` and ``min_neighbors`` are
-        accepted as deprecated aliases.
+        (threads; -1: all cores).
 
     Returns
     -------
@@ -184,7 +183,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     >>> bool(abs(np.median(res.mean) - 0.5) < 0.01)
     True
     """
-    opts = resolve_options(method, **rename_aliases(options, "estimate"))
+    opts = resolve_options(method, **options)
     mode = _orientation_mode(opts.orient, normals, viewpoint)
     if viewpoint is not None:
         as_viewpoint(viewpoint, len(points) if hasattr(points, "__len__") else None)  # fail before the work

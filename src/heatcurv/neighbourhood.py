@@ -19,7 +19,6 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ._deprecation import renamed_keyword
 from ._kernels.graph import pairs_between_kept
 from .errors import HeatcurvError
 
@@ -33,7 +32,7 @@ __all__ = [
 
 #: Pairs a streamed stage holds at once: a block of the default fit with its own
 #: neighbourhood (about 1 KB per pair at its peak, so ~1 GB), the numpy temporaries of
-#: ``Neighbourhood.blockwise`` and of ``chordfit.segment_lstsq``.
+#: ``Neighbourhood.blockwise``.
 BLOCK_PAIRS = 1_000_000
 
 #: Pairs one k-d tree query returns at once (scipy's int64 + float64 arrays, 16 bytes a
@@ -298,8 +297,6 @@ def ball_neighbourhood(
     workers: int = -1,
     queries: np.ndarray | None = None,
     source_index: np.ndarray | None = None,
-    *,
-    min_neighbors: int | None = None,
 ) -> Neighbourhood:
     """All neighbours within ``radius`` of each query point, in CSR form.
 
@@ -325,16 +322,12 @@ def ball_neighbourhood(
         Global index of each of ``points``: when ``points`` is a subset of a
         larger cloud (a coarser level), the returned ``indices`` are mapped
         through it.
-    min_neighbors : int, optional
-        Deprecated alias of ``min_neighbours``.
 
     Returns
     -------
     Neighbourhood
         One row per query.
     """
-    if min_neighbors is not None:
-        min_neighbours = renamed_keyword("ball_neighbourhood", "min_neighbours", None, "min_neighbors", min_neighbors)
     if tree is None:
         tree = cKDTree(points)
     if queries is None:

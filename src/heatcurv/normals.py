@@ -14,8 +14,6 @@ orientation, so the orientation must be consistent over the whole surface:
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from ._kernels import segment as kernels
@@ -28,9 +26,6 @@ __all__ = [
     "pca_normals", "orient_normals", "orient_towards_viewpoint", "tangent_frames", "GRAPH_NEIGHBOURS", "as_viewpoint",
 ]
 
-#: Deprecated spelling of :data:`GRAPH_NEIGHBOURS`.
-GRAPH_NEIGHBORS = GRAPH_NEIGHBOURS
-_UNSET = object()
 
 
 def pca_normals(
@@ -109,8 +104,6 @@ def orient_normals(
     nbhd: Neighbourhood,
     areas: np.ndarray | None = None,
     graph_neighbours: int | None = GRAPH_NEIGHBOURS,
-    *,
-    graph_neighbors=_UNSET,
 ) -> np.ndarray:
     """Give unoriented normals one consistent orientation, outward on closed surfaces.
 
@@ -131,8 +124,6 @@ def orient_normals(
     graph_neighbours : int or None, optional
         Propagate over ``graph_neighbours`` of each point's neighbours only
         (None: all); see :func:`heatcurv.orientation.orient`.
-    graph_neighbors : int or None, optional
-        Deprecated alias of ``graph_neighbours``.
 
     Returns
     -------
@@ -145,10 +136,6 @@ def orient_normals(
         the mean normal is made to point along the positive side of the
         component's least-variance axis (whose largest coordinate is made positive).
     """
-    if graph_neighbors is not _UNSET:
-        warnings.warn("orient_normals: graph_neighbors= is deprecated, use graph_neighbours=", DeprecationWarning,
-                      stacklevel=2)
-        graph_neighbours = graph_neighbors
     return orient(points, normals, nbhd, areas, mode="outward", graph_neighbours=graph_neighbours).normals
 
 

@@ -235,9 +235,10 @@ def build_operator(points, options: Options | None = None, progress=None, **over
 
     Examples
     --------
-    >>> import heatcurv
-    >>> pts = heatcurv.surfaces.Sphere().sample(1500, "fibonacci").points
-    >>> heatcurv.build_operator(pts, method="paper").matrix().shape
+    >>> from heatcurv import surfaces
+    >>> from heatcurv.operator import build_operator
+    >>> pts = surfaces.Sphere().sample(1500, "fibonacci").points
+    >>> build_operator(pts, method="paper").matrix().shape
     (1500, 1500)
     """
     return HeatKernelOperator.from_points(points, options, progress, **overrides)

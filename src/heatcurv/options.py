@@ -13,24 +13,23 @@ From it come
 The tuning constants of the kernel choice (:mod:`heatcurv.scale`) are grouped in
 :class:`ScaleTuning`, reachable as ``estimate(scale_tuning=ScaleTuning(...))``.
 
-Public names use British spelling (``neighbours``); the American spellings
-users type (``neighbors=``, ``min_neighbors=``) are accepted as deprecated
-aliases (:data:`DEPRECATED_ALIASES`).
+Names use British spelling (``neighbours``); an unknown option, such as the
+American ``neighbors=``, is an error that names the option meant.
 """
 
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from ._deprecation import renamed_keyword
 from .errors import HeatcurvError
 
 __all__ = [
-    "Options", "ScaleTuning", "METHODS", "DEPRECATED_ALIASES", "RANGES", "Range", "resolve_options", "option_help",
-    "rename_aliases", "range_problem", "check_options_for_cloud", "SEED_RANGE",
+    "Options", "ScaleTuning", "METHODS", "RANGES", "Range", "resolve_options", "option_help", "range_problem",
+    "check_options_for_cloud", "SEED_RANGE",
 ]
 
 
@@ -468,25 +467,6 @@ METHODS: dict[str, Options] = {
     "default": Options(method="default"),
 }
 
-#: American spellings users type, accepted with a DeprecationWarning: alias -> name.
-DEPRECATED_ALIASES = {"neighbors": "neighbours", "min_neighbors": "min_neighbours"}
-
-
-def rename_aliases(kwargs: dict, where: str = "heatcurv", stacklevel: int = 3) -> dict:
-    """``kwargs`` with deprecated aliases (``neighbors=``) renamed (``neighbours=``), warning once each.
-
-    Raises
-    ------
-    HeatcurvError
-        When both spellings are given.
-    """
-    out = dict(kwargs)
-    for alias, name in DEPRECATED_ALIASES.items():
-        if alias in out:
-            out[name] = renamed_keyword(where, name, out.get(name), alias, out.pop(alias), stacklevel=stacklevel + 1)
-    return out
-
-
 def option_help() -> dict[str, str]:
     """The one-line documentation of every option, by name (the command line's help)."""
     return {f.name: f.metadata["help"] for f in fields(Options)}
@@ -500,8 +480,7 @@ def resolve_options(method: str = "default", **overrides) -> Options:
     method : {"default", "paper"}
         The preset (:data:`METHODS`).
     **overrides
-        Any :class:`Options` field; None leaves the preset's value. The
-        deprecated aliases ``neighbors`` and ``min_neighbors`` are accepted.
+        Any :class:`Options` field; None leaves the preset's value.
 
     Returns
     -------
@@ -514,10 +493,11 @@ def resolve_options(method: str = "default", **overrides) -> Options:
     """
     if method not in METHODS:
         raise HeatcurvError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
-    given = {k: v for k, v in rename_aliases(overrides).items() if v is not None}
-    unknown = set(given) - {f.name for f in fields(Options)}
+    given = {k: v for k, v in overrides.items() if v is not None}
+    names = [f.name for f in fields(Options)]
+    unknown = sorted(set(given) - set(names))
     if unknown:
-        raise HeatcurvError(f"unknown option(s) {', '.join(sorted(unknown))}")
+        raise HeatcurvError(f"unknown option(s) {', '.join(_with_suggestion(name, names) for name in unknown)}")
     opts = replace(METHODS[method], **given)
     if opts.fit == "chord" and opts.scale is None:
         opts = replace(opts, scale="auto")
@@ -538,6 +518,12 @@ def resolve_options(method: str = "default", **overrides) -> Options:
             "run from neighbours to max_k; raise max_k or lower neighbours"
         )
     return opts
+
+
+def _with_suggestion(name: str, names: list[str]) -> str:
+    """``name``, followed by the option it is closest to when there is one (``neighbors`` -> ``neighbours``)."""
+    close = difflib.get_close_matches(name, names, n=1)
+    return f"{name} (did you mean {close[0]}?)" if close else name
 
 
 def check_options_for_cloud(options: Options, n_distinct: int, extent: float | None = None) -> None:

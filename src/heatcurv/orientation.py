@@ -189,9 +189,6 @@ class OrientationReport:
     reason: str = ""
     policy: AutoPolicy | None = None
 
-    def __getitem__(self, key: str):
-        return getattr(self, key)
-
 
 @dataclass(frozen=True)
 class Orientation:

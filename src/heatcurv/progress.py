@@ -1,6 +1,6 @@
 """The estimator's named stages: their order, their timing, and progress reports.
 
-:func:`heatcurv.estimate` and :func:`heatcurv.build_operator` accept a
+:func:`heatcurv.estimate` and :func:`heatcurv.operator.build_operator` accept a
 ``progress`` callable, called as ``progress(stage, fraction)``: with
 ``fraction = 0`` when a stage starts, ``1`` when it ends. The default
 estimator's fit streams over blocks of points (so its memory stays bounded):

@@ -71,7 +71,7 @@ class CurvatureResult:
         values reach, with the cloud-wide choices fixed (:mod:`heatcurv.choices`).
     mean_curvature_normal : ndarray, shape (n, 3)
         ``K = L x`` of eq 2.10, approximately ``2 mean * normals``, with ``L``
-        the heat-kernel operator of :class:`heatcurv.HeatKernelOperator`
+        the heat-kernel operator of :class:`heatcurv.operator.HeatKernelOperator`
         (eq 2.9 over the method's areas), *not* the default of
         :func:`heatcurv.laplacian` (:class:`heatcurv.PointCloudLaplacian`,
         whose ``mean_curvature_normal()`` gives its own; docs/laplacian.md

@@ -140,9 +140,6 @@ class ScaleChoice:
 class ScaleReport:
     """The chord fit's kernel as a result reports it (``result.info["scale"]``).
 
-    Read it by attribute (``report.k``) or, as before it had a type, by key
-    (``report["k"]``, ``report.get("fit")``).
-
     Attributes
     ----------
     k : int
@@ -233,18 +230,6 @@ class ScaleReport:
             sd=choice.sd,
             median_radius=float(np.median(radius)),
         )
-
-    def __getitem__(self, key: str):
-        if key not in self.__dataclass_fields__:
-            raise KeyError(key)
-        return getattr(self, key)
-
-    def get(self, key: str, default=None):
-        """Dict-style access, as ``info["scale"]`` had before it had a type."""
-        return getattr(self, key, default) if key in self.__dataclass_fields__ else default
-
-    def keys(self):
-        return self.__dataclass_fields__.keys()
 
     def as_dict(self) -> dict:
         return {name: getattr(self, name) for name in self.__dataclass_fields__}

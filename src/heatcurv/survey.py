@@ -39,7 +39,7 @@ from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood
 from .normals import pca_normals
 from .operator import HeatKernelOperator
-from .options import Options, rename_aliases, resolve_options
+from .options import Options, resolve_options
 from .orientation import auto_policy
 from .outliers import find_outliers
 from .sampling import geometric_keys, shifted_keys
@@ -64,7 +64,7 @@ def tile_options(options: dict) -> Options:
     Options
     """
     options = dict(options)
-    opts = resolve_options(options.pop("method", "default"), **rename_aliases(options, "estimate"))
+    opts = resolve_options(options.pop("method", "default"), **options)
     check_tileable(opts)
     return opts
 

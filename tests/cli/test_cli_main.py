@@ -57,7 +57,7 @@ BAD_OPTIONS = {
     "alpha too large": (["--alpha", "1e9"], "alpha = 1e+09 is outside its range [0.5, 20]"),
     "m too small": (["--m", "1e-300"], "m = 1e-300 is outside its range [0.001, 10]"),
     "workers overflow": (["--workers", "1e30"], "argument -j/--workers: expected an integer, got '1e30'"),
-    "neighbours too many": (["--neighbors", "1998"], "neighbours = 1998 is outside its range [20, 1920]"),
+    "neighbours too many": (["--neighbours", "1998"], "neighbours = 1998 is outside its range [20, 1920]"),
     "output extension": (["-o", "{tmp}/out.e57"], "unknown output extension '.e57'"),
     "output directory": (["-o", "{tmp}/no/such/dir/out.ply"], "does not exist"),
     "viewpoint and input normals": (["--viewpoint", "0,0,1", "--normals-from-input"], "not allowed with argument"),

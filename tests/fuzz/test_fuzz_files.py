@@ -1,6 +1,6 @@
 """Issue 11: mutated files of every format read in a child process never crash, hang or take unbounded memory.
 
-A seeded campaign (:func:`heatcurv.testing.fuzz.run_campaign`) mutates the
+A seeded campaign (:func:`support.fuzz.run_campaign`) mutates the
 120-point seed of each variant ``CASES`` times and reads every file in a
 worker under a 1.5 GiB address-space headroom and a 10 s timeout; every
 rejection must be one line that names the file and the problem. The unit
@@ -19,7 +19,7 @@ import pytest
 
 from heatcurv.errors import HeatcurvError
 from heatcurv.io import read_points
-from heatcurv.testing import fuzz
+from support import fuzz
 
 #: Mutated files per variant (17 variants, 2040 files): about 45 s on the 2-core CI machine when no case fails
 #: (20 ms a file); each hang adds its 10 s timeout and each crash or hang 2 s to start a new worker.
@@ -263,3 +263,20 @@ def test_cross_check_catches_a_misread_point_format(tmp_path, monkeypatch):
     with pytest.raises(HeatcurvError, match=r"the point record length \(46 bytes\) is not the 28 bytes of point "
                                             r"format 1 plus the 16 its ExtraBytes VLR describes \(44\)"):
         read_points(path)
+
+
+def test_a_case_replays_from_the_repository_root_with_its_printed_command():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    case = fuzz.CaseResult("npy", "npy-header", 2457833082, "rejected", "", 0, 0.0, 0)
+    assert case.reproduce == "PYTHONPATH=tests python -m support.fuzz npy npy-header 2457833082"
+    root = Path(__file__).resolve().parents[2]
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    command = case.reproduce.replace(" python ", f" {sys.executable} ", 1)  # the Python heatcurv is installed in
+    out = subprocess.run(command, shell=True, cwd=root, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 1, out.stderr
+    assert "npy-npy-header-2457833082.npy (" in out.stdout
+    assert out.stderr.rstrip().splitlines()[-1].endswith(
+        "not a valid NPY file (the header is not a Python dictionary literal)")

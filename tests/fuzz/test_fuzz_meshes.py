@@ -13,8 +13,8 @@ import pytest
 
 from heatcurv.errors import HeatcurvError
 from heatcurv.io import read_points
-from heatcurv.testing import fuzz
-from heatcurv.testing.mutators import _OBJ_FACE_EDITS, _OFF_LINE_EDITS, mutate, obj_face_edit, off_line_edit
+from support import fuzz
+from support.mutators import _OBJ_FACE_EDITS, _OFF_LINE_EDITS, mutate, obj_face_edit, off_line_edit
 
 N = fuzz.N_SEED  # 120 vertices; the OFF seed: lines 4-123 vertices, 124-241 its 118 faces
 EXPECTED_FACE = r"line \d+: (expected a face \('k i1 \.\.\. ik'\) after the 120 vertices the header announces, found" \

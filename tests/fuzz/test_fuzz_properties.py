@@ -6,7 +6,7 @@ scale, a permutation, duplicated points, a few far outliers and float32
 input; coordinates scaled by 10**e (e in -300..300) give the right answer or
 one line of HeatcurvError; and a noisy cloud whose automatic kernel is wider
 than 240 neighbours keeps its order and rotation invariance. Every estimate
-runs in a :class:`heatcurv.testing.fuzz.Worker` (1.5 GiB of address-space
+runs in a :class:`support.fuzz.Worker` (1.5 GiB of address-space
 headroom, a timeout), so a crash, a hang or a runaway allocation fails the
 example instead of the test session.
 
@@ -36,7 +36,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from heatcurv import surfaces
-from heatcurv.testing import fuzz
+from support import fuzz
 
 FIELDS = ("mean", "k1", "k2", "area")
 RIGID = 1e-5

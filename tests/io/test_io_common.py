@@ -32,10 +32,6 @@ def test_colours_to_uint8():
 def test_point_cloud_record():
     cloud = PointCloud(np.zeros((2, 3)), colours=np.zeros((2, 3), np.uint8))
     assert len(cloud) == 2 and cloud.fields == {} and cloud.meta == {}
-    with pytest.warns(DeprecationWarning):
-        assert cloud.colors is cloud.colours
-    with pytest.raises(HeatcurvError, match="not both"):
-        PointCloud(np.zeros((2, 3)), colours=np.zeros((2, 3)), colors=np.zeros((2, 3)))
 
 
 def test_text_tokens():

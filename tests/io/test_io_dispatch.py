@@ -152,7 +152,7 @@ def test_write_validation_errors(tmp_path):
     assert leftovers(tmp_path) == []
 
 
-def test_colours_is_the_name_and_colors_a_deprecated_alias(tmp_path):
+def test_colours_keyword_and_attribute(tmp_path):
     import dataclasses
     import warnings
 
@@ -168,25 +168,6 @@ def test_colours_is_the_name_and_colors_a_deprecated_alias(tmp_path):
         write_points(tmp_path / "new.ply", points, colours=rgb)
     np.testing.assert_array_equal(read_points(tmp_path / "new.ply").colours, rgb)
 
-    with pytest.warns(DeprecationWarning, match=r"PointCloud\.colors is deprecated, use \.colours") as record:
-        assert cloud.colors is rgb
-    assert record[0].filename == __file__  # points at the caller
-    with pytest.warns(DeprecationWarning, match=r"PointCloud\.colors is deprecated"):
-        cloud.colors = rgb[::-1]
-    assert cloud.colours[0, 2] == 2
-    with pytest.warns(DeprecationWarning, match=r"PointCloud: colors= is deprecated, use colours=") as record:
-        old = PointCloud(points, colors=rgb)
-    assert old.colours is rgb and record[0].filename == __file__
-    with pytest.warns(DeprecationWarning, match=r"write_points: colors= is deprecated, use colours=") as record:
-        write_points(tmp_path / "old.ply", points, colors=rgb)
-    assert record[0].filename == __file__
-    np.testing.assert_array_equal(read_points(tmp_path / "old.ply").colours, rgb)
-
-    with pytest.raises(HeatcurvError, match=r"PointCloud: give colours= or its deprecated alias colors=, not both"):
-        PointCloud(points, colours=rgb, colors=rgb)
-    with pytest.raises(HeatcurvError, match=r"write_points: give colours= or its deprecated alias colors=, not both"):
-        write_points(tmp_path / "both.ply", points, colours=rgb, colors=rgb)
-    assert not (tmp_path / "both.ply").exists()
 
 
 @pytest.mark.parametrize("ext", [".ply", ".npz", ".las", ".laz", ".csv", ".txt"])

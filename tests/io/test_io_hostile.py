@@ -582,7 +582,7 @@ def test_a_long_bad_value_is_quoted_short(tmp_path):
     ],
 )
 def test_fuzz_findings_read_as_one_plain_line(tmp_path, variant, mutator, seed, expected):
-    from heatcurv.testing import fuzz
+    from support import fuzz
 
     seeds = fuzz.seed_files(tmp_path)
     path = tmp_path / f"case{fuzz.VARIANTS[variant].ext}"

@@ -1,6 +1,6 @@
 """The real scans: pymeshlab's sample meshes and CGAL's closed models, fetched once per session.
 
-See heatcurv.testing.scans.  Without a network (or pip, or apt-get and
+See support.scans.  Without a network (or pip, or apt-get and
 urllib) the tests here are skipped with the reason; CI sets
 ``HEATCURV_REQUIRE_REAL_SCANS=1`` so that a failed fetch fails them instead.
 """
@@ -9,7 +9,7 @@ import os
 
 import pytest
 
-from heatcurv.testing.scans import ScanDataUnavailable, fetch_cgal_meshes, fetch_pymeshlab_samples
+from support.scans import ScanDataUnavailable, fetch_cgal_meshes, fetch_pymeshlab_samples
 
 
 def _fetched(fetch):
@@ -31,5 +31,5 @@ def pymeshlab_samples():
 
 @pytest.fixture(scope="session")
 def cgal_meshes():
-    """Directory holding ``camel.off`` and the other :data:`~heatcurv.testing.scans.CGAL_MESHES`."""
+    """Directory holding ``camel.off`` and the other :data:`~support.scans.CGAL_MESHES`."""
     return _fetched(fetch_cgal_meshes)

@@ -1,4 +1,4 @@
-"""CGAL's closed models read by heatcurv.testing.scans: the counts, closedness and outward normals we rely on.
+"""CGAL's closed models read by support.scans: the counts, closedness and outward normals we rely on.
 
 These are the reference of the orientation tests and of
 ``benchmarks/orientation.py``: twelve animals and figures with thin parts,
@@ -11,7 +11,7 @@ import os
 import numpy as np
 import pytest
 
-from heatcurv.testing.scans import CGAL_MESHES, read_mesh
+from support.scans import CGAL_MESHES, read_mesh
 
 # vertex and face counts of the files' headers (CGAL 5.5.1, Debian's libcgal-demo 5.5.1-2)
 COUNTS = {

@@ -13,7 +13,7 @@ import pytest
 import scipy.sparse as sp
 
 import heatcurv
-from heatcurv.testing.scans import range_camera, read_mesh
+from support.scans import range_camera, read_mesh
 
 
 def cotangent_mean_curvature(mesh):

@@ -23,7 +23,9 @@ def test_fixture_skips_or_fails_with_the_reason(tmp_path, require):
     occupied = tmp_path / "occupied"
     occupied.mkdir()
     (occupied / "other.txt").write_text("not a sample cache")
-    env = dict(os.environ, HEATCURV_TEST_DATA=str(occupied))
+    # the copied conftest imports the fetchers from tests/support, which is not installed
+    path = os.pathsep.join(p for p in [str(HERE.parent), os.environ.get("PYTHONPATH", "")] if p)
+    env = dict(os.environ, HEATCURV_TEST_DATA=str(occupied), PYTHONPATH=path)
     env.pop("HEATCURV_REQUIRE_REAL_SCANS", None)
     if require:
         env["HEATCURV_REQUIRE_REAL_SCANS"] = "1"

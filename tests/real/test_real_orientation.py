@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import heatcurv
-from heatcurv.testing.scans import CGAL_MESHES, read_mesh
+from support.scans import CGAL_MESHES, read_mesh
 
 MODELS = sorted(name.removesuffix(".off") for name in CGAL_MESHES)
 

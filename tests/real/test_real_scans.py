@@ -1,4 +1,4 @@
-"""The pymeshlab sample meshes read by heatcurv.testing.scans: the counts and areas we rely on.
+"""The pymeshlab sample meshes read by support.scans: the counts and areas we rely on.
 
 These are the reference values of the real-scan tests: a closed object scan
 (the bunny), a range map with its camera (face000), closed models (bone, cow,
@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from heatcurv.testing.scans import PYMESHLAB_SAMPLES, range_camera, read_mesh
+from support.scans import PYMESHLAB_SAMPLES, range_camera, read_mesh
 
 
 def edge_use(mesh):

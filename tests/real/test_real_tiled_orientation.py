@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from heatcurv.io import read_points
-from heatcurv.testing.scans import read_mesh
 from heatcurv.tiles import compute_file
+from support.scans import read_mesh
 
 #: inside out and reliable with the spanning tree alone (in memory and tiled alike), %
 TREE_ALONE = {"cow": 10.30, "elephant": 14.52, "bull": 10.02, "dino": 14.40}

@@ -9,7 +9,9 @@ as a selectable backend lives here, for the tests only:
   same arrays (``tests/test_kernels_segment.py``);
 * :mod:`reference.chordfit` is the whole chord fit in numpy, with the
   signature of :func:`heatcurv.chordfit.chord_fit`
-  (``tests/test_kernels_chordfit.py``).
+  (``tests/test_kernels_chordfit.py``);
+* :mod:`reference.lstsq` is the per-point weighted least squares on padded
+  numpy blocks that the compiled fit's Cholesky solve is checked against.
 
 Both are written from the formulas the kernels and the paper document and share
 no code with what they check: they import from heatcurv only containers

@@ -15,7 +15,7 @@ arrays), and the documented parameters of the method: ``MIN_DOF_FRACTION``
 ``LOW_NOISE_LIMIT``, ``LOW_NOISE_TRIED`` and ``LOW_NOISE_MIN_LAMBDA`` from
 :mod:`heatcurv._kernels.chordfit`. The Tikhonov ridge, 1e-10 of ``trace(G) / p``
 (of each diagonal entry for the quartic fits), is the documented default of
-:func:`heatcurv.chordfit.segment_lstsq`'s ``ridge`` and is written here as
+:func:`reference.lstsq.segment_lstsq`'s ``ridge`` and is written here as
 :data:`RIDGE`.
 
 Where the compiled fit accumulates normal equations ``X^T W X`` pair by pair and

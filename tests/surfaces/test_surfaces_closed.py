@@ -26,7 +26,7 @@ def test_sphere_exact_values():
     assert np.allclose(n, [[0, 0, 1], [0, 0, -1]], atol=1e-15)
 
 
-def test_sphere_centre_is_the_name_and_center_a_deprecated_alias():
+def test_sphere_centre():
     import warnings
 
     from heatcurv import HeatcurvError
@@ -39,17 +39,6 @@ def test_sphere_centre_is_the_name_and_center_a_deprecated_alias():
         assert np.array_equal(hs.Sphere().centre, [0.0, 0.0, 0.0])
         assert repr(surf) == "Sphere(radius=1.5, centre=(1.0, 2.0, 3.0))"
         assert np.allclose(surf.implicit(surf.sample(50, "random", seed=0).points), 0.0, atol=1e-14)
-    with pytest.warns(DeprecationWarning, match=r"Sphere: center= is deprecated, use centre=") as record:
-        old = hs.Sphere(1.5, center=(1.0, 2.0, 3.0))
-    assert record[0].filename == __file__  # points at the caller
-    assert np.array_equal(old.centre, surf.centre)
-    with pytest.warns(DeprecationWarning, match=r"Sphere\.center is deprecated, use \.centre") as record:
-        assert old.center is old.centre
-    assert record[0].filename == __file__
-    with pytest.warns(DeprecationWarning, match=r"center= is deprecated"):
-        assert np.array_equal(hs.get("sphere", center=(1, 2, 3)).centre, surf.centre)
-    with pytest.raises(HeatcurvError, match=r"Sphere: give centre= or its deprecated alias center=, not both"):
-        hs.Sphere(centre=(0, 0, 0), center=(1, 1, 1))
     with pytest.raises(HeatcurvError, match=r"centre must be 3 finite numbers"):
         hs.Sphere(centre=(0, 0))
 

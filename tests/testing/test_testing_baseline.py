@@ -1,4 +1,4 @@
-"""Tests of heatcurv.testing.baseline: the k-NN quadric-fit baseline.
+"""Tests of support.baseline: the k-NN quadric-fit baseline.
 
 Its errors (k = 40, area-uniform random samples, 20000 points, seed 0) are
 records (tests/records.json):
@@ -18,10 +18,11 @@ import math
 import numpy as np
 import pytest
 
-import heatcurv.testing.baseline
+import support.baseline
 from heatcurv import surfaces as hs
 from heatcurv.errors import HeatcurvError
-from heatcurv.testing import QuadricResult, compare, default_margin, quadric_curvature
+from heatcurv.surfaces.accuracy import compare, default_margin
+from support.baseline import QuadricResult, quadric_curvature
 
 
 @pytest.fixture(scope="module")
@@ -230,5 +231,5 @@ def test_duplicates_share_values_and_area():
 
 
 def test_docstring_example():
-    result = doctest.testmod(heatcurv.testing.baseline, optionflags=doctest.ELLIPSIS)
+    result = doctest.testmod(support.baseline, optionflags=doctest.ELLIPSIS)
     assert result.attempted > 0 and result.failed == 0

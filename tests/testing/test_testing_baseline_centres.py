@@ -14,8 +14,7 @@ import pytest
 
 from heatcurv import surfaces as hs
 from heatcurv.errors import HeatcurvError
-from heatcurv.testing import QuadricResult, quadric_curvature
-from heatcurv.testing.baseline import BLOCK_ROWS
+from support.baseline import BLOCK_ROWS, QuadricResult, quadric_curvature
 
 FIELDS = ("normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area", "spacing", "reliable", "neighbours")
 

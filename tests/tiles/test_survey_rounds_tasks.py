@@ -90,8 +90,8 @@ def _by_place(parts):
                          [(4000, 2, ["run_survey"]), (1200, 8, ["run_keys", "run_centres"])])
 def test_few_tiles_are_surveyed_in_one_round_many_in_two(torus_file, torus_memory, tmp_path, monkeypatch, tile_size,
                                                         tiles, rounds):
-    from heatcurv.testing.tiles import tiled_agreement
     from heatcurv.tiles import driver
+    from support.tiles import tiled_agreement
 
     phases = []
     real_run = driver._run
@@ -115,8 +115,8 @@ def test_few_tiles_are_surveyed_in_one_round_many_in_two(torus_file, torus_memor
                                            (0.0012, ["run_keys", "run_centres", "run_centres"])])
 def test_round_two_fits_the_gate_first_and_every_candidate_only_under_noise(tmp_path, monkeypatch, noise, rounds):
     import heatcurv
-    from heatcurv.testing.tiles import tiled_agreement
     from heatcurv.tiles import driver
+    from support.tiles import tiled_agreement
 
     sample = heatcurv.surfaces.Torus().sample(6000, "random", seed=3)
     diagonal = np.linalg.norm(np.ptp(sample.points, axis=0))

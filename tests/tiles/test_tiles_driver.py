@@ -8,10 +8,10 @@ from tiles_helpers import ALL_FIELDS, exact, read_fields
 
 import heatcurv
 from heatcurv.errors import HeatcurvError
-from heatcurv.testing.tiles import compare_fields, result_columns, tiled_agreement
 from heatcurv.tiles import compute_file
 from heatcurv.tiles.output import SOURCE_KEYS, STORED_KEYS
 from heatcurv.tiles.tasks import FAULT_VARIABLE
+from support.tiles import compare_fields, result_columns, tiled_agreement
 
 
 def test_tiled_torus_equals_in_memory(torus_threads, torus_memory):

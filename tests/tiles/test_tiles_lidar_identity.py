@@ -16,8 +16,8 @@ import pytest
 from tiles_helpers import ALL_FIELDS, read_fields
 
 import heatcurv
-from heatcurv.testing.tiles import tiled_agreement
 from heatcurv.tiles import compute_file
+from support.tiles import tiled_agreement
 
 FIELDS = {"normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area", "reliable", "spacing", "neighbours",
           "fit_radius", "border", "outlier"}

@@ -6,8 +6,8 @@ from tiles_helpers import ALL_FIELDS, exact
 
 import heatcurv
 from heatcurv.scale import in_low_noise_band
-from heatcurv.testing.tiles import tiled_agreement
 from heatcurv.tiles import compute_file
+from support.tiles import tiled_agreement
 
 
 def test_low_noise_cloud_equals_in_memory(tmp_path):

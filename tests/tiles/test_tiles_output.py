@@ -10,9 +10,9 @@ from tiles_helpers import exact, read_fields
 import heatcurv
 from heatcurv.cli.fields import DEFAULT_FIELDS, EXTRA_FIELDS
 from heatcurv.io import read_points, write_points
-from heatcurv.testing.tiles import tiled_agreement
 from heatcurv.tiles import compute_file
 from heatcurv.tiles import output as tiled_output
+from support.tiles import tiled_agreement
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,8 @@ recomputing everything a pair needs from the points, the centre's frame and
 the fitted coefficients; nothing proportional to the number of pairs is
 allocated (a numpy formulation with per-pair arrays peaks at about 1 KB per
 pair). The normal equations are then solved point by point by Cholesky
-(:func:`solve_compiled`, the same ridge and returns as
-:func:`heatcurv.chordfit.solve_normal_equations`; the well-posedness test
+(:func:`solve_compiled`, the same ridge and returns as the tests' numpy
+reference, ``tests/reference/lstsq.py``; the well-posedness test
 brackets the condition number from the traces of ``G`` and ``G^-1`` and
 computes eigenvalues only where the bracket cannot decide).
 
@@ -577,7 +577,7 @@ def _trace_of_inverse(L, work):
     return total
 
 
-#: ``well_posed`` is ``lambda_min(G) > WELL_POSED_RCOND lambda_max(G)`` (as ``segment_lstsq``).
+#: ``well_posed`` is ``lambda_min(G) > WELL_POSED_RCOND lambda_max(G)`` (as in the tests' numpy reference).
 WELL_POSED_RCOND = 1e-10
 
 
@@ -585,7 +585,7 @@ WELL_POSED_RCOND = 1e-10
 def _solve_normal_equations(
     row0, row1, G, rhs, yy, ridge, jacobi, contrast, G2, with_variance, check, beta, rss, posed, variance
 ):
-    """:func:`heatcurv.chordfit.solve_normal_equations` for the points ``row0 <= i < row1``, by Cholesky.
+    """:func:`solve_compiled` for the points ``row0 <= i < row1``, by Cholesky.
 
     ``posed`` gets 1 (well posed), 0 (ill posed) or -1 (undecided: the caller
     checks those few points by their eigenvalues). The condition number
@@ -650,13 +650,15 @@ def _solve_normal_equations(
 
 
 def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True, jacobi=False):
-    """Compiled :func:`heatcurv.chordfit.solve_normal_equations` (same returns).
+    """Every point's weighted normal equations ``G beta = rhs`` solved by Cholesky, compiled.
+
+    Same ridge and returns as the numpy ``solve_normal_equations`` of ``tests/reference/lstsq.py``.
 
     The ridge solve by Cholesky instead of LU agrees to rounding; ``well_posed``
     is exact (eigenvalues are computed for the points the bracket leaves
     undecided). ``check=False`` skips the well-posedness test (all True) for
     fits whose coefficients alone are used. ``jacobi``: the ridge relative to each
-    diagonal entry (:func:`heatcurv.chordfit.ridge_solve`).
+    diagonal entry (``ridge_solve`` of ``tests/reference/lstsq.py``).
     """
     G, rhs, yy = as_floats(G), as_floats(rhs), as_floats(yy)
     n, p = rhs.shape

@@ -11,8 +11,7 @@ from ..options import SEED_RANGE, Range, range_problem
 from ..render import PICTURE_RANGES
 
 __all__ = [
-    "numbers", "point3", "pair", "percentile_pair", "picture_size", "int_at_least", "positive_float", "finite_float",
-    "in_range", "CLI_RANGES",
+    "numbers", "point3", "pair", "percentile_pair", "picture_size", "finite_float", "in_range", "CLI_RANGES",
 ]
 
 
@@ -58,33 +57,6 @@ def picture_size(text: str) -> tuple:
     if not (100 <= width <= 10000 and 100 <= height <= 10000):
         raise argparse.ArgumentTypeError(f"width and height must be 100-10000 pixels, got {text!r}")
     return width, height
-
-
-def int_at_least(minimum: int):
-    """A type: an integer ``>= minimum``."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
-        return value
-
-    parse.__name__ = f"integer >= {minimum}"
-    return parse
-
-
-def positive_float(text: str) -> float:
-    """A finite number ``> 0``."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
 
 
 def finite_float(text: str) -> float:

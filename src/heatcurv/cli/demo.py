@@ -31,7 +31,7 @@ def run(args, log: Log) -> int:
 def _demo_surface(args, picture) -> int:
     """Both methods on a sample of an analytic surface: the error table, and a picture of the mean curvature."""
     from ..estimator import estimate
-    from ..testing import compare
+    from ..surfaces.accuracy import compare
 
     surface = surfaces.get(args.surface)
     sample = surface.sample(args.n, args.sampler, noise=args.noise, seed=args.seed)
@@ -48,7 +48,7 @@ def _demo_surface(args, picture) -> int:
         seconds = time.perf_counter() - tic
         for w in caught:
             print(f"note ({method}): {w.message}")
-        rows.append((method, compare(sample, res), seconds, res.info.get("scale", {}), res))
+        rows.append((method, compare(sample, res), seconds, res.info.get("scale"), res))
     _print_error_table(rows)
     if picture is not None:
         from ..render import render_field
@@ -85,7 +85,7 @@ def _print_error_table(rows) -> None:
     print("area: relative error of the total (open surfaces: biased by the border).")
     print("'paper' follows the paper literally (accurate on regular samples only); 'default' is")
     print("built for irregular, scanned and noisy clouds (density spacing and areas, chord fit at a")
-    print(f"noise-adapted kernel: here {rows[0][3]['fit']}, noise estimate {rows[0][3]['sigma']:.2g}).")
+    print(f"noise-adapted kernel: here {rows[0][3].fit}, noise estimate {rows[0][3].sigma:.2g}).")
 
 
 def _demo_bunny(picture, log: Log) -> int:
@@ -99,10 +99,10 @@ def _demo_bunny(picture, log: Log) -> int:
     print(f"  {BUNNY_ATTRIBUTION}")
     res = run_estimate(cloud.points, None, {"method": "default"}, Log(quiet=True))
     seconds = sum(res.info["timings"].values())
-    scale = res.info.get("scale", {})
+    scale = res.info["scale"]
     print(
-        f"\ncomputed in {seconds:.2f} s: kernel {scale.get('fit')} ({scale.get('k')} neighbours), "
-        f"noise estimate {scale.get('sigma', float('nan')):.2g} ({scale.get('relative_noise', float('nan')):.2g} of "
+        f"\ncomputed in {seconds:.2f} s: kernel {scale.fit} ({scale.k} neighbours), "
+        f"noise estimate {scale.sigma:.2g} ({scale.relative_noise:.2g} of "
         f"the spacing); {int(res.reliable.sum())} of {len(res)} points reliable"
     )
     print(f"\n{'field':10s} {'2 %':>9s} {'median':>9s} {'98 %':>9s}  unit")

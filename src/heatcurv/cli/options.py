@@ -7,9 +7,6 @@ with the field's help, choices and range check, and both presets' values in
 the help. :func:`estimator_kwargs` turns the parsed arguments into the
 keywords of :func:`heatcurv.estimate`, validated before any file is read. Each
 flag's default is None: the ``--method`` preset's value (:data:`heatcurv.options.METHODS`).
-
-The American spellings ``--neighbors`` and ``--min-neighbors`` are accepted
-as aliases of ``--neighbours`` and ``--min-neighbours``.
 """
 
 from __future__ import annotations
@@ -17,7 +14,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import fields
 
-from ..options import DEPRECATED_ALIASES, METHODS, Options, resolve_options
+from ..options import METHODS, Options, resolve_options
 from .argtypes import finite_float, point3
 
 #: The ``workers`` option's own check (its range in :data:`heatcurv.options.RANGES`).
@@ -64,15 +61,8 @@ def _parser_of(name: str, meta: dict):
 
 
 def option_flags() -> dict[str, list[str]]:
-    """The command-line flags of each option exposed there, by option name (aliases last)."""
-    aliases = {name: alias for alias, name in DEPRECATED_ALIASES.items()}
-    flags = {}
-    for f in fields(Options):
-        if f.metadata.get("cli"):
-            flags[f.name] = [f"--{f.name.replace('_', '-')}"]
-            if f.name in aliases:
-                flags[f.name].append(f"--{aliases[f.name].replace('_', '-')}")
-    return flags
+    """The command-line flag of each option exposed there, by option name (one flag each, in a list)."""
+    return {f.name: [f"--{f.name.replace('_', '-')}"] for f in fields(Options) if f.metadata.get("cli")}
 
 
 def add_estimator_options(parser, *, viewpoint: bool = True) -> None:

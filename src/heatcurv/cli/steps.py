@@ -236,7 +236,7 @@ def _report_details(res, log: Log) -> None:
             log.detail(f"  wide kernel: {widths}fitted at {scale.anchors} anchors and carried to every point; "
                        f"support radius {scale.support_radius:.4g} (with the cloud-wide choices fixed, "
                        "no point farther changes a point's values)")
-        if scale.get("low_noise"):
+        if scale.low_noise:
             log.detail("  very low noise (such as coordinate rounding): the kernel one doubling wider than chosen, "
                        "the anchors' quartic refit and the regression of their tensors")
     orientation = res.info.get("orientation")

@@ -127,7 +127,6 @@ from ._common import (
     _output,
     _read_error,
     _write_error,
-    renamed_keyword,
 )
 from .arrays import _read_npy, _read_npz, _write_npz
 from .atomic import atomic_write, check_writable
@@ -238,7 +237,7 @@ _READERS = {
 
 
 def write_points(
-    path, points, fields=None, *, normals=None, colours=None, source=None, dtype=None, colors=None
+    path, points, fields=None, *, normals=None, colours=None, source=None, dtype=None
 ) -> None:
     """Write points and per-point fields to a file, atomically, choosing the format by extension.
 
@@ -276,8 +275,6 @@ def write_points(
         extreme units) is then written as float64, and with an explicit
         ``"float32"`` it is an error. The coordinates and the ``source``'s properties keep
         their own types (see the notes of :mod:`heatcurv.io`).
-    colors : array_like, optional
-        Deprecated alias of ``colours`` (a DeprecationWarning; giving both is an error).
 
     Warns
     -----
@@ -325,7 +322,6 @@ def write_points(
         raise _write_error(
             path, f"unknown extension {ext or '(none)'!r}; supported: {' '.join(SUPPORTED_WRITE)}"
         )
-    colours = renamed_keyword("write_points", "colours", colours, "colors", colors)
     float_dtype = _float_dtype(path, dtype, ext)
     output = _output(path, points, fields, normals, colours, source, float_dtype, explicit=dtype is not None)
     check_writable(path)

@@ -9,14 +9,12 @@ the one-line error helpers, the colour conversion, the assembly of a
 from __future__ import annotations
 
 import re
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .._deprecation import renamed_keyword
 from ..errors import HeatcurvError
 
 # canonical name (lower case, alphanumerics only) -> role
@@ -51,7 +49,6 @@ class PointCloud:
         Normals from the file (not normalised), if it has all three components.
     colours : ndarray, shape (n, 3), uint8, or None
         RGB colours, scaled to 8 bits (see the notes of :mod:`heatcurv.io`).
-        ``colors`` (attribute and constructor keyword) is a deprecated alias.
     fields : dict of str to ndarray, shape (n,)
         Every other per-point property by its name in the file, with its
         stored dtype (text files: float64). :func:`~heatcurv.io.write_points` writes them
@@ -83,38 +80,6 @@ class PointCloud:
     path: Path | None = None
     format: str | None = None
     meta: dict = field(default_factory=dict)
-
-    # written out (the dataclass keeps it) for the deprecated alias ``colors=``
-    def __init__(
-        self,
-        points: np.ndarray,
-        normals: np.ndarray | None = None,
-        colours: np.ndarray | None = None,
-        fields: dict | None = None,
-        path: Path | None = None,
-        format: str | None = None,
-        meta: dict | None = None,
-        *,
-        colors: np.ndarray | None = None,
-    ) -> None:
-        self.points = points
-        self.normals = normals
-        self.colours = renamed_keyword("PointCloud", "colours", colours, "colors", colors)
-        self.fields = {} if fields is None else fields
-        self.path = path
-        self.format = format
-        self.meta = {} if meta is None else meta
-
-    @property
-    def colors(self) -> np.ndarray | None:
-        """Deprecated alias of :attr:`colours`."""
-        warnings.warn("PointCloud.colors is deprecated, use .colours", DeprecationWarning, stacklevel=2)
-        return self.colours
-
-    @colors.setter
-    def colors(self, value) -> None:
-        warnings.warn("PointCloud.colors is deprecated, use .colours", DeprecationWarning, stacklevel=2)
-        self.colours = value
 
     def __len__(self) -> int:
         return int(self.points.shape[0])

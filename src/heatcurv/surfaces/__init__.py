@@ -101,9 +101,13 @@ Modules
 ``scenes``             simulated scenes of several surfaces with known
                        answers: :func:`lidar_tile` (terrain, buildings,
                        trees), :func:`cad_part` (sharp edges), :class:`Scene`
+``accuracy``           error measures of an estimate against a sample's
+                       exact values (eqs 4.1, 5.1, relative L1):
+                       :func:`~heatcurv.surfaces.accuracy.compare`
 =====================  ======================================================
 
-Everything public is importable from :mod:`heatcurv.surfaces` itself.
+Everything public is importable from :mod:`heatcurv.surfaces` itself, except
+the error measures, imported from :mod:`heatcurv.surfaces.accuracy`.
 """
 
 from __future__ import annotations

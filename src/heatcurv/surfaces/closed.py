@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
-from heatcurv._deprecation import renamed_keyword
 from heatcurv.errors import HeatcurvError
 
 from ._util import (
@@ -130,33 +128,23 @@ class Sphere(_LatitudeLongitude):
         ``R > 0``.
     centre : array_like, shape (3,), optional
         The centre; default the origin.
-    center : array_like, shape (3,), optional
-        Deprecated alias of ``centre`` (a DeprecationWarning; giving both is an error).
 
     Attributes
     ----------
     radius : float
     centre : ndarray, shape (3,)
-        ``center`` is a deprecated alias.
     """
 
     name = "sphere"
 
-    def __init__(self, radius: float = 1.0, centre=None, *, center=None):
+    def __init__(self, radius: float = 1.0, centre=None):
         self.radius = _positive("radius", radius)
-        centre = renamed_keyword("Sphere", "centre", centre, "center", center)
         if centre is None:
             centre = (0.0, 0.0, 0.0)
         c = np.asarray(centre, dtype=np.float64)
         if c.shape != (3,) or not np.all(np.isfinite(c)):
             raise HeatcurvError(f"centre must be 3 finite numbers, got {centre!r}")
         self.centre = c
-
-    @property
-    def center(self) -> np.ndarray:
-        """Deprecated alias of :attr:`centre`."""
-        warnings.warn("Sphere.center is deprecated, use .centre", DeprecationWarning, stacklevel=2)
-        return self.centre
 
     def _params(self):
         return {"radius": self.radius, "centre": tuple(self.centre.tolist())}

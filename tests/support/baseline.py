@@ -1,7 +1,5 @@
 """The classical k-nearest-neighbour quadric fit, as a baseline for heatcurv.
 
-(Formerly ``heatcurv.baseline``.)
-
 This is the estimator most users know from PCL / CGAL-style pipelines
 (osculating jets of degree 2, "quadric fitting"):
 
@@ -43,10 +41,10 @@ from numbers import Integral
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import HeatcurvError
-from ..neighbourhood import Neighbourhood
-from ..normals import orient_normals, tangent_frames
-from ..validation import prepare_normals, prepare_points
+from heatcurv.errors import HeatcurvError
+from heatcurv.neighbourhood import Neighbourhood
+from heatcurv.normals import orient_normals, tangent_frames
+from heatcurv.validation import prepare_normals, prepare_points
 
 __all__ = ["QuadricOptions", "QuadricResult", "quadric_curvature"]
 
@@ -87,7 +85,7 @@ class QuadricResult:
     With ``centres=`` one row per centre instead, in the order given.
 
     The fields mirror :class:`heatcurv.CurvatureResult` so that the same
-    evaluation code (:func:`heatcurv.testing.compare`) applies.
+    evaluation code (:func:`heatcurv.surfaces.accuracy.compare`) applies.
 
     Attributes
     ----------
@@ -117,8 +115,8 @@ class QuadricResult:
     support_radius : float
         The largest neighbourhood radius, ``max(spacing)``: how far from a
         point the data its values depend on can lie.  The border margin
-        :func:`heatcurv.testing.compare` uses by default
-        (:func:`heatcurv.testing.default_margin`).
+        :func:`heatcurv.surfaces.accuracy.compare` uses by default
+        (:func:`heatcurv.surfaces.accuracy.default_margin`).
     neighbours : ndarray of int, shape (n,)
         Neighbours per fit excluding the point itself (``k - 1``).
     options : QuadricOptions
@@ -349,7 +347,7 @@ def quadric_curvature(
     --------
     >>> import numpy as np
     >>> from heatcurv import surfaces
-    >>> from heatcurv.testing import quadric_curvature
+    >>> from support.baseline import quadric_curvature
     >>> sphere = surfaces.Sphere(radius=2.0).sample(4000, "fibonacci")
     >>> res = quadric_curvature(sphere.points)
     >>> round(float(np.median(res.mean)), 3)  # 1/R = 0.5; the quadric misses the quartic term

@@ -1,7 +1,7 @@
-"""Error measures against exact values, as the paper and DESIGN.md define them.
+"""Error measures of an estimate against a sample's exact values, as the paper and docs/testing.md define them.
 
 Used by the demo, the benchmarks and the tests, so every number we quote is
-computed the same way (formerly ``heatcurv.evaluation``):
+computed the same way:
 
 * eq 5.1 of the paper: ``mean_i ||k_i| - |k*_i||`` (absolute, unsigned);
 * the signed relative L1 error ``mean|k - k*| / mean|k*|``;
@@ -91,7 +91,7 @@ def default_margin(result) -> float:
     "interior" points are those no neighbourhood of which reaches the border:
 
     * a result that states its own neighbourhood radius as ``support_radius``
-      uses it: :attr:`heatcurv.testing.QuadricResult.support_radius`, the
+      uses it: the ``support_radius`` of the tests' quadric baseline (``tests/support/baseline.py``), the
       largest k-NN radius;
     * otherwise the result is taken for a :class:`heatcurv.CurvatureResult`
       (anything with ``options.alpha`` and ``spacing``): the largest ball
@@ -99,7 +99,7 @@ def default_margin(result) -> float:
 
     Parameters
     ----------
-    result : heatcurv.CurvatureResult or heatcurv.testing.QuadricResult
+    result : heatcurv.CurvatureResult or the tests' QuadricResult
 
     Returns
     -------
@@ -140,7 +140,7 @@ def compare(sample, result, margin: float | None = None) -> dict:
     Parameters
     ----------
     sample : heatcurv.surfaces.SurfaceSample
-    result : heatcurv.CurvatureResult or heatcurv.testing.QuadricResult
+    result : heatcurv.CurvatureResult or the tests' QuadricResult
         Computed on ``sample.points``, same order.
     margin : float, optional
         Interior points are farther than this from the border of open

@@ -1,4 +1,4 @@
-"""Error measures (heatcurv.testing.errors): zero on exact values, orientation-aware."""
+"""Error measures (heatcurv.surfaces.accuracy): zero on exact values, orientation-aware."""
 
 from types import SimpleNamespace
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from heatcurv import surfaces
-from heatcurv.testing import (
+from heatcurv.surfaces.accuracy import (
     aligned_exact,
     compare,
     default_margin,

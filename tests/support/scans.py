@@ -11,7 +11,7 @@ and deletes the wheel.
 
 CGAL's closed models of animals and figures with thin parts, the test data
 of normal orientation on closed objects, are fetched from Debian's package
-``libcgal-demo`` by :func:`fetch_cgal_meshes` (:mod:`heatcurv.testing.cgal`,
+``libcgal-demo`` by :func:`fetch_cgal_meshes` (:mod:`support.cgal`,
 whose names this module re-exports); heatcurv does not redistribute them.
 
 :func:`read_mesh` reads the OBJ, PLY and OFF triangle meshes into a

@@ -9,7 +9,7 @@ resident memory. The child sets ``RLIMIT_AS`` (its size after the imports plus
 ``"hang"`` (the child is killed), a child that dies is a ``"crash"`` (the
 signal and its last words on stderr: a Rust panic, ``Fatal Python error``),
 and the next call starts a fresh child. The fuzz campaign
-(:mod:`heatcurv.testing.fuzz`) and the property tests of ``tests/fuzz`` use it.
+(:mod:`support.fuzz`) and the property tests of ``tests/fuzz`` use it.
 """
 
 from __future__ import annotations
@@ -216,11 +216,12 @@ class Worker:
         """Start (or restart) the child and wait until it is ready."""
         self.close()
         self.starts += 1
-        package_root = str(Path(__file__).resolve().parents[2])
+        # the directory this module's top-level package lives in (tests/ for support.child), so the child finds it
+        package_root = str(Path(__file__).resolve().parents[len(__name__.split(".")) - 1])
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]))
         self._stderr = tempfile.TemporaryFile()
         self._proc = subprocess.Popen(
-            [sys.executable, "-c", "from heatcurv.testing.child import _worker_main; _worker_main()"],
+            [sys.executable, "-c", f"from {__name__} import _worker_main; _worker_main()"],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr, env=env)
         _send(self._proc.stdin, {"sys_path": list(sys.path), "preload": self.preload, "warmup": self.warmup,
                                  "memory_limit": int(self.memory_limit)})

@@ -8,9 +8,9 @@ comes out inside out.  Debian ships that directory in the package
 (apt-get, or Debian's pool over HTTP; SHA-256 checked), keeps twelve of its
 OFF models (:data:`CGAL_MESHES`) in a cache directory and deletes the
 package.  heatcurv fetches these files for the tests and does not
-redistribute them.  :func:`heatcurv.testing.scans.read_mesh` reads them.
+redistribute them.  :func:`support.scans.read_mesh` reads them.
 
-This module uses the standard library only; :mod:`heatcurv.testing.scans`
+This module uses the standard library only; :mod:`support.scans`
 re-exports its public names.
 """
 
@@ -54,7 +54,7 @@ def cgal_cache_dir() -> Path:
 
     ``$HEATCURV_TEST_DATA/cgal-5.5.1`` if ``HEATCURV_TEST_DATA`` is set, else
     ``cgal-5.5.1`` next to the pymeshlab samples of
-    :func:`heatcurv.testing.scans.default_cache_dir`:
+    :func:`support.scans.default_cache_dir`:
     ``$XDG_CACHE_HOME/heatcurv/test-data/cgal-5.5.1`` (``~/.cache`` when
     ``XDG_CACHE_HOME`` is unset).
 

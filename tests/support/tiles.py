@@ -79,7 +79,7 @@ def tiled_agreement(path, res, rtol: float = 1e-6) -> dict:
     The written values are float32 unless the run wrote float64: compare with
     ``rtol`` above float32's 6e-8 in that case.
     """
-    from ..io import read_points
+    from heatcurv.io import read_points
 
     cloud = read_points(path)
     fields = dict(cloud.fields)

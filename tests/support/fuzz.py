@@ -60,9 +60,9 @@ colours, faces and each field, bit for bit: :func:`attribute_digests`,
 :func:`attribute_differences`). A disagreement is recorded in
 :attr:`CaseResult.contradiction`.
 
-Reproduce one case with ``python -m heatcurv.testing.fuzz VARIANT MUTATOR
-SEED`` (it writes the mutated file and reads it in-process, with the full
-traceback); each :class:`CaseResult` prints its own command.
+Reproduce one case from the repository's root with ``PYTHONPATH=tests python -m
+support.fuzz VARIANT MUTATOR SEED`` (it writes the mutated file and reads it
+in-process, with the full traceback); each :class:`CaseResult` prints its own command.
 """
 
 from __future__ import annotations
@@ -87,8 +87,11 @@ __all__ = [
     "MUTATORS", "Mutator", "N_SEED", "OUTCOMES", "Reply", "TIMEOUT", "VARIANTS", "Variant", "Worker",
     "EXACT_OR_REFUSED", "announced_points", "attribute_differences", "attribute_digests", "classify",
     "estimate_summary", "message_problem", "mutate", "mutators_for", "read_summary",
-    "run_campaign", "seed_files", "warm_estimate",
+    "run_campaign", "seed_files", "warm_estimate", "REPLAY",
 ]
+
+#: The command that replays one case (``VARIANT MUTATOR SEED`` follow), run from the repository's root.
+REPLAY = "PYTHONPATH=tests python -m support.fuzz"
 
 #: A case whose peak resident memory grows by more than ``MEMORY_FACTOR * size + MEMORY_BASE`` is "memory".
 MEMORY_FACTOR = 20
@@ -136,7 +139,7 @@ VARIANTS = {
 
 def _seed_cloud():
     """120 points of a torus 10 units wide, far from the origin, with normals, colours and two fields."""
-    from ..surfaces import Torus
+    from heatcurv.surfaces import Torus
 
     sample = Torus().sample(N_SEED, "fibonacci")
     rng = np.random.default_rng(11)
@@ -207,7 +210,7 @@ def seed_files(directory) -> dict:
         (count line, ``x y z intensity r g b``), an OBJ (``v`` with colours,
         ``vn``, ``f``) and a COFF with faces written by hand; an NPY (120, 6).
     """
-    from ..io import write_points
+    from heatcurv.io import write_points
 
     directory = Path(directory)
     points, normals, colours, fields = _seed_cloud()
@@ -312,7 +315,7 @@ def read_summary(path) -> dict:
         types (an empty list when it keeps them), and ``attributes``
         (:func:`attribute_digests`).
     """
-    from ..io import read_points
+    from heatcurv.io import read_points
 
     cloud = read_points(path)
     points = cloud.points
@@ -511,7 +514,7 @@ class CaseResult:
     @property
     def reproduce(self) -> str:
         """The command that writes this case's file and reads it in-process, with the traceback."""
-        return f"python -m heatcurv.testing.fuzz {self.variant} {self.mutator} {self.case_seed}"
+        return f"{REPLAY} {self.variant} {self.mutator} {self.case_seed}"
 
     def __str__(self) -> str:
         text = f"{self.variant} / {self.mutator}: {self.outcome}: {self.detail}"
@@ -623,9 +626,9 @@ def _reproduce(argv=None) -> int:
     import argparse
     import traceback
 
-    from ..io import read_points
+    from heatcurv.io import read_points
 
-    parser = argparse.ArgumentParser(prog="python -m heatcurv.testing.fuzz",
+    parser = argparse.ArgumentParser(prog=REPLAY,
                                      description="Write one fuzz case's file and read it in this process.")
     parser.add_argument("variant", choices=sorted(VARIANTS))
     parser.add_argument("mutator", choices=sorted(MUTATORS))

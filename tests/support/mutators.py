@@ -1,4 +1,4 @@
-"""Mutators of the fuzz campaign (:mod:`heatcurv.testing.fuzz`): pure functions that break a file's bytes.
+"""Mutators of the fuzz campaign (:mod:`support.fuzz`): pure functions that break a file's bytes.
 
 Each :class:`Mutator` is a named pure function ``(bytes, numpy.random.Generator)
 -> bytes`` with the format families it applies to; :data:`MUTATORS` holds them
@@ -69,7 +69,7 @@ class Mutator:
     name : str
     function : callable
     families : tuple of str or None
-        Format families (:attr:`heatcurv.testing.fuzz.Variant.family`) it applies to; None: all.
+        Format families (:attr:`support.fuzz.Variant.family`) it applies to; None: all.
     textual : bool or None
         True: text variants only; False: binary only; None: both.
     """
