@@ -88,7 +88,8 @@ def run(name: str, points: np.ndarray, tile_size: int, options: dict, workdir: P
         rows.append((name, len(points), report.tiles, f"{report.halo:.4g}", field, f"{100 * a['share']:.4f}",
                      a["bad"], f"{a['worst']:.2g}", f"{t_memory:.1f}", f"{t_tiled:.1f}"))
     print(f"{name}: kernel {report.context.get('kernel')}, widths {report.context.get('widths')}, "
-          f"orientation {report.orientation}, halo widened {report.widened} times", flush=True)
+          f"orientation {report.orientation}, halo widened {report.widened} times; phases (s) "
+          + ", ".join(f"{k} {v:.1f}" for k, v in report.timings.items()), flush=True)
     return rows
 
 
