@@ -60,6 +60,7 @@ import sys
 import time
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -83,18 +84,22 @@ from .output import (
 from .plan import (
     BYTES_PER_POINT,
     DRIVER_MEMORY,
-    WORKER_OVERHEAD,
     CloudStats,
+    PhaseWorkers,
     Tiling,
+    budget_refusal,
     check_disk,
+    check_smallest_budget,
     default_budget,
     default_tile_size,
     distinct_frame,
-    fitting_workers,
+    fit_tiles,
     halo_points,
     make_tiling,
     options_hash,
     parse_size,
+    phase_workers,
+    plan_workers,
     read_rows,
     scan_stats,
     scatter,
@@ -219,10 +224,51 @@ def _identity(src: Path) -> dict:
     return {"path": str(src.resolve()), "size": stat.st_size, "mtime_ns": stat.st_mtime_ns}
 
 
-def _fitting_workers(tiling, stats, halo, budget: int, requested: int, cpus: int, tile_size: int,
-                     phase: str = "tiles") -> int:
-    """Tiles the budget lets run at once with this halo (one, or one per tile); an error if not even one fits."""
-    return fitting_workers(halo_points(tiling, stats, halo), budget, requested, cpus, tile_size, phase)
+def _phase_workers(tiling, stats, halo, budget: int, requested: int, cpus: int, tile_size: int, phase: str,
+                   in_process: bool) -> PhaseWorkers:
+    """How a phase runs its tiles with this halo (one, or one per tile) within the budget; an error if no tile fits.
+
+    The error names the budget the largest tile needs and a smaller ``--tile-size`` (this tiling is the plan's:
+    a resumed run keeps it).
+    """
+    points = halo_points(tiling, stats, halo)
+    fit = phase_workers(points, budget, requested, cpus, in_process)
+    if fit is None:
+        raise budget_refusal(int(points.max()), budget, tile_size, phase, True, in_process)
+    return fit
+
+
+def _phase_options(options: dict, fit: PhaseWorkers, threads) -> dict:
+    """A phase's task options: a tile computed in the driver's process gets the run's threads (as a serial run)."""
+    return dict(options, workers=threads) if fit.in_process else options
+
+
+def _tile_cloud(source, stats: CloudStats, work: Path, options: dict, timings: dict, bar, tile_size: int):
+    """Tile the cloud (a histogram pass, a scatter pass into ``work``) and measure each tile's survey halo.
+
+    Returns
+    -------
+    largest : int
+        Core + survey-halo points of the largest tile (:func:`.plan.halo_points`).
+    tiled : tuple
+        ``(tiling, stats, survey_halos, key_halos)``, ``stats`` with the distinct points' frame.
+    """
+    bar.stage("tiling")
+    tic = time.perf_counter()
+    tiling = make_tiling(source, stats, int(tile_size))
+    timings["tiling"] += time.perf_counter() - tic
+    bar.stage("scattering")
+    tic = time.perf_counter()
+    scatter(source, tiling, work)
+    stats = distinct_frame(work, tiling, stats)  # the keys' frame counts duplicates once, as in memory
+    timings["scatter"] += time.perf_counter() - tic
+    # the survey reads each tile with a halo as wide as the widest candidate's ball: decided here, so that
+    # the survey's workers are budgeted with it, and the tiles made smaller if not one fits
+    tic = time.perf_counter()
+    survey_halos, key_halos = _survey_halos(work, tiling, stats, options)
+    timings["survey"] += time.perf_counter() - tic  # the survey's first step, done here
+    largest = int(halo_points(tiling, stats, survey_halos).max())
+    return largest, (tiling, stats, survey_halos, key_halos)
 
 
 def _survey_halos(work: Path, tiling: Tiling, stats: CloudStats, options: dict) -> tuple[list, list]:
@@ -273,9 +319,13 @@ def compute_file(
         ``orient`` defaults to ``"up"`` for LAS/LAZ, as on the command line.
     max_memory : int or str, optional
         Budget of the whole run, all workers together (``"3G"``, ``"500M"``,
-        bytes); default 60 % of the memory available.
+        bytes); default 60 % of the memory available, at least a small cloud's
+        need (:func:`.plan.default_budget`). The plan fits it with fewer workers,
+        then one tile at a time in this process, then smaller tiles
+        (:mod:`.plan`, "Fitting the budget").
     tile_size : int, optional
-        Core points per tile (default: what the budget holds, at most 2M).
+        Core points per tile (default: what the budget holds, at most 2M;
+        made smaller if the survey's tiles do not fit; a given size is kept).
     tile_workers : int, optional
         Tiles computed at once (-1 or None: every core, as many as the budget holds).
     scheduler : str or dask.distributed.Client, optional
@@ -332,14 +382,9 @@ def compute_file(
         raise HeatcurvError(f"dtype must be float32 or float64, got {dtype!r}")
     if isinstance(scheduler, str) and scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
         raise HeatcurvError(f"unknown scheduler {scheduler!r}; choose {', '.join(SCHEDULERS)} or tcp://host:port")
-    budget = parse_size(max_memory) if max_memory is not None else default_budget()
-    if budget - DRIVER_MEMORY < WORKER_OVERHEAD:  # not even an empty worker fits: say so before reading anything
-        raise HeatcurvError(
-            f"a memory budget of {size_text(budget)} is too small for a tiled run: the driver keeps "
-            f"{size_text(DRIVER_MEMORY)} and a worker needs {size_text(WORKER_OVERHEAD)} before its tile; "
-            "raise --max-memory"
-        )
     source = open_source(src)
+    budget = parse_size(max_memory) if max_memory is not None else default_budget(source.count)
+    check_smallest_budget(budget)  # not even the smallest tile fits: say so before reading anything
     threads = options.pop("workers", -1)
     est = estimator_options(method, viewpoint, options, source.kind)
     identity = {"version": PLAN_VERSION, "heatcurv": _version(), "source": _identity(src), "options": options_hash(est),
@@ -350,6 +395,8 @@ def compute_file(
     requested = cpus if tile_workers in (None, -1) else int(tile_workers)
     if requested < 1:
         raise HeatcurvError(f"tile_workers must be -1 or at least 1, got {tile_workers}")
+    # a tile may run in this process when no worker fits (local schedulers; a Dask cluster's workers are its own)
+    in_process = isinstance(scheduler, str) and scheduler in ("processes", "threads", "serial")
 
     root = Path(scratch) if scratch is not None else dst.parent
     if not root.is_dir():
@@ -378,8 +425,13 @@ def compute_file(
             tic = time.perf_counter()
             stats = scan_stats(source, skip_nonfinite)
             timings["stats"] = time.perf_counter() - tic
+            given = tile_size is not None
             if tile_size is None:
-                tile_size = default_tile_size(max(budget - DRIVER_MEMORY, 0), requested)
+                room = max(budget - DRIVER_MEMORY, 0)
+                tile_size = default_tile_size(room, requested)
+                if in_process and plan_workers(room, requested, 2 * tile_size, cpus) < 1:
+                    # no worker process holds a tile and its halo: one tile at a time in this process
+                    tile_size = default_tile_size(room, 1, in_process=True)
             # points.f8 + rows.i8 with the halos' copies (~1.25x), results.rec, the slimmed tile files (their
             # halo rows, normals and patches) and the few full ones in flight
             need = stats.finite * (48 + RECORD.itemsize + 48)
@@ -387,20 +439,9 @@ def compute_file(
             if os.stat(work).st_dev == os.stat(dst.parent).st_dev:
                 need += stats.count * 100
             check_disk(dst.parent, need if dst.parent == root else stats.count * 100, f"the output {dst.name}")
-            bar.stage("tiling")
-            tic = time.perf_counter()
-            tiling = make_tiling(source, stats, int(tile_size))
-            timings["tiling"] = time.perf_counter() - tic
-            bar.stage("scattering")
-            tic = time.perf_counter()
-            scatter(source, tiling, work)
-            stats = distinct_frame(work, tiling, stats)  # the keys' frame counts duplicates once, as in memory
-            timings["scatter"] = time.perf_counter() - tic
-            # the survey reads each tile with a halo as wide as the widest candidate's ball: decided here,
-            # so that the survey's workers are budgeted with it (plan.fitting_workers)
-            tic = time.perf_counter()
-            survey_halos, key_halos = _survey_halos(work, tiling, stats, est)
-            timings["survey"] = time.perf_counter() - tic  # the survey's first step, done here
+            measure = partial(_tile_cloud, source, stats, work, est, timings, bar)
+            tile_size, (tiling, stats, survey_halos, key_halos), _ = fit_tiles(
+                measure, tile_size, budget, requested, cpus, in_process=in_process, given=given, say=say)
             plan = {"identity": identity, "tiling": tiling.to_json(), "stats": stats.__dict__,
                     "tile_size": int(tile_size), "survey_halos": survey_halos, "key_halos": key_halos}
             _write_json(work / "plan.json", plan)
@@ -414,10 +455,11 @@ def compute_file(
         sched = "serial" if n_tiles == 1 and isinstance(scheduler, str) else scheduler
         workers = max(1, min(requested, n_tiles))
 
-        def executor(w):
-            return open_executor(sched, w, max(budget - DRIVER_MEMORY, 1))
+        def executor(fit):
+            def opened(w):
+                return open_executor("serial" if fit.in_process else sched, w, max(budget - DRIVER_MEMORY, 1))
+            return opened
 
-        _fitting_workers(tiling, stats, 0.0, budget, requested, cpus, tile_size)  # the cores alone, before the survey
         context_file = work / "context.pkl"
         if context_file.exists():
             with open(context_file, "rb") as stream:
@@ -426,33 +468,37 @@ def compute_file(
             bar.stage("survey")
             tic = time.perf_counter()
             survey_halos = plan["survey_halos"]
-            survey_workers = max(1, min(n_tiles, _fitting_workers(tiling, stats, survey_halos, budget, requested,
-                                                                  cpus, tile_size, "survey")))
+            survey_fit = _phase_workers(tiling, stats, survey_halos, budget, requested, cpus, tile_size, "survey",
+                                        in_process)
+            survey_workers = max(1, min(n_tiles, survey_fit.count))
+            survey_options = _phase_options(task_options, survey_fit, threads)
+            survey_executor = executor(survey_fit)
             if n_tiles <= ONE_ROUND_TILES:
                 # one round (heatcurv.survey.survey_part): the cloud's centres fill so few tiles that round 2
                 # would compute as much as one round does, after round 1
-                specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
+                specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": survey_options,
                              "halo": survey_halos[t]} for t in range(n_tiles)}
                 surveys = {}
-                _run(executor, survey_workers, run_survey, specs, surveys.__setitem__, say, "survey of tile", n_tiles)
+                _run(survey_executor, survey_workers, run_survey, specs, surveys.__setitem__, say, "survey of tile",
+                     n_tiles)
                 context = compute.merge_surveys([surveys[t] for t in range(n_tiles)], stats, est)
             else:
                 # two rounds (heatcurv.survey): every tile's keys over a thin halo, then the candidates' fits at
                 # the cloud's sample centres only, over the points within their reach (the same fits, bit for
                 # bit); the survey's halo bounds both
-                specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
+                specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": survey_options,
                              "halo": plan["key_halos"][t]} for t in range(n_tiles)}
                 keys = {}
-                _run(executor, survey_workers, run_keys, specs, keys.__setitem__, say, "keys of tile", n_tiles)
+                _run(survey_executor, survey_workers, run_keys, specs, keys.__setitem__, say, "keys of tile", n_tiles)
                 centres = compute.plan_centres([keys[t] for t in range(n_tiles)], stats, est)
 
                 def fit_round(levels):
-                    specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
+                    specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": survey_options,
                                  "plan": centres, "places": centres.of_tile(t), "levels": levels}
                              for t in range(n_tiles)}
                     specs = {t: spec for t, spec in specs.items() if spec["places"].size}
                     parts = {}
-                    _run(executor, survey_workers, run_centres, specs, parts.__setitem__, say, "survey of tile",
+                    _run(survey_executor, survey_workers, run_centres, specs, parts.__setitem__, say, "survey of tile",
                          n_tiles)
                     return compute.merge_rounds([p for t in sorted(parts) for p in parts[t]], centres, stats, est)
 
@@ -466,7 +512,8 @@ def compute_file(
             os.replace(f"{context_file}.tmp", context_file)
             timings["survey"] += time.perf_counter() - tic
         halo = float(context["halo"]) if isinstance(context, dict) and "halo" in context else float("nan")
-        workers = max(1, min(_fitting_workers(tiling, stats, halo, budget, requested, cpus, tile_size), n_tiles))
+        tiles_fit = _phase_workers(tiling, stats, halo, budget, requested, cpus, tile_size, "tiles", in_process)
+        workers = max(1, min(tiles_fit.count, n_tiles))
 
         done = {t for t in range(n_tiles) if os.path.exists(tile_path(work, t))}
         stored = {t for t in done if is_stored(tile_path(work, t))}
@@ -495,9 +542,10 @@ def compute_file(
                 unslimmed.clear()
 
         tic = time.perf_counter()
-        specs = {t: {"scratch": str(work), "tile": t, "context": context, "options": task_options}
+        specs = {t: {"scratch": str(work), "tile": t, "context": context,
+                     "options": _phase_options(task_options, tiles_fit, threads)}
                  for t in range(n_tiles) if t not in done}
-        name = _run(executor, workers, run_tile, specs, finished, say, "tile", n_tiles)
+        name = _run(executor(tiles_fit), workers, run_tile, specs, finished, say, "tile", n_tiles)
         slim_tiles(results_path, list(unslimmed))  # before the output takes its disk space
         unslimmed.clear()
         timings["tiles"] = time.perf_counter() - tic
