@@ -26,7 +26,8 @@ Scratch and resume
 ------------------
 Scratch files live in ``<scratch>/.<output name>.heatcurv-tiles/``
 (``scratch`` defaults to the output's directory): ``plan.json`` (source
-identity, options hash, tiling, statistics), ``context.pkl``, ``points.f8``,
+identity, options hash, tiling, statistics), ``context.json`` (the survey's
+:class:`.context.SurveyContext`), ``points.f8``,
 ``rows.i8``, ``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
 tile: its done marker; once its rows are copied into ``results.rec`` it keeps
 only the seam vote's and the winding step's inputs, :data:`.output.STORED_KEYS`
@@ -53,7 +54,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import os
-import pickle
 import resource
 import shutil
 import sys
@@ -68,6 +68,7 @@ import numpy as np
 from ..errors import HeatcurvError
 from ..survey import FitsNotSurveyed
 from . import compute
+from .context import read_context, write_context
 from .executors import SCHEDULERS, SerialExecutor, kill_workers, open_executor
 from .medians import apply_cloud_flags
 from .output import (
@@ -125,7 +126,7 @@ ONE_ROUND_TILES = 63
 #: files (about 350 MB of rows): the scratch stays near one copy of the results, the loop rarely waits.
 SLIM_POINTS = 2_000_000
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 6
+PLAN_VERSION = 7
 
 
 @dataclass
@@ -162,7 +163,7 @@ class TiledReport:
     timings : dict
         Seconds per phase: ``stats tiling scatter survey tiles orientation write``.
     context : dict
-        The global choices every tile got (:func:`.compute.merge_surveys`).
+        The global choices every tile got, in plain numbers (:func:`.compute.describe`).
     orientation : dict or None
         The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`),
         with the winding step's: ``closed``, ``agreement`` and, for a closed cloud,
@@ -460,10 +461,9 @@ def compute_file(
                 return open_executor("serial" if fit.in_process else sched, w, max(budget - DRIVER_MEMORY, 1))
             return opened
 
-        context_file = work / "context.pkl"
+        context_file = work / "context.json"
         if context_file.exists():
-            with open(context_file, "rb") as stream:
-                context = pickle.load(stream)
+            context = read_context(context_file)
         else:
             bar.stage("survey")
             tic = time.perf_counter()
@@ -507,11 +507,9 @@ def compute_file(
                     context = fit_round(compute.gate_levels(est))
                 except FitsNotSurveyed:
                     context = fit_round(None)
-            with open(f"{context_file}.tmp", "wb") as stream:
-                pickle.dump(context, stream)
-            os.replace(f"{context_file}.tmp", context_file)
+            write_context(context_file, context)
             timings["survey"] += time.perf_counter() - tic
-        halo = float(context["halo"]) if isinstance(context, dict) and "halo" in context else float("nan")
+        halo = float(context.halo)
         tiles_fit = _phase_workers(tiling, stats, halo, budget, requested, cpus, tile_size, "tiles", in_process)
         workers = max(1, min(tiles_fit.count, n_tiles))
 
@@ -555,7 +553,7 @@ def compute_file(
         timings["reliability"] = time.perf_counter() - tic
 
         flips, orientation = None, None
-        if compute.orients_outward(est, context["choices"]):
+        if compute.orients_outward(est, context.choices):
             from .orient import seam_flips
             from .winding import flag_unsupported, winding_sides
 
@@ -571,7 +569,7 @@ def compute_file(
                 orientation["agreement"] = sides.agreement
             if sides is not None and sides.closed:
                 flips.append(("winding", sides.keys, sides.flip))
-                orientation.update(flag_unsupported(results_path, source, context["choices"].frame, sides))
+                orientation.update(flag_unsupported(results_path, source, context.choices.frame, sides))
             timings["orientation"] = time.perf_counter() - tic
         parameters = {
             "heatcurv": _version(), "tiled": True, "options": est, "tile_size": tile_size, "tiles": n_tiles,
