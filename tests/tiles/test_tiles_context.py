@@ -85,3 +85,19 @@ def test_a_context_holds_only_its_own_types(tmp_path):
     bad.write_text("[1, 2]")
     with pytest.raises(HeatcurvError, match="it holds a list"):
         read_context(bad)
+
+
+def test_the_plan_is_a_frozen_dataclass_written_as_json():
+    from heatcurv.tiles.plan import CloudStats, TilePlan, Tiling
+
+    tiling = Tiling((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (40, 10, 1), [(0, 0, 0, 20, 10, 1), (20, 0, 0, 40, 10, 1)],
+                    [2000, 2000])
+    stats = CloudStats(4000, 4000, (0.0, 0.0, 0.0), (40.0, 10.0, 1.0), (20.0, 5.0, 0.5), 0.1 + 0.2, 3999)
+    plan = TilePlan({"version": 7, "options": "abc"}, tiling, stats, 2000, (2.5, 1 / 3), (0.25, 0.5))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        plan.tile_size = 1000
+    data = json.loads(json.dumps(plan.to_json()))
+    # the layout the tasks read (heatcurv.tiles.tasks.load_plan)
+    assert data["stats"]["low"] == [0.0, 0.0, 0.0] and data["tiling"]["counts"] == [2000, 2000]
+    assert data["survey_halos"] == [2.5, 1 / 3]
+    assert TilePlan.from_json(data) == plan

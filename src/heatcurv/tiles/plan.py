@@ -75,7 +75,7 @@ __all__ = [
     "available_memory", "default_budget", "parse_size", "size_text", "scan_stats", "make_tiling", "scatter",
     "options_hash", "check_disk", "read_rows", "in_memory_bytes", "DRIVER_MEMORY", "halo_points",
     "fitting_workers", "worker_memory", "MIN_TILE_SIZE", "PhaseWorkers", "phase_workers", "in_process_memory",
-    "smallest_budget", "check_smallest_budget", "budget_refusal", "fit_tiles",
+    "smallest_budget", "check_smallest_budget", "budget_refusal", "fit_tiles", "TilePlan",
 ]
 
 #: Estimator memory per point of a tile (core + halo), bytes: measured 1.18 kB per point at 1M points of
@@ -291,6 +291,47 @@ class Tiling:
     def from_json(cls, data: dict) -> Tiling:
         return cls(tuple(data["origin"]), tuple(data["cell"]), tuple(data["shape"]),
                    [tuple(c) for c in data["cells"]], list(data["counts"]))
+
+
+@dataclass(frozen=True)
+class TilePlan:
+    """The plan of a tiled run, as ``plan.json`` holds it: what a resumed run needs before the survey.
+
+    Attributes
+    ----------
+    identity : dict
+        What a resumed run must match: the plan's and heatcurv's versions, the
+        source file (path, size, modification time), the options' hash, and
+        the tile size if one was given.
+    tiling : Tiling
+    stats : CloudStats
+        With the distinct points' frame (:func:`distinct_frame`).
+    tile_size : int
+        Core points a tile was to hold at most (the plan's, after
+        :func:`fit_tiles`).
+    survey_halos, key_halos : tuple of float
+        Each tile's survey halo and keys' halo (:func:`heatcurv.tiles.compute.survey_halo`,
+        :func:`heatcurv.tiles.compute.key_halo`), input units.
+    """
+
+    identity: dict
+    tiling: Tiling
+    stats: CloudStats
+    tile_size: int
+    survey_halos: tuple
+    key_halos: tuple
+
+    def to_json(self) -> dict:
+        """The plan as ``plan.json`` holds it (read by the tasks: :func:`heatcurv.tiles.tasks.load_plan`)."""
+        return {"identity": self.identity, "tiling": self.tiling.to_json(), "stats": asdict(self.stats),
+                "tile_size": int(self.tile_size), "survey_halos": list(self.survey_halos),
+                "key_halos": list(self.key_halos)}
+
+    @classmethod
+    def from_json(cls, data: dict) -> TilePlan:
+        stats = CloudStats(**{k: tuple(v) if isinstance(v, list) else v for k, v in data["stats"].items()})
+        return cls(data["identity"], Tiling.from_json(data["tiling"]), stats, int(data["tile_size"]),
+                   tuple(data["survey_halos"]), tuple(data["key_halos"]))
 
 
 def _fine_grid(stats: CloudStats):
