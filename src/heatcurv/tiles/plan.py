@@ -49,8 +49,11 @@ with the largest tile's core + halo points ``p``:
    :data:`MIN_TILE_SIZE` core points.
 
 It refuses only when one tile of :data:`MIN_TILE_SIZE` core points (or of the
-given tile size) with its halo does not fit in the driver's process, and the
-message names that minimum budget. Whatever the cloud, no budget below
+given tile size) with its halo does not fit in the driver's process (with a
+Dask scheduler: beside the driver, in one worker process), and the message
+names that minimum budget (:func:`budget_refusal`). The survey's halo is the
+widest candidate's ball whatever the tile, so a cloud's minimum is about the
+driver plus the points within that ball of a small tile. Whatever the cloud, no budget below
 :func:`smallest_budget` (``DRIVER_MEMORY + BYTES_PER_POINT x MIN_TILE_SIZE``,
 630 MB) can hold a tiled run: it is refused before the file is read.
 """
