@@ -35,6 +35,21 @@ def test_compute_in_tiles_writes_the_in_memory_fields(tmp_path):
     assert np.allclose(a.fields["mean"], b.fields["mean"], rtol=1e-5)
 
 
+def test_a_tight_budget_runs_in_this_process_and_below_the_minimum_is_refused(tmp_path):
+    """700M holds no 400 MB worker process beside the driver's 600 MB (this was refused), but one tile at a time in
+    the command's own process; below 630 MB no tile fits and the message names the least --max-memory."""
+    np.save(tmp_path / "c.npy", heatcurv.surfaces.Sphere().sample(3000, "random", seed=1).points)
+    out = _run("compute", tmp_path / "c.npy", "-o", tmp_path / "o.ply", "--tile-size", "1000", "--max-memory",
+               "700M", "-j", "2", "-v")
+    assert out.returncode == 0, out.stderr
+    assert "1 at once (serial)" in out.stdout + out.stderr
+    assert len(read_points(tmp_path / "o.ply").points) == 3000
+    out = _run("compute", tmp_path / "c.npy", "-o", tmp_path / "p.ply", "--tile-size", "1000", "--max-memory", "600M")
+    assert out.returncode != 0 and not (tmp_path / "p.ply").exists()
+    assert "a memory budget of 629 MB is too small for a tiled run" in out.stderr
+    assert "pass a --max-memory of at least 602M" in out.stderr
+
+
 def test_features_are_refused_in_tiles(tmp_path):
     np.save(tmp_path / "c.npy", heatcurv.surfaces.Sphere().sample(3000, "random", seed=1).points)
     out = _run("compute", tmp_path / "c.npy", "-o", tmp_path / "o.ply", "--tile-size", "1000", "--features")

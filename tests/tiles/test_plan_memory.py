@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
-from tiles_helpers import read_fields
+from tiles_helpers import ALL_FIELDS, exact, read_fields
 
 from heatcurv.errors import HeatcurvError
+from heatcurv.testing.tiles import tiled_agreement
 from heatcurv.tiles import plan
 from heatcurv.tiles.plan import (
     DRIVER_MEMORY,
@@ -107,3 +108,131 @@ def test_the_plan_holds_each_tiles_survey_halo_and_the_survey_runs_within_it(tor
     assert first.keys() == second.keys()
     for name in first:
         np.testing.assert_array_equal(first[name], second[name], err_msg=name)
+
+
+# ---- the plan fits the budget by itself: fewer workers, then one in the driver's process, then smaller tiles ----
+
+
+def test_the_issues_tile_runs_in_the_drivers_process_within_1g():
+    """1 GiB leaves 424 MiB past the driver: no worker process of 400 MiB + a tile of 263658 points (core and the
+    survey's halo, the tile the issue's 1M-point run was refused for), but the driver's own process holds it."""
+    budget = plan.parse_size("1G")
+    assert plan.phase_workers([263658], budget, 2, 2, in_process=False) is None
+    fit = plan.phase_workers([263658], budget, 2, 2)
+    assert fit == plan.PhaseWorkers(1, True, DRIVER_MEMORY + plan.BYTES_PER_POINT * 263658)
+    assert fit.memory == 971_901_000 <= budget
+    # workers are shrunk before anything else: two fit at 2.5 GiB, one at 1.5 GiB (each 762 MB with its process)
+    assert plan.phase_workers([263658], plan.parse_size("2.5G"), 2, 2) == plan.PhaseWorkers(
+        2, False, DRIVER_MEMORY + 2 * worker_memory(263658))
+    assert plan.phase_workers([263658], plan.parse_size("1.5G"), 2, 2).count == 1
+    # below what the driver and that tile need, the message names the budget that fits it
+    error = plan.budget_refusal(263658, plan.parse_size("900M"), 10000, "survey", True)
+    assert str(error) == (
+        "a tile of about 263658 points (core and halo, the survey) needs about 972 MB with the driver, more than "
+        "the budget of 944 MB leaves for one worker; pass a smaller --tile-size (now 10000) or a --max-memory of at "
+        "least 927M (the model: the driver 629 MB, a worker process 419 MB, 1300 bytes per point of a tile's core "
+        "and halo)")
+    assert DRIVER_MEMORY + plan.BYTES_PER_POINT * 263658 <= plan.parse_size("927M")
+    assert DRIVER_MEMORY + plan.BYTES_PER_POINT * 263658 > plan.parse_size("926M")
+
+
+def _terrain(points: int, side: float, tile_size: int):
+    """A flat square cloud of ``points`` points, ``side`` long, cut into k x k equal tiles of at most ``tile_size``."""
+    k = int(np.ceil(np.sqrt(points / tile_size)))
+    edges = np.linspace(0, 256, k + 1).round().astype(int)
+    cells = [(int(edges[i]), int(edges[j]), 0, int(edges[i + 1]), int(edges[j + 1]), 1)
+             for i in range(k) for j in range(k)]
+    counts = [points * (c[3] - c[0]) * (c[4] - c[1]) // 256**2 for c in cells]
+    tiling = Tiling((0.0, 0.0, 0.0), (side / 256, side / 256, 1.0), (256, 256, 1), cells, counts)
+    stats = CloudStats(points, points, (0.0, 0.0, 0.0), (side, side, 1.0), (side / 2, side / 2, 0.5))
+    return tiling, stats
+
+
+def test_a_1m_point_terrain_is_planned_within_1g_in_fewer_smaller_tiles():
+    """The benchmark's terrain (16 points per m^2, 250 m square) with its measured survey halo (24.3 m, the median
+    of the tiles' at 1M points; the compute halo is narrower): within 1 GiB the plan runs it in 9 tiles in the
+    driver's process; at 700 MiB in smaller tiles; below the minimum it says what would fit."""
+    tried = []
+
+    def measure(tile_size):
+        tried.append(tile_size)
+        tiling, stats = _terrain(1_000_000, 250.0, tile_size)
+        return int(halo_points(tiling, stats, 24.3).max()), len(tiling.counts)
+
+    budget = plan.parse_size("1G")
+    room = budget - DRIVER_MEMORY
+    assert plan.default_tile_size(room, 2) == 10_000  # no worker process fits a tile of 10000 and its halo ...
+    assert plan.plan_workers(room, 2, 20_000, 2) == 0
+    first = plan.default_tile_size(room, 1, in_process=True)  # ... so the default is what the driver's holds
+    assert first == 170_998
+    tile_size, tiles, fit = plan.fit_tiles(measure, first, budget, 2, 2)
+    assert tried == [170_998] and (tile_size, tiles) == (170_998, 9)
+    assert fit == plan.PhaseWorkers(1, True, 994_779_700) and fit.memory <= budget
+    # a tighter budget: smaller tiles, each try at most half the last
+    tried.clear()
+    messages = []
+    tile_size, tiles, fit = plan.fit_tiles(measure, first, plan.parse_size("700M"), 2, 2, say=messages.append)
+    assert tried == [170_998, 49_038, 24_519, 12_259, 6129] and tiles == 169
+    assert fit == plan.PhaseWorkers(1, True, 725_687_500) and fit.memory <= plan.parse_size("700M")
+    assert messages[0] == ("a tile of 170998 points with the survey's halo (about 281257 points) does not fit the "
+                           "budget of 734 MB: tiling again at 49038 points")
+    # a given tile size is kept: the message says which budget it needs, or a smaller tile
+    with pytest.raises(HeatcurvError, match=r"pass a smaller --tile-size \(now 170998\) or a --max-memory of at "
+                                            r"least 949M"):
+        plan.fit_tiles(measure, first, plan.parse_size("900M"), 2, 2, given=True)
+    # below the smallest tiles' need, the refusal names the minimum budget (the halo's points stay)
+    tried.clear()
+    with pytest.raises(HeatcurvError, match=r"^a tile of about 50888 points \(core and halo, the survey\) needs "
+                                            r"about 695 MB with the driver, more than the budget of 671 MB leaves for "
+                                            r"one worker; the smallest tiles \(1000 points\) need a --max-memory of "
+                                            r"at least 664M \(the model"):
+        plan.fit_tiles(measure, first, plan.parse_size("640M"), 2, 2)
+    assert tried == [170_998, 19_615, 6203, 2694, 1347, 1000]
+    assert plan.fit_tiles(measure, 1000, plan.parse_size("664M"), 2, 2)[2].in_process
+
+
+def test_the_smallest_budget_and_the_default_for_a_small_cloud(monkeypatch):
+    # no tiled run fits below the driver and one tile of 1000 points without a halo
+    assert plan.smallest_budget() == DRIVER_MEMORY + 1000 * plan.BYTES_PER_POINT == 630_445_600
+    # a busy machine's 60 % share of 717 MB available (430 MB) is below that: a small cloud's default budget is
+    # what it needs in the driver's process, while that much is available
+    monkeypatch.setattr(plan, "available_memory", lambda: 717_000_000)
+    assert plan.default_budget() == 430_200_000
+    assert plan.default_budget(6000) == DRIVER_MEMORY + 6000 * plan.BYTES_PER_POINT == 636_945_600
+    assert plan.default_budget(10**8) == DRIVER_MEMORY + 10_000 * plan.BYTES_PER_POINT  # at most a tile of 10000
+    monkeypatch.setattr(plan, "available_memory", lambda: 500_000_000)
+    assert plan.default_budget(6000) == 500_000_000  # never more than is available: such a run is refused
+    monkeypatch.setattr(plan, "available_memory", lambda: 4 * 10**9)
+    assert plan.default_budget(6000) == 2_400_000_000  # the share, when it is larger
+
+
+def test_a_budget_no_worker_process_fits_runs_in_the_drivers_process(torus_file, torus_memory, tmp_path, monkeypatch):
+    """700 MiB was refused (no 400 MiB worker fits beside the driver's 600 MiB); now the survey and the tiles run in
+    this process, one tile at a time, and every field is the in-memory run's bit for bit."""
+    from heatcurv.tiles import driver
+
+    phases = []
+    real_run = driver._run
+
+    def run(executor, workers, fn, specs, on_done, say, what, total):
+        phases.append((fn.__name__, workers))
+        return real_run(executor, workers, fn, specs, on_done, say, what, total)
+
+    monkeypatch.setattr(driver, "_run", run)
+    out = tmp_path / "torus.ply"
+    report = driver.compute_file(torus_file[0], out, tile_size=1200, tile_workers=2, max_memory="700M",
+                                 dtype="float64", fields=ALL_FIELDS)
+    assert phases == [("run_survey", 1), ("run_tile", 1)]
+    assert (report.tiles, report.workers, report.scheduler, report.budget) == (8, 1, "serial", 700 * 2**20)
+    agreement = tiled_agreement(out, torus_memory, rtol=0.0)
+    assert exact(agreement) == dict.fromkeys(agreement, (0, 0.0))
+
+
+def test_a_budget_below_the_smallest_tile_is_refused_before_reading(torus_file, tmp_path):
+    from heatcurv.tiles import compute_file
+
+    with pytest.raises(HeatcurvError, match=r"^a memory budget of 629 MB is too small for a tiled run: the driver "
+                                            r"keeps 629 MB and the smallest tile \(1000 points, no halo\) needs "
+                                            r"1.3 MB; pass a --max-memory of at least 602M$"):
+        compute_file(torus_file[0], tmp_path / "out.ply", max_memory="600M")
+    assert list(tmp_path.iterdir()) == []

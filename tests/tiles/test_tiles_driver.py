@@ -127,13 +127,14 @@ def test_not_enough_disk_is_found_before_the_run(torus_file, tmp_path, monkeypat
 
 
 def test_budget_too_small_for_a_tile(torus_file, tmp_path, monkeypatch):
-    with pytest.raises(HeatcurvError, match=r"a memory budget of 734 MB is too small for a tiled run"):
-        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, max_memory="700M")
+    # below the driver and the smallest tile (700M fits one tile at a time in the driver's process: test_plan_memory)
+    with pytest.raises(HeatcurvError, match=r"a memory budget of 524 MB is too small for a tiled run"):
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, max_memory="500M")
     from heatcurv.tiles import plan
 
-    monkeypatch.setattr(plan, "BYTES_PER_POINT", 10**7)  # 12 GB for a tile of 1200 points
+    monkeypatch.setattr(plan, "BYTES_PER_POINT", 10**7)  # 12 GB for a tile of 1200 points, 10 GB for the smallest
     with pytest.raises(HeatcurvError, match="more than the budget .* leaves for one worker; pass a smaller"):
-        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, max_memory="4G")
+        compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, max_memory="11G")
     assert os.listdir(tmp_path) == []
 
 

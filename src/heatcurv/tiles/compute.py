@@ -28,6 +28,7 @@ from ..reliability import ReliabilityInputs, cloud_flags
 from ..survey import GATE_LEVELS, fit_centres, join_keys, key_part, merge_fits, survey_part, tile_options
 from ..survey import merge_surveys as merge_centre_surveys
 from ..validation import bounding_box_frame
+from .context import SurveyContext
 
 __all__ = [
     "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame", "describe",
@@ -163,7 +164,7 @@ def fit_tile_centres(points: np.ndarray, stats, options: dict, plan, places: np.
     return part, part.reach * frame.unit, plan.positions[places] * frame.unit + frame.offset
 
 
-def merge_rounds(parts: list, plan, stats, options: dict) -> dict:
+def merge_rounds(parts: list, plan, stats, options: dict) -> SurveyContext:
     """:func:`merge_surveys` for the survey in two rounds: the choices, and a first halo for the tiles."""
     frame = cloud_frame(stats)
     choices = merge_fits(parts, plan, frame, **_estimate_options(options))
@@ -197,12 +198,12 @@ def survey_reach(survey, stats) -> tuple[np.ndarray, np.ndarray]:
     return survey.positions * frame.unit + frame.offset, survey.reach * frame.unit
 
 
-def merge_surveys(surveys: list, stats, options: dict) -> dict:
+def merge_surveys(surveys: list, stats, options: dict) -> SurveyContext:
     """The choices every tile gets, and a first halo for the tiles.
 
     Returns
     -------
-    dict
+    SurveyContext
         ``choices``: :class:`heatcurv.choices.CloudChoices`; ``halo``: twice the
         widest chosen ball plus the narrowest candidate's ball (the operator's),
         the largest the survey measured, input units: a first guess, which each
@@ -213,7 +214,7 @@ def merge_surveys(surveys: list, stats, options: dict) -> dict:
     return _first_halo(choices, [survey.fits for survey in surveys], frame, options)
 
 
-def _first_halo(choices, fits: list, frame: CloudFrame, options: dict) -> dict:
+def _first_halo(choices, fits: list, frame: CloudFrame, options: dict) -> SurveyContext:
     """:func:`merge_surveys`' result from the choices and every part's fits (``{label: CentreFits}`` each)."""
     opts = tile_options(_estimate_options(options))
     scale = choices.scale
@@ -225,10 +226,10 @@ def _first_halo(choices, fits: list, frame: CloudFrame, options: dict) -> dict:
         return opts.alpha * float(max((x.max() for x in h if x.size), default=0.0)) * frame.unit
 
     chosen, operator = ball(widest), ball(int(opts.neighbours))
-    return {"choices": choices, "halo": (2.0 * chosen + operator) * HALO_MARGIN, "support": chosen}
+    return SurveyContext(choices, (2.0 * chosen + operator) * HALO_MARGIN, chosen)
 
 
-def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: dict) -> dict:
+def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, options: dict) -> dict:
     """Every result field of the core rows of a tile, and what the driver needs around them.
 
     Parameters
@@ -237,7 +238,7 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
         The tile's core and halo points, input coordinates.
     core : ndarray, shape (m,), bool
         The tile's own rows.
-    context : dict
+    context : SurveyContext
         :func:`merge_surveys`' choices.
     options : dict
         The keyword arguments of :func:`heatcurv.estimate`.
@@ -256,7 +257,7 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
         (:mod:`.winding`; the estimate's ``info["winding"]``, None where the
         normals were oriented on anchors).
     """
-    res = estimate(points, choices=context["choices"], **options)
+    res = estimate(points, choices=context.choices, **options)
     fields = {name: getattr(res, name) for name in RESULT_FIELDS if hasattr(res, name)}
     inputs = res.info["reliability"]
     fields["reliable"] = inputs.local
@@ -265,7 +266,7 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: dict, options: d
     out = {name: np.asarray(fields[name])[core] for name in RESULT_FIELDS}
     out["support"] = np.asarray(res.info["reach"])[core]
     out["halo_normals"] = res.normals[~core]
-    outward = orients_outward(options, context["choices"])
+    outward = orients_outward(options, context.choices)
     out["patch"] = _patches(points, res.spacing, options) if outward else np.zeros(len(points), np.int64)
     out["winding"] = res.info.get("winding") if outward else None
     return out
@@ -298,12 +299,12 @@ def finish_reliability(columns, medians=None) -> tuple[np.ndarray, float]:
     return cloud_flags(inputs, baselines, rho, stacklevel=3)
 
 
-def describe(context: dict) -> dict:
+def describe(context: SurveyContext) -> dict:
     """The choices of :func:`merge_surveys` as plain numbers (for the output file's parameters and the report)."""
-    choices = context["choices"]
+    choices = context.choices
     frame, scale = choices.frame, choices.scale
     out = {
-        "halo": float(context["halo"]), "support": float(context["support"]),
+        "halo": float(context.halo), "support": float(context.support),
         "offset": frame.offset.tolist(), "unit": frame.unit, "points": frame.n_points,
         "centroid": (frame.centroid * frame.unit + frame.offset).tolist(), "rms_radius": frame.rms_radius * frame.unit,
         "kernel": scale.scale.label, "sigma": scale.sigma * frame.unit, "relative_noise": scale.relative_noise,

@@ -1,10 +1,14 @@
 """The driver of a tiled run: plan, survey, compute the tiles, orient, write. One loop for every executor.
 
-:func:`compute_file` runs these phases (each timed in the report):
+:func:`compute_file` checks its arguments (:func:`_settle`), finds a plan to
+resume (:func:`_find_plan`) and runs these phases, one function each (each
+timed in the report):
 
-1. ``stats``, ``tiling``, ``scatter``: three streaming passes over the input
-   (:mod:`.plan`): statistics, the tiles, the points in tile order in scratch.
-2. ``survey``: one round (:func:`.tasks.run_survey`) for at most
+1. ``stats``, ``tiling``, ``scatter`` (:func:`_make_plan`): three streaming passes
+   over the input (:mod:`.plan`): statistics, the tiles, the points in tile order
+   in scratch; tiled again at smaller sizes while the survey's tiles do not fit
+   the budget (:func:`.plan.fit_tiles`). The result is a frozen :class:`.plan.TilePlan`.
+2. ``survey`` (:func:`_survey`): one round (:func:`.tasks.run_survey`) for at most
    :data:`ONE_ROUND_TILES` tiles, else two rounds (:mod:`heatcurv.survey`): :func:`.tasks.run_keys`
    on every tile (its core's sampling keys over a thin halo), joined into the
    cloud's sample centres; :func:`.tasks.run_centres` on the tiles holding
@@ -12,21 +16,24 @@
    their reach); merged by :func:`.compute.merge_rounds` into the context every
    tile gets (the halo). The survey's halo (decided in the plan, which budgets
    the survey's workers with it) bounds both rounds.
-3. ``tiles``: :func:`.tasks.run_tile` on every tile not done yet, at most
+3. ``tiles`` (:func:`_compute_tiles`): :func:`.tasks.run_tile` on every tile not done yet, at most
    ``2 x slots`` in flight; each finished tile is copied into the
    index-addressed ``results.rec``, and every :data:`SLIM_POINTS` core points
    ``results.rec`` is fsynced and the stored tiles' files slimmed
    (:func:`.output.slim_tiles`).
-4. ``orientation``: for ``outward``, the flip bits of the seams (:mod:`.orient`),
+4. ``reliability`` (:func:`_cloud_flags`): the flags against the whole cloud's medians.
+5. ``orientation`` (:func:`_orient`): for ``outward``, the flip bits of the seams (:mod:`.orient`),
    then a closed cloud's inside and outside by the winding number over every
    tile's sources (:mod:`.winding`: more flips, and flags).
-5. ``write``: the output in input order, atomically (:mod:`.output`).
+6. ``write`` (:func:`_write`): the output in input order, atomically (:mod:`.output`).
 
 Scratch and resume
 ------------------
 Scratch files live in ``<scratch>/.<output name>.heatcurv-tiles/``
-(``scratch`` defaults to the output's directory): ``plan.json`` (source
-identity, options hash, tiling, statistics), ``context.pkl``, ``points.f8``,
+(``scratch`` defaults to the output's directory): ``plan.json`` (the
+:class:`.plan.TilePlan`: source identity, options hash, tiling, statistics,
+halos), ``context.json`` (the survey's
+:class:`.context.SurveyContext`), ``points.f8``,
 ``rows.i8``, ``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
 tile: its done marker; once its rows are copied into ``results.rec`` it keeps
 only the seam vote's and the winding step's inputs, :data:`.output.STORED_KEYS`
@@ -53,13 +60,13 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import os
-import pickle
 import resource
 import shutil
 import sys
 import time
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +74,7 @@ import numpy as np
 from ..errors import HeatcurvError
 from ..survey import FitsNotSurveyed
 from . import compute
+from .context import SurveyContext, read_context, write_context
 from .executors import SCHEDULERS, SerialExecutor, kill_workers, open_executor
 from .medians import apply_cloud_flags
 from .output import (
@@ -83,18 +91,23 @@ from .output import (
 from .plan import (
     BYTES_PER_POINT,
     DRIVER_MEMORY,
-    WORKER_OVERHEAD,
     CloudStats,
+    PhaseWorkers,
+    TilePlan,
     Tiling,
+    budget_refusal,
     check_disk,
+    check_smallest_budget,
     default_budget,
     default_tile_size,
     distinct_frame,
-    fitting_workers,
+    fit_tiles,
     halo_points,
     make_tiling,
     options_hash,
     parse_size,
+    phase_workers,
+    plan_workers,
     read_rows,
     scan_stats,
     scatter,
@@ -120,7 +133,7 @@ ONE_ROUND_TILES = 63
 #: files (about 350 MB of rows): the scratch stays near one copy of the results, the loop rarely waits.
 SLIM_POINTS = 2_000_000
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 6
+PLAN_VERSION = 7
 
 
 @dataclass
@@ -157,7 +170,7 @@ class TiledReport:
     timings : dict
         Seconds per phase: ``stats tiling scatter survey tiles orientation write``.
     context : dict
-        The global choices every tile got (:func:`.compute.merge_surveys`).
+        The global choices every tile got, in plain numbers (:func:`.compute.describe`).
     orientation : dict or None
         The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`),
         with the winding step's: ``closed``, ``agreement`` and, for a closed cloud,
@@ -219,10 +232,46 @@ def _identity(src: Path) -> dict:
     return {"path": str(src.resolve()), "size": stat.st_size, "mtime_ns": stat.st_mtime_ns}
 
 
-def _fitting_workers(tiling, stats, halo, budget: int, requested: int, cpus: int, tile_size: int,
-                     phase: str = "tiles") -> int:
-    """Tiles the budget lets run at once with this halo (one, or one per tile); an error if not even one fits."""
-    return fitting_workers(halo_points(tiling, stats, halo), budget, requested, cpus, tile_size, phase)
+def _phase_workers(tiling, stats, halo, budget: int, requested: int, cpus: int, tile_size: int, phase: str,
+                   in_process: bool) -> PhaseWorkers:
+    """How a phase runs its tiles with this halo (one, or one per tile) within the budget; an error if no tile fits.
+
+    The error names the budget the largest tile needs and a smaller ``--tile-size`` (this tiling is the plan's:
+    a resumed run keeps it).
+    """
+    points = halo_points(tiling, stats, halo)
+    fit = phase_workers(points, budget, requested, cpus, in_process)
+    if fit is None:
+        raise budget_refusal(int(points.max()), budget, tile_size, phase, True, in_process)
+    return fit
+
+
+def _tile_cloud(source, stats: CloudStats, work: Path, options: dict, timings: dict, bar, tile_size: int):
+    """Tile the cloud (a histogram pass, a scatter pass into ``work``) and measure each tile's survey halo.
+
+    Returns
+    -------
+    largest : int
+        Core + survey-halo points of the largest tile (:func:`.plan.halo_points`).
+    tiled : tuple
+        ``(tiling, stats, survey_halos, key_halos)``, ``stats`` with the distinct points' frame.
+    """
+    bar.stage("tiling")
+    tic = time.perf_counter()
+    tiling = make_tiling(source, stats, int(tile_size))
+    timings["tiling"] += time.perf_counter() - tic
+    bar.stage("scattering")
+    tic = time.perf_counter()
+    scatter(source, tiling, work)
+    stats = distinct_frame(work, tiling, stats)  # the keys' frame counts duplicates once, as in memory
+    timings["scatter"] += time.perf_counter() - tic
+    # the survey reads each tile with a halo as wide as the widest candidate's ball: decided here, so that
+    # the survey's workers are budgeted with it, and the tiles made smaller if not one fits
+    tic = time.perf_counter()
+    survey_halos, key_halos = _survey_halos(work, tiling, stats, options)
+    timings["survey"] += time.perf_counter() - tic  # the survey's first step, done here
+    largest = int(halo_points(tiling, stats, survey_halos).max())
+    return largest, (tiling, stats, survey_halos, key_halos)
 
 
 def _survey_halos(work: Path, tiling: Tiling, stats: CloudStats, options: dict) -> tuple[list, list]:
@@ -273,9 +322,13 @@ def compute_file(
         ``orient`` defaults to ``"up"`` for LAS/LAZ, as on the command line.
     max_memory : int or str, optional
         Budget of the whole run, all workers together (``"3G"``, ``"500M"``,
-        bytes); default 60 % of the memory available.
+        bytes); default 60 % of the memory available, at least a small cloud's
+        need (:func:`.plan.default_budget`). The plan fits it with fewer workers,
+        then one tile at a time in this process, then smaller tiles
+        (:mod:`.plan`, "Fitting the budget").
     tile_size : int, optional
-        Core points per tile (default: what the budget holds, at most 2M).
+        Core points per tile (default: what the budget holds, at most 2M;
+        made smaller if the survey's tiles do not fit; a given size is kept).
     tile_workers : int, optional
         Tiles computed at once (-1 or None: every core, as many as the budget holds).
     scheduler : str or dask.distributed.Client, optional
@@ -311,10 +364,60 @@ def compute_file(
     HeatcurvError
         On bad options or input, too little memory or disk, a failed tile.
     """
-    from ..io.atomic import atomic_write, check_writable
+    tic = time.perf_counter()
+    run = _settle(src, dst, method, viewpoint, max_memory, tile_workers, scheduler, scratch, fields, dtype, progress,
+                  log, options)
+    identity = _identity_of(run, tile_size, skip_nonfinite)
+    plan = _find_plan(run, identity, tile_size, resume)
+    store = _TileStore(run)
+    timings = dict.fromkeys(("stats", "tiling", "scatter", "survey", "tiles", "orientation", "write"), 0.0)
+    try:
+        if plan is None:
+            plan = _make_plan(run, identity, tile_size, skip_nonfinite, timings, store.bar)
+        context = _survey(run, plan, timings, store.bar)
+        name, workers, resumed = _compute_tiles(run, plan, context, store, timings)
+        medians = _cloud_flags(run, plan, timings)
+        flips, orientation = _orient(run, plan, context, timings, store.bar)
+        parameters = _write(run, plan, context, medians, flips, timings, store.bar)
+    except BaseException as exc:
+        store.abandon()
+        if isinstance(exc, (HeatcurvError, KeyboardInterrupt, SystemExit)):
+            raise
+        raise HeatcurvError(f"tiled run of {run.src} failed: {type(exc).__name__}: {exc}") from exc
+    store.bar.close()
+    if not keep_scratch:
+        shutil.rmtree(run.work, ignore_errors=True)
+    timings["total"] = time.perf_counter() - tic
+    return _report(run, plan, context, store, timings, name, workers, resumed, orientation, parameters)
 
-    tic_all = time.perf_counter()
-    say = log or (lambda text: None)
+
+@dataclass(frozen=True)
+class _Run:
+    """What a tiled run is asked for, checked before the first pass (:func:`_settle`)."""
+
+    src: Path
+    dst: Path
+    source: object  # .sources.Source
+    work: Path  # the scratch directory
+    root: Path  # the directory that holds it
+    options: dict  # the estimator keywords (estimator_options)
+    threads: int  # threads of a tile computed in this process
+    budget: int
+    requested: int  # tiles asked to run at once
+    cpus: int
+    scheduler: object  # a name or a Dask client
+    in_process: bool  # a tile may run in this process when no worker fits
+    fields: tuple
+    dtype: str
+    progress: bool
+    say: object  # callable
+
+
+def _settle(src, dst, method, viewpoint, max_memory, tile_workers, scheduler, scratch, fields, dtype, progress, log,
+            options) -> _Run:
+    """Check the arguments (before any pass over the input) and settle the budget, the workers and the scratch."""
+    from ..io.atomic import check_writable
+
     src, dst = Path(src), Path(dst)
     if dst.suffix.lower() not in TILED_WRITE:
         raise HeatcurvError(f"cannot write {dst}: a tiled run writes {' '.join(TILED_WRITE)}")
@@ -332,238 +435,312 @@ def compute_file(
         raise HeatcurvError(f"dtype must be float32 or float64, got {dtype!r}")
     if isinstance(scheduler, str) and scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
         raise HeatcurvError(f"unknown scheduler {scheduler!r}; choose {', '.join(SCHEDULERS)} or tcp://host:port")
-    budget = parse_size(max_memory) if max_memory is not None else default_budget()
-    if budget - DRIVER_MEMORY < WORKER_OVERHEAD:  # not even an empty worker fits: say so before reading anything
-        raise HeatcurvError(
-            f"a memory budget of {size_text(budget)} is too small for a tiled run: the driver keeps "
-            f"{size_text(DRIVER_MEMORY)} and a worker needs {size_text(WORKER_OVERHEAD)} before its tile; "
-            "raise --max-memory"
-        )
     source = open_source(src)
+    budget = parse_size(max_memory) if max_memory is not None else default_budget(source.count)
+    check_smallest_budget(budget)  # not even the smallest tile fits: say so before reading anything
+    options = dict(options)
     threads = options.pop("workers", -1)
     est = estimator_options(method, viewpoint, options, source.kind)
-    identity = {"version": PLAN_VERSION, "heatcurv": _version(), "source": _identity(src), "options": options_hash(est),
-                "skip_nonfinite": bool(skip_nonfinite)}
-    if tile_size is not None:
-        identity["tile_size"] = int(tile_size)
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     requested = cpus if tile_workers in (None, -1) else int(tile_workers)
     if requested < 1:
         raise HeatcurvError(f"tile_workers must be -1 or at least 1, got {tile_workers}")
-
     root = Path(scratch) if scratch is not None else dst.parent
     if not root.is_dir():
         raise HeatcurvError(f"the scratch directory {root} does not exist")
-    work = root / f".{dst.name}.heatcurv-tiles"
-    timings = {k: 0.0 for k in ("stats", "tiling", "scatter", "survey", "tiles", "orientation", "write")}
+    return _Run(
+        src=src, dst=dst, source=source, work=root / f".{dst.name}.heatcurv-tiles", root=root, options=est,
+        threads=threads, budget=budget, requested=requested, cpus=cpus, scheduler=scheduler,
+        # a Dask cluster's workers are its own: only a local scheduler falls back to this process
+        in_process=isinstance(scheduler, str) and scheduler in ("processes", "threads", "serial"),
+        fields=wanted, dtype=dtype or "float32",
+        progress=sys.stderr.isatty() if progress is None else bool(progress), say=log or _quiet,
+    )
+
+
+def _quiet(text: str) -> None:
+    """The log of a run nobody listens to."""
+
+
+def _identity_of(run: _Run, tile_size, skip_nonfinite: bool) -> dict:
+    """What a plan must match to be resumed: the plan's version, heatcurv's, the source file, the options."""
+    identity = {"version": PLAN_VERSION, "heatcurv": _version(), "source": _identity(run.src),
+                "options": options_hash(run.options), "skip_nonfinite": bool(skip_nonfinite)}
+    if tile_size is not None:
+        identity["tile_size"] = int(tile_size)
+    return identity
+
+
+def _find_plan(run: _Run, identity: dict, tile_size, resume) -> TilePlan | None:
+    """The scratch directory's plan if it matches (a resume), else None with the directory emptied."""
     plan = None
-    if (work / "plan.json").exists() and resume is not False:
-        old = load_plan(work)
+    if (run.work / "plan.json").exists() and resume is not False:
+        old = load_plan(run.work)
         if old.get("identity") == identity or (
             tile_size is None and {k: v for k, v in old.get("identity", {}).items() if k != "tile_size"} == identity
         ):
-            plan = old
+            plan = TilePlan.from_json(old)
     if resume and plan is None:
-        raise HeatcurvError(f"nothing to resume: {work} holds no plan of this input with these options")
-    if plan is None and work.exists():
-        shutil.rmtree(work)
-    work.mkdir(exist_ok=True)
-    (work / "tiles").mkdir(exist_ok=True)
-    bar = TileProgress(sys.stderr.isatty() if progress is None else bool(progress), 1, 1)
-    results_path = work / "results.rec"
-    unslimmed = {}  # tile file -> core points: rows in results.rec, not yet fsynced and slimmed (slim_tiles)
+        raise HeatcurvError(f"nothing to resume: {run.work} holds no plan of this input with these options")
+    if plan is None and run.work.exists():
+        shutil.rmtree(run.work)
+    run.work.mkdir(exist_ok=True)
+    (run.work / "tiles").mkdir(exist_ok=True)
+    return plan
+
+
+def _make_plan(run: _Run, identity: dict, tile_size, skip_nonfinite: bool, timings: dict, bar) -> TilePlan:
+    """The plan phase: statistics, the disk check, the tiles that fit the budget (:func:`.plan.fit_tiles`)."""
+    bar.stage("statistics")
+    tic = time.perf_counter()
+    stats = scan_stats(run.source, skip_nonfinite)
+    timings["stats"] = time.perf_counter() - tic
+    given = tile_size is not None
+    if tile_size is None:
+        room = max(run.budget - DRIVER_MEMORY, 0)
+        tile_size = default_tile_size(room, run.requested)
+        if run.in_process and plan_workers(room, run.requested, 2 * tile_size, run.cpus) < 1:
+            # no worker process holds a tile and its halo: one tile at a time in this process
+            tile_size = default_tile_size(room, 1, in_process=True)
+    # points.f8 + rows.i8 with the halos' copies (~1.25x), results.rec, the slimmed tile files (their
+    # halo rows, normals and patches) and the few full ones in flight
+    need = stats.finite * (48 + RECORD.itemsize + 48)
+    check_disk(run.work, need, f"the scratch files of {stats.finite} points")
+    if os.stat(run.work).st_dev == os.stat(run.dst.parent).st_dev:
+        need += stats.count * 100
+    check_disk(run.dst.parent, need if run.dst.parent == run.root else stats.count * 100, f"the output {run.dst.name}")
+    measure = partial(_tile_cloud, run.source, stats, run.work, run.options, timings, bar)
+    tile_size, (tiling, stats, survey_halos, key_halos), _ = fit_tiles(
+        measure, tile_size, run.budget, run.requested, run.cpus, in_process=run.in_process, given=given, say=run.say)
+    plan = TilePlan(identity, tiling, stats, int(tile_size), tuple(survey_halos), tuple(key_halos))
+    _write_json(run.work / "plan.json", plan.to_json())
+    run.say(f"tiled {run.src.name}: {stats.count} points in {len(tiling.counts)} tiles of at most {tile_size} "
+            f"points (budget {size_text(run.budget)})")
+    return plan
+
+
+@dataclass(frozen=True)
+class _Phase:
+    """How a parallel phase submits its tiles (:func:`_phase`)."""
+
+    executor: object  # executor(workers), for _run
+    workers: int
+    options: dict  # the tasks' estimator options
+
+
+def _phase(run: _Run, plan: TilePlan, halo, name: str) -> _Phase:
+    """The workers, executor and task options of a phase whose tiles read ``halo`` (one, or one per tile).
+
+    A run of one tile, or a phase whose tile fits only in this process, runs serially here with the run's threads.
+    """
+    n_tiles = len(plan.tiling.counts)
+    fit = _phase_workers(plan.tiling, plan.stats, halo, run.budget, run.requested, run.cpus, plan.tile_size, name,
+                         run.in_process)
+    serial = fit.in_process or (n_tiles == 1 and isinstance(run.scheduler, str))
+    executor = partial(open_executor, "serial" if serial else run.scheduler, budget=max(run.budget - DRIVER_MEMORY, 1))
+    threads = serial or n_tiles == 1 or run.scheduler == "serial"
+    return _Phase(executor, max(1, min(n_tiles, fit.count)), dict(run.options, workers=run.threads if threads else 1))
+
+
+def _survey(run: _Run, plan: TilePlan, timings: dict, bar) -> SurveyContext:
+    """The survey phase: the context every tile gets, from ``context.json`` if a resumed run has it."""
+    context_file = run.work / "context.json"
+    if context_file.exists():
+        return read_context(context_file)
+    bar.stage("survey")
+    tic = time.perf_counter()
+    phase = _phase(run, plan, list(plan.survey_halos), "survey")
+    if len(plan.tiling.counts) <= ONE_ROUND_TILES:
+        context = _survey_one_round(run, plan, phase)
+    else:
+        context = _survey_two_rounds(run, plan, phase)
+    write_context(context_file, context)
+    timings["survey"] += time.perf_counter() - tic
+    return context
+
+
+def _survey_one_round(run: _Run, plan: TilePlan, phase: _Phase) -> SurveyContext:
+    """One round (:func:`heatcurv.survey.survey_part`): the cloud's centres fill so few tiles that round 2 would
+    compute as much as one round does, after round 1."""
+    n_tiles = len(plan.tiling.counts)
+    specs = {t: {"scratch": str(run.work), "tile": t, "stats": plan.stats, "options": phase.options,
+                 "halo": plan.survey_halos[t]} for t in range(n_tiles)}
+    surveys = {}
+    _run(phase.executor, phase.workers, run_survey, specs, surveys.__setitem__, run.say, "survey of tile", n_tiles)
+    return compute.merge_surveys([surveys[t] for t in range(n_tiles)], plan.stats, run.options)
+
+
+def _survey_two_rounds(run: _Run, plan: TilePlan, phase: _Phase) -> SurveyContext:
+    """Two rounds (:mod:`heatcurv.survey`): every tile's keys over a thin halo, then the candidates' fits at the
+    cloud's sample centres only, over the points within their reach (the same fits, bit for bit); the survey's halo
+    bounds both. The noise gate's candidates first: a clean cloud is decided by them, a noisy one fits them all."""
+    n_tiles = len(plan.tiling.counts)
+    specs = {t: {"scratch": str(run.work), "tile": t, "stats": plan.stats, "options": phase.options,
+                 "halo": plan.key_halos[t]} for t in range(n_tiles)}
+    keys = {}
+    _run(phase.executor, phase.workers, run_keys, specs, keys.__setitem__, run.say, "keys of tile", n_tiles)
+    centres = compute.plan_centres([keys[t] for t in range(n_tiles)], plan.stats, run.options)
     try:
-        if plan is None:
-            bar.stage("statistics")
-            tic = time.perf_counter()
-            stats = scan_stats(source, skip_nonfinite)
-            timings["stats"] = time.perf_counter() - tic
-            if tile_size is None:
-                tile_size = default_tile_size(max(budget - DRIVER_MEMORY, 0), requested)
-            # points.f8 + rows.i8 with the halos' copies (~1.25x), results.rec, the slimmed tile files (their
-            # halo rows, normals and patches) and the few full ones in flight
-            need = stats.finite * (48 + RECORD.itemsize + 48)
-            check_disk(work, need, f"the scratch files of {stats.finite} points")
-            if os.stat(work).st_dev == os.stat(dst.parent).st_dev:
-                need += stats.count * 100
-            check_disk(dst.parent, need if dst.parent == root else stats.count * 100, f"the output {dst.name}")
-            bar.stage("tiling")
-            tic = time.perf_counter()
-            tiling = make_tiling(source, stats, int(tile_size))
-            timings["tiling"] = time.perf_counter() - tic
-            bar.stage("scattering")
-            tic = time.perf_counter()
-            scatter(source, tiling, work)
-            stats = distinct_frame(work, tiling, stats)  # the keys' frame counts duplicates once, as in memory
-            timings["scatter"] = time.perf_counter() - tic
-            # the survey reads each tile with a halo as wide as the widest candidate's ball: decided here,
-            # so that the survey's workers are budgeted with it (plan.fitting_workers)
-            tic = time.perf_counter()
-            survey_halos, key_halos = _survey_halos(work, tiling, stats, est)
-            timings["survey"] = time.perf_counter() - tic  # the survey's first step, done here
-            plan = {"identity": identity, "tiling": tiling.to_json(), "stats": stats.__dict__,
-                    "tile_size": int(tile_size), "survey_halos": survey_halos, "key_halos": key_halos}
-            _write_json(work / "plan.json", plan)
-            say(f"tiled {src.name}: {stats.count} points in {len(tiling.counts)} tiles of at most {tile_size} "
-                f"points (budget {size_text(budget)})")
-        stats = CloudStats(**{k: tuple(v) if isinstance(v, list) else v for k, v in plan["stats"].items()})
-        tiling = Tiling.from_json(plan["tiling"])
-        tile_size = plan["tile_size"]
-        n_tiles = len(tiling.counts)
-        task_options = dict(est, workers=threads if n_tiles == 1 or scheduler == "serial" else 1)
-        sched = "serial" if n_tiles == 1 and isinstance(scheduler, str) else scheduler
-        workers = max(1, min(requested, n_tiles))
+        return _fit_centres(run, plan, phase, centres, compute.gate_levels(run.options))
+    except FitsNotSurveyed:
+        return _fit_centres(run, plan, phase, centres, None)
 
-        def executor(w):
-            return open_executor(sched, w, max(budget - DRIVER_MEMORY, 1))
 
-        _fitting_workers(tiling, stats, 0.0, budget, requested, cpus, tile_size)  # the cores alone, before the survey
-        context_file = work / "context.pkl"
-        if context_file.exists():
-            with open(context_file, "rb") as stream:
-                context = pickle.load(stream)
-        else:
-            bar.stage("survey")
-            tic = time.perf_counter()
-            survey_halos = plan["survey_halos"]
-            survey_workers = max(1, min(n_tiles, _fitting_workers(tiling, stats, survey_halos, budget, requested,
-                                                                  cpus, tile_size, "survey")))
-            if n_tiles <= ONE_ROUND_TILES:
-                # one round (heatcurv.survey.survey_part): the cloud's centres fill so few tiles that round 2
-                # would compute as much as one round does, after round 1
-                specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
-                             "halo": survey_halos[t]} for t in range(n_tiles)}
-                surveys = {}
-                _run(executor, survey_workers, run_survey, specs, surveys.__setitem__, say, "survey of tile", n_tiles)
-                context = compute.merge_surveys([surveys[t] for t in range(n_tiles)], stats, est)
-            else:
-                # two rounds (heatcurv.survey): every tile's keys over a thin halo, then the candidates' fits at
-                # the cloud's sample centres only, over the points within their reach (the same fits, bit for
-                # bit); the survey's halo bounds both
-                specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
-                             "halo": plan["key_halos"][t]} for t in range(n_tiles)}
-                keys = {}
-                _run(executor, survey_workers, run_keys, specs, keys.__setitem__, say, "keys of tile", n_tiles)
-                centres = compute.plan_centres([keys[t] for t in range(n_tiles)], stats, est)
+def _fit_centres(run: _Run, plan: TilePlan, phase: _Phase, centres, levels) -> SurveyContext:
+    """Round 2 of the survey: the candidates' fits (the first ``levels``, None: all) at the centres of every tile."""
+    n_tiles = len(plan.tiling.counts)
+    specs = {t: {"scratch": str(run.work), "tile": t, "stats": plan.stats, "options": phase.options,
+                 "plan": centres, "places": centres.of_tile(t), "levels": levels} for t in range(n_tiles)}
+    specs = {t: spec for t, spec in specs.items() if spec["places"].size}
+    parts = {}
+    _run(phase.executor, phase.workers, run_centres, specs, parts.__setitem__, run.say, "survey of tile", n_tiles)
+    return compute.merge_rounds([p for t in sorted(parts) for p in parts[t]], centres, plan.stats, run.options)
 
-                def fit_round(levels):
-                    specs = {t: {"scratch": str(work), "tile": t, "stats": stats, "options": task_options,
-                                 "plan": centres, "places": centres.of_tile(t), "levels": levels}
-                             for t in range(n_tiles)}
-                    specs = {t: spec for t, spec in specs.items() if spec["places"].size}
-                    parts = {}
-                    _run(executor, survey_workers, run_centres, specs, parts.__setitem__, say, "survey of tile",
-                         n_tiles)
-                    return compute.merge_rounds([p for t in sorted(parts) for p in parts[t]], centres, stats, est)
 
-                # the noise gate's candidates first: a clean cloud is decided by them, a noisy one fits them all
-                try:
-                    context = fit_round(compute.gate_levels(est))
-                except FitsNotSurveyed:
-                    context = fit_round(None)
-            with open(f"{context_file}.tmp", "wb") as stream:
-                pickle.dump(context, stream)
-            os.replace(f"{context_file}.tmp", context_file)
-            timings["survey"] += time.perf_counter() - tic
-        halo = float(context["halo"]) if isinstance(context, dict) and "halo" in context else float("nan")
-        workers = max(1, min(_fitting_workers(tiling, stats, halo, budget, requested, cpus, tile_size), n_tiles))
+class _TileStore:
+    """Finished tiles into ``results.rec``, and the progress bar (:func:`_compute_tiles`).
 
+    ``unslimmed``: tile file -> core points whose rows are in ``results.rec``,
+    not yet fsynced and slimmed (:func:`.output.slim_tiles`); ``results``:
+    what each tile computed here returned.
+    """
+
+    def __init__(self, run: _Run):
+        self.run = run
+        self.path = run.work / "results.rec"
+        self.bar = TileProgress(run.progress, 1, 1)
+        self.unslimmed = {}
+        self.results = {}
+
+    def resume(self, plan: TilePlan) -> set:
+        """Create ``results.rec`` (kept if tiles are stored in it) and store the finished tiles; the tiles done."""
+        n_tiles = len(plan.tiling.counts)
+        work = self.run.work
         done = {t for t in range(n_tiles) if os.path.exists(tile_path(work, t))}
         stored = {t for t in done if is_stored(tile_path(work, t))}
-        if not create_results(results_path, stats.count, keep=bool(stored)) and stored:
+        if not create_results(self.path, plan.stats.count, keep=bool(stored)) and stored:
             # their rows were in a results.rec that is gone: those tiles are computed again
             for t in stored:
                 os.unlink(tile_path(work, t))
-            say(f"{len(stored)} finished tile(s) must be computed again: {results_path} is missing")
+            self.run.say(f"{len(stored)} finished tile(s) must be computed again: {self.path} is missing")
             done -= stored
         for t in sorted(done - stored):
-            unslimmed[tile_path(work, t)] = store_tile(results_path, tile_path(work, t), t)
-        resumed = len(done)
-        if resumed:
-            say(f"resuming: {resumed} of {n_tiles} tiles already computed in {work}")
-        bar.close()
-        bar = TileProgress(sys.stderr.isatty() if progress is None else bool(progress), stats.finite, n_tiles)
-        bar.skip(sum(tiling.counts[t] for t in done), resumed)
-        tile_results = {}
+            self.unslimmed[tile_path(work, t)] = store_tile(self.path, tile_path(work, t), t)
+        if done:
+            self.run.say(f"resuming: {len(done)} of {n_tiles} tiles already computed in {work}")
+        self.bar.close()
+        self.bar = TileProgress(self.run.progress, plan.stats.finite, n_tiles)
+        self.bar.skip(sum(plan.tiling.counts[t] for t in done), len(done))
+        return done
 
-        def finished(t, result):
-            unslimmed[tile_path(work, t)] = store_tile(results_path, tile_path(work, t), t)
-            tile_results[t] = result
-            bar(result["points"])
-            if sum(unslimmed.values()) >= SLIM_POINTS:
-                slim_tiles(results_path, list(unslimmed))
-                unslimmed.clear()
+    def finished(self, tile: int, result: dict) -> None:
+        """A tile computed: its rows into ``results.rec``; every :data:`SLIM_POINTS` points, fsync and slim."""
+        path = tile_path(self.run.work, tile)
+        self.unslimmed[path] = store_tile(self.path, path, tile)
+        self.results[tile] = result
+        self.bar(result["points"])
+        if sum(self.unslimmed.values()) >= SLIM_POINTS:
+            self.slim()
 
-        tic = time.perf_counter()
-        specs = {t: {"scratch": str(work), "tile": t, "context": context, "options": task_options}
-                 for t in range(n_tiles) if t not in done}
-        name = _run(executor, workers, run_tile, specs, finished, say, "tile", n_tiles)
-        slim_tiles(results_path, list(unslimmed))  # before the output takes its disk space
-        unslimmed.clear()
-        timings["tiles"] = time.perf_counter() - tic
-        # the flags that compare each point with the whole cloud's medians, once every tile is in
-        tic = time.perf_counter()
-        medians = apply_cloud_flags(results_path, stats.count)
-        timings["reliability"] = time.perf_counter() - tic
+    def slim(self) -> None:
+        """Make the stored tiles' rows durable and slim their files."""
+        slim_tiles(self.path, list(self.unslimmed))
+        self.unslimmed.clear()
 
-        flips, orientation = None, None
-        if compute.orients_outward(est, context["choices"]):
-            from .orient import seam_flips
-            from .winding import flag_unsupported, winding_sides
-
-            bar.stage("orientation")
-            tic = time.perf_counter()
-            tile_files = {t: tile_path(work, t) for t in range(n_tiles)}
-            keys, flip, orientation = seam_flips(tile_files, results_path)
-            flips = [("patch", keys, flip)]
-            # a closed cloud's inside and outside, by the winding number over every tile's sources
-            sides = winding_sides(tile_files, keys, flip)
-            orientation["closed"] = bool(sides is not None and sides.closed)
-            if sides is not None:
-                orientation["agreement"] = sides.agreement
-            if sides is not None and sides.closed:
-                flips.append(("winding", sides.keys, sides.flip))
-                orientation.update(flag_unsupported(results_path, source, context["choices"].frame, sides))
-            timings["orientation"] = time.perf_counter() - tic
-        parameters = {
-            "heatcurv": _version(), "tiled": True, "options": est, "tile_size": tile_size, "tiles": n_tiles,
-            "halo": halo, "context": compute.describe(context), "medians": medians, "source": src.name,
-        }
-        bar.stage("writing")
-        tic = time.perf_counter()
-        atomic_write(dst, lambda stream: write_output(stream, dst, source, stats, results_path, wanted,
-                                                      dtype or "float32", flips, parameters))
-        timings["write"] = time.perf_counter() - tic
-    except BaseException as exc:
-        bar.close()
-        if unslimmed:  # the stored tiles' rows made durable, their files slimmed (a resume finds both)
+    def abandon(self) -> None:
+        """After a failure: keep what a resume can use (stored rows made durable, finished tiles), say where."""
+        self.bar.close()
+        if self.unslimmed:  # the stored tiles' rows made durable, their files slimmed (a resume finds both)
             try:
-                slim_tiles(results_path, list(unslimmed))
+                self.slim()
             except Exception:
                 pass  # a file left whole is stored again on resume
-        left = _cleanup(work, keep_done=True)
+        left = _cleanup(self.run.work, keep_done=True)
         if left:
-            say(left)
-        if isinstance(exc, (HeatcurvError, KeyboardInterrupt, SystemExit)):
-            raise
-        raise HeatcurvError(f"tiled run of {src} failed: {type(exc).__name__}: {exc}") from exc
-    bar.close()
-    if not keep_scratch:
-        shutil.rmtree(work, ignore_errors=True)
-    timings["total"] = time.perf_counter() - tic_all
-    worker_peak = max([r["peak"] for r in tile_results.values()], default=0)
+            self.run.say(left)
+
+
+def _compute_tiles(run: _Run, plan: TilePlan, context: SurveyContext, store: _TileStore, timings: dict):
+    """The tiles phase: every tile not done yet, stored as it finishes; ``(scheduler name, workers, resumed)``."""
+    n_tiles = len(plan.tiling.counts)
+    phase = _phase(run, plan, float(context.halo), "tiles")
+    done = store.resume(plan)
+    tic = time.perf_counter()
+    specs = {t: {"scratch": str(run.work), "tile": t, "context": context, "options": phase.options}
+             for t in range(n_tiles) if t not in done}
+    name = _run(phase.executor, phase.workers, run_tile, specs, store.finished, run.say, "tile", n_tiles)
+    store.slim()  # before the output takes its disk space
+    timings["tiles"] = time.perf_counter() - tic
+    return name, phase.workers, len(done)
+
+
+def _cloud_flags(run: _Run, plan: TilePlan, timings: dict) -> dict:
+    """The flags that compare each point with the whole cloud's medians, once every tile is in."""
+    tic = time.perf_counter()
+    medians = apply_cloud_flags(run.work / "results.rec", plan.stats.count)
+    timings["reliability"] = time.perf_counter() - tic
+    return medians
+
+
+def _orient(run: _Run, plan: TilePlan, context: SurveyContext, timings: dict, bar):
+    """The orientation phase (``outward`` only): the seams' flips, then a closed cloud's inside and outside by the
+    winding number over every tile's sources; ``(flips, report)``, both None for other orientations."""
+    if not compute.orients_outward(run.options, context.choices):
+        return None, None
+    from .orient import seam_flips
+    from .winding import flag_unsupported, winding_sides
+
+    bar.stage("orientation")
+    tic = time.perf_counter()
+    results_path = run.work / "results.rec"
+    tile_files = {t: tile_path(run.work, t) for t in range(len(plan.tiling.counts))}
+    keys, flip, orientation = seam_flips(tile_files, results_path)
+    flips = [("patch", keys, flip)]
+    # a closed cloud's inside and outside, by the winding number over every tile's sources
+    sides = winding_sides(tile_files, keys, flip)
+    orientation["closed"] = bool(sides is not None and sides.closed)
+    if sides is not None:
+        orientation["agreement"] = sides.agreement
+    if sides is not None and sides.closed:
+        flips.append(("winding", sides.keys, sides.flip))
+        orientation.update(flag_unsupported(results_path, run.source, context.choices.frame, sides))
+    timings["orientation"] = time.perf_counter() - tic
+    return flips, orientation
+
+
+def _write(run: _Run, plan: TilePlan, context: SurveyContext, medians: dict, flips, timings: dict, bar) -> dict:
+    """The write phase: the output in input order, atomically; the parameters written into it."""
+    from ..io.atomic import atomic_write
+
+    parameters = {
+        "heatcurv": _version(), "tiled": True, "options": run.options, "tile_size": plan.tile_size,
+        "tiles": len(plan.tiling.counts), "halo": float(context.halo), "context": compute.describe(context),
+        "medians": medians, "source": run.src.name,
+    }
+    bar.stage("writing")
+    tic = time.perf_counter()
+    atomic_write(run.dst, partial(write_output, dst=run.dst, source=run.source, stats=plan.stats,
+                                  results_path=run.work / "results.rec", wanted=run.fields, dtype=run.dtype,
+                                  flips=flips, parameters=parameters))
+    timings["write"] = time.perf_counter() - tic
+    return parameters
+
+
+def _report(run: _Run, plan: TilePlan, context: SurveyContext, store: _TileStore, timings: dict, name: str,
+            workers: int, resumed: int, orientation, parameters: dict) -> TiledReport:
+    results = store.results
+    worker_peak = max([r["peak"] for r in results.values()], default=0)
     driver_peak = _peak()
-    widened = sum(1 for r in tile_results.values() if r["widened"])
-    say(f"computed {stats.finite} points in {n_tiles} tiles ({name}, {workers} at once) in "
-        f"{timings['total']:.1f} s; wrote {dst}")
+    stats, n_tiles = plan.stats, len(plan.tiling.counts)
+    run.say(f"computed {stats.finite} points in {n_tiles} tiles ({name}, {workers} at once) in "
+            f"{timings['total']:.1f} s; wrote {run.dst}")
     return TiledReport(
-        source=str(src), output=str(dst), points=stats.count, computed=stats.finite, tiles=n_tiles,
-        tile_size=int(tile_size), halo=halo, widened=widened, resumed=resumed, scheduler=name, workers=workers,
-        budget=budget, peak_memory={"driver": driver_peak, "worker": worker_peak,
-                                    "estimate": driver_peak + workers * worker_peak},
-        timings=timings, context=compute.describe(context),
-        orientation=orientation, parameters=parameters, scratch=str(work),
-        tile_seconds=[tile_results[t]["seconds"] for t in sorted(tile_results)],
+        source=str(run.src), output=str(run.dst), points=stats.count, computed=stats.finite, tiles=n_tiles,
+        tile_size=plan.tile_size, halo=float(context.halo), widened=sum(1 for r in results.values() if r["widened"]),
+        resumed=resumed, scheduler=name, workers=workers, budget=run.budget,
+        peak_memory={"driver": driver_peak, "worker": worker_peak, "estimate": driver_peak + workers * worker_peak},
+        timings=timings, context=compute.describe(context), orientation=orientation, parameters=parameters,
+        scratch=str(run.work), tile_seconds=[results[t]["seconds"] for t in sorted(results)],
     )
 
 

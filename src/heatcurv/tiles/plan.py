@@ -33,6 +33,29 @@ ball (:func:`heatcurv.tiles.compute.survey_halo`, one per tile, stored in the
 plan), the tiles' is the one the survey's choices need. Each phase runs as
 many tiles at once as the budget holds with *its* halo
 (:func:`halo_points`, :func:`fitting_workers`).
+
+Fitting the budget
+------------------
+The plan fits the budget by itself (:func:`phase_workers`), for each phase
+with the largest tile's core + halo points ``p``:
+
+1. ``w`` worker processes (threads, Dask workers), the most of the requested
+   that fit: ``DRIVER_MEMORY + w x (WORKER_OVERHEAD + BYTES_PER_POINT x p)``;
+2. else one tile at a time in the driver's own process (local schedulers
+   only), which has the interpreter and the libraries loaded already:
+   ``DRIVER_MEMORY + BYTES_PER_POINT x p`` (:func:`in_process_memory`);
+3. else, unless the tile size was given, smaller tiles: the driver tiles
+   again (two more passes over the input) at a smaller tile size, down to
+   :data:`MIN_TILE_SIZE` core points.
+
+It refuses only when one tile of :data:`MIN_TILE_SIZE` core points (or of the
+given tile size) with its halo does not fit in the driver's process (with a
+Dask scheduler: beside the driver, in one worker process), and the message
+names that minimum budget (:func:`budget_refusal`). The survey's halo is the
+widest candidate's ball whatever the tile, so a cloud's minimum is about the
+driver plus the points within that ball of a small tile. Whatever the cloud, no budget below
+:func:`smallest_budget` (``DRIVER_MEMORY + BYTES_PER_POINT x MIN_TILE_SIZE``,
+630 MB) can hold a tiled run: it is refused before the file is read.
 """
 
 from __future__ import annotations
@@ -54,7 +77,8 @@ __all__ = [
     "CloudStats", "Tiling", "BYTES_PER_POINT", "WORKER_OVERHEAD", "BUDGET_FRACTION", "FINE_CELLS",
     "available_memory", "default_budget", "parse_size", "size_text", "scan_stats", "make_tiling", "scatter",
     "options_hash", "check_disk", "read_rows", "in_memory_bytes", "DRIVER_MEMORY", "halo_points",
-    "fitting_workers", "worker_memory",
+    "fitting_workers", "worker_memory", "MIN_TILE_SIZE", "PhaseWorkers", "phase_workers", "in_process_memory",
+    "smallest_budget", "check_smallest_budget", "budget_refusal", "fit_tiles", "TilePlan",
 ]
 
 #: Estimator memory per point of a tile (core + halo), bytes: measured 1.18 kB per point at 1M points of
@@ -67,6 +91,8 @@ WORKER_OVERHEAD = 400 * 2**20
 DRIVER_MEMORY = 600 * 2**20
 #: The default budget: this share of the memory available when the run starts.
 BUDGET_FRACTION = 0.6
+#: The smallest tile the plan shrinks to, core points (the command line's least ``--tile-size``).
+MIN_TILE_SIZE = 1000
 #: Cells of the fine histogram grid the tiles are made of.
 FINE_CELLS = 1 << 21
 
@@ -125,9 +151,24 @@ def available_memory() -> int:
         return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
 
 
-def default_budget() -> int:
-    """The default ``max_memory``: :data:`BUDGET_FRACTION` of :func:`available_memory`."""
-    return int(BUDGET_FRACTION * available_memory())
+def default_budget(points: int | None = None) -> int:
+    """The default ``max_memory``: :data:`BUDGET_FRACTION` of :func:`available_memory`, at least a small cloud's need.
+
+    Parameters
+    ----------
+    points : int, optional
+        Points of the cloud a tiled run is planned for. When given, the budget
+        is at least what one tile of ``min(points, 10 x MIN_TILE_SIZE)`` points
+        needs in the driver's process (:func:`in_process_memory`; the whole
+        cloud, for a small one), as long as that much memory is available: a
+        small cloud is not refused because the share of a busy machine's free
+        memory is below the model's fixed reservations.
+    """
+    available = available_memory()
+    budget = int(BUDGET_FRACTION * available)
+    if points is not None:
+        budget = max(budget, min(available, in_process_memory(min(int(points), 10 * MIN_TILE_SIZE))))
+    return budget
 
 
 _UNITS = {"": 1, "B": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
@@ -253,6 +294,47 @@ class Tiling:
     def from_json(cls, data: dict) -> Tiling:
         return cls(tuple(data["origin"]), tuple(data["cell"]), tuple(data["shape"]),
                    [tuple(c) for c in data["cells"]], list(data["counts"]))
+
+
+@dataclass(frozen=True)
+class TilePlan:
+    """The plan of a tiled run, as ``plan.json`` holds it: what a resumed run needs before the survey.
+
+    Attributes
+    ----------
+    identity : dict
+        What a resumed run must match: the plan's and heatcurv's versions, the
+        source file (path, size, modification time), the options' hash, and
+        the tile size if one was given.
+    tiling : Tiling
+    stats : CloudStats
+        With the distinct points' frame (:func:`distinct_frame`).
+    tile_size : int
+        Core points a tile was to hold at most (the plan's, after
+        :func:`fit_tiles`).
+    survey_halos, key_halos : tuple of float
+        Each tile's survey halo and keys' halo (:func:`heatcurv.tiles.compute.survey_halo`,
+        :func:`heatcurv.tiles.compute.key_halo`), input units.
+    """
+
+    identity: dict
+    tiling: Tiling
+    stats: CloudStats
+    tile_size: int
+    survey_halos: tuple
+    key_halos: tuple
+
+    def to_json(self) -> dict:
+        """The plan as ``plan.json`` holds it (read by the tasks: :func:`heatcurv.tiles.tasks.load_plan`)."""
+        return {"identity": self.identity, "tiling": self.tiling.to_json(), "stats": asdict(self.stats),
+                "tile_size": int(self.tile_size), "survey_halos": list(self.survey_halos),
+                "key_halos": list(self.key_halos)}
+
+    @classmethod
+    def from_json(cls, data: dict) -> TilePlan:
+        stats = CloudStats(**{k: tuple(v) if isinstance(v, list) else v for k, v in data["stats"].items()})
+        return cls(data["identity"], Tiling.from_json(data["tiling"]), stats, int(data["tile_size"]),
+                   tuple(data["survey_halos"]), tuple(data["key_halos"]))
 
 
 def _fine_grid(stats: CloudStats):
@@ -398,6 +480,155 @@ def plan_workers(budget: int, requested: int | None, tile_points: int, cpus: int
     return int(max(0, min(want, fit)))
 
 
+def in_process_memory(points: int) -> int:
+    """Estimated peak memory of a run computing one tile of ``points`` points (core + halo) at a time in the
+    driver's process, bytes: :data:`DRIVER_MEMORY` (which holds the interpreter and libraries a worker process
+    loads again, :data:`WORKER_OVERHEAD`) plus :data:`BYTES_PER_POINT` per point."""
+    return DRIVER_MEMORY + BYTES_PER_POINT * int(points)
+
+
+def smallest_budget() -> int:
+    """The least budget any tiled run can fit: one tile of :data:`MIN_TILE_SIZE` points, no halo, in process."""
+    return in_process_memory(MIN_TILE_SIZE)
+
+
+def check_smallest_budget(budget: int) -> None:
+    """Refuse a budget below :func:`smallest_budget`, naming it (in whole MiB, as ``--max-memory`` takes it)."""
+    if budget < smallest_budget():
+        raise HeatcurvError(
+            f"a memory budget of {size_text(budget)} is too small for a tiled run: the driver keeps "
+            f"{size_text(DRIVER_MEMORY)} and the smallest tile ({MIN_TILE_SIZE} points, no halo) needs "
+            f"{size_text(BYTES_PER_POINT * MIN_TILE_SIZE)}; pass a --max-memory of at least "
+            f"{-(-smallest_budget() // 2**20)}M"
+        )
+
+
+@dataclass(frozen=True)
+class PhaseWorkers:
+    """How a parallel phase runs its tiles within the budget (:func:`phase_workers`).
+
+    Attributes
+    ----------
+    count : int
+        Tiles computed at once.
+    in_process : bool
+        One tile at a time in the driver's process (no worker process).
+    memory : int
+        The phase's estimated peak, driver included, bytes.
+    """
+
+    count: int
+    in_process: bool
+    memory: int
+
+
+def phase_workers(points, budget: int, requested: int, cpus: int, in_process: bool = True) -> PhaseWorkers | None:
+    """The most tiles the budget lets a phase run at once; one in the driver's process if no worker fits.
+
+    Parameters
+    ----------
+    points : array_like of int, shape (T,)
+        Core + halo points of each tile in this phase (:func:`halo_points`).
+    budget : int
+        The whole run's budget, bytes.
+    requested, cpus : int
+        Tiles asked to run at once (-1 or None: ``cpus``), and the cores.
+    in_process : bool
+        Whether a tile may run in the driver's process (a local scheduler).
+
+    Returns
+    -------
+    PhaseWorkers or None
+        None when not even one tile fits in the driver's process.
+    """
+    largest = int(np.max(points)) if len(points) else 0
+    fit = plan_workers(max(budget - DRIVER_MEMORY, 0), requested, largest, cpus)
+    if fit >= 1:
+        return PhaseWorkers(fit, False, DRIVER_MEMORY + fit * worker_memory(largest))
+    if in_process and in_process_memory(largest) <= budget:
+        return PhaseWorkers(1, True, in_process_memory(largest))
+    return None
+
+
+def budget_refusal(largest: int, budget: int, tile_size: int, phase: str, given: bool, in_process: bool = True
+                   ) -> HeatcurvError:
+    """The error of a budget that holds no tile of ``largest`` points (core + halo) of the smallest tiling tried.
+
+    It names the budget that would fit that tile (in the driver's process, or
+    in one worker process for a Dask scheduler) and, when the tile size was
+    given, a smaller one.
+    """
+    need = in_process_memory(largest) if in_process else DRIVER_MEMORY + worker_memory(largest)
+    minimum = -(-need // 2**20) * 2**20  # in whole MiB, as --max-memory takes it
+    where = "" if in_process else " and one worker process"
+    advice = (f"pass a smaller --tile-size (now {tile_size}) or a --max-memory of at least {minimum // 2**20}M"
+              if given else f"the smallest tiles ({tile_size} points) need a --max-memory of at least "
+              f"{minimum // 2**20}M")
+    return HeatcurvError(
+        f"a tile of about {largest} points (core and halo{', the survey' if phase == 'survey' else ''}) needs "
+        f"about {size_text(need)} with the driver{where}, more than the budget of {size_text(budget)} leaves for "
+        f"one worker; {advice} (the model: the driver {size_text(DRIVER_MEMORY)}, a worker process "
+        f"{size_text(WORKER_OVERHEAD)}, {BYTES_PER_POINT} bytes per point of a tile's core and halo)"
+    )
+
+
+def smaller_tile_size(tile_size: int, largest: int, budget: int) -> int:
+    """The next tile size to try when a tile of ``largest`` points (core + halo) at ``tile_size`` does not fit
+    in the driver's process: at most half, in proportion to what the budget holds, at least :data:`MIN_TILE_SIZE`."""
+    holds = max(budget - DRIVER_MEMORY, 0) // BYTES_PER_POINT
+    return max(MIN_TILE_SIZE, min(tile_size // 2, int(tile_size * holds / max(largest, 1))))
+
+
+def fit_tiles(measure, tile_size: int, budget: int, requested: int, cpus: int, *, in_process: bool = True,
+              given: bool = False, say=None):
+    """Tile the cloud at ``tile_size``, and at smaller sizes while its largest survey tile does not fit the budget.
+
+    Parameters
+    ----------
+    measure : callable
+        ``measure(tile_size) -> (largest, tiled)``: tiles the cloud and returns
+        the core + survey-halo points of its largest tile and whatever the
+        caller keeps of that tiling (the driver: the tiling, the scratch files,
+        the halos).
+    tile_size : int
+        The first tile size tried (core points).
+    budget, requested, cpus, in_process
+        As :func:`phase_workers`.
+    given : bool
+        The tile size was asked for: it is not made smaller.
+    say : callable, optional
+        Told each time the cloud is tiled again.
+
+    Returns
+    -------
+    tile_size : int
+    tiled
+        ``measure``'s second value at that size.
+    workers : PhaseWorkers
+        How the survey fits.
+
+    Raises
+    ------
+    HeatcurvError
+        When even the smallest tile tried (``tile_size`` if given, else down
+        to :data:`MIN_TILE_SIZE`) does not fit in the driver's process; the
+        message names the budget it needs (:func:`budget_refusal`).
+    """
+    tile_size = int(tile_size)
+    while True:
+        largest, tiled = measure(tile_size)
+        fit = phase_workers([largest], budget, requested, cpus, in_process)
+        if fit is not None:
+            return tile_size, tiled, fit
+        if given or tile_size <= MIN_TILE_SIZE:
+            raise budget_refusal(largest, budget, tile_size, "survey", given, in_process)
+        smaller = smaller_tile_size(tile_size, largest, budget)
+        if say is not None:
+            say(f"a tile of {tile_size} points with the survey's halo (about {largest} points) does not fit the "
+                f"budget of {size_text(budget)}: tiling again at {smaller} points")
+        tile_size = smaller
+
+
 def halo_points(tiling: Tiling, stats: CloudStats, halo) -> np.ndarray:
     """Estimated core + halo points of each tile: its count times the volume its halo box adds (clipped to the cloud).
 
@@ -465,9 +696,13 @@ def fitting_workers(points, budget: int, requested: int, cpus: int, tile_size: i
     return fit
 
 
-def default_tile_size(budget: int, workers: int, halo_share: float = 1.0) -> int:
-    """Core points per tile: what ``budget / workers`` holds with a halo of ``halo_share`` x the core, at most 2M."""
-    per = budget / max(workers, 1) - WORKER_OVERHEAD
+def default_tile_size(budget: int, workers: int, halo_share: float = 1.0, in_process: bool = False) -> int:
+    """Core points per tile: what ``budget / workers`` holds with a halo of ``halo_share`` x the core, at most 2M.
+
+    ``in_process``: one tile at a time in the driver's process, which has no
+    :data:`WORKER_OVERHEAD` of its own (``budget`` is what the driver leaves).
+    """
+    per = budget if in_process else budget / max(workers, 1) - WORKER_OVERHEAD
     return int(max(10_000, min(2_000_000, per / (BYTES_PER_POINT * (1 + halo_share)))))
 
 

@@ -304,7 +304,7 @@ def run_tile(spec: dict) -> dict:
     tiling = Tiling.from_json(plan["tiling"])
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     centroid = np.asarray(plan["stats"]["centroid"])
-    halo = float(spec.get("halo", context["halo"]))
+    halo = float(spec.get("halo", context.halo))
 
     def tile_values(points, core):
         out = compute.compute_tile(points, core, context, options)
@@ -321,8 +321,8 @@ def run_tile(spec: dict) -> dict:
     volumes = np.bincount(inverse, weights=np.nan_to_num(terms), minlength=len(labels))
     arrays = {name: np.asarray(out[name]) for name in compute.RESULT_FIELDS}
     # the winding step's patches (each within one seam piece) and sources (heatcurv.tiles.winding)
-    if compute.orients_outward(options, context["choices"]):
-        frame = context["choices"].frame
+    if compute.orients_outward(options, context.choices):
+        frame = context.choices.frame
         arrays.update(tile_sources(frame, points[core], rows[core], patch[core], arrays,
                                    None if out["winding"] is None else {k: v[core] for k, v in out["winding"].items()}))
     else:
