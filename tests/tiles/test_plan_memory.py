@@ -5,7 +5,7 @@ import pytest
 from tiles_helpers import ALL_FIELDS, exact, read_fields
 
 from heatcurv.errors import HeatcurvError
-from heatcurv.testing.tiles import tiled_agreement
+from support.tiles import tiled_agreement
 from heatcurv.tiles import plan
 from heatcurv.tiles.plan import (
     DRIVER_MEMORY,
