@@ -5,7 +5,6 @@ import pytest
 from tiles_helpers import ALL_FIELDS, exact, read_fields
 
 from heatcurv.errors import HeatcurvError
-from support.tiles import tiled_agreement
 from heatcurv.tiles import plan
 from heatcurv.tiles.plan import (
     DRIVER_MEMORY,
@@ -16,6 +15,7 @@ from heatcurv.tiles.plan import (
     read_rows,
     worker_memory,
 )
+from support.tiles import tiled_agreement
 
 
 def _two_tiles():
