@@ -16,7 +16,9 @@ The scans
 ``lidar``        ``heatcurv.surfaces.lidar_tile(20000, seed=0)`` with ``orient="up"``: a
                  simulated aerial LiDAR tile with exact normals per class;
 ``cad``          ``heatcurv.surfaces.cad_part(20000)``: a simulated closed CAD part with exact
-                 normals, mean curvature, area and sharp edges.
+                 normals, mean curvature, area and sharp edges;
+CGAL's models    the twelve closed models of ``benchmarks/orientation.py`` (clean variant,
+                 heatcurv alone): how many points come out inside out (``--no-closed`` skips them).
 
 pymeshlab is GPL-3: its sample meshes are fetched at run time by
 :func:`support.scans.fetch_pymeshlab_samples` (pinned wheel, SHA-256
@@ -763,7 +765,8 @@ def machine() -> list[str]:
 # ---------------------------------------------------------------------------
 
 
-def page(cases: list[Case], results: dict, pictures: list, info: list[str], wall: float, load, args) -> str:
+def page(cases: list[Case], results: dict, pictures: list, info: list[str], wall: float, load, args,
+         closed=None) -> str:
     r = results
     by_key = {c.key: c for c in cases}
     lines = [
@@ -874,6 +877,20 @@ def page(cases: list[Case], results: dict, pictures: list, info: list[str], wall
     warned = [(c.title, w) for c in cases for w in r[c.key]["warnings"]]
     lines += ["Warnings during the runs: " + ("none." if not warned else ""), ""]
     lines += [f"* {t}: {w}" for t, w in warned] + ([""] if warned else [])
+    if closed:
+        lines += [
+            "## Closed objects with thin parts",
+            "",
+            "CGAL's twelve closed models (animals and figures with legs, ears, tails and horns; lion has small",
+            "holes), their used vertices as the cloud and the meshes' outward vertex normals as the truth, with",
+            "the default options: the share of points whose normal points into the object, on parts at least",
+            "3 spacings thick, inside out *and* flagged reliable (the silent error), and flagged. The same",
+            "table with noisy and half-sampled variants, tiled runs and Open3D's orientation beside it is in",
+            "[orientation.md](orientation.md) (`benchmarks/orientation.py`).",
+            "",
+            text_table("", CLOSED_COLUMNS, closed, True, heading="{}").strip(),
+            "",
+        ]
     if pictures:
         lines += [
             "## Pictures",
@@ -1125,6 +1142,44 @@ def explain(cases, r) -> list[str]:
 # ---------------------------------------------------------------------------
 
 
+def closed_models(log) -> list[list[str]]:
+    """CGAL's twelve closed models (clean): heatcurv's outward orientation against the meshes' normals.
+
+    The rows of ``benchmarks/orientation.py``'s clean table for heatcurv alone (that script adds the
+    noisy and half variants, tiled runs and Open3D): model, points, thin %, wrong %, wrong on thick %,
+    wrong & reliable %, flagged %.
+    """
+    import orientation as bench  # benchmarks/orientation.py
+    from support.scans import fetch_cgal_meshes
+
+    directory = fetch_cgal_meshes()
+    rows, totals = [], []
+    for name in bench.MODELS:
+        model = bench.load_model(directory, name)
+        points, truth, thick = bench.variant(model, "clean")
+        res = heatcurv.estimate(points)
+        m = bench.measure(res.normals, res.reliable, truth, thick, either_sign=False)
+        totals.append((len(points), int(thick.sum()), m))
+        rows.append([name + ("" if model["closed"] else " (holes)"), fmt(len(points)),
+                     f"{100 * (~thick).mean():.2f}", f"{m['wrong']:.2f}", f"{m['wrong_thick']:.2f}",
+                     f"{m['wrong_reliable']:.2f}", f"{m['flagged']:.1f}"])
+        log(f"closed {name}: wrong {m['wrong']:.2f} %, wrong & reliable {m['wrong_reliable']:.2f} %")
+    n = np.array([t[0] for t in totals], dtype=float)
+    nthick = np.array([t[1] for t in totals], dtype=float)
+
+    def pooled(key, weights):
+        return float(np.nansum(weights * [t[2][key] for t in totals]) / weights.sum())
+
+    thin = sum(float(r[2]) * w for r, w in zip(rows, n)) / n.sum()
+    rows.append(["all", fmt(int(n.sum())), f"{thin:.2f}", f"{pooled('wrong', n):.2f}",
+                 f"{pooled('wrong_thick', nthick):.2f}", f"{pooled('wrong_reliable', n):.2f}",
+                 f"{pooled('flagged', n):.1f}"])
+    return rows
+
+
+CLOSED_COLUMNS = ["model", "points", "thin %", "wrong %", "wrong on thick %", "wrong & reliable %", "flagged %"]
+
+
 def parse_args(argv=None):
     p = argparse.ArgumentParser(
         description="heatcurv on real scans (pymeshlab's sample meshes, fetched at run time) and simulated "
@@ -1136,6 +1191,8 @@ def parse_args(argv=None):
     p.add_argument("--no-pictures", action="store_true", help="no PNGs (with --out: a page without pictures)")
     p.add_argument("--data", metavar="DIR", help="directory of the pymeshlab samples (default: the cache)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random half (default 0)")
+    p.add_argument("--no-closed", action="store_true",
+                   help="skip CGAL's twelve closed models (the orientation table of closed objects with thin parts)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     args = p.parse_args(argv)
     shown = []
@@ -1147,6 +1204,8 @@ def parse_args(argv=None):
         shown.append("--no-pictures")
     if args.seed:
         shown += ["--seed", str(args.seed)]
+    if args.no_closed:
+        shown.append("--no-closed")
     args.argv_shown = shown
     return args
 
@@ -1175,6 +1234,10 @@ def main(argv=None) -> int:
         for w in results[case.key]["warnings"]:
             log(f"  warning: {w}")
     print(tables(cases, results, markdown=False))
+    closed = None if args.no_closed else closed_models(log)
+    if closed:
+        print(text_table("Closed objects with thin parts (CGAL's models, clean): % of the points inside out",
+                         CLOSED_COLUMNS, closed, False))
     for case in cases:
         for name, count, same, reliable, wrong in results[case.key].get("regions", []):
             print(f"{case.title}, {name}: {count} points, same side {same:.2f} %, reliable {reliable:.1f} %, "
@@ -1192,7 +1255,7 @@ def main(argv=None) -> int:
         print(f"pictures in {outdir}: {len(pictures)} files, {sum(sizes) / 1e6:.2f} MB")
     seconds = time.perf_counter() - wall
     if args.out:
-        text = page(cases, results, pictures, info, seconds, (load_start, os.getloadavg()[0]), args)
+        text = page(cases, results, pictures, info, seconds, (load_start, os.getloadavg()[0]), args, closed)
         Path(args.out).write_text(text)
         print(f"wrote {args.out}")
     print(f"wall time {seconds:.0f} s")
