@@ -335,3 +335,17 @@ def test_compute_refuses_a_las_whose_records_are_misaligned(tmp_path):
         f"the 400 points of {record_length} bytes the header announces (not a whole number of records): the point "
         "count, the record length or the offset to the points is wrong, or bytes were inserted\n")
     assert not (tmp_path / "out.ply").exists()
+
+
+def test_a_radius_below_the_spacing_says_so_and_names_one_that_works(tmp_path):
+    out = run("compute", bunny_path(), "-o", tmp_path / "out.ply", "--radius", "0.0001")
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.splitlines() == [
+        "heatcurv: warning: radius = 0.0001 leaves a median point's ball with 0 neighbours; the chord fit has 9 "
+        "unknowns and needs at least 10, so most points will be unreliable. The points' median spacing is 0.28: "
+        "radius = 0.7 gives 90 % of them at least 10 neighbours"
+    ]
+    assert "0 of 1839 points reliable" in out.stdout
+    out = run("compute", bunny_path(), "-o", tmp_path / "out.ply", "--radius", "0.7")
+    assert out.returncode == 0 and out.stderr == "", out.stderr
+    assert "1429 of 1839 points reliable" in out.stdout
