@@ -37,8 +37,7 @@ the operator's balls:
   a median point's ball holds fewer than :func:`neighbours_needed`, a warning
   names the cloud's median spacing and a radius (or ``alpha``) that gives
   nine points in ten enough neighbours (``radius = 1e-4`` on the bunny scan,
-  whose spacing is 0.28: every point unreliable, exit status 0, and no hint
-  before this check).
+  whose spacing is 0.28, leaves every point unreliable).
 """
 
 from __future__ import annotations
