@@ -109,7 +109,7 @@ def test_a_radius_below_the_spacing_warns_and_names_one_that_works(bunny):
     messages, res = _ball_warnings(bunny, radius=1e-4)
     assert messages == [
         "radius = 0.0001 leaves a median point's ball with 0 neighbours; the chord fit has 9 unknowns and needs "
-        "at least 10, so most points will be unreliable. The points' median spacing is 0.28: radius = 0.7 gives "
+        "at least 10, so many points will be unreliable. The points' median spacing is 0.28: radius = 0.7 gives "
         "90 % of them at least 10 neighbours"
     ]
     assert res.reliable.sum() == 0
@@ -125,7 +125,7 @@ def test_a_ball_of_alpha_spacings_that_holds_too_few_names_an_alpha(bunny):
     messages, _ = _ball_warnings(bunny, spacing="global", alpha=1.0)
     assert messages == [
         "alpha = 1 (global spacing) leaves a median point's ball with 1 neighbour; the chord fit has 9 unknowns and "
-        "needs at least 10, so most points will be unreliable. The points' median spacing is 0.28: alpha = 2.5 "
+        "needs at least 10, so many points will be unreliable. The points' median spacing is 0.28: alpha = 2.5 "
         "gives 90 % of them at least 10 neighbours"
     ]
     assert _ball_warnings(bunny, spacing="global", alpha=2.5)[0] == []
@@ -133,7 +133,7 @@ def test_a_ball_of_alpha_spacings_that_holds_too_few_names_an_alpha(bunny):
     messages, res = _ball_warnings(bunny, spacing="global", alpha=2.0, min_neighbours=40)
     assert messages == [
         "alpha = 2 (global spacing) leaves a median point's ball with 8 neighbours; min_neighbours = 40 asks for "
-        "at least 40 (a point with fewer gets its nearest ones), so most points will be unreliable. The points' "
+        "at least 40 (a point with fewer gets its nearest ones), so many points will be unreliable. The points' "
         "median spacing is 0.28: alpha = 4.5 gives 90 % of them at least 40 neighbours"
     ]
     assert res.reliable.sum() == 0
@@ -144,7 +144,7 @@ def test_the_paper_fit_needs_min_neighbours_in_its_ball(bunny):
     messages, _ = _ball_warnings(bunny, method="paper", alpha=1.5, m=1.0)
     assert messages == [
         "alpha = 1.5 (global spacing) leaves a median point's ball with 5 neighbours; min_neighbours = 6 asks for "
-        "at least 6 (a point with fewer gets its nearest ones), so most points will be unreliable. The points' "
+        "at least 6 (a point with fewer gets its nearest ones), so many points will be unreliable. The points' "
         "median spacing is 0.28: alpha = 2 gives 90 % of them at least 6 neighbours"
     ]
 

@@ -390,7 +390,7 @@ def check_ball_counts(points: np.ndarray, tree, nbhd: Neighbourhood, h: np.ndarr
             advice = f"alpha = {alpha:.2g}"
     neighbours = "neighbour" if held == 1 else "neighbours"
     warnings.warn(
-        f"{what} leaves a median point's ball with {held:g} {neighbours}; {why}, so most points will be "
+        f"{what} leaves a median point's ball with {held:g} {neighbours}; {why}, so many points will be "
         f"unreliable. The points' median spacing is {spacing:.2g}: {advice} gives "
         f"{round(100 * FILLED_SHARE)} % of them at least {need} neighbours",
         HeatcurvWarning,

@@ -342,7 +342,7 @@ def test_a_radius_below_the_spacing_says_so_and_names_one_that_works(tmp_path):
     assert out.returncode == 0, out.stderr
     assert stderr_lines(out) == [
         "heatcurv: warning: radius = 0.0001 leaves a median point's ball with 0 neighbours; the chord fit has 9 "
-        "unknowns and needs at least 10, so most points will be unreliable. The points' median spacing is 0.28: "
+        "unknowns and needs at least 10, so many points will be unreliable. The points' median spacing is 0.28: "
         "radius = 0.7 gives 90 % of them at least 10 neighbours"
     ]
     assert "0 of 1839 points reliable" in out.stdout
