@@ -320,7 +320,10 @@ def test_one_physical_radius_instead_of_a_neighbour_count(records):
     scaled = heatcurv.estimate(10.0 * sample.points, radius=10.0 * r)
     np.testing.assert_allclose(scaled.mean, fixed.mean / 10.0, rtol=1e-6, atol=1e-9)
     # a radius that leaves points fewer than min_neighbours gives them their nearest ones, unreliable
-    tiny = heatcurv.estimate(sample.points, radius=0.35 * r, min_neighbours=6)
+    # (a median ball of 7 then: warned, with the radius that gives 9 in 10 points the fit's 10)
+    warned = r"leaves a median point's ball with 7 neighbours; .* radius = 0\.19 gives"
+    with pytest.warns(heatcurv.HeatcurvWarning, match=warned):
+        tiny = heatcurv.estimate(sample.points, radius=0.35 * r, min_neighbours=6)
     assert 0.0 < tiny.reliable.mean() < 0.9
     with pytest.raises(HeatcurvError, match="radius must be a positive length"):
         heatcurv.estimate(sample.points, radius=-1.0)

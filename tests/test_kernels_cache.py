@@ -136,23 +136,52 @@ class Terminal(io.StringIO):
         return True
 
 
-def test_command_prints_the_notice_on_a_terminal_or_with_verbose_unless_quiet():
-    """As the progress bar: on stderr when it is a terminal; a stderr that scripts read stays errors only."""
-    terminal, pipe, stdout = Terminal(), io.StringIO(), io.StringIO()
-    assert notice_stream(False, False, terminal, stdout) is terminal
-    assert notice_stream(False, True, terminal, stdout) is terminal
-    assert notice_stream(False, False, pipe, stdout) is None
-    assert notice_stream(False, True, pipe, stdout) is stdout
-    assert notice_stream(True, False, terminal, stdout) is None
-    assert notice_stream(False, False, None, stdout) is None
+def test_command_prints_the_notice_on_stderr_terminal_or_not_unless_quiet():
+    """A script's or CI's first run is told why it waits, as a terminal is; --quiet silences it."""
+    terminal, pipe = Terminal(), io.StringIO()
+    assert notice_stream(False, terminal) is terminal
+    assert notice_stream(False, pipe) is pipe
+    assert notice_stream(True, terminal) is None
+    assert notice_stream(True, pipe) is None
+    assert notice_stream(False, None) is None
     logger = logging.getLogger(LOGGER_NAME)
     level, handlers = logger.level, list(logger.handlers)
-    with compile_notice(terminal):
+    with compile_notice(pipe):
         logger.info(COMPILE_NOTICE)
     with compile_notice(None):
         logger.info(COMPILE_NOTICE)
-    assert terminal.getvalue() == NOTICE_LINE + "\n"
+    assert pipe.getvalue() == NOTICE_LINE + "\n"
     assert logger.level == level and logger.handlers == handlers
+
+
+#: The command line with ``info``'s work replaced by compiling two kernels (what any computing command does first).
+COMPILING_COMMAND = """
+import sys
+import numpy as np
+from heatcurv.cli import info, main
+from heatcurv.data import bunny_path
+
+def compiles(args, log):
+    from heatcurv._kernels import segment as s
+    d, r = np.array([0.5, 0.2]), np.ones(2)
+    s.taper_sums(np.array([0, 1, 2]), d, r, 0.7)
+    s.orientation_costs(np.eye(3)[:2], np.eye(3)[:2], np.array([0, 1, 2]), np.array([1, 0]), d, r)
+    return 0
+
+info.run = compiles
+sys.exit(main(["info", str(bunny_path()), *sys.argv[1:]]))
+"""
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_command_says_once_that_it_compiles_when_stderr_is_a_pipe(tmp_path, quiet):
+    """Two kernels compiled with stderr a pipe (an empty numba cache): the notice once, and nothing with --quiet."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", COMPILING_COMMAND, *(["--quiet"] if quiet else [])],
+                         capture_output=True, text=True, timeout=600, env=env)  # stderr: a pipe
+    assert out.stdout == ""
+    assert out.stderr == ("" if quiet else NOTICE_LINE + "\n")
+    assert out.returncode == 0
 
 
 @numba.njit(nogil=True)

@@ -39,7 +39,7 @@ from .choices import frame_of
 from .chordfit import ChordFit, chord_fit, refine_normals
 from .errors import HeatcurvError
 from .kernel import tapered_heat_weights
-from .kernel_check import check_kernel
+from .kernel_check import check_ball_counts, check_kernel
 from .mean_curvature import mean_curvature
 from .neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_per_block
 from .normals import pca_normals
@@ -198,6 +198,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             # every subset a stage draws is drawn by these keys: no result depends on the row order
             keys = geometric_keys(op.points, op.neighbourhood, frame)
             check_kernel(op.neighbourhood, op.h, opts, keys)  # refuse a kernel that leaves nothing to fit
+            check_ball_counts(op.points, op.tree, op.neighbourhood, op.h, opts, keys, op.prepared.unit)
         with clock.stage("outliers"):
             outliers = find_outliers(op.points, op.neighbourhood)
         towards = _reference(op, mode, viewpoint)

@@ -28,7 +28,16 @@ the operator's balls:
   regular sphere's mean curvature is then 10 % off); the default's fit is
   tapered to 0 at the edge by design and warns only when the kernel is
   wider than the ball (edge above ``exp(-1)``), where the ball, not the heat
-  kernel, sets the weights.
+  kernel, sets the weights;
+* the **points in each ball** (:func:`check_ball_counts`), where the ball has
+  a fixed radius (``radius=``, or ``alpha`` times the paper's spacings)
+  rather than a neighbour count: a ball that holds fewer points than the
+  fit has unknowns leaves it under-determined, and a point whose ball holds
+  fewer than ``min_neighbours`` gets its nearest ones and is unreliable. When
+  a median point's ball holds fewer than :func:`neighbours_needed`, a warning
+  names the cloud's median spacing and a radius (or ``alpha``) that gives
+  nine points in ten enough neighbours (``radius = 1e-4`` on the bunny scan,
+  whose spacing is 0.28, leaves every point unreliable).
 """
 
 from __future__ import annotations
@@ -42,10 +51,13 @@ import numpy as np
 from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import effective_neighbours, heat_kernel_weights, tapered_heat_weights
 from .neighbourhood import Neighbourhood
-from .options import METHODS, Options
+from .options import METHODS, RANGES, Options
 from .sampling import draw_subset
 
-__all__ = ["KernelSupport", "measure_support", "check_kernel", "SUPPORT_LIMITS"]
+__all__ = [
+    "KernelSupport", "measure_support", "check_kernel", "SUPPORT_LIMITS", "FIT_UNKNOWNS", "neighbours_needed",
+    "check_ball_counts",
+]
 
 #: Median effective neighbours of each fit below which it is an error, and below which a
 #: warning (measured: see the module docstring).
@@ -55,6 +67,12 @@ SUPPORT_LIMITS = {"chord": (2.0, 3.0), "tensor": (5.0, 6.5)}
 EDGE_WEIGHT_MAX = {"untapered": 1e-3, "tapered": math.exp(-1.0)}
 #: Balls the measurement runs on.
 SAMPLE = 2000
+#: Unknowns of each fit: the chord fit's curvature tensor (3), normal tilt (2) and cubic terms (4);
+#: the paper's tensor fit, ``H``, ``p``, ``b`` (:mod:`heatcurv.principal`).
+FIT_UNKNOWNS = {"chord": 9, "tensor": 3}
+#: Share of the points whose ball the radius (or ``alpha``) named by :func:`check_ball_counts`
+#: fills with :func:`neighbours_needed` neighbours.
+FILLED_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -266,3 +284,115 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options, keys: np.
             )
         warnings.warn(message, HeatcurvWarning, stacklevel=3)
     return support
+
+
+def neighbours_needed(options: Options) -> int:
+    """Fewest neighbours a point's ball must hold for its fit to be reliable.
+
+    More than the fit's unknowns (:data:`FIT_UNKNOWNS`: a least-squares fit
+    needs more equations than unknowns), and at least ``min_neighbours`` (a
+    point with fewer gets its nearest ones and is unreliable).
+
+    Parameters
+    ----------
+    options : Options
+
+    Returns
+    -------
+    int
+    """
+    return max(FIT_UNKNOWNS[_fit_name(options)] + 1, int(options.min_neighbours))
+
+
+def _fit_name(options: Options) -> str:
+    return "chord" if options.fit == "chord" else "tensor"
+
+
+def _ball_counts(nbhd: Neighbourhood, reach: np.ndarray) -> np.ndarray:
+    """Neighbours within each point's own ball, shape (n,), also where the ball was augmented.
+
+    An augmented row (:func:`heatcurv.neighbourhood.ball_neighbourhood`) holds
+    its nearest neighbours, which include every point of its ball: its count
+    is that of its distances within ``reach``.
+    """
+    counts = nbhd.counts.copy()
+    rows = np.flatnonzero(nbhd.augmented)
+    if rows.size:
+        sub = nbhd.take_rows(rows)
+        inside = sub.distances <= np.repeat(reach[rows], sub.counts)
+        counts[rows] = np.bincount(np.repeat(np.arange(rows.size), sub.counts), weights=inside,
+                                   minlength=rows.size).astype(np.int64)
+    return counts
+
+
+def _round_up(value: float) -> float:
+    """``value`` rounded up to two significant digits (a suggestion that still clears the bar)."""
+    step = 10.0 ** (math.floor(math.log10(value)) - 1)
+    return math.ceil(value / step * (1 - 1e-12)) * step
+
+
+def check_ball_counts(points: np.ndarray, tree, nbhd: Neighbourhood, h: np.ndarray, options: Options,
+                      keys: np.ndarray | None = None, unit: float = 1.0) -> None:
+    """Warn when a median point's ball holds fewer neighbours than the fit needs (see the module docstring).
+
+    Only balls of a fixed radius are checked (``radius=``, or the spacings
+    ``global`` and ``local``): a ball of ``neighbours`` nearest points
+    holds at least 20, more than any fit needs.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+        The operator's distinct points.
+    tree : scipy.spatial.cKDTree
+        The k-d tree on ``points``.
+    nbhd : Neighbourhood
+        The operator's neighbourhood.
+    h : ndarray, shape (n,)
+        The operator's spacing: each ball's radius is ``alpha h``.
+    options : Options
+    keys : ndarray, shape (n,), optional
+        Sampling keys (:func:`heatcurv.sampling.geometric_keys`) of the
+        points the suggestion is measured on; default a seeded random sample.
+    unit : float, optional
+        The input's length per unit of ``points`` (lengths in the message are in input units).
+
+    Warns
+    -----
+    HeatcurvWarning
+        When a median point's ball holds fewer than :func:`neighbours_needed`
+        neighbours; the message names the median spacing (nearest-neighbour
+        distance) and the radius, or ``alpha``, within which
+        :data:`FILLED_SHARE` of the points have enough.
+    """
+    if options.radius is None and options.spacing == "density":
+        return
+    need = neighbours_needed(options)
+    reach = options.alpha * np.asarray(h, dtype=np.float64)
+    held = float(np.median(_ball_counts(nbhd, reach)))
+    if held >= need:
+        return
+    rows = draw_subset(nbhd.n_points, SAMPLE, 0, keys)
+    distances, _ = tree.query(points[rows], k=need + 1)  # the points are distinct: the first is the point itself
+    spacing = float(np.median(distances[:, 1])) * unit
+    unknowns = FIT_UNKNOWNS[_fit_name(options)]
+    fit = "chord fit" if options.fit == "chord" else "paper's tensor fit"
+    if need == unknowns + 1:
+        why = f"the {fit} has {unknowns} unknowns and needs at least {need}"
+    else:
+        why = f"min_neighbours = {need} asks for at least {need} (a point with fewer gets its nearest ones)"
+    advice = f"radius = {_round_up(float(np.quantile(distances[:, need], FILLED_SHARE)) * unit):.2g}"
+    if options.radius is not None:
+        what = f"radius = {options.radius:g}"
+    else:
+        what = f"alpha = {options.alpha:g} ({options.spacing} spacing)"
+        alpha = _round_up(float(np.quantile(distances[:, need] / h[rows], FILLED_SHARE)))
+        if alpha <= RANGES["alpha"].high:
+            advice = f"alpha = {alpha:.2g}"
+    neighbours = "neighbour" if held == 1 else "neighbours"
+    warnings.warn(
+        f"{what} leaves a median point's ball with {held:g} {neighbours}; {why}, so many points will be "
+        f"unreliable. The points' median spacing is {spacing:.2g}: {advice} gives "
+        f"{round(100 * FILLED_SHARE)} % of them at least {need} neighbours",
+        HeatcurvWarning,
+        stacklevel=3,
+    )

@@ -299,7 +299,9 @@ class Options:
         or CloudCompare's radius), instead of a neighbour count: the operator
         and the chord fit use the ball of this radius, ``h = radius / alpha``.
         Points whose ball holds fewer than ``min_neighbours`` get their
-        nearest ones (and are unreliable). None: the ball holds ``neighbours``
+        nearest ones (and are unreliable); a radius whose median ball holds
+        fewer points than the fit needs warns and names one that holds enough
+        (:func:`heatcurv.kernel_check.check_ball_counts`). None: the ball holds ``neighbours``
         points (density spacing) and the fit's kernel is chosen from the noise.
     area_method : {"system", "density"}
         Areas from the paper's ``H A = 1`` (section 2.2) or from the

@@ -4,7 +4,7 @@ import re
 
 import numpy as np
 import pytest
-from cli_helpers import WRITTEN, run
+from cli_helpers import WRITTEN, run, stderr_lines
 
 import heatcurv
 from heatcurv import io
@@ -14,7 +14,7 @@ from heatcurv.data import bunny_path
 def test_compute_sphere_mean_curvature_is_one(sphere_fields_ply):
     out, out_path = sphere_fields_ply
     assert out.returncode == 0, out.stderr
-    assert out.stderr == ""  # messages go to stdout; no terminal, no progress bar
+    assert stderr_lines(out) == []  # messages go to stdout; no terminal, no progress bar
     assert "read " in out.stdout and f"wrote {out_path}" in out.stdout
     area = re.search(r"surface area ([0-9.e+-]+) \(reliable points: ([0-9.e+-]+)\)", out.stdout)
     assert area and abs(float(area.group(1)) / (4 * np.pi) - 1.0) < 0.02
@@ -335,3 +335,17 @@ def test_compute_refuses_a_las_whose_records_are_misaligned(tmp_path):
         f"the 400 points of {record_length} bytes the header announces (not a whole number of records): the point "
         "count, the record length or the offset to the points is wrong, or bytes were inserted\n")
     assert not (tmp_path / "out.ply").exists()
+
+
+def test_a_radius_below_the_spacing_says_so_and_names_one_that_works(tmp_path):
+    out = run("compute", bunny_path(), "-o", tmp_path / "out.ply", "--radius", "0.0001")
+    assert out.returncode == 0, out.stderr
+    assert stderr_lines(out) == [
+        "heatcurv: warning: radius = 0.0001 leaves a median point's ball with 0 neighbours; the chord fit has 9 "
+        "unknowns and needs at least 10, so many points will be unreliable. The points' median spacing is 0.28: "
+        "radius = 0.7 gives 90 % of them at least 10 neighbours"
+    ]
+    assert "0 of 1839 points reliable" in out.stdout
+    out = run("compute", bunny_path(), "-o", tmp_path / "out.ply", "--radius", "0.7")
+    assert out.returncode == 0 and stderr_lines(out) == [], out.stderr
+    assert "1429 of 1839 points reliable" in out.stdout

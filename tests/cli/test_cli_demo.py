@@ -2,8 +2,9 @@
 
 import re
 
-from cli_helpers import distinct_colours, read_image, run
+from cli_helpers import distinct_colours, read_image, run, stderr_lines
 
+import heatcurv
 from heatcurv.data import BUNNY_ATTRIBUTION, bunny_path
 
 
@@ -21,6 +22,8 @@ def test_demo_prints_an_error_table(tmp_path, records):
     )
     assert rows["default"][8] == "100.00%"
     assert list(tmp_path.iterdir()) == []  # --no-picture
+    # a regular sample: the paper's method does not warn, and the demo has nothing to explain
+    assert "The paper's method" not in out.stdout and stderr_lines(out) == []
 
 
 def test_demo_default_on_a_random_cloud_writes_a_picture(tmp_path, records):
@@ -36,6 +39,38 @@ def test_demo_default_on_a_random_cloud_writes_a_picture(tmp_path, records):
     assert "wrote heatcurv_demo.png" in out.stdout
     image = read_image(tmp_path / "heatcurv_demo.png")
     assert image.shape[:2] == (1000, 1400) and distinct_colours(image) > 100
+
+
+PAPER_SENTENCE = (
+    "The paper's method is made for regular, clean samples and warned about this random one: its\n"
+    "errors above are the method's, not a fault (--verbose prints its warnings; --surface sphere\n"
+    "--sampler fibonacci gives it a regular sample).\n"
+)
+
+
+def test_demo_says_calmly_what_the_paper_methods_errors_mean(tmp_path):
+    """What was computed, the errors, one sentence on the paper's method: its warnings only with --verbose."""
+    out = run("demo", "-n", "3000", "--no-picture", cwd=tmp_path)
+    assert out.returncode == 0 and stderr_lines(out) == [], out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[:2] == [
+        f"heatcurv {heatcurv.__version__} demo: torus, 3000 points (random sampler, no noise)",
+        "methods: default (built for irregular, scanned and noisy clouds) and paper (the paper's, literally)",
+    ]
+    assert lines[2:5] == ["", "relative L1 error (%) on interior points; angles in degrees", lines[4]]
+    assert [line.split()[0] for line in lines[5:7]] == ["default", "paper"]
+    assert "\n".join(lines[7:]) + "\n" == (
+        "\narea: relative error of the total (open surfaces: biased by the border).\n"
+        "the default's kernel here: chord-60, noise estimate 0.00029.\n" + PAPER_SENTENCE
+    )
+    assert "warning:" not in out.stdout and "unreliable" not in out.stdout and "note" not in out.stdout
+    verbose = run("demo", "-n", "3000", "--no-picture", "--verbose", cwd=tmp_path)
+    assert PAPER_SENTENCE in verbose.stdout
+    warned = [line for line in verbose.stdout.splitlines() if line.startswith("the paper's method warned: ")]
+    assert [line[:60] for line in warned] == [
+        "the paper's method warned: method 'paper' does not suit this",
+        "the paper's method warned: the cloud is too coarse for its c",
+    ]
 
 
 def test_demo_on_the_bunny(tmp_path):

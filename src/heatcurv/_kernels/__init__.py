@@ -54,8 +54,7 @@ cache filled takes 3.4 s either way), at the same run-time speed.
 The first compilation in a process is announced once, before it starts, as an
 INFO message on the ``heatcurv.kernels`` logger (:data:`COMPILE_NOTICE`):
 silent unless the application configures logging. The ``heatcurv`` command
-shows it on stderr when that is a terminal (as its progress bar), or on
-stdout with ``--verbose``.
+shows it on stderr, a terminal or not, unless ``--quiet``.
 """
 
 try:

@@ -15,8 +15,9 @@ EXIT_INTERRUPTED = 130
 class Log:
     """Messages on stdout: ``info`` unless ``--quiet``, ``detail`` only with ``--verbose``.
 
-    stderr holds only errors, warnings and the progress bar, so a failed run
-    leaves exactly one line there.
+    stderr holds only errors, warnings, the progress bar and the first run's
+    compile notice, so a failed run leaves one line there (two on a cold
+    numba cache).
     """
 
     def __init__(self, quiet: bool = False, verbose: bool = False, stream=None):

@@ -90,18 +90,16 @@ class _NoticeLine(logging.Handler):
             self.handleError(record)
 
 
-def notice_stream(quiet: bool, verbose: bool, stderr, stdout):
-    """Where the compile notice goes: stderr on a terminal, as the progress bar; stdout with --verbose; else nowhere.
+def notice_stream(quiet: bool, stderr):
+    """Where the compile notice goes: stderr, terminal or not, unless ``--quiet``; None for nowhere.
 
-    Kept off a stderr that is not a terminal, which holds only errors and
-    warnings (scripts and tests read it), unless --verbose asks for details.
+    The first run's wait for the compiler is explained also when stderr is a
+    pipe or a log file (a script, CI, ``2> log``): the notice is one line,
+    printed once per process, and only when numba really compiles.
     """
-    if quiet:
+    if quiet or stderr is None:
         return None
-    isatty = getattr(stderr, "isatty", None)
-    if isatty is not None and isatty():
-        return stderr
-    return stdout if verbose else None
+    return stderr
 
 
 @contextmanager
@@ -171,7 +169,7 @@ def main(argv=None) -> int:
 def _run(args, log: Log, debug: bool) -> int:
     """Run the parsed command; every failure becomes one line on stderr and an exit status."""
     try:
-        notices = notice_stream(args.quiet, args.verbose, sys.stderr, sys.stdout)
+        notices = notice_stream(args.quiet, sys.stderr)
         with warnings.catch_warnings(), compile_notice(notices):
             if not debug:
                 warnings.showwarning = _warning_printer(args.verbose, sys.stderr)
