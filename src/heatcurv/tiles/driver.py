@@ -702,7 +702,7 @@ def _orient(run: _Run, plan: TilePlan, context: SurveyContext, timings: dict, ba
     if sides is not None:
         orientation["agreement"] = sides.agreement
     if sides is not None and sides.closed:
-        flips.append(("winding", sides.keys, sides.flip))
+        flips.append((sides.column, sides.keys, sides.flip))
         orientation.update(flag_unsupported(results_path, run.source, context.choices.frame, sides))
     timings["orientation"] = time.perf_counter() - tic
     return flips, orientation

@@ -39,7 +39,12 @@ from scipy.spatial import cKDTree
 from ..enclosure import patch_sides, source_keys, source_threshold
 from .output import PATCH_SHIFT, SOURCE_KEYS, read_results, write_records
 
-__all__ = ["WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
+__all__ = ["MAX_TILED_PATCHES", "WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
+
+#: Most patches the driver solves for. The energy holds two fields and a matrix of the sources' queries
+#: by the patches (about 6000 x 3 x 8 bytes a patch) and its single-patch flips cost the patch count
+#: cubed; past this many (clouds in thousands of tiles) each tile's seam pieces are the patches.
+MAX_TILED_PATCHES = 1500
 
 
 def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, results: dict,
@@ -97,8 +102,11 @@ class WindingSides:
 
     Attributes
     ----------
+    column : str
+        The ``results.rec`` column the keys are of: ``"winding"`` (the tiles' winding patches), or
+        ``"patch"`` (their seam pieces, past :data:`MAX_TILED_PATCHES` winding patches).
     keys : ndarray, shape (p,), int64
-        Winding patch keys (``tile << 32 | label``), sorted.
+        Patch keys (``tile << 32 | label``), sorted.
     flip : ndarray, shape (p,), bool
         Patches to turn over (after the seam flips); all False when not ``closed``.
     rows : ndarray, shape (m,), int64
@@ -112,6 +120,7 @@ class WindingSides:
     agreement : float
     """
 
+    column: str
     keys: np.ndarray
     flip: np.ndarray
     rows: np.ndarray
@@ -155,11 +164,15 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
     at = np.clip(np.searchsorted(seam_keys, seam), 0, max(len(seam_keys) - 1, 0))
     turned = (seam_keys[at] == seam) & seam_flip[at] if len(seam_keys) else np.zeros(rows.size, dtype=bool)
     nrm = np.where(turned[:, None], -nrm, nrm)
+    column = "winding"
     keys, index = np.unique(label, return_inverse=True)
+    if keys.size > MAX_TILED_PATCHES:  # the seam pieces: a winding patch lies in one, so their normals agree
+        column = "patch"
+        keys, index = np.unique(seam, return_inverse=True)
     weight = area * (arrays["winding_total"].sum() / area.sum())
     sides = patch_sides(x, nrm, weight, index, keys.size)
     flip = (sides.sign < 0) if sides.closed else np.zeros(keys.size, dtype=bool)
-    return WindingSides(keys, flip, rows, x, sides.bad, sides.closed, sides.agreement)
+    return WindingSides(column, keys, flip, rows, x, sides.bad, sides.closed, sides.agreement)
 
 
 def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: int = 1 << 20) -> dict:
@@ -190,8 +203,9 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
         stop = start + len(points)
         block = read_results(results_path, start, stop)
         computed = block["computed"] == 1
-        at = np.clip(np.searchsorted(sides.keys, block["winding"]), 0, len(sides.keys) - 1)
-        turned += int(np.sum(computed & (sides.keys[at] == block["winding"]) & sides.flip[at]))
+        key = block[sides.column]
+        at = np.clip(np.searchsorted(sides.keys, key), 0, len(sides.keys) - 1)
+        turned += int(np.sum(computed & (sides.keys[at] == key) & sides.flip[at]))
         if bad_tree is None:
             continue
         x = frame.to_stage(points)
