@@ -69,7 +69,7 @@ from ._kernels.winding import clipped_dipole_terms, winding_numbers
 from .neighbourhood import Neighbourhood
 
 __all__ = [
-    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "source_keys", "source_threshold", "MAX_SOURCES",
+    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "MAX_SOURCES",
     "CLOSED_SHARE", "LEVEL_TOLERANCE",
 ]
 
@@ -319,15 +319,16 @@ def source_keys(points: np.ndarray) -> np.ndarray:
     return key
 
 
-def source_threshold(cloud_points: int) -> np.uint64:
-    """The rank (:func:`source_keys`) up to which a point of a cloud of ``cloud_points`` is a source.
+def sampled_sources(points: np.ndarray, excluded: np.ndarray, cloud_points: int) -> np.ndarray:
+    """The points of a part of a cloud that are among the winding number's sources, shape (n,), bool.
 
-    About :data:`MAX_SOURCES` of the cloud's points rank that low (all of a smaller cloud): a part of the
-    cloud (a tile) picks its share of the sample from its own points.
+    About :data:`MAX_SOURCES` of the ``cloud_points`` points of the whole cloud rank (:func:`source_keys`)
+    this low (all of a smaller cloud), so each part (a tile) picks its share of one sample from its own
+    points; excluded points never are.
     """
     if cloud_points <= MAX_SOURCES:
-        return np.uint64(2**64 - 1)
-    return np.uint64((2**64 * MAX_SOURCES) // cloud_points)
+        return ~excluded
+    return ~excluded & (source_keys(points) <= np.uint64((2**64 * MAX_SOURCES) // cloud_points))
 
 
 def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int):

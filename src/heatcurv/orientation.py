@@ -84,7 +84,7 @@ from scipy.spatial import cKDTree
 
 from ._kernels import graph as graph_kernels
 from ._kernels import segment as kernels
-from .enclosure import enclose, patches, source_keys, source_threshold
+from .enclosure import enclose, patches, sampled_sources
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood, knn_neighbourhood
 
@@ -220,7 +220,7 @@ class Orientation:
         (:func:`heatcurv.enclosure.patches`; -1 for excluded points). None otherwise.
     sources : ndarray, shape (n,), bool, optional
         With ``patch``: the part's share of the winding number's sources
-        (:func:`heatcurv.enclosure.source_threshold`).
+        (:func:`heatcurv.enclosure.sampled_sources`).
     weights : ndarray, shape (n,), optional
         With ``patch``: the sources' dipole strengths (the areas, 0 for excluded points).
     """
@@ -414,9 +414,8 @@ def orient(
     unsupported, closed, turned, part = np.zeros(n, dtype=bool), None, 0, {}
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
-        total = n if cloud_points is None else cloud_points
         part = {"patch": patches(points, tree, cut, cloud_points), "weights": w,
-                "sources": ~cut & (source_keys(points) <= source_threshold(total))}
+                "sources": sampled_sources(points, cut, n if cloud_points is None else cloud_points)}
     else:
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded)
         oriented, unsupported, closed, turned = (

@@ -16,7 +16,7 @@ spanning tree's PCA normals, the operator's areas): those whose coordinate
 rank (:func:`heatcurv.enclosure.source_keys`, the same for a point in any
 tile) is at most a threshold chosen for about
 :data:`heatcurv.enclosure.MAX_SOURCES` sources over the whole cloud
-(:func:`heatcurv.enclosure.source_threshold`). The driver,
+(:func:`heatcurv.enclosure.sampled_sources`). The driver,
 once the seam flips are known, gathers every tile's sources, turns their
 normals by the seam flips, and solves the same energy for the sides of all
 patches of all tiles (:func:`heatcurv.enclosure.patch_sides`). A closed cloud's
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..enclosure import patch_sides, source_keys, source_threshold
+from ..enclosure import patch_sides, sampled_sources
 from .output import PATCH_SHIFT, SOURCE_KEYS, read_results, write_records
 
 __all__ = ["MAX_TILED_PATCHES", "WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
@@ -82,7 +82,7 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
     if winding is None:
         excluded = np.asarray(results["outlier"], dtype=bool)
         label = np.unique(seam, return_inverse=True)[1].ravel()
-        source = ~excluded & (source_keys(frame.to_stage(points)) <= source_threshold(frame.n_points))
+        source = sampled_sources(frame.to_stage(points), excluded, frame.n_points)
         normals, weight = results["normals"], np.where(excluded, 0.0, np.abs(results["area"]))
     else:
         pieces = np.column_stack([seam, np.asarray(winding["patch"], dtype=np.int64)])
