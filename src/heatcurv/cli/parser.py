@@ -13,7 +13,7 @@ import os
 import sys
 
 from .. import __version__, surfaces
-from . import compute, demo, features, info, picture
+from . import compute, demo, features, info, picture, view
 from .argtypes import in_range, pair, percentile_pair, picture_size, point3
 from .fields import COMPUTED_FIELDS, field_list
 from .options import add_estimator_options
@@ -220,6 +220,43 @@ def _add_info(add, read_exts: str) -> None:
     parser.set_defaults(run=info.run)
 
 
+def _add_view(add, read_exts: str) -> None:
+    from ..view import DEFAULT_MAX_POINTS
+
+    parser = add(
+        "view", "write an interactive 3-D view of a cloud and its fields: one HTML page",
+        "Write one self-contained HTML page (WebGL, nothing fetched from the network) showing the "
+        "cloud coloured by any of its scalar fields: turn it with the mouse, zoom with the wheel, "
+        "choose the field from a menu. Colours and their robust limits are those of 'heatcurv "
+        "render'; points without a value, and points heatcurv marks unreliable in the fields it "
+        "computed, are grey; a file's normals shade the points. Opens the page in the web browser "
+        "when there is one, else says where it is.",
+        epilog=f"input formats: {read_exts}\n\n"
+        "examples:\n"
+        "  heatcurv compute scan.ply -o scan_curvature.ply && heatcurv view scan_curvature.ply\n"
+        "  heatcurv view scan_curvature.laz -o scan.html --field k1 --fields k1,k2,mean,reliable",
+    )
+    parser.add_argument("input", help="point-cloud file")
+    parser.add_argument("-o", "--output", metavar="PAGE",
+                        help="the page, .html (default: INPUT with the extension .html)")
+    parser.add_argument("--field", help="field shown first (default: mean if the file has it, else its first field)")
+    parser.add_argument("--fields", type=view.field_names, metavar="LIST",
+                        help="comma-separated fields to put in the page (fewer fields: a smaller page; x, y, z "
+                        "are always there, at no cost) (default: every scalar field of the file)")
+    parser.add_argument("--max-points", type=in_range("max_points"), default=DEFAULT_MAX_POINTS, metavar="N",
+                        help="show a random subset of N points (1-100000000) of larger clouds: each point "
+                        "costs about 5.3 bytes per field in the page (default: %(default)s)")
+    parser.add_argument("--percentiles", type=percentile_pair, default=(2.0, 98.0), metavar="LOW,HIGH",
+                        help="robust colour range (default: 2,98)")
+    parser.add_argument("--title", help="page title (default: the file name)")
+    parser.add_argument("--unit", default="length", metavar="NAME",
+                        help="length unit for the labels, e.g. m gives 1/m (default: %(default)s)")
+    parser.add_argument("--no-browser", action="store_true",
+                        help="do not open the page in the web browser, only say where it is")
+    _add_global_options(parser, suppress=True)
+    parser.set_defaults(run=view.run)
+
+
 def _add_demo(add) -> None:
     parser = add(
         "demo", "run on a built-in example: errors against exact values and a picture",
@@ -260,6 +297,7 @@ def build_parser() -> argparse.ArgumentParser:
         "  heatcurv info scan.ply\n"
         "  heatcurv compute scan.ply -o scan_curvature.ply\n"
         "  heatcurv render scan_curvature.ply -o mean.png --field mean --views 2\n"
+        "  heatcurv view scan_curvature.ply\n"
         "  heatcurv demo\n\n"
         "Run 'heatcurv COMMAND --help' for a command's options.",
         formatter_class=_Formatter,
@@ -277,5 +315,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_render(add)
     _add_features(add, write_exts)
     _add_info(add, read_exts)
+    _add_view(add, read_exts)
     _add_demo(add)
     return parser
