@@ -32,7 +32,7 @@ def test_help_and_version():
     "command, option",
     [
         ("compute", "--normals-from-input"), ("render", "--views"), ("features", "--threshold"), ("info", "input"),
-        ("demo", "--surface"), ("compute", "--float64"), ("features", "--float64"),
+        ("demo", "--surface"), ("compute", "--float64"), ("features", "--float64"), ("view", "--max-points"),
     ],
 )
 def test_help_of_every_subcommand(command, option, capsys):

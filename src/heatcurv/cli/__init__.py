@@ -20,6 +20,10 @@ Subcommands
     Sharp-feature mask and score (:func:`heatcurv.sharp_features`).
 ``info INPUT``
     Point count, bounding box, spacing and the fields a file holds.
+``view INPUT``
+    An interactive 3-D view: one self-contained HTML page (WebGL) showing the
+    cloud coloured by any of its fields (:mod:`heatcurv.view`), opened in the
+    web browser when there is one.
 ``demo``
     The main job on a built-in example: an analytic surface (errors against
     the exact values and a picture), or with ``--bunny`` the Stanford bunny
@@ -51,6 +55,7 @@ The data flow one way, from the helpers to the commands to :mod:`.main`:
 :mod:`.features`       ``heatcurv features``
 :mod:`.picture`        ``heatcurv render``
 :mod:`.info`           ``heatcurv info``
+:mod:`.view`           ``heatcurv view``
 :mod:`.demo`           ``heatcurv demo``
 :mod:`.parser`         the argument parser of every command
 :mod:`.main`           :func:`main`: parse, run, turn errors into one line and a status
