@@ -1,54 +1,50 @@
-"""heatcurv.view in a real browser: headless Chromium (software WebGL) draws the page, and a field switch shows.
+"""heatcurv.view in a real browser: headless Chromium (software WebGL) draws the page and answers the mouse.
 
 Skipped only where no Chromium is installed (``apt-get install -y chromium``
 on Debian; CI installs it).
 """
 
-import re
-import shutil
+import io
 import subprocess
 
 import numpy as np
 import pytest
 
 from heatcurv.view import write_view
+from support.browser import BROWSER, FLAGS, Chromium
 
-BROWSER = next((shutil.which(name) for name in ("chromium", "chromium-browser", "google-chrome")
-                if shutil.which(name)), None)
 pytestmark = pytest.mark.skipif(BROWSER is None, reason="no Chromium to draw the page (apt-get install -y chromium)")
 
 WIDTH, HEIGHT = 800, 600
+STATUS = "String(document.body && document.body.dataset.status)"
+FRAMES = "Number(document.body && document.body.dataset.frames || 0)"
 
 
-def _chromium(tmp_path, *args):
-    profile = tmp_path / "profile"
-    return subprocess.run(
-        [BROWSER, "--headless", "--no-sandbox", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-         "--hide-scrollbars", f"--user-data-dir={profile}", f"--window-size={WIDTH},{HEIGHT}", *map(str, args)],
-        capture_output=True, text=True, timeout=180, cwd=tmp_path,
-    )
-
-
-def screenshot(tmp_path, page, field) -> np.ndarray:
-    """RGB pixels (0-255) of the page showing ``field`` (``#field=`` in the address)."""
+def pixels(png) -> np.ndarray:
+    """RGB values 0-255 of a PNG (a path or bytes)."""
     from matplotlib.image import imread
 
-    png = tmp_path / f"{field}.png"
-    out = _chromium(tmp_path, f"--screenshot={png}", f"{page.resolve().as_uri()}#field={field}")
-    assert png.exists(), out.stderr[-2000:]
-    image = imread(png)
-    assert image.shape[:2] == (HEIGHT, WIDTH)
+    image = imread(io.BytesIO(png) if isinstance(png, bytes) else png, format="png")
     return np.round(image[..., :3] * 255).astype(int)
 
 
-def red(pixels):
-    r, g, b = pixels[..., 0], pixels[..., 1], pixels[..., 2]
+def red(rgb):
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
     return (r > 120) & (r > g + 60) & (r > b + 60)
 
 
-def blue(pixels):
-    r, g, b = pixels[..., 0], pixels[..., 1], pixels[..., 2]
+def blue(rgb):
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
     return (b > 120) & (b > r + 60) & (b > g + 40)
+
+
+def grey(rgb):
+    return np.all(np.abs(rgb - 187) <= 3, axis=-1)  # the missing colour #bbbbbb, lit face-on
+
+
+def width_of_sheet(rgb) -> int:
+    """Columns of the picture's middle row that are not background (white)."""
+    return int((rgb[rgb.shape[0] // 2] < 240).any(axis=-1).sum())
 
 
 @pytest.fixture(scope="module")
@@ -67,32 +63,112 @@ def page(tmp_path_factory):
     return path
 
 
-# the sheet fills x 153-647, y 177-423 of the 800 x 600 window (the farthest point at 0.92 of the half
-# height: 247 pixels per unit), its unreliable top quarter y 177-238
-RIGHT = (slice(260, 400), slice(440, 620))
-LEFT = (slice(260, 400), slice(180, 360))
-TOP = (slice(185, 230), slice(180, 620))
-BACKGROUND = (slice(200, 400), slice(700, 790))
+def regions(rgb) -> dict:
+    """Parts of a picture of the sheet seen face-on, from the viewport's size.
+
+    The farthest point of the sheet (a corner, at sqrt(1.25) from its centre)
+    is drawn at 0.92 of the half of the smaller side: the sheet spans
+    ``2 s x s`` pixels about the centre, its unreliable top quarter the top
+    ``s / 4``. The regions keep clear of the page's panel (top left) and
+    colour bar (bottom middle).
+    """
+    height, width = rgb.shape[:2]
+    s = 0.92 * min(width, height) / 2 / np.sqrt(1.25)
+    cx, cy = width / 2, height / 2
+
+    def box(top, bottom, left, right):
+        return slice(round(cy + top * s), round(cy + bottom * s)), slice(round(cx + left * s), round(cx + right * s))
+
+    return {"right": box(-0.15, 0.4, 0.15, 0.85), "left": box(-0.15, 0.4, -0.85, -0.15),
+            "top": box(-0.47, -0.28, 0.1, 0.85), "top_left": box(-0.47, -0.28, -0.85, -0.1),
+            "background": box(-0.3, 0.3, 1.1, 1.15), "scale": s}
 
 
-def test_the_page_draws_the_field_and_a_switch_changes_the_pixels(tmp_path, page):
+def screenshot(tmp_path, page, field) -> np.ndarray:
+    """The page showing ``field`` (``#field=`` in its address), by Chromium's own ``--screenshot``."""
+    png = tmp_path / f"{field}.png"
+    out = subprocess.run(
+        [BROWSER, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", f"--window-size={WIDTH},{HEIGHT}",
+         f"--screenshot={png}", f"{page.resolve().as_uri()}#field={field}"],
+        capture_output=True, text=True, timeout=180, cwd=tmp_path,
+    )
+    assert png.exists(), out.stderr[-2000:]
+    return pixels(png)
+
+
+def test_the_page_draws_the_field_named_in_its_address(tmp_path, page):
     a, b = screenshot(tmp_path, page, "a"), screenshot(tmp_path, page, "b")
+    assert a.shape == b.shape == (HEIGHT, WIDTH, 3)
+    part = regions(a)
     # the red end of the colour map where the field is +1, the blue end where it is -1
-    assert red(a[RIGHT]).mean() > 0.95 and blue(a[LEFT]).mean() > 0.95
-    assert blue(b[RIGHT]).mean() > 0.95 and red(b[LEFT]).mean() > 0.95
+    assert red(a[part["right"]]).mean() > 0.95 and blue(a[part["left"]]).mean() > 0.95
+    assert blue(b[part["right"]]).mean() > 0.95 and red(b[part["left"]]).mean() > 0.95
     # the white background beside the sheet
-    assert (a[BACKGROUND] >= 250).all() and (b[BACKGROUND] >= 250).all()
-    # the unreliable strip is grey in a (the missing colour #bbbbbb, lit face-on), coloured in b
-    grey = np.all(np.abs(a[TOP] - 187) <= 3, axis=-1)
-    assert grey.mean() > 0.95
-    assert (red(b[TOP]) | blue(b[TOP])).mean() > 0.95
-    changed = np.any(np.abs(a - b) > 60, axis=-1)
-    assert changed.mean() > 0.25
+    assert (a[part["background"]] >= 250).all() and (b[part["background"]] >= 250).all()
+    # the unreliable strip is grey in a, coloured in b
+    assert grey(a[part["top"]]).mean() > 0.95
+    assert blue(b[part["top"]]).mean() > 0.95 and red(b[part["top_left"]]).mean() > 0.95
+    assert width_of_sheet(a) == pytest.approx(2 * part["scale"], abs=4)
 
 
-def test_the_page_runs_its_script_without_error(tmp_path, page):
-    out = _chromium(tmp_path, "--dump-dom", f"{page.resolve().as_uri()}#field=b")
-    status = re.search(r'<body data-status="([^"]*)"', out.stdout)
-    assert status is not None, out.stdout[:2000]
-    assert status[1] == "drawn 45000 points, field b"
-    assert re.search(r'<option value="b">b</option>', out.stdout)
+def choose(browser, menu: str, value: str) -> None:
+    """Pick ``value`` in the page's menu ``menu`` as a user would (the change event follows)."""
+    browser.evaluate(f"(() => {{ const m = document.getElementById('{menu}'); m.value = '{value}'; "
+                     "m.dispatchEvent(new Event('change')); })()")
+
+
+def _redrawn(browser, before: int) -> None:
+    browser.wait_for(f"{FRAMES} > {before}", timeout=30)
+
+
+def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
+    # a window larger than the screenshots' (its viewport is smaller than the window): the sheet clear of the panel
+    with Chromium(page.resolve().as_uri(), tmp_path / "profile", 1000, 900) as browser:
+        assert browser.wait_for(f"{STATUS}.startsWith('drawn') && {STATUS}") == "drawn 45000 points, field a"
+        first = pixels(browser.screenshot())
+        part = regions(first)
+        right, left, top = part["right"], part["left"], part["top"]
+        assert red(first[right]).mean() > 0.95 and blue(first[left]).mean() > 0.95 and grey(first[top]).mean() > 0.95
+
+        # the field menu: the colours swap, the address follows
+        choose(browser, "field", "b")
+        assert browser.evaluate(STATUS) == "drawn 45000 points, field b"
+        assert browser.evaluate("window.location.hash") == "#field=b"
+        switched = pixels(browser.screenshot())
+        assert blue(switched[right]).mean() > 0.95 and red(switched[left]).mean() > 0.95
+        # every pixel of the sheet (2 s x s) changes: the colours swap, the grey strip takes colours
+        assert np.any(np.abs(first - switched) > 60, axis=-1).sum() > 0.95 * 2 * part["scale"] ** 2
+
+        # the unreliable points of a: hidden (background), then coloured
+        choose(browser, "field", "a")
+        choose(browser, "unreliable", "hidden")
+        hidden = pixels(browser.screenshot())
+        assert (hidden[top] >= 250).all() and red(hidden[right]).mean() > 0.95
+        choose(browser, "unreliable", "coloured")
+        coloured = pixels(browser.screenshot())
+        assert red(coloured[top]).mean() > 0.95 and blue(coloured[part["top_left"]]).mean() > 0.95
+
+        # drag 100 pixels to the right: a turn about the vertical by 180 degrees per smaller side of the
+        # window, the sheet cos(turn) as wide
+        face_on = width_of_sheet(coloured)
+        assert face_on == pytest.approx(2 * part["scale"], abs=4)
+        frames = browser.evaluate(FRAMES)
+        browser.drag((400, 200), (500, 200))
+        _redrawn(browser, frames)
+        turned = width_of_sheet(pixels(browser.screenshot()))
+        assert turned == pytest.approx(face_on * np.cos(np.pi * 100 / min(first.shape[:2])), abs=6)
+        assert turned < face_on - 20
+
+        # the wheel zooms about the pointer: exp(0.3) times wider for 200 pixels up, about the middle
+        frames = browser.evaluate(FRAMES)
+        browser.mouse("mouseWheel", first.shape[1] / 2, first.shape[0] / 2, deltaX=0, deltaY=-200)
+        _redrawn(browser, frames)
+        zoomed = width_of_sheet(pixels(browser.screenshot()))
+        assert zoomed == pytest.approx(turned * np.exp(0.3), abs=6)
+
+        # a double click goes back to the first view
+        frames = browser.evaluate(FRAMES)
+        browser.mouse("mousePressed", 400, 200, button="left", buttons=1, clickCount=2)
+        browser.mouse("mouseReleased", 400, 200, button="left", buttons=0, clickCount=2)
+        _redrawn(browser, frames)
+        assert abs(width_of_sheet(pixels(browser.screenshot())) - face_on) <= 2

@@ -272,6 +272,7 @@
     rotation = orthonormal(multiply(multiply(aboutRight, aboutUp), rotation));
   }
 
+  let frames = 0;
   function draw() {
     const ratio = window.devicePixelRatio || 1;
     const width = Math.max(1, Math.round(canvas.clientWidth * ratio));
@@ -292,6 +293,8 @@
     const size = data.disc / data.radius * pixels * Math.pow(2, Number($("size").value));
     gl.uniform1f(uPointSize, Math.min(Math.max(size, 1), largestPoint));
     gl.drawArrays(gl.POINTS, 0, n);
+    frames += 1;
+    document.body.dataset.frames = String(frames);  // pictures drawn so far: a test can wait for the next
   }
 
   let pending = false;
