@@ -5,19 +5,20 @@ on Debian; CI installs it).
 """
 
 import io
-import subprocess
 
 import numpy as np
 import pytest
 
 from heatcurv.view import write_view
-from support.browser import BROWSER, FLAGS, Chromium
+from support.browser import BROWSER, Chromium
 
 pytestmark = pytest.mark.skipif(BROWSER is None, reason="no Chromium to draw the page (apt-get install -y chromium)")
 
-WIDTH, HEIGHT = 800, 600
 STATUS = "String(document.body && document.body.dataset.status)"
 FRAMES = "Number(document.body && document.body.dataset.frames || 0)"
+#: The page has drawn, and its WebGL context is live (software WebGL may lose it; the page then draws again).
+READY = (f"{STATUS}.startsWith('drawn') && !document.getElementById('view').getContext('webgl').isContextLost() "
+         f"&& {FRAMES}")
 
 
 def pixels(png) -> np.ndarray:
@@ -84,21 +85,38 @@ def regions(rgb) -> dict:
             "background": box(-0.3, 0.3, 1.1, 1.15), "scale": s}
 
 
-def screenshot(tmp_path, page, field) -> np.ndarray:
-    """The page showing ``field`` (``#field=`` in its address), by Chromium's own ``--screenshot``."""
-    png = tmp_path / f"{field}.png"
-    out = subprocess.run(
-        [BROWSER, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", f"--window-size={WIDTH},{HEIGHT}",
-         f"--screenshot={png}", f"{page.resolve().as_uri()}#field={field}"],
-        capture_output=True, text=True, timeout=180, cwd=tmp_path,
-    )
-    assert png.exists(), out.stderr[-2000:]
-    return pixels(png)
+def choose(browser, menu: str, value: str) -> None:
+    """Pick ``value`` in the page's menu ``menu`` as a user would (the change event follows)."""
+    browser.evaluate(f"(() => {{ const m = document.getElementById('{menu}'); m.value = '{value}'; "
+                     "m.dispatchEvent(new Event('change')); })()")
+
+
+def _redrawn(browser, before: int) -> None:
+    browser.wait_for(f"{FRAMES} > {before}", timeout=30)
+
+
+def picture(browser) -> np.ndarray:
+    """A screenshot of the page once it has drawn with a live WebGL context (taken again if it was lost meanwhile)."""
+    for _ in range(5):
+        frames = browser.wait_for(READY)
+        png = browser.screenshot()
+        if browser.wait_for(READY) == frames:
+            return pixels(png)
+    raise AssertionError("the page kept losing its WebGL context")
+
+
+def open_page(tmp_path, page, field=None) -> Chromium:
+    """Chromium showing the page (``#field=`` naming ``field``) in a window whose viewport keeps the sheet
+    clear of the page's panel (the viewport is smaller than the window)."""
+    address = page.resolve().as_uri() + (f"#field={field}" if field else "")
+    return Chromium(address, tmp_path / f"profile-{field}", 1000, 900)
 
 
 def test_the_page_draws_the_field_named_in_its_address(tmp_path, page):
-    a, b = screenshot(tmp_path, page, "a"), screenshot(tmp_path, page, "b")
-    assert a.shape == b.shape == (HEIGHT, WIDTH, 3)
+    with open_page(tmp_path, page, "a") as browser:
+        a = picture(browser)
+    with open_page(tmp_path, page, "b") as browser:
+        b = picture(browser)
     part = regions(a)
     # the red end of the colour map where the field is +1, the blue end where it is -1
     assert red(a[part["right"]]).mean() > 0.95 and blue(a[part["left"]]).mean() > 0.95
@@ -111,21 +129,10 @@ def test_the_page_draws_the_field_named_in_its_address(tmp_path, page):
     assert width_of_sheet(a) == pytest.approx(2 * part["scale"], abs=4)
 
 
-def choose(browser, menu: str, value: str) -> None:
-    """Pick ``value`` in the page's menu ``menu`` as a user would (the change event follows)."""
-    browser.evaluate(f"(() => {{ const m = document.getElementById('{menu}'); m.value = '{value}'; "
-                     "m.dispatchEvent(new Event('change')); })()")
-
-
-def _redrawn(browser, before: int) -> None:
-    browser.wait_for(f"{FRAMES} > {before}", timeout=30)
-
-
 def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
-    # a window larger than the screenshots' (its viewport is smaller than the window): the sheet clear of the panel
-    with Chromium(page.resolve().as_uri(), tmp_path / "profile", 1000, 900) as browser:
+    with open_page(tmp_path, page) as browser:
         assert browser.wait_for(f"{STATUS}.startsWith('drawn') && {STATUS}") == "drawn 45000 points, field a"
-        first = pixels(browser.screenshot())
+        first = picture(browser)
         part = regions(first)
         right, left, top = part["right"], part["left"], part["top"]
         assert red(first[right]).mean() > 0.95 and blue(first[left]).mean() > 0.95 and grey(first[top]).mean() > 0.95
@@ -134,7 +141,7 @@ def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
         choose(browser, "field", "b")
         assert browser.evaluate(STATUS) == "drawn 45000 points, field b"
         assert browser.evaluate("window.location.hash") == "#field=b"
-        switched = pixels(browser.screenshot())
+        switched = picture(browser)
         assert blue(switched[right]).mean() > 0.95 and red(switched[left]).mean() > 0.95
         # every pixel of the sheet (2 s x s) changes: the colours swap, the grey strip takes colours
         assert np.any(np.abs(first - switched) > 60, axis=-1).sum() > 0.95 * 2 * part["scale"] ** 2
@@ -142,10 +149,10 @@ def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
         # the unreliable points of a: hidden (background), then coloured
         choose(browser, "field", "a")
         choose(browser, "unreliable", "hidden")
-        hidden = pixels(browser.screenshot())
+        hidden = picture(browser)
         assert (hidden[top] >= 250).all() and red(hidden[right]).mean() > 0.95
         choose(browser, "unreliable", "coloured")
-        coloured = pixels(browser.screenshot())
+        coloured = picture(browser)
         assert red(coloured[top]).mean() > 0.95 and blue(coloured[part["top_left"]]).mean() > 0.95
 
         # drag 100 pixels to the right: a turn about the vertical by 180 degrees per smaller side of the
@@ -155,7 +162,7 @@ def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
         frames = browser.evaluate(FRAMES)
         browser.drag((400, 200), (500, 200))
         _redrawn(browser, frames)
-        turned = width_of_sheet(pixels(browser.screenshot()))
+        turned = width_of_sheet(picture(browser))
         assert turned == pytest.approx(face_on * np.cos(np.pi * 100 / min(first.shape[:2])), abs=6)
         assert turned < face_on - 20
 
@@ -163,7 +170,7 @@ def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
         frames = browser.evaluate(FRAMES)
         browser.mouse("mouseWheel", first.shape[1] / 2, first.shape[0] / 2, deltaX=0, deltaY=-200)
         _redrawn(browser, frames)
-        zoomed = width_of_sheet(pixels(browser.screenshot()))
+        zoomed = width_of_sheet(picture(browser))
         assert zoomed == pytest.approx(turned * np.exp(0.3), abs=6)
 
         # a double click goes back to the first view
@@ -171,4 +178,4 @@ def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
         browser.mouse("mousePressed", 400, 200, button="left", buttons=1, clickCount=2)
         browser.mouse("mouseReleased", 400, 200, button="left", buttons=0, clickCount=2)
         _redrawn(browser, frames)
-        assert abs(width_of_sheet(pixels(browser.screenshot())) - face_on) <= 2
+        assert abs(width_of_sheet(picture(browser)) - face_on) <= 2

@@ -211,38 +211,54 @@
     if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error("shader: " + gl.getShaderInfoLog(s));
     return s;
   }
-  const program = gl.createProgram();
-  gl.attachShader(program, shader(gl.VERTEX_SHADER, vertexSource));
-  gl.attachShader(program, shader(gl.FRAGMENT_SHADER, fragmentSource));
-  gl.linkProgram(program);
-  if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error("program: " + gl.getProgramInfoLog(program));
-  gl.useProgram(program);
+  // every WebGL object of the picture; made again when the browser restores a lost context
+  // (a graphics driver reset, too many pages with WebGL, a software renderer restarting)
+  let colourBuffer, uRotation, uScale, uPan, uPointSize, largestPoint;
+  function setUp() {
+    const program = gl.createProgram();
+    gl.attachShader(program, shader(gl.VERTEX_SHADER, vertexSource));
+    gl.attachShader(program, shader(gl.FRAGMENT_SHADER, fragmentSource));
+    gl.linkProgram(program);
+    if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error("program: " + gl.getProgramInfoLog(program));
+    gl.useProgram(program);
 
-  function attribute(name, array, size, type, normalised) {
-    const location = gl.getAttribLocation(program, name);
-    const buffer = gl.createBuffer();
-    gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
-    gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
-    gl.enableVertexAttribArray(location);
-    gl.vertexAttribPointer(location, size, type, normalised, 0, 0);
-    return buffer;
+    function attribute(name, array, size, type, normalised) {
+      const location = gl.getAttribLocation(program, name);
+      const buffer = gl.createBuffer();
+      gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+      gl.bufferData(gl.ARRAY_BUFFER, array, gl.STATIC_DRAW);
+      gl.enableVertexAttribArray(location);
+      gl.vertexAttribPointer(location, size, type, normalised, 0, 0);
+      return buffer;
+    }
+    attribute("position", unitPositions, 3, gl.FLOAT, false);
+    colourBuffer = attribute("colour", colours, 4, gl.UNSIGNED_BYTE, true);
+    if (normals) {
+      attribute("normal", normals, 3, gl.BYTE, true);
+    } else {
+      const location = gl.getAttribLocation(program, "normal");
+      gl.disableVertexAttribArray(location);
+      gl.vertexAttrib3f(location, 0, 0, 0);
+    }
+    const uniform = (name) => gl.getUniformLocation(program, name);
+    uRotation = uniform("rotation");
+    uScale = uniform("scale");
+    uPan = uniform("pan");
+    uPointSize = uniform("pointSize");
+    gl.uniform1f(uniform("shaded"), normals ? 1 : 0);
+    gl.enable(gl.DEPTH_TEST);
+    gl.depthFunc(gl.LESS);
+    largestPoint = gl.getParameter(gl.ALIASED_POINT_SIZE_RANGE)[1];
   }
-  attribute("position", unitPositions, 3, gl.FLOAT, false);
-  const colourBuffer = attribute("colour", colours, 4, gl.UNSIGNED_BYTE, true);
-  if (normals) {
-    attribute("normal", normals, 3, gl.BYTE, true);
-  } else {
-    const location = gl.getAttribLocation(program, "normal");
-    gl.disableVertexAttribArray(location);
-    gl.vertexAttrib3f(location, 0, 0, 0);
-  }
-  const uniform = (name) => gl.getUniformLocation(program, name);
-  const uRotation = uniform("rotation"), uScale = uniform("scale"), uPan = uniform("pan");
-  const uPointSize = uniform("pointSize"), uShaded = uniform("shaded");
-  gl.uniform1f(uShaded, normals ? 1 : 0);
-  gl.enable(gl.DEPTH_TEST);
-  gl.depthFunc(gl.LESS);
-  const largestPoint = gl.getParameter(gl.ALIASED_POINT_SIZE_RANGE)[1];
+  setUp();
+  canvas.addEventListener("webglcontextlost", (event) => {
+    event.preventDefault();  // asks the browser to restore it
+    status("lost the WebGL context; waiting for the browser to restore it");
+  });
+  canvas.addEventListener("webglcontextrestored", () => {
+    setUp();
+    show(current.name);
+  });
 
   // ---- camera: rows of `rotation` are screen right, up and towards the camera
   let rotation, zoom, pan;
@@ -274,6 +290,7 @@
 
   let frames = 0;
   function draw() {
+    if (gl.isContextLost()) return;
     const ratio = window.devicePixelRatio || 1;
     const width = Math.max(1, Math.round(canvas.clientWidth * ratio));
     const height = Math.max(1, Math.round(canvas.clientHeight * ratio));
@@ -307,9 +324,10 @@
   function show(name) {
     current = fields.get(name);
     colourise();
+    legend();
+    if (gl.isContextLost()) return;  // drawn when the context is restored
     gl.bindBuffer(gl.ARRAY_BUFFER, colourBuffer);
     gl.bufferSubData(gl.ARRAY_BUFFER, 0, colours);
-    legend();
     draw();
     status("drawn " + n + " points, field " + current.name);
   }
