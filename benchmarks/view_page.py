@@ -83,7 +83,14 @@ def bunny_picture(png: Path) -> None:
         result, page = Path(directory) / "bunny_curvature.ply", Path(directory) / "bunny_curvature.html"
         for command in (["compute", str(bunny_path()), "-o", str(result)], ["view", str(result), "--no-browser"]):
             subprocess.run([sys.executable, "-m", "heatcurv", *command, "-q"], check=True)
-        screenshot(page, png.resolve(), directory, "900,600")
+        from matplotlib.image import imread
+
+        for _ in range(3):  # software WebGL may lose its context at start-up, before the screenshot
+            screenshot(page, png.resolve(), directory, "900,600")
+            if (imread(png)[..., :3] < 0.9).any(axis=-1).mean() > 0.1:
+                break
+        else:
+            raise SystemExit(f"Chromium did not draw the page in three attempts: see {png}")
     print(f"wrote {png}")
 
 

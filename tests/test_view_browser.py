@@ -43,11 +43,6 @@ def grey(rgb):
     return np.all(np.abs(rgb - 187) <= 3, axis=-1)  # the missing colour #bbbbbb, lit face-on
 
 
-def width_of_sheet(rgb) -> int:
-    """Columns of the picture's middle row that are not background (white)."""
-    return int((rgb[rgb.shape[0] // 2] < 240).any(axis=-1).sum())
-
-
 @pytest.fixture(scope="module")
 def page(tmp_path_factory):
     """A flat 2 x 1 sheet in the x-y plane, normals +z, seen face-on: x to the right, y up.
@@ -64,25 +59,33 @@ def page(tmp_path_factory):
     return path
 
 
-def regions(rgb) -> dict:
+def regions(browser, rgb) -> dict:
     """Parts of a picture of the sheet seen face-on, from the viewport's size.
 
-    The farthest point of the sheet (a corner, at sqrt(1.25) from its centre)
-    is drawn at 0.92 of the half of the smaller side: the sheet spans
-    ``2 s x s`` pixels about the centre, its unreliable top quarter the top
-    ``s / 4``. The regions keep clear of the page's panel (top left) and
-    colour bar (bottom middle).
+    The page draws the cloud above a band at the bottom (its colour bar's box
+    and a margin), the farthest point of the sheet (a corner, at sqrt(1.25)
+    from its centre) at 0.92 of the half of the smaller side of the rest: the
+    sheet spans ``2 s x s`` pixels about the middle of the rest, its
+    unreliable top quarter the top ``s / 4``. The regions keep clear of the
+    page's panel (top left).
     """
     height, width = rgb.shape[:2]
-    s = 0.92 * min(width, height) / 2 / np.sqrt(1.25)
-    cx, cy = width / 2, height / 2
+    band = browser.evaluate("Math.min(document.getElementById('legend').offsetHeight + 20, window.innerHeight / 2)")
+    assert 40 < band < 200
+    s = 0.92 * min(width, height - band) / 2 / np.sqrt(1.25)
+    cx, cy = width / 2, (height - band) / 2
 
     def box(top, bottom, left, right):
         return slice(round(cy + top * s), round(cy + bottom * s)), slice(round(cx + left * s), round(cx + right * s))
 
     return {"right": box(-0.15, 0.4, 0.15, 0.85), "left": box(-0.15, 0.4, -0.85, -0.15),
             "top": box(-0.47, -0.28, 0.1, 0.85), "top_left": box(-0.47, -0.28, -0.85, -0.1),
-            "background": box(-0.3, 0.3, 1.1, 1.15), "scale": s}
+            "background": box(-0.3, 0.3, 1.1, 1.15), "scale": s, "middle": (cx, cy)}
+
+
+def width_of_sheet(rgb, part) -> int:
+    """Columns of the picture's row through the sheet's middle that are not background (white)."""
+    return int((rgb[round(part["middle"][1])] < 240).any(axis=-1).sum())
 
 
 def choose(browser, menu: str, value: str) -> None:
@@ -115,9 +118,9 @@ def open_page(tmp_path, page, field=None) -> Chromium:
 def test_the_page_draws_the_field_named_in_its_address(tmp_path, page):
     with open_page(tmp_path, page, "a") as browser:
         a = picture(browser)
+        part = regions(browser, a)
     with open_page(tmp_path, page, "b") as browser:
         b = picture(browser)
-    part = regions(a)
     # the red end of the colour map where the field is +1, the blue end where it is -1
     assert red(a[part["right"]]).mean() > 0.95 and blue(a[part["left"]]).mean() > 0.95
     assert blue(b[part["right"]]).mean() > 0.95 and red(b[part["left"]]).mean() > 0.95
@@ -126,14 +129,14 @@ def test_the_page_draws_the_field_named_in_its_address(tmp_path, page):
     # the unreliable strip is grey in a, coloured in b
     assert grey(a[part["top"]]).mean() > 0.95
     assert blue(b[part["top"]]).mean() > 0.95 and red(b[part["top_left"]]).mean() > 0.95
-    assert width_of_sheet(a) == pytest.approx(2 * part["scale"], abs=4)
+    assert width_of_sheet(a, part) == pytest.approx(2 * part["scale"], abs=4)
 
 
 def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
     with open_page(tmp_path, page) as browser:
         assert browser.wait_for(f"{STATUS}.startsWith('drawn') && {STATUS}") == "drawn 45000 points, field a"
         first = picture(browser)
-        part = regions(first)
+        part = regions(browser, first)
         right, left, top = part["right"], part["left"], part["top"]
         assert red(first[right]).mean() > 0.95 and blue(first[left]).mean() > 0.95 and grey(first[top]).mean() > 0.95
 
@@ -157,25 +160,38 @@ def test_the_menus_and_the_mouse_change_the_picture(tmp_path, page):
 
         # drag 100 pixels to the right: a turn about the vertical by 180 degrees per smaller side of the
         # window, the sheet cos(turn) as wide
-        face_on = width_of_sheet(coloured)
+        face_on = width_of_sheet(coloured, part)
         assert face_on == pytest.approx(2 * part["scale"], abs=4)
         frames = browser.evaluate(FRAMES)
         browser.drag((400, 200), (500, 200))
         _redrawn(browser, frames)
-        turned = width_of_sheet(picture(browser))
+        turned_picture = picture(browser)
+        turned = width_of_sheet(turned_picture, part)
         assert turned == pytest.approx(face_on * np.cos(np.pi * 100 / min(first.shape[:2])), abs=6)
         assert turned < face_on - 20
 
-        # the wheel zooms about the pointer: exp(0.3) times wider for 200 pixels up, about the middle
+        # the wheel zooms about the pointer, exp(0.3) times for 200 pixels up: the sheet grows by that
+        # factor, and its point under the pointer (near its left edge, on its middle row) stays put
+        def edges(rgb):
+            cx, cy = part["middle"]
+            row = np.flatnonzero((rgb[round(cy)] < 240).any(axis=-1))
+            column = np.flatnonzero((rgb[:, round(cx + 0.6 * part["scale"])] < 240).any(axis=-1))
+            return int(row[0]), int(column[0]), int(row.size)  # left edge, top edge, width
+
+        left, top, width = edges(turned_picture)
+        pointer = (left + 40, part["middle"][1])
         frames = browser.evaluate(FRAMES)
-        browser.mouse("mouseWheel", first.shape[1] / 2, first.shape[0] / 2, deltaX=0, deltaY=-200)
+        browser.mouse("mouseWheel", *pointer, deltaX=0, deltaY=-200)
         _redrawn(browser, frames)
-        zoomed = width_of_sheet(picture(browser))
-        assert zoomed == pytest.approx(turned * np.exp(0.3), abs=6)
+        zoomed = edges(picture(browser))
+        factor = np.exp(0.3)
+        assert zoomed[2] == pytest.approx(width * factor, abs=6)
+        assert zoomed[0] == pytest.approx(pointer[0] - (pointer[0] - left) * factor, abs=3)
+        assert zoomed[1] == pytest.approx(pointer[1] - (pointer[1] - top) * factor, abs=3)
 
         # a double click goes back to the first view
         frames = browser.evaluate(FRAMES)
         browser.mouse("mousePressed", 400, 200, button="left", buttons=1, clickCount=2)
         browser.mouse("mouseReleased", 400, 200, button="left", buttons=0, clickCount=2)
         _redrawn(browser, frames)
-        assert abs(width_of_sheet(picture(browser)) - face_on) <= 2
+        assert abs(width_of_sheet(picture(browser), part) - face_on) <= 2

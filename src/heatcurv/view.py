@@ -73,9 +73,9 @@ __all__ = ["DEFAULT_MAX_POINTS", "View", "write_view", "page_data"]
 #: Points embedded at most by default: a page of a million points with a dozen fields is about 80 MB,
 #: which a browser opens in seconds; beyond, a seeded random subset is shown.
 DEFAULT_MAX_POINTS = 1_000_000
-#: Disc diameter in units of the side of the surface area per point (as :mod:`heatcurv.render` draws
-#: random samples: the discs then cover the surface).
-DISC_FACTOR = 2.0
+#: Disc diameter in units of the side of the surface area per point: discs this wide cover
+#: 1 - exp(-pi 2.5^2 / 4) = 99 % of a surface sampled at random (the page's slider scales them).
+DISC_FACTOR = 2.5
 #: Extensions of the page.
 HTML_EXTENSIONS = (".html", ".htm")
 #: Float32 keeps seven digits of values whose magnitude lies well inside its range; beyond these powers

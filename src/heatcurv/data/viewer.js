@@ -288,7 +288,7 @@
     rotation = orthonormal(multiply(multiply(aboutRight, aboutUp), rotation));
   }
 
-  let frames = 0;
+  let frames = 0, lift = 0;
   function draw() {
     if (gl.isContextLost()) return;
     const ratio = window.devicePixelRatio || 1;
@@ -298,7 +298,10 @@
       canvas.width = width;
       canvas.height = height;
     }
-    const pixels = zoom * 0.92 * Math.min(width, height) / 2;  // device pixels per unit: the cloud fills the view
+    // the cloud fills the view above the colour bar: device pixels per unit, and the shift up of its middle
+    const reserved = Math.min(Math.round(($("legend").offsetHeight + 20) * ratio), height / 2);
+    const pixels = zoom * 0.92 * Math.min(width, height - reserved) / 2;
+    lift = reserved / height;
     const r = rotation;
     gl.viewport(0, 0, width, height);
     gl.clearColor(1, 1, 1, 1);
@@ -306,7 +309,7 @@
     gl.uniformMatrix3fv(uRotation, false, new Float32Array([
       r[0][0], r[1][0], r[2][0], r[0][1], r[1][1], r[2][1], r[0][2], r[1][2], r[2][2]]));
     gl.uniform2f(uScale, 2 * pixels / width, 2 * pixels / height);
-    gl.uniform2f(uPan, pan[0], pan[1]);
+    gl.uniform2f(uPan, pan[0], pan[1] + lift);
     const size = data.disc / data.radius * pixels * Math.pow(2, Number($("size").value));
     gl.uniform1f(uPointSize, Math.min(Math.max(size, 1), largestPoint));
     gl.drawArrays(gl.POINTS, 0, n);
@@ -362,7 +365,7 @@
     const factor = Math.exp(-event.deltaY * step * 0.0015);
     const box = canvas.getBoundingClientRect();
     const cx = 2 * (event.clientX - box.left) / box.width - 1, cy = 1 - 2 * (event.clientY - box.top) / box.height;
-    pan = [cx - (cx - pan[0]) * factor, cy - (cy - pan[1]) * factor];
+    pan = [cx - (cx - pan[0]) * factor, cy - lift - (cy - lift - pan[1]) * factor];
     zoom *= factor;
     redraw();
   }, { passive: false });
