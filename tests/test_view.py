@@ -8,6 +8,7 @@ import pytest
 from heatcurv import HeatcurvError, surfaces
 from heatcurv.render import colour_limits
 from heatcurv.view import write_view
+from support.view_page import DATA_BLOCK as DATA_BLOCK_TEXT
 from support.view_page import byte_array, field, floats, page_block, positions
 
 
@@ -161,3 +162,26 @@ def test_bad_paths(tmp_path, cloud):
     with pytest.raises(HeatcurvError, match="does not exist"):
         write_view(points, {}, tmp_path / "missing" / "view.html")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_page_too_big_for_a_browser_is_refused_before_it_is_built(tmp_path, monkeypatch):
+    import heatcurv.view
+
+    points = np.random.default_rng(0).uniform(-1, 1, (20_000, 3))
+    fields = {name: points[:, 0] for name in ("a", "b", "c")}
+    # 4/3 * (12 + 3 * 4) = 32 characters a point, 640000 in all
+    monkeypatch.setattr(heatcurv.view, "MAX_DATA_CHARS", 600_000)
+    with pytest.raises(HeatcurvError, match=r"20000 points with 3 field\(s\) make a page of about 1 MB, more than a "
+                                            r"browser can read .*show at most about 17812 points"):
+        write_view(points, fields, tmp_path / "big.html")
+    assert list(tmp_path.iterdir()) == []
+    view = write_view(points, fields, tmp_path / "fits.html", max_points=17812)
+    assert 0.95 * 600_000 < len(DATA_BLOCK_TEXT.search(view.path.read_text()).group(1)) < 600_000
+
+
+def test_a_field_without_a_finite_value_is_drawn_grey(tmp_path, cloud):
+    points, _ = cloud
+    view = write_view(points, {"empty": np.full(2000, np.nan), "mean": points[:, 0]}, tmp_path / "v.html")
+    assert view.limits["empty"] is None and view.limits["mean"][2] == "signed"
+    entry = page_block(view.path)["fields"][0]
+    assert entry["kind"] == "none" and entry["low"] is None and np.isnan(field(page_block(view.path), "empty")).all()

@@ -36,9 +36,11 @@ georeferenced coordinates keep their precision; each field as float32;
 normals as three int8 per point (shading needs no more); the reliable mask
 as uint8. A float array ``a`` is stored as ``a * 2**-e`` with a power of two
 ``e`` (0 unless the values would overflow or underflow float32; the
-decoded values are ``stored * 2**e``). A million points with a dozen fields
-make a page of about 80 MB; above ``max_points`` a seeded random subset is
-embedded and the page says so.
+decoded values are ``stored * 2**e``). A point takes about 21 bytes of the
+page with normals and the mask, and 5.3 more per field (base64 is 4/3 of the
+bytes); above ``max_points`` a seeded random subset is embedded and the page
+says so. Browsers cannot hold a string of more than about 2**29 characters,
+so a data block beyond that is refused (:data:`MAX_DATA_CHARS`).
 """
 
 from __future__ import annotations
@@ -70,8 +72,8 @@ from .render import (
 
 __all__ = ["DEFAULT_MAX_POINTS", "View", "write_view", "page_data"]
 
-#: Points embedded at most by default: a page of a million points with a dozen fields is about 80 MB,
-#: which a browser opens in seconds; beyond, a seeded random subset is shown.
+#: Points embedded at most by default: a million points with the 15 fields ``heatcurv compute`` writes
+#: make a page of about 100 MB, which a browser opens in seconds; beyond, a seeded random subset is shown.
 DEFAULT_MAX_POINTS = 1_000_000
 #: Disc diameter in units of the side of the surface area per point: discs this wide cover
 #: 1 - exp(-pi 2.5^2 / 4) = 99 % of a surface sampled at random (the page's slider scales them).
@@ -81,6 +83,9 @@ HTML_EXTENSIONS = (".html", ".htm")
 #: Float32 keeps seven digits of values whose magnitude lies well inside its range; beyond these powers
 #: of two a field is stored scaled (see the module's notes).
 _SAFE_EXPONENT = 100
+#: The longest string a browser's JavaScript can hold (V8, Chromium's engine: 2**29 - 24 characters);
+#: the page's data block is one.
+MAX_DATA_CHARS = 2**29 - 24
 #: The id of the JSON block holding the data.
 DATA_ID = "heatcurv-data"
 
@@ -218,6 +223,18 @@ def _disc_diameter(xyz: np.ndarray, *, queries: int = 20_000, seed: int = 0) -> 
     return DISC_FACTOR * d8 * math.sqrt(math.pi / 8.0) if d8 > 0 else fallback
 
 
+def _check_size(count: int, fields: int, normals: bool, reliable: bool) -> None:
+    """Refuse a data block longer than :data:`MAX_DATA_CHARS` (base64: 4 characters per 3 bytes)."""
+    per_point = 4 / 3 * (12 + 4 * fields + (3 if normals else 0) + (1 if reliable else 0))
+    if count * per_point > MAX_DATA_CHARS:
+        fitting = int(0.95 * MAX_DATA_CHARS / per_point)
+        raise HeatcurvError(
+            f"{count} points with {fields} field(s) make a page of about {count * per_point / 1e6:.0f} MB, more "
+            f"than a browser can read (about {MAX_DATA_CHARS / 1e6:.0f} MB); show at most about {fitting} points "
+            "(max_points, on the command line --max-points) or fewer fields (--fields)"
+        )
+
+
 def _limits(values: np.ndarray, name: str, percentiles) -> tuple | None:
     """``(low, high, kind)`` of a field's colours, None if it has no finite value."""
     if not np.isfinite(values).any():
@@ -271,6 +288,7 @@ def page_data(
     grey = set(fields) - {"reliable"} if grey_unreliable is None else set(grey_unreliable)
 
     rows = _shown_rows(points, max_points, seed)
+    _check_size(rows.size, len(fields), normals is not None, reliable is not None)
     xyz = points[rows]
     centre = (xyz.min(axis=0) + xyz.max(axis=0)) / 2.0
     offsets = xyz - centre
