@@ -26,5 +26,9 @@ demo uses them, so they ship in :mod:`heatcurv.surfaces.accuracy`.
                        support.fuzz VARIANT MUTATOR SEED``
 ``child``              the child process that runs a call under memory and
                        time limits
+``view_page``          read back the data block of a ``heatcurv view`` page
+``browser``            headless Chromium driven over the DevTools protocol
+                       on a pipe: wait for a page, evaluate JavaScript, send
+                       mouse input, take screenshots (the viewer's tests)
 =====================  ======================================================
 """
