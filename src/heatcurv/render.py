@@ -167,7 +167,8 @@ class Rendering:
     kind : str
         ``"signed"``, ``"sequential"`` or ``"mask"``.
     drawn : int
-        Points drawn (after dropping non-finite coordinates and subsampling).
+        Points drawn (after dropping non-finite coordinates and subsampling;
+        in each view but for its ``hidden`` ones).
     total : int
         Points given.
     size : tuple of int
