@@ -35,10 +35,13 @@ Drawing
   shape reads. Lighting is two-sided (normals of either sign light alike).
   ``shade=False`` draws the flat colours of the colour bar.
 * **Hidden points.** With normals given, the points facing away from the
-  camera that lie behind a surface facing it (the far side of a closed
-  object) are not drawn, so they cannot show through the gaps between the
-  near side's discs; the back of an open scan, with nothing in front of it,
-  is drawn (:func:`_hidden_back_faces`).
+  camera that lie behind a surface facing it (a point facing the camera
+  within two disc diameters on the picture and more than
+  :data:`HIDDEN_DEPTH` diameters nearer: the far side of a closed object)
+  are not drawn, so they cannot show through the gaps between the near
+  side's discs; the back of an open scan, with nothing in front of it, is
+  drawn. Normals of either orientation work: the sign that hides more is
+  used.
 * **Points** are discs 1.2 (regular samples) to 2 (random samples) times as
   wide as the side of the surface area per point (from the distance to the
   8th nearest neighbour), so the surface looks closed even where a random
