@@ -234,11 +234,13 @@ def pictures(folder):
     spike = np.zeros(len(pts))
     spike[source] = 1.0 / lap.area[source]
     heat = lap.heat(spike, time=4.0, steps=8)
+    normals = heatcurv.estimate(pts).normals  # oriented: they shade the points and hide the far side
     render_field(pts, np.log10(np.maximum(heat, 1e-12)), f"{folder}/laplacian_bunny_heat.png", field="log10 heat",
-                 views=2, title=f"heat diffused from the ear's tip, time 4 (bunny scan, {len(pts)} points)")
+                 views=2, normals=normals,
+                 title=f"heat diffused from the ear's tip, time 4 (bunny scan, {len(pts)} points)")
     values, vectors = lap.eigenpairs(12)
     render_field(pts, vectors[:, 11], f"{folder}/laplacian_bunny_eigen.png", field="eigenfunction", views=2,
-                 title=f"12th Laplace-Beltrami eigenfunction, lambda = {values[11]:.3f} (bunny scan)")
+                 normals=normals, title=f"12th Laplace-Beltrami eigenfunction, lambda = {values[11]:.3f} (bunny scan)")
     print(f"pictures: bunny {len(pts)} points, h = {lap.h:.3f}, first eigenvalues {np.round(values[:6], 4)}")
 
 

@@ -546,6 +546,7 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
     n = len(pts)
     made = []
     mean_kw = {"values": res.mean, "field": "mean", "normals": res.normals, "length_unit": case.unit}
+    lit = {"normals": res.normals}  # every panel shaded by, and hiding its far side with, the computed normals
 
     def out(kind):
         return outdir / f"real_{case.key}_{kind}.png"
@@ -571,16 +572,16 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
                      "cotangent mean curvature (right; grey: off the mesh or on its boundary), same colours. The "
                      "stripes on the forehead and cheeks are in both: they are in the scan."))
         render_panels(pts, [
-            {"values": feats.mask, "field": "feature", **front,
+            {"values": feats.mask, "field": "feature", **front, **lit,
              "title": f"face000: sharp features ({int(feats.mask.sum())} points)"},
-            {"values": res.reliable, "field": "reliable", **front, "title": f"reliable ({m['reliable']:.1f} %)"},
+            {"values": res.reliable, "field": "reliable", **front, **lit, "title": f"reliable ({m['reliable']:.1f} %)"},
         ], out("features"))
         made.append((out("features").name, "face000.ply: the points `sharp_features` flags (left) and the "
                      "reliable points (right), seen from the camera."))
         render_panels(pts, [
-            {"values": res.outlier, "field": "outlier", **side,
+            {"values": res.outlier, "field": "outlier", **side, **lit,
              "title": f"face000: outliers ({m['outliers']} points), turned 60 degrees"},
-            {"values": res.area, "field": "area", **front, "length_unit": "mm",
+            {"values": res.area, "field": "area", **front, **lit, "length_unit": "mm",
              "title": "area per point (outliers: 0)"},
         ], out("outliers"))
         made.append((out("outliers").name, "face000.ply: the outliers (red; left, turned by 60 degrees so the "
@@ -592,7 +593,7 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
                       title=f"LiDAR tile ({n} points): mean curvature, from the south and the north, 40 degrees up")
         made.append((out("mean").name, f"lidar_tile(20000) ({n} points, `orient=\"up\"`): mean curvature, seen "
                      "from the south and from the north, 40 degrees above the horizon."))
-        render_panels(pts, [{"values": feats.mask, "field": "feature", **view}], out("features"),
+        render_panels(pts, [{"values": feats.mask, "field": "feature", **view, **lit}], out("features"),
                       title=f"LiDAR tile: sharp features ({int(feats.mask.sum())} points)")
         made.append((out("features").name, "lidar_tile(20000): the points `sharp_features` flags, same views."))
     elif case.key == "cad":
@@ -602,7 +603,7 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
         made.append((out("mean").name, f"cad_part(20000) ({n} points): mean curvature from two opposite "
                      "corners, 35 degrees up; colour range fixed at +-0.25 /mm (boss +0.083, hole -0.125, the "
                      "edges far beyond)."))
-        render_panels(pts, [{"values": feats.mask, "field": "feature", **view}], out("features"),
+        render_panels(pts, [{"values": feats.mask, "field": "feature", **view, **lit}], out("features"),
                       title=f"CAD part: sharp features ({int(feats.mask.sum())} points)")
         made.append((out("features").name, "cad_part(20000): the points `sharp_features` flags, same views."))
     elif case.key != "face_camera":

@@ -159,7 +159,12 @@ def test_drawn_subset_drops_nonfinite_points_and_subsamples():
     np.testing.assert_array_equal(keep, [0, 1, 3, 4, 5, 6, 8, 9])
     np.testing.assert_array_equal(xyz, points[keep])
     assert shown.dtype == np.float64 and np.array_equal(shown, keep)
-    assert kept_normals.shape == (7, 3)  # the NaN normal of row 4 is dropped
+    assert kept_normals.shape == (8, 3)  # row for row with the points drawn
+    assert np.isnan(kept_normals[3]).all() and np.isfinite(np.delete(kept_normals, 3, axis=0)).all()
+    scaled = render._drawn_subset(points, values, normals * 5.0, 100, 0)[3]  # scaled to unit length
+    np.testing.assert_allclose(np.delete(scaled, 3, axis=0), np.tile([0.0, 0.0, 1.0], (7, 1)))
+    zero = render._drawn_subset(points, values, np.zeros((10, 3)), 100, 0)[3]
+    assert np.isnan(zero).all()  # a zero normal has no direction
     keep, _, _, none = render._drawn_subset(points, values, normals[:5], 3, 0)  # wrong shape: no normals
     assert keep.size == 3 and np.all(np.diff(keep) > 0) and none is None
     np.testing.assert_array_equal(keep, render._drawn_subset(points, values, None, 3, 0)[0])  # seeded
@@ -232,3 +237,124 @@ def test_every_number_of_a_picture_is_range_checked(tmp_path, options, message):
     with pytest.raises(heatcurv.HeatcurvError, match=message):
         render_field(pts, pts[:, 0], tmp_path / "x.png", **options)
     assert not list(tmp_path.iterdir())
+
+
+# ----------------------------------------------------------------------------- shading and hidden points
+
+
+def panel_pixels(image):
+    """RGB of the first panel of a picture without title: the columns left of the first all-white gap."""
+    rgb = np.asarray(image)[..., :3]
+    used = (rgb < 0.97).any(axis=2)
+    columns = np.flatnonzero(used.any(axis=0))
+    gap = np.flatnonzero(np.diff(columns) > 1)
+    last = columns[gap[0]] if gap.size else columns[-1]
+    return rgb[:, : last + 1], used[:, : last + 1]
+
+
+def test_shading_lights_the_side_facing_the_light(tmp_path):
+    sphere = surfaces.Sphere().sample(6000, "fibonacci")
+    everywhere = np.ones(6000, dtype=bool)  # a mask: one colour, red
+    brightness = {}
+    for shade in (True, False):
+        out = render_field(
+            sphere.points, everywhere, tmp_path / f"{shade}.png", field="feature", size=(600, 400), title="",
+            normals=sphere.normals, view=(0, 0, 1), up=(0, 1, 0), shade=shade,
+        )
+        assert out.shading == ("normals" if shade else "flat")
+        rgb, used = panel_pixels(read_image(tmp_path / f"{shade}.png"))
+        rows, cols = np.nonzero(used)
+        centre = np.array([rows.min() + rows.max(), cols.min() + cols.max()]) / 2
+        radius = (rows.max() - rows.min()) / 2
+        red = []
+        for right, up in (render.LIGHT[:2], (0.55, -0.73)):  # mean red of a 5x5 patch there on the sphere's disc
+            row, col = np.round(centre + radius * np.array([-up, right])).astype(int)
+            red.append(float(rgb[row - 2 : row + 3, col - 2 : col + 3, 0].mean()))
+        brightness[shade] = tuple(red)
+    lit, limb = brightness[True]  # where the normal is the light's direction; the lower right limb
+    assert lit / limb > 2.0
+    assert limb == pytest.approx(render.AMBIENT * 214 / 255, abs=0.03)
+    flat_lit, flat_limb = brightness[False]
+    assert flat_lit == pytest.approx(214 / 255, abs=0.01) and flat_limb == pytest.approx(flat_lit, abs=0.01)
+
+
+def test_the_far_side_never_shows_through_the_near_side(tmp_path):
+    # a torus seen from the top: the upper half is the near side (+1, red), the lower half the far side (-1, blue)
+    torus = surfaces.Torus().sample(6000, "random", seed=3)
+    near = np.where(torus.points[:, 2] > 0, 1.0, -1.0)
+    counts = {}
+    for name, normals in (("normals", torus.normals), ("inward", -torus.normals), ("none", None)):
+        out = render_field(
+            torus.points, near, tmp_path / f"{name}.png", field="side", size=(700, 600), title="", normals=normals,
+            view=(0, 0, 1), up=(0, 1, 0),
+        )
+        rgb, used = panel_pixels(read_image(tmp_path / f"{name}.png"))
+        rows, cols = np.nonzero(used)
+        centre = np.array([rows.min() + rows.max(), cols.min() + cols.max()]) / 2
+        outer = (rows.max() - rows.min()) / 2  # radius r1 + r2 = 3.37 on the picture
+        grid = np.indices(used.shape).transpose(1, 2, 0)
+        distance = np.linalg.norm(grid - centre, axis=2) / outer * 3.3701
+        covered = (distance > 1.6) & (distance < 3.1)  # the ring the near side covers, outlines left out
+        blue = (rgb[..., 2] > rgb[..., 0] + 0.15) & covered
+        red = (rgb[..., 0] > rgb[..., 2] + 0.15) & covered
+        counts[name] = (int(blue.sum()), int(red.sum()), out.hidden)
+    for name in ("normals", "inward"):  # either orientation of the normals hides the far side
+        blue, red, hidden = counts[name]
+        assert blue == 0 and red > 0.95 * np.count_nonzero(covered)
+        assert 2700 < hidden[0] < 3300  # about half the points
+    blue, red, hidden = counts["none"]  # without normals nothing is hidden: the far side shows through gaps
+    assert hidden == (0,) and blue > 50
+
+
+def test_shade_off_draws_the_flat_colours_of_the_colour_bar(tmp_path):
+    sphere = surfaces.Sphere().sample(4000, "fibonacci")
+    counts = {}
+    for shade in (True, False):
+        render_field(
+            sphere.points, np.ones(4000, dtype=bool), tmp_path / f"{shade}.png", field="reliable", size=(500, 400),
+            title="", normals=sphere.normals, shade=shade,
+        )
+        rgb, used = panel_pixels(read_image(tmp_path / f"{shade}.png"))
+        exact = np.all(np.abs(np.round(rgb * 255) - [214, 39, 40]) <= 1, axis=2)  # MASK_COLOURS[1]
+        counts[shade] = exact.sum() / used.sum()
+    assert counts[False] > 0.95  # all but the outline's anti-aliased pixels
+    assert counts[True] < 0.2
+
+
+def test_without_normals_the_points_are_shaded_from_fitted_normals(tmp_path):
+    sphere = surfaces.Sphere().sample(3000, "fibonacci")
+    fitted = render._estimated_normals(sphere.points)
+    assert np.min(np.abs(np.sum(fitted * sphere.normals, axis=1))) > 0.99  # either sign
+    assert render._estimated_normals(sphere.points[:3]) is None
+    out = render_field(sphere.points, sphere.points[:, 0], tmp_path / "a.png", field="x", size=(300, 300))
+    assert out.shading == "estimated normals" and out.hidden == (0,)
+    tiny = render_field(sphere.points[:3], [1.0, 2.0, 3.0], tmp_path / "b.png", field="x", size=(300, 300))
+    assert tiny.shading == "flat"
+
+
+def test_shade_is_two_sided_lambert_light():
+    rgba = np.tile([0.8, 0.4, 0.2, 0.5], (5, 1))
+    side = np.cross(render.LIGHT, [0.0, 0.0, 1.0])
+    normals = np.array([render.LIGHT, -render.LIGHT, side / np.linalg.norm(side), [0, 0, 1.0], [np.nan] * 3])
+    shaded = render._shade(rgba, normals)
+    factor = shaded[:, 0] / 0.8
+    ambient, facing = render.AMBIENT, render.AMBIENT + (1 - render.AMBIENT) * render.LIGHT[2]
+    np.testing.assert_allclose(factor, [1.0, 1.0, ambient, facing, facing])
+    np.testing.assert_allclose(shaded[:, :3], rgba[:, :3] * factor[:, None])
+    np.testing.assert_array_equal(shaded[:, 3], 0.5)
+
+
+def test_hidden_back_faces_of_closed_and_open_clouds():
+    sphere = surfaces.Sphere().sample(4000, "fibonacci")
+    screen = sphere.points[:, [0, 1, 2]]  # camera on +z
+    facing = sphere.normals[:, 2]
+    diameter = 0.06
+    outward = render._hidden_back_faces(screen, facing, diameter)
+    assert np.all(facing[outward] < 0) and np.all(screen[outward, 2] < 0)
+    assert outward.sum() > 0.9 * np.sum(facing < 0)  # the far half, but for its outline
+    np.testing.assert_array_equal(render._hidden_back_faces(screen, -facing, diameter), outward)  # inward normals
+    cap = screen[:, 2] < 0  # an open cap seen from behind: nothing in front of it, nothing hidden
+    assert not render._hidden_back_faces(screen[cap], facing[cap], diameter).any()
+    unknown = facing.copy()
+    unknown[:] = np.nan
+    assert not render._hidden_back_faces(screen, unknown, diameter).any()

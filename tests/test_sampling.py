@@ -74,8 +74,8 @@ def _assert_order_and_motion_change_nothing(pts, base, seed, tolerance):
 
 
 def test_wide_kernel_results_do_not_depend_on_order_or_rotation(noisy_torus):
-    # README: "a permuted noisy torus gives identical numbers, a rotated one agrees to 2e-8 of each field's
-    # largest value"
+    # docs/getting_started.md: "a permuted noisy torus gives identical numbers, bit for bit; a rotated one
+    # agrees to 2e-8 of each field's largest value"
     base = heatcurv.estimate(noisy_torus)
     assert base.info["scale"].k > 240  # the coarse-level path
     # rounding of the rotation only, amplified by the wide noisy fit: measured for this rotation 1.6e-8 of the

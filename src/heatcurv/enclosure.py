@@ -47,8 +47,13 @@ A cloud is taken to enclose a volume when the levels are close to their
 targets on enough of it (:data:`CLOSED_SHARE`, :data:`CLOSED_TOLERANCE`); an
 open sheet's field is about ``-+1/2`` on its two sides (between 0 and 1/2 on
 both sides of one curved like a bowl), so open clouds keep the tree's
-orientation untouched, and so do closed ones too coarse for their levels to
-be trusted.
+orientation untouched. A cloud whose share lies between :data:`UNDECIDED_SHARE`
+and :data:`CLOSED_SHARE` while its outside levels are near 0 on most of it
+(:data:`AIR_SHARE`: its normals point out of something; an open scene's
+field is about ``-1/2`` on one side of its sheets) is an object too coarse
+for its levels to be sure (legs a few spacings thick): it is *undecided*;
+its patches take the field's sides, which are right more often than the
+tree's there, and every point is flagged, since no side can be vouched for.
 
 The sums are exact over at most :data:`MAX_SOURCES` source points (all of a
 smaller cloud; above that, a subsample chosen by the coordinates alone, its
@@ -58,6 +63,7 @@ the sources in its ball are.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,11 +72,12 @@ from scipy.spatial import cKDTree
 
 from ._kernels.graph import merged_components
 from ._kernels.winding import clipped_dipole_terms, winding_numbers
+from .errors import HeatcurvWarning
 from .neighbourhood import Neighbourhood
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "MAX_SOURCES",
-    "CLOSED_SHARE", "LEVEL_TOLERANCE",
+    "CLOSED_SHARE", "UNDECIDED_SHARE", "AIR_SHARE", "LEVEL_TOLERANCE", "warn_undecided",
 ]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
@@ -98,6 +105,12 @@ SPREAD_SHARE = 0.2
 #: Share of the area whose levels are within ``CLOSED_TOLERANCE`` of their targets from which a cloud
 #: encloses a volume (an open sheet curved like a bowl has levels near 0 and 1/2).
 CLOSED_SHARE, CLOSED_TOLERANCE = 0.3, 0.25
+#: Share from which, below :data:`CLOSED_SHARE`, a cloud whose outside levels are near 0 (within
+#: ``CLOSED_TOLERANCE``) on at least ``AIR_SHARE`` of its area may enclose a volume or not (closed
+#: models a few points across their legs: shares 0.12-0.26, outside near 0 on 0.63-0.77; open scans
+#: and scenes: a one-sided scan of a torus 0.06 and 0.65, LiDAR tiles turned at random 0.11-0.19
+#: and 0.31-0.35; docs/orientation.md).
+UNDECIDED_SHARE, AIR_SHARE = 0.1, 0.5
 
 
 @dataclass(frozen=True)
@@ -107,15 +120,20 @@ class Enclosure:
     Attributes
     ----------
     normals : ndarray, shape (n, 3)
-        The normals, each patch flipped where the field says so (unchanged when not ``closed``).
+        The normals, each patch flipped where the field says so (unchanged
+        when neither ``closed`` nor ``undecided``).
     unsupported : ndarray, shape (n,), bool
-        Points whose side the field contradicts (all False when not ``closed``).
+        Points whose side the field contradicts (all False when not
+        ``closed``; every point not excluded when ``undecided``).
     closed : bool
         Whether the levels agree on at least :data:`CLOSED_SHARE` of the area.
     agreement : float
         That share, in ``[0, 1]``.
     flipped : int
         Points whose normal the patch signs turned over.
+    undecided : bool
+        Whether the share lies between :data:`UNDECIDED_SHARE` and
+        :data:`CLOSED_SHARE`: neither closed nor open for sure.
     """
 
     normals: np.ndarray
@@ -123,6 +141,7 @@ class Enclosure:
     closed: bool
     agreement: float
     flipped: int
+    undecided: bool = False
 
 
 def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, areas: np.ndarray,
@@ -159,13 +178,13 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     source = _sources(points, patch, excluded)
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
     sides = patch_sides(points[source], normals[source], weight, patch[source], n_patch)
-    if not sides.closed:
+    if not (sides.closed or sides.undecided):
         return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0)
     flip = sides.sign[patch] < 0
     flip[excluded] = False
-    unsupported = _unsupported(source, sides.bad, neighbourhood, excluded)
+    unsupported = ~excluded if sides.undecided else _unsupported(source, sides.bad, neighbourhood, excluded)
     oriented = np.where(flip[:, None], -normals, normals)
-    return Enclosure(oriented, unsupported, True, sides.agreement, int(flip.sum()))
+    return Enclosure(oriented, unsupported, sides.closed, sides.agreement, int(flip.sum()), sides.undecided)
 
 
 @dataclass(frozen=True)
@@ -184,12 +203,16 @@ class PatchSides:
         :data:`CLOSED_TOLERANCE` of their targets.
     closed : bool
         ``agreement >= CLOSED_SHARE``: the sources enclose a volume.
+    undecided : bool
+        ``UNDECIDED_SHARE <= agreement < CLOSED_SHARE`` and the outside levels
+        near 0 on at least :data:`AIR_SHARE` of the weight: they may or may not.
     """
 
     sign: np.ndarray
     bad: np.ndarray
     agreement: float
     closed: bool
+    undecided: bool = False
 
 
 def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int) -> PatchSides:
@@ -221,12 +244,23 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     agrees = (np.abs(outside) <= LEVEL_TOLERANCE) & (np.abs(inside - 1.0) <= LEVEL_TOLERANCE)
     sure = (np.abs(outside) <= CLOSED_TOLERANCE) & (np.abs(inside - 1.0) <= CLOSED_TOLERANCE)
     agreement = float(weight[sure].sum() / weight.sum())
+    air = float(weight[np.abs(outside) <= CLOSED_TOLERANCE].sum() / weight.sum())
     # a source disagrees when its levels do, or many of its disc's do (a flipped spot's own levels agree)
     bad = ~agrees
     share = np.bincount(disc_rows, weights=bad[disc_members], minlength=bad.size) / np.bincount(
         disc_rows, minlength=bad.size)
     bad |= share > SPREAD_SHARE
-    return PatchSides(sign, bad, agreement, agreement >= CLOSED_SHARE)
+    return PatchSides(sign, bad, agreement, agreement >= CLOSED_SHARE,
+                      UNDECIDED_SHARE <= agreement < CLOSED_SHARE and air >= AIR_SHARE)
+
+
+def warn_undecided(agreement: float, stacklevel: int = 2) -> None:
+    """Warn that the field cannot tell whether the cloud encloses a volume, so every side is flagged."""
+    warnings.warn(
+        f"cannot tell whether the cloud encloses a volume (the winding number agrees with its normals' sides on "
+        f"{100 * agreement:.0f} % of its area; closed objects reach {100 * CLOSED_SHARE:.0f} %): every normal's side "
+        "is flagged unreliable. A closed object sampled more densely decides it; pass orient='up' or a viewpoint "
+        "for an open scan.", HeatcurvWarning, stacklevel=stacklevel + 1)
 
 
 def _unsupported(source: np.ndarray, bad: np.ndarray, neighbourhood: Neighbourhood, excluded: np.ndarray):

@@ -37,6 +37,7 @@ from .backend import threads
 from .border import BORDER_OFFSET, border_points, centroid_offset
 from .choices import frame_of
 from .chordfit import ChordFit, chord_fit, refine_normals
+from .enclosure import warn_undecided
 from .errors import HeatcurvError
 from .kernel import tapered_heat_weights
 from .kernel_check import check_ball_counts, check_kernel
@@ -221,6 +222,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             # a scanner sees only surfaces facing it: the fit's refined normals must too
             fitted = _facing_viewpoint(fitted, op.points, towards)
     orientation = replace(orientation, report=_explained(orientation.report, policy, op.points.shape[0]))
+    if orientation.report.undecided:
+        warn_undecided(orientation.report.agreement, stacklevel=3)
     return _result(op, fitted, planarity, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
                    rounding=rounding)
 
@@ -273,6 +276,9 @@ def _explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> 
         return replace(report, reason=policy.reason, by_convention=n, policy=policy)
     if report.closed:
         why = "encloses a volume: away from it (winding number)"
+    elif report.undecided:
+        why = ("may or may not enclose a volume: the winding number's sides, every point flagged "
+               "(too few points across its thin parts, or an open scene)")
     elif report.closed is None:
         why = "outward: each piece as the tree orients it (a part of a cloud)"
     else:

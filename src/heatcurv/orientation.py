@@ -166,6 +166,14 @@ class OrientationReport:
     unsupported : int
         Points whose side the winding number contradicts (closed clouds;
         counted in ``ambiguous`` too).
+    agreement : float or None
+        ``"outward"`` on a whole cloud: the share of its area whose winding-number
+        levels agree with their sides (:class:`heatcurv.enclosure.PatchSides`);
+        None otherwise.
+    undecided : bool
+        ``"outward"``: the winding number could not tell whether the cloud
+        encloses a volume (:data:`heatcurv.enclosure.UNDECIDED_SHARE`): its
+        sides are the field's and every point is flagged (``unsupported``).
     reason : str
         Which rule chose the sides, in words (``orient="auto"``: why this mode).
     policy : AutoPolicy or None
@@ -186,6 +194,8 @@ class OrientationReport:
     closed: bool | None = None
     turned: int = 0
     unsupported: int = 0
+    agreement: float | None = None
+    undecided: bool = False
     reason: str = ""
     policy: AutoPolicy | None = None
 
@@ -411,20 +421,22 @@ def orient(
     oriented *= sign[labels][:, None]
 
     # the winding number decides inside from outside, part by part, and flags what it contradicts
-    unsupported, closed, turned, part = np.zeros(n, dtype=bool), None, 0, {}
+    unsupported, closed, undecided, turned, agreement, part = np.zeros(n, dtype=bool), None, False, 0, None, {}
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
         part = {"patch": patches(points, tree, cut, cloud_points), "weights": w,
                 "sources": sampled_sources(points, cut, n if cloud_points is None else cloud_points)}
     else:
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded)
-        oriented, unsupported, closed, turned = (
-            enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.flipped)
+        oriented, unsupported, closed, undecided, turned, agreement = (
+            enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.undecided, enclosure.flipped,
+            enclosure.agreement)
     ambiguous = _conflicting(points, oriented, graph) | unsupported
     report = OrientationReport(
         mode=mode, components=_surface_components(labels, excluded),
-        by_convention=0 if closed else int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
-        closed=closed, turned=turned, unsupported=int(unsupported.sum()),
+        by_convention=0 if closed or undecided else int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
+        closed=closed, turned=turned, unsupported=int(unsupported.sum()), agreement=agreement,
+        undecided=undecided,
     )
     return Orientation(oriented, ambiguous, report, **part)
 

@@ -27,10 +27,27 @@ Drawing
   camera turned about the up axis by ``360 / N`` degrees each time (2: front
   and back; 4: every quarter turn); ``elevation`` tilts the camera up. The
   points are drawn from far to near, so near points cover far ones.
+* **Shading.** Each point's colour is lit by a headlight slightly above and
+  left of the camera (:data:`AMBIENT` light plus Lambert's diffuse light,
+  from the normals given, else from normals fitted to each point's nearest
+  neighbours), as 3-D viewers light a surface: surfaces facing the
+  viewer keep their colour, the outline and the lower right darken, so the
+  shape reads. Lighting is two-sided (normals of either sign light alike).
+  ``shade=False`` draws the flat colours of the colour bar.
+* **Hidden points.** With normals given, the points facing away from the
+  camera that lie behind a surface facing it (a point facing the camera
+  within two disc diameters on the picture and more than
+  :data:`HIDDEN_DEPTH` diameters nearer: the far side of a closed object)
+  are not drawn, so they cannot show through the gaps between the near
+  side's discs; the back of an open scan, with nothing in front of it, is
+  drawn. Normals of either orientation work: the sign that hides more is
+  used.
 * **Points** are discs 1.2 (regular samples) to 2 (random samples) times as
   wide as the side of the surface area per point (from the distance to the
   8th nearest neighbour), so the surface looks closed even where a random
-  sample leaves gaps (at most 80 pixels); above ``max_points`` a random
+  sample leaves gaps (at most 80 pixels); each is drawn over a disc
+  :data:`UNDERLAY` times wider, drawn first, that fills the last gaps with
+  the colour of the surface around them. Above ``max_points`` a random
   (seeded) subset is drawn.
 
 matplotlib is used through its object interface with the Agg canvas, never
@@ -72,6 +89,21 @@ MISSING_COLOUR = "#bbbbbb"
 #: of this size cover 1 - exp(-pi 2^2 / 4) = 96 % of a surface sampled at random (more where it
 #: is seen obliquely). Regular samples get smaller discs (:func:`_disc_diameter`).
 DISC_FACTOR = 2.0
+#: The points are drawn twice, far to near: first as discs this many times wider, then at their
+#: size. The wide discs fill the gaps a random sample leaves between the discs (the surface, not
+#: whatever is behind it, shows through them: coverage 1 - exp(-pi (1.75 x 2)^2 / 4) > 99.99 %).
+UNDERLAY = 1.75
+#: Share of a point's colour kept where the light grazes its surface or misses it (ambient light);
+#: the rest is diffuse (Lambert) light.
+AMBIENT = 0.4
+#: Direction the light comes from, in screen coordinates (right, up, towards the camera): a
+#: headlight slightly above and left of the camera, so surfaces facing the viewer are bright,
+#: the outline darkens and bumps read as lit from the upper left.
+LIGHT = np.array([-0.3, 0.4, 1.0]) / np.linalg.norm([-0.3, 0.4, 1.0])
+#: A point facing away from the camera is hidden when a point facing it, next to it on the
+#: picture, is nearer to the camera by more than this many disc diameters
+#: (:func:`_hidden_back_faces`).
+HIDDEN_DEPTH = 2.0
 
 
 @dataclass(frozen=True)
@@ -138,11 +170,19 @@ class Rendering:
     kind : str
         ``"signed"``, ``"sequential"`` or ``"mask"``.
     drawn : int
-        Points drawn (after dropping non-finite coordinates and subsampling).
+        Points drawn (after dropping non-finite coordinates and subsampling;
+        in each view but for its ``hidden`` ones).
     total : int
         Points given.
     size : tuple of int
         Picture size in pixels ``(width, height)`` (raster formats).
+    shading : str
+        ``"normals"`` (shaded from the normals given), ``"estimated normals"``
+        (none given: shaded from normals fitted to the points' neighbours) or
+        ``"flat"`` (``shade=False``).
+    hidden : tuple of int
+        Per view, the points not drawn because they face away from the camera
+        behind a surface that faces it (only with normals given).
     """
 
     path: Path
@@ -151,6 +191,8 @@ class Rendering:
     drawn: int
     total: int
     size: tuple
+    shading: str = "flat"
+    hidden: tuple = ()
 
 
 def supported_picture_formats() -> tuple:
@@ -426,8 +468,9 @@ def _drawn_subset(points: np.ndarray, values: np.ndarray, normals, max_points: i
     """The points to draw: those with finite coordinates, a seeded random ``max_points`` of them if more.
 
     Returns ``(keep, xyz, shown, normals)``: the row numbers drawn (sorted),
-    their coordinates, their values as float64, and the finite ones of their
-    ``normals`` (None if not given, or not of the points' shape).
+    their coordinates, their values as float64, and their ``normals`` row for
+    row, scaled to unit length (None if not given, or not of the points'
+    shape; rows with a non-finite or zero normal are NaN).
     """
     drawable = np.isfinite(points).all(axis=1)
     if not drawable.any():
@@ -441,7 +484,10 @@ def _drawn_subset(points: np.ndarray, values: np.ndarray, normals, max_points: i
         normals = np.asarray(normals, dtype=np.float64)
         normals = normals[keep] if normals.shape == points.shape else None
         if normals is not None:
-            normals = normals[np.isfinite(normals).all(axis=1)]
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                length = np.linalg.norm(normals, axis=1, keepdims=True)
+                usable = np.isfinite(length) & (length > 0)
+                normals = np.where(usable, normals / np.where(usable, length, 1.0), np.nan)
     return keep, xyz, shown, normals
 
 
@@ -585,22 +631,122 @@ def _add_title(fig, layout: _Layout, heading: str) -> None:
         fig.text(0.5, 1.0 - 0.12 / layout.fig_h, heading, ha="center", va="top", fontsize="large")
 
 
-def _disc_pixels(xyz: np.ndarray, point_size, scale: float, dpi: int) -> float:
-    """Disc diameter in pixels: ``point_size``, else :func:`_disc_diameter` at the drawing scale (1-80)."""
+def _disc_pixels(xyz: np.ndarray, point_size, scale: float, dpi: int, disc: float | None = None) -> float:
+    """Disc diameter in pixels: ``point_size``, else ``disc`` (default :func:`_disc_diameter`) at the scale (1-80)."""
     if point_size is not None:
         return float(point_size)
-    disc = _disc_diameter(xyz)
+    if disc is None:
+        disc = _disc_diameter(xyz)
     return float(np.clip(disc * scale * dpi, 1.0, 80.0)) if disc > 0 else 3.0
 
 
-def _paint(axes: list, screens: list, rgba: np.ndarray, diameter: float, dpi: int) -> None:
-    """The points as discs of ``diameter`` pixels in each view's axes, drawn far to near (rasterised)."""
-    for ax, screen in zip(axes, screens):
-        order = np.argsort(screen[:, 2], kind="stable")
-        ax.scatter(
-            screen[order, 0], screen[order, 1], s=(diameter * 72.0 / dpi) ** 2, c=rgba[order],
-            marker="o", linewidths=0, rasterized=True,
-        )
+def _estimated_normals(xyz: np.ndarray, k: int = 10) -> np.ndarray | None:
+    """Unoriented normals for shading: the direction of least spread of each point's ``k`` nearest neighbours.
+
+    None with fewer than 4 points. The sign is arbitrary, which two-sided
+    lighting (:func:`_shade`) does not see.
+    """
+    from scipy.spatial import cKDTree
+
+    if xyz.shape[0] < 4:
+        return None
+    k = min(k, xyz.shape[0])
+    tree = cKDTree(xyz)
+    normals = np.empty_like(xyz)
+    for start in range(0, xyz.shape[0], 100_000):  # blocks: a few tens of MB at a time
+        _, neighbours = tree.query(xyz[start : start + 100_000], k=k, workers=-1)
+        around = xyz[neighbours]
+        around -= around.mean(axis=1, keepdims=True)
+        _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", around, around))
+        normals[start : start + 100_000] = vectors[:, :, 0]
+    return normals
+
+
+def _shade(rgba: np.ndarray, normals_on_screen: np.ndarray) -> np.ndarray:
+    """``rgba`` lit by :data:`LIGHT`: the colour times ``AMBIENT + (1 - AMBIENT) max(0, n . light)``.
+
+    ``normals_on_screen`` are unit normals in screen coordinates (right, up,
+    towards the camera). Lighting is two-sided: a normal facing away is
+    turned to face the camera first, so open scans seen from behind and
+    normals of either sign are lit alike. Points without a finite normal get
+    the brightness of a surface facing the camera. Alpha is kept.
+    """
+    n = normals_on_screen
+    toward = np.where(n[:, 2:3] < 0, -n, n)
+    diffuse = np.clip(toward @ LIGHT, 0.0, 1.0)
+    diffuse = np.where(np.isfinite(diffuse), diffuse, LIGHT[2])
+    shaded = np.array(rgba, dtype=np.float64, copy=True)
+    shaded[:, :3] *= (AMBIENT + (1.0 - AMBIENT) * diffuse)[:, None]
+    return shaded
+
+
+def _hidden_back_faces(screen: np.ndarray, facing: np.ndarray, diameter: float) -> np.ndarray:
+    """Mask of the points that face away from the camera and lie behind a surface that faces it.
+
+    Parameters
+    ----------
+    screen : ndarray, shape (n, 3)
+        Right, up and depth towards the camera of each point.
+    facing : ndarray, shape (n,)
+        Normal component towards the camera (NaN: unknown, never hidden).
+    diameter : float
+        Disc diameter in length units.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+
+    Notes
+    -----
+    The picture is cut into square cells one disc diameter wide. A point
+    facing away is hidden when a point facing the camera lies in its cell or
+    one of the 8 around it (1 to 2 diameters away on the picture) and is
+    nearer by more than :data:`HIDDEN_DEPTH` diameters: it is on the far side
+    of a closed surface, and drawn it would show through the gaps between the
+    near side's discs. Points facing away with nothing in front of them (the
+    back of an open scan, the outline of a closed one) stay. Normals may be
+    oriented either way: both signs are tried and the one that hides more is
+    kept (inward normals hide nothing with the outward sign).
+    """
+    from scipy.ndimage import maximum_filter
+
+    hidden = np.zeros(screen.shape[0], dtype=bool)
+    known = np.isfinite(facing)
+    if not known.any():
+        return hidden
+    cell = max(diameter, float(np.ptp(screen[:, :2], axis=0).max()) / 2048.0, 1e-300)  # at most 2048^2 cells
+    cells = np.floor((screen[:, :2] - screen[:, :2].min(axis=0)) / cell).astype(np.int64)
+    shape = tuple(cells.max(axis=0) + 1)
+    margin = HIDDEN_DEPTH * diameter
+    for sign in (1.0, -1.0):
+        front = known & (sign * facing > 0)
+        back = known & (sign * facing < 0)
+        if not front.any() or not back.any():
+            continue
+        nearest = np.full(shape, -np.inf)  # per cell, the depth of the nearest point facing the camera
+        np.maximum.at(nearest, (cells[front, 0], cells[front, 1]), screen[front, 2])
+        nearest = maximum_filter(nearest, size=3, mode="constant", cval=-np.inf)  # and the 8 cells around
+        behind = back.copy()
+        behind[back] = nearest[cells[back, 0], cells[back, 1]] > screen[back, 2] + margin
+        if behind.sum() > hidden.sum():
+            hidden = behind
+    return hidden
+
+
+def _paint(axes: list, screens: list, colours: list, diameter: float, dpi: int, shown: list) -> None:
+    """The points as discs of ``diameter`` pixels in each view's axes, drawn far to near (rasterised).
+
+    ``colours[k]`` are the RGBA colours of view ``k``, ``shown[k]`` the mask
+    of its points drawn.
+    """
+    for ax, screen, rgba, drawn in zip(axes, screens, colours, shown):
+        rows = np.flatnonzero(drawn)
+        order = rows[np.argsort(screen[rows, 2], kind="stable")]
+        for size in (UNDERLAY * diameter, diameter):
+            ax.scatter(
+                screen[order, 0], screen[order, 1], s=(size * 72.0 / dpi) ** 2, c=rgba[order],
+                marker="o", linewidths=0, rasterized=True,
+            )
 
 
 def _save(fig, path: Path, ext: str, dpi: int) -> None:
@@ -638,6 +784,7 @@ def render_field(
     vertical: str = "y",
     elevation: float = 0.0,
     seed: int = 0,
+    shade: bool = True,
 ) -> Rendering:
     """Draw a point cloud coloured by a per-point field and save the picture.
 
@@ -680,11 +827,19 @@ def render_field(
     length_unit : str, optional
         Name of the length unit in the colour-bar label (``"m"`` gives ``1/m``).
     normals : array_like, shape (n, 3), optional
-        Only choose which side of the cloud the default camera is on.
+        Surface normals (any length, either orientation): they shade the
+        points, hide the points facing away from the camera behind the near
+        side, and choose which side of the cloud the default camera is on.
+        Without them the points are shaded from normals fitted to their
+        neighbours and none are hidden.
     view, up, vertical, elevation
         Camera, see :func:`camera_frames`.
     seed : int, optional
         Seed of the subset drawn from large clouds.
+    shade : bool, optional
+        Light the points (ambient and diffuse light from slightly above left
+        of the camera), so the shape reads; False draws the flat colours of
+        the colour bar. Points facing away are hidden either way.
 
     Returns
     -------
@@ -716,7 +871,10 @@ def render_field(
     style = field_style(field)
     low, high, kind = colour_limits(values, style.kind, percentiles=percentiles, value_range=value_range)
     keep, xyz, shown, normals = _drawn_subset(points, values, normals, max_points, seed)
-    frames = camera_frames(xyz, views, view=view, up=up, vertical=vertical, elevation=elevation, normals=normals)
+    frames = camera_frames(
+        xyz, views, view=view, up=up, vertical=vertical, elevation=elevation,
+        normals=None if normals is None else normals[np.isfinite(normals).all(axis=1)],
+    )
     colour_map, norm = _colour_mapping(kind, low, high, cmap)
     rgba = colour_map(norm(np.ma.masked_invalid(shown)))
 
@@ -724,15 +882,34 @@ def render_field(
     FigureCanvasAgg(fig)
     screens, middles, span = _project(xyz, frames)
     layout = _layout(views, span, width, height, dpi, title)
+    # discs: a fixed share of the surface area per point, in pixels; the panels widened so that the
+    # wide discs of the outline (UNDERLAY) are drawn whole
+    disc = None if point_size is not None else _disc_diameter(xyz)
+    diameter = _disc_pixels(xyz, point_size, layout.scale, dpi, disc)
+    span = span + UNDERLAY * diameter / (layout.scale * dpi)
+    layout = _layout(views, span, width, height, dpi, title)
+    diameter = _disc_pixels(xyz, point_size, layout.scale, dpi, disc)
     axes = _add_panels(fig, layout, views, middles, span)
     unit = style.unit_text(length_unit)
     label = f"{style.label} ({unit})" if unit else style.label
     _add_colour_bar(fig, layout, colour_map, norm, shown, low, high, kind, label)
     _add_title(fig, layout, title if title is not None else style.label)
-    # discs: a fixed share of the surface area per point, in pixels
-    _paint(axes, screens, rgba, _disc_pixels(xyz, point_size, layout.scale, dpi), dpi)
+    lit, shading = normals, "normals"
+    if not shade:
+        lit, shading = None, "flat"
+    elif lit is None:
+        lit, shading = _estimated_normals(xyz), "estimated normals"
+    colours, drawn, hidden = [], [], []
+    for frame, screen in zip(frames, screens):
+        behind = np.zeros(xyz.shape[0], dtype=bool)
+        if normals is not None:
+            behind = _hidden_back_faces(screen, normals @ frame[2], diameter / (layout.scale * dpi))
+        drawn.append(~behind)
+        hidden.append(int(behind.sum()))
+        colours.append(rgba if lit is None else _shade(rgba, lit @ frame.T))
+    _paint(axes, screens, colours, diameter, dpi, drawn)
     _save(fig, path, ext, dpi)
     return Rendering(
         path=path, limits=(float(low), float(high)), kind=kind, drawn=int(keep.size), total=int(points.shape[0]),
-        size=(width, height),
+        size=(width, height), shading=shading if lit is not None else "flat", hidden=tuple(hidden),
     )

@@ -88,3 +88,19 @@ def test_render_draws_unreliable_points_grey(tmp_path, bunny_fields):
     # a mask field or an input property is drawn as it is
     mask = run("render", bunny_fields, "-o", tmp_path / "mask.png", "--field", "reliable", "--size", "600x400")
     assert mask.returncode == 0 and "drawn grey" not in mask.stdout
+
+
+def test_render_shades_by_default_and_no_shade_draws_flat_colours(tmp_path, bunny_fields):
+    dark = {}
+    for flag in ([], ["--no-shade"]):
+        name = "flat" if flag else "shaded"
+        out = run("render", bunny_fields, "-o", tmp_path / f"{name}.png", "--field", "mean", "--size", "900x600",
+                  "--title", "", "-v", *flag)
+        assert out.returncode == 0, out.stderr
+        assert ("flat colours" if flag else "shaded by the normals") in out.stdout
+        assert "facing away behind the near side hidden" in out.stdout  # the far side of the bunny
+        rgb = read_image(tmp_path / f"{name}.png")[:, :600, :3]  # the bunny, left of the colour bar
+        drawn = (rgb < 0.97).any(axis=2)
+        # brightest channel below 0.45: darker than any colour of coolwarm (or a blend of two)
+        dark[name] = float(np.mean(rgb[drawn].max(axis=1) < 0.45))
+    assert dark["flat"] == 0.0 and dark["shaded"] > 0.1

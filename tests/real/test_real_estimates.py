@@ -5,7 +5,7 @@ tests/real/conftest.py): a closed range-scan bunny (28 088 points) and a face
 range map (85 849 points) with its camera, stray points and holes. Their own
 meshes are the reference: vertex normals, total area and a cotangent mean
 curvature. The measured errors are records (tests/records.json); the plain
-assertions are the README's claims and exact facts.
+assertions are the claims of docs/scans.md and exact facts.
 """
 
 import numpy as np
@@ -56,7 +56,7 @@ def face(pymeshlab_samples):
 
 
 def test_bunny_normals_are_outward_everywhere(bunny, records):
-    # was 1,011 points (3.6 %) inward on the back of an ear, all "reliable" (README: outward on every point)
+    # was 1,011 points (3.6 %) inward on the back of an ear, all "reliable" (docs/scans.md: outward on every point)
     mesh, res = bunny
     assert orientation_agreement(res.normals, mesh.vertex_normals()) == 1.0
     # every side right; the winding number's levels stray at 3 of the 28,088 points, which it flags
@@ -68,7 +68,7 @@ def test_bunny_normals_are_outward_everywhere(bunny, records):
 
 def test_bunny_area_and_curvature_agree_with_its_mesh(bunny, records):
     mesh, res = bunny
-    assert res.area.sum() == pytest.approx(mesh.area, rel=1e-3)  # README: total area -0.03 % of its mesh's
+    assert res.area.sum() == pytest.approx(mesh.area, rel=1e-3)  # docs/scans.md: total area -0.03 % of its mesh's
     assert res.outlier.sum() == 0
     mesh_mean = cotangent_mean_curvature(mesh)
     # where the mesh's curvature is clearly signed (above its median |H|), the signs agree, up to
@@ -99,7 +99,7 @@ def test_face_stray_points_are_outliers_with_no_area(face, records):
     mesh, _, res = face
     strays = ~mesh.used
     assert strays.sum() == 667
-    assert res.outlier[strays].mean() >= 0.66  # README: two thirds of them (445)
+    assert res.outlier[strays].mean() >= 0.66  # docs/scans.md: two thirds of them (445)
     np.testing.assert_array_equal(res.area[res.outlier], 0.0)
     typical = np.median(res.area[res.reliable])
     # the largest area (a sparse rim point) in % of the typical reliable one: once 140,000x
@@ -111,7 +111,7 @@ def test_face_stray_points_are_outliers_with_no_area(face, records):
 
 def test_face_reliable_area_agrees_with_its_mesh(face, records):
     # the mesh (19,880 mm^2) leaves out the scan's sparse rims and the surface in its gaps
-    # (README: "the reliable surface 3.5 % above the mesh's", "total 22,407 mm^2")
+    # (docs/scans.md: "the reliable surface 3.5 % above the mesh's", "total 22,407 mm^2")
     mesh, _, res = face
     assert 1.03 < res.area[res.reliable].sum() / mesh.area < 1.04
     assert 1.12 < res.area.sum() / mesh.area < 1.135
@@ -125,7 +125,7 @@ def test_face_normals_face_the_camera(face, records):
     mesh, camera, _ = face
     res = heatcurv.estimate(mesh.vertices, viewpoint=camera)
     facing = np.einsum("ij,ij->i", res.normals, camera - mesh.vertices)
-    assert np.all(facing > 0)  # README: every final normal faces its scanner
+    assert np.all(facing > 0)  # docs/scans.md: every final normal faces its scanner
     used = mesh.used
     records.check(
         "real_estimates/face-viewpoint",

@@ -34,8 +34,10 @@ def test_each_model(name, oriented, records):
     wrong, reliable, report = oriented[name]
     records.check(f"real_orientation/{name}", wrong=100 * wrong.mean(), wrong_reliable=100 * (wrong & reliable).mean(),
                   flagged=100 * (1 - reliable.mean()))
-    if name != "elk":  # the coarsest (1645 points): its winding number does not read as a closed surface's
-        assert report.closed is True
+    if name != "elk":
+        assert report.closed is True and not report.undecided
+    else:  # the coarsest (1645 points, legs 2-3 spacings thick): closed or not cannot be told, so all is flagged
+        assert report.closed is False and report.undecided and not reliable.any()
 
 
 def test_what_the_winding_number_fixed(oriented):
@@ -44,7 +46,7 @@ def test_what_the_winding_number_fixed(oriented):
     # bull 10.02 %, cow 10.30 %, dino 14.40 % inside out and reliable
     wrong = np.concatenate([w for w, _, _ in oriented.values()])
     silent = np.concatenate([w & r for w, r, _ in oriented.values()])
-    assert wrong.mean() < 0.04 and silent.mean() < 0.01  # today 3.76 % and 0.70 %
+    assert wrong.mean() < 0.04 and silent.mean() < 0.01  # today 3.66 % and 0.55 % (the elk: undecided, all flagged)
     for name, before in (("camel", 10.38), ("elephant", 14.52), ("bull", 10.02), ("cow", 10.30), ("dino", 14.40)):
         w, r, _ = oriented[name]
         assert 100 * (w & r).mean() < before / 2, name

@@ -3,7 +3,7 @@
 The scenes (:mod:`heatcurv.surfaces.scenes`) carry exact normals, areas and the
 sign of the curvature on known convex and concave parts; the LiDAR tile's
 orientation checks are in tests/test_orientation.py. The measured errors are
-records (tests/records.json); the plain assertions are the README's claims and
+records (tests/records.json); the plain assertions are the claims of docs/scans.md and
 exact facts.
 """
 
@@ -23,7 +23,7 @@ def cad():
 def test_cad_part_is_outward_across_its_sharp_edges(cad):
     part, res = cad
     outward = np.einsum("ij,ij->i", res.normals, part.normals) > 0
-    assert outward.all()  # measured: every point (README: "outward across every sharp edge")
+    assert outward.all()  # measured: every point (docs/scans.md: "outward across every sharp edge")
     assert res.info["orientation"].ambiguous == 0 and res.outlier.sum() == 0
 
 
@@ -54,7 +54,7 @@ def test_cad_part_sharp_edges_are_found(cad, records):
 
 
 def test_lidar_tile_up_on_ground_roofs_and_walls_and_its_random_half_agrees():
-    # README: "a LiDAR tile oriented up on 100 % of ground and roofs and 99.7 % of walls, and its random half
+    # docs/scans.md: "a LiDAR tile oriented up on 100 % of ground and roofs and 99.7 % of walls, and its random half
     # agreeing on all of them"; measured: ground 16,324 and roofs 1,883 every point, walls 955 of 958 (99.69 %);
     # the half agrees on every ground, roof and wall point (the crowns, volumetric, on 76 %)
     tile = surfaces.lidar_tile(20000, seed=0)

@@ -55,3 +55,27 @@ def test_past_the_patch_cap_the_seam_pieces_are_signed(cgal_meshes, tmp_path, mo
     assert silent < TREE_ALONE["cow"] / 4  # measured 0.90 % (0.79 % with the winding patches)
     records.check("real_tiled_orientation/cow-seam-pieces", wrong=100 * wrong.mean(), wrong_reliable=silent,
                   flagged=100 * (1 - reliable.mean()))
+
+
+def test_a_cloud_too_coarse_to_tell_closed_is_flagged_in_tiles_as_in_memory(cgal_meshes, tmp_path, records):
+    """The elk (1645 points, legs 2-3 spacings thick): whether it encloses a volume cannot be told from its
+    winding number, in memory or in tiles; its sides are the field's and no point is reliable."""
+    import heatcurv
+
+    mesh = read_mesh(cgal_meshes / "elk.off")
+    points, truth = mesh.vertices[mesh.used], mesh.outward_vertex_normals()[mesh.used]
+    np.save(tmp_path / "cloud.npy", points)
+    with pytest.warns(heatcurv.HeatcurvWarning, match="cannot tell whether the cloud encloses a volume"):
+        report = compute_file(tmp_path / "cloud.npy", tmp_path / "out.ply", tile_size=len(points) // 4,
+                              scheduler="serial", dtype="float64", progress=False,
+                              fields=("nx", "ny", "nz", "reliable"))
+    assert report.tiles >= 4
+    assert report.orientation["undecided"] is True and report.orientation["closed"] is False
+    out = read_points(tmp_path / "out.ply")
+    assert not out.fields["reliable"].astype(bool).any()
+    with pytest.warns(heatcurv.HeatcurvWarning, match="cannot tell whether the cloud encloses a volume"):
+        res = heatcurv.estimate(points)
+    assert res.info["orientation"].undecided and not res.reliable.any()
+    tiled_wrong = 100 * np.mean(np.einsum("ij,ij->i", out.normals, truth) < 0)
+    memory_wrong = 100 * np.mean(np.einsum("ij,ij->i", res.normals, truth) < 0)
+    records.check("real_tiled_orientation/elk-undecided", wrong=tiled_wrong, memory_wrong=memory_wrong)

@@ -110,6 +110,9 @@ def _add_picture_options(parser) -> None:
                        help="direction shown up (default: +y, or +z for LAS/LAZ, unless the camera looks along it)")
     group.add_argument("--elevation", type=in_range("elevation"), default=0.0, metavar="DEGREES",
                        help="tilt the camera up by this angle, -90..90 (default: %(default)s)")
+    group.add_argument("--no-shade", dest="shade", action="store_false",
+                       help="draw the flat colours of the colour bar (default: the points are lit from "
+                       "slightly above left of the camera, shaded by their normals, so the shape reads)")
     group.add_argument("--title", help="figure title (default: the field and the file name)")
     group.add_argument("--unit", default="length", metavar="NAME",
                        help="length unit for the colour-bar label, e.g. m gives 1/m (default: %(default)s)")

@@ -134,11 +134,17 @@ def run(args, log: Log) -> int:
         value_range=args.value_range, percentiles=args.percentiles, cmap=args.cmap,
         max_points=args.max_points, point_size=args.point_size, title=title, length_unit=args.unit,
         normals=camera_normals, view=args.view, up=args.up, vertical=vertical, elevation=args.elevation,
+        shade=args.shade,
     )
     low, high = drawn.limits
     points = f"a random {drawn.drawn} of {drawn.total}" if drawn.drawn < drawn.total else f"{drawn.drawn}"
     colours = "no / yes" if drawn.kind == "mask" else f"{low:.4g} .. {high:.4g}"
     log.info(f"wrote {output}: {field} of {points} points, {args.views} view(s), "
              f"{drawn.size[0]}x{drawn.size[1]} pixels, colours {colours}")
-    log.detail(f"  drawing took {time.perf_counter() - tic:.2f} s")
+    shading = {"normals": "shaded by the normals", "estimated normals": "shaded by normals fitted to the points",
+               "flat": "flat colours"}[drawn.shading]
+    per_view = " per view" if len(drawn.hidden) > 1 else ""
+    hidden = (f"; {', '.join(map(str, drawn.hidden))} point(s){per_view} facing away behind the near side hidden"
+              if any(drawn.hidden) else "")
+    log.detail(f"  {shading}{hidden}; drawing took {time.perf_counter() - tic:.2f} s")
     return EXIT_OK

@@ -173,8 +173,8 @@ class TiledReport:
         The global choices every tile got, in plain numbers (:func:`.compute.describe`).
     orientation : dict or None
         The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`),
-        with the winding step's: ``closed``, ``agreement`` and, for a closed cloud,
-        ``turned`` and ``unsupported`` (:func:`.winding.flag_unsupported`).
+        with the winding step's: ``closed``, ``undecided``, ``agreement`` and, for a
+        closed or undecided cloud, ``turned`` and ``unsupported`` (:func:`.winding.flag_unsupported`).
     parameters : dict
         Everything written into the output's VLR / PLY comment.
     scratch : str
@@ -687,6 +687,7 @@ def _orient(run: _Run, plan: TilePlan, context: SurveyContext, timings: dict, ba
     winding number over every tile's sources; ``(flips, report)``, both None for other orientations."""
     if not compute.orients_outward(run.options, context.choices):
         return None, None
+    from ..enclosure import warn_undecided
     from .orient import seam_flips
     from .winding import flag_unsupported, winding_sides
 
@@ -699,9 +700,12 @@ def _orient(run: _Run, plan: TilePlan, context: SurveyContext, timings: dict, ba
     # a closed cloud's inside and outside, by the winding number over every tile's sources
     sides = winding_sides(tile_files, keys, flip)
     orientation["closed"] = bool(sides is not None and sides.closed)
+    orientation["undecided"] = bool(sides is not None and sides.undecided)
     if sides is not None:
         orientation["agreement"] = sides.agreement
-    if sides is not None and sides.closed:
+    if sides is not None and sides.undecided:
+        warn_undecided(sides.agreement)
+    if sides is not None and (sides.closed or sides.undecided):
         flips.append((sides.column, sides.keys, sides.flip))
         orientation.update(flag_unsupported(results_path, run.source, context.choices.frame, sides))
     timings["orientation"] = time.perf_counter() - tic

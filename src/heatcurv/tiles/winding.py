@@ -108,7 +108,7 @@ class WindingSides:
     keys : ndarray, shape (p,), int64
         Patch keys (``tile << 32 | label``), sorted.
     flip : ndarray, shape (p,), bool
-        Patches to turn over (after the seam flips); all False when not ``closed``.
+        Patches to turn over (after the seam flips); all False when neither ``closed`` nor ``undecided``.
     rows : ndarray, shape (m,), int64
         The sources' input rows, sorted.
     x : ndarray, shape (m, 3)
@@ -118,6 +118,8 @@ class WindingSides:
     closed : bool
         Whether the cloud encloses a volume (:class:`heatcurv.enclosure.PatchSides`).
     agreement : float
+    undecided : bool
+        Whether the field cannot tell (:class:`heatcurv.enclosure.PatchSides`): every point is flagged.
     """
 
     column: str
@@ -128,6 +130,7 @@ class WindingSides:
     bad: np.ndarray
     closed: bool
     agreement: float
+    undecided: bool = False
 
 
 def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray) -> WindingSides | None:
@@ -171,8 +174,8 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
         keys, index = np.unique(seam, return_inverse=True)
     weight = area * (arrays["winding_total"].sum() / area.sum())
     sides = patch_sides(x, nrm, weight, index, keys.size)
-    flip = (sides.sign < 0) if sides.closed else np.zeros(keys.size, dtype=bool)
-    return WindingSides(column, keys, flip, rows, x, sides.bad, sides.closed, sides.agreement)
+    flip = (sides.sign < 0) if sides.closed or sides.undecided else np.zeros(keys.size, dtype=bool)
+    return WindingSides(column, keys, flip, rows, x, sides.bad, sides.closed, sides.agreement, sides.undecided)
 
 
 def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: int = 1 << 20) -> dict:
@@ -181,6 +184,7 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
     A source is flagged when it disagrees (:attr:`WindingSides.bad`), and so
     are its exact duplicates; any other point when more than half of the
     sources within its fit radius do (none when no source is that near).
+    When the field is ``undecided``, every point but the outliers is.
 
     Parameters
     ----------
@@ -198,31 +202,20 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
         ``turned`` (points the patch flips turn over) and ``unsupported`` (points flagged).
     """
     turned = unsupported = 0
-    tree, bad_tree = cKDTree(sides.x), cKDTree(sides.x[sides.bad]) if sides.bad.any() else None
+    tree = cKDTree(sides.x)
+    bad_tree = cKDTree(sides.x[sides.bad]) if sides.bad.any() and not sides.undecided else None
     for start, points, _ in source.chunks(chunk):
-        stop = start + len(points)
-        block = read_results(results_path, start, stop)
+        block = read_results(results_path, start, start + len(points))
         computed = block["computed"] == 1
         key = block[sides.column]
         at = np.clip(np.searchsorted(sides.keys, key), 0, len(sides.keys) - 1)
         turned += int(np.sum(computed & (sides.keys[at] == key) & sides.flip[at]))
-        if bad_tree is None:
+        if sides.undecided:
+            flagged = computed & ~(block["outlier"] == 1)
+        elif bad_tree is None:
             continue
-        x = frame.to_stage(points)
-        radius = block["fit_radius"] / frame.unit
-        near = computed & ~(block["outlier"] == 1)
-        flagged = np.zeros(len(points), dtype=bool)
-        if near.any():
-            total = tree.query_ball_point(x[near], radius[near], return_length=True)
-            against = bad_tree.query_ball_point(x[near], radius[near], return_length=True)
-            flagged[near] = against > 0.5 * total
-            # a duplicate of a source (only one row of a set is) takes its flag
-            distance, nearest = tree.query(x[near])
-            twin = distance == 0.0
-            flagged[np.flatnonzero(near)[twin]] = sides.bad[nearest[twin]]
-        lo, hi = np.searchsorted(sides.rows, [start, stop])
-        flagged[sides.rows[lo:hi] - start] = sides.bad[lo:hi]
-        flagged &= computed
+        else:
+            flagged = _contradicted(block, points, start, frame, sides, tree, bad_tree)
         unsupported += int(flagged.sum())
         if flagged.any():
             rows = np.flatnonzero(flagged)
@@ -230,3 +223,23 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
             changed["reliable"] = 0
             write_records(results_path, changed, rows + start)
     return {"turned": turned, "unsupported": unsupported}
+
+
+def _contradicted(block, points, start: int, frame, sides: WindingSides, tree: cKDTree, bad_tree: cKDTree):
+    """The rows of one chunk whose side the field contradicts (:func:`flag_unsupported`), shape (len(points),), bool."""
+    computed = block["computed"] == 1
+    x = frame.to_stage(points)
+    radius = block["fit_radius"] / frame.unit
+    near = computed & ~(block["outlier"] == 1)
+    flagged = np.zeros(len(points), dtype=bool)
+    if near.any():
+        total = tree.query_ball_point(x[near], radius[near], return_length=True)
+        against = bad_tree.query_ball_point(x[near], radius[near], return_length=True)
+        flagged[near] = against > 0.5 * total
+        # a duplicate of a source (only one row of a set is) takes its flag
+        distance, nearest = tree.query(x[near])
+        twin = distance == 0.0
+        flagged[np.flatnonzero(near)[twin]] = sides.bad[nearest[twin]]
+    lo, hi = np.searchsorted(sides.rows, [start, start + len(points)])
+    flagged[sides.rows[lo:hi] - start] = sides.bad[lo:hi]
+    return flagged & computed
