@@ -18,6 +18,7 @@ of docs/viewer.md.
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -103,6 +104,11 @@ def main() -> None:
         bunny_picture(args.picture)
     if not args.sizes:
         return
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from machine import commit, cpu_model, memory_text  # benchmarks/machine.py
+
+    print(f"Machine: {cpu_model()}, {os.cpu_count()} cores{memory_text()}; load average "
+          f"{os.getloadavg()[0]:.1f} at the start; heatcurv at commit {commit()}\n")
     print(f"{'points':>10s} {'fields':>6s} {'page MB':>8s} {'bytes/point':>11s} {'write s':>8s} {'browser s':>9s}")
     with tempfile.TemporaryDirectory() as directory:
         for n in args.sizes:
@@ -111,6 +117,7 @@ def main() -> None:
             browser = "-" if shown is None else f"{shown:.1f}"
             print(f"{n:>10d} {len(FIELDS):>6d} {size / 1e6:>8.1f} {size / n:>11.1f} {seconds:>8.1f} {browser:>9s}")
             path.unlink()
+    print(f"\nload average {os.getloadavg()[0]:.1f} at the end")
 
 
 if __name__ == "__main__":
