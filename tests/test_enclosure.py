@@ -150,3 +150,28 @@ def test_nested_surfaces_bound_one_solid_and_apart_ones_their_own():
         away = np.einsum("ij,ij->i", res.normals[6000:], inner) > 0
         assert np.all(away != inward)
         assert np.median(res.mean[6000:]) == pytest.approx(-1.0 if inward else 1.0, rel=1e-6)
+
+
+def test_a_closed_cloud_too_coarse_to_tell_is_undecided_and_flagged(records):
+    # a torus whose tube is about 3 spacings across (9 points around it): its levels agree on 29.6 % of the
+    # area, below the 30 % of a closed cloud, while its outside levels are near 0 on 90 % of it
+    s = surfaces.Torus(0.1, 1.0).sample(1000, "random", seed=0)
+    with pytest.warns(heatcurv.HeatcurvWarning, match="cannot tell whether the cloud encloses a volume"):
+        res = heatcurv.estimate(s.points)
+    report = res.info["orientation"]
+    assert report.undecided and report.closed is False and not res.reliable.any()
+    assert 0.1 <= report.agreement < 0.3 and report.outside_share >= 0.5
+    assert "may or may not enclose a volume" in report.reason
+    wrong = 100 * np.mean(np.einsum("ij,ij->i", res.normals, s.normals) < 0)
+    records.check("enclosure/undecided-thin-torus-1000", wrong=wrong)
+
+
+def test_an_open_scan_of_a_closed_surface_is_not_undecided():
+    # one side of a torus scanned from (5, 0, 0): its outside levels are near 0 on most of it, as a closed
+    # cloud's, but its levels agree on 6 % of it: open, its tree's sides kept and vouched for
+    scan = surfaces.Torus(0.4, 1.0).scan(20000, [(5.0, 0.0, 0.0)], seed=0)
+    res = heatcurv.estimate(scan.points)
+    report = res.info["orientation"]
+    assert report.closed is False and not report.undecided and report.agreement < 0.1
+    assert report.outside_share >= 0.5
+    assert res.reliable.mean() > 0.9

@@ -49,7 +49,7 @@ open sheet's field is about ``-+1/2`` on its two sides (between 0 and 1/2 on
 both sides of one curved like a bowl), so open clouds keep the tree's
 orientation untouched. A cloud whose share lies between :data:`UNDECIDED_SHARE`
 and :data:`CLOSED_SHARE` while its outside levels are near 0 on most of it
-(:data:`AIR_SHARE`: its normals point out of something; an open scene's
+(:data:`OUTSIDE_SHARE`: its normals point out of something; an open scene's
 field is about ``-1/2`` on one side of its sheets) is an object too coarse
 for its levels to be sure (legs a few spacings thick): it is *undecided*;
 its patches take the field's sides, which are right more often than the
@@ -77,7 +77,7 @@ from .neighbourhood import Neighbourhood
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "MAX_SOURCES",
-    "CLOSED_SHARE", "UNDECIDED_SHARE", "AIR_SHARE", "LEVEL_TOLERANCE", "warn_undecided",
+    "CLOSED_SHARE", "UNDECIDED_SHARE", "OUTSIDE_SHARE", "LEVEL_TOLERANCE", "warn_undecided",
 ]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
@@ -106,11 +106,11 @@ SPREAD_SHARE = 0.2
 #: encloses a volume (an open sheet curved like a bowl has levels near 0 and 1/2).
 CLOSED_SHARE, CLOSED_TOLERANCE = 0.3, 0.25
 #: Share from which, below :data:`CLOSED_SHARE`, a cloud whose outside levels are near 0 (within
-#: ``CLOSED_TOLERANCE``) on at least ``AIR_SHARE`` of its area may enclose a volume or not (closed
+#: ``CLOSED_TOLERANCE``) on at least ``OUTSIDE_SHARE`` of its area may enclose a volume or not (closed
 #: models a few points across their legs: shares 0.12-0.26, outside near 0 on 0.63-0.77; open scans
 #: and scenes: a one-sided scan of a torus 0.06 and 0.65, LiDAR tiles turned at random 0.11-0.19
 #: and 0.31-0.35; docs/orientation.md).
-UNDECIDED_SHARE, AIR_SHARE = 0.1, 0.5
+UNDECIDED_SHARE, OUTSIDE_SHARE = 0.1, 0.5
 
 
 @dataclass(frozen=True)
@@ -132,8 +132,9 @@ class Enclosure:
     flipped : int
         Points whose normal the patch signs turned over.
     undecided : bool
-        Whether the share lies between :data:`UNDECIDED_SHARE` and
-        :data:`CLOSED_SHARE`: neither closed nor open for sure.
+        Neither closed nor open for sure (:class:`PatchSides`).
+    outside_share : float
+        Share of the area whose outside level is near 0 (:class:`PatchSides`).
     """
 
     normals: np.ndarray
@@ -142,6 +143,7 @@ class Enclosure:
     agreement: float
     flipped: int
     undecided: bool = False
+    outside_share: float = 0.0
 
 
 def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, areas: np.ndarray,
@@ -179,12 +181,14 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
     sides = patch_sides(points[source], normals[source], weight, patch[source], n_patch)
     if not (sides.closed or sides.undecided):
-        return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0)
+        return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0,
+                         outside_share=sides.outside_share)
     flip = sides.sign[patch] < 0
     flip[excluded] = False
     unsupported = ~excluded if sides.undecided else _unsupported(source, sides.bad, neighbourhood, excluded)
     oriented = np.where(flip[:, None], -normals, normals)
-    return Enclosure(oriented, unsupported, sides.closed, sides.agreement, int(flip.sum()), sides.undecided)
+    return Enclosure(oriented, unsupported, sides.closed, sides.agreement, int(flip.sum()), sides.undecided,
+                     sides.outside_share)
 
 
 @dataclass(frozen=True)
@@ -204,8 +208,11 @@ class PatchSides:
     closed : bool
         ``agreement >= CLOSED_SHARE``: the sources enclose a volume.
     undecided : bool
-        ``UNDECIDED_SHARE <= agreement < CLOSED_SHARE`` and the outside levels
-        near 0 on at least :data:`AIR_SHARE` of the weight: they may or may not.
+        ``UNDECIDED_SHARE <= agreement < CLOSED_SHARE`` and ``outside_share >=
+        OUTSIDE_SHARE``: they may or may not.
+    outside_share : float
+        Share of the sources' weight whose outside level is within
+        :data:`CLOSED_TOLERANCE` of 0.
     """
 
     sign: np.ndarray
@@ -213,6 +220,7 @@ class PatchSides:
     agreement: float
     closed: bool
     undecided: bool = False
+    outside_share: float = 0.0
 
 
 def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int) -> PatchSides:
@@ -244,23 +252,24 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     agrees = (np.abs(outside) <= LEVEL_TOLERANCE) & (np.abs(inside - 1.0) <= LEVEL_TOLERANCE)
     sure = (np.abs(outside) <= CLOSED_TOLERANCE) & (np.abs(inside - 1.0) <= CLOSED_TOLERANCE)
     agreement = float(weight[sure].sum() / weight.sum())
-    air = float(weight[np.abs(outside) <= CLOSED_TOLERANCE].sum() / weight.sum())
+    outside_share = float(weight[np.abs(outside) <= CLOSED_TOLERANCE].sum() / weight.sum())
     # a source disagrees when its levels do, or many of its disc's do (a flipped spot's own levels agree)
     bad = ~agrees
     share = np.bincount(disc_rows, weights=bad[disc_members], minlength=bad.size) / np.bincount(
         disc_rows, minlength=bad.size)
     bad |= share > SPREAD_SHARE
-    return PatchSides(sign, bad, agreement, agreement >= CLOSED_SHARE,
-                      UNDECIDED_SHARE <= agreement < CLOSED_SHARE and air >= AIR_SHARE)
+    undecided = UNDECIDED_SHARE <= agreement < CLOSED_SHARE and outside_share >= OUTSIDE_SHARE
+    return PatchSides(sign, bad, agreement, agreement >= CLOSED_SHARE, undecided, outside_share)
 
 
-def warn_undecided(agreement: float, stacklevel: int = 2) -> None:
+def warn_undecided(agreement: float, outside_share: float, stacklevel: int = 2) -> None:
     """Warn that the field cannot tell whether the cloud encloses a volume, so every side is flagged."""
     warnings.warn(
         f"cannot tell whether the cloud encloses a volume (the winding number agrees with its normals' sides on "
-        f"{100 * agreement:.0f} % of its area; closed objects reach {100 * CLOSED_SHARE:.0f} %): every normal's side "
-        "is flagged unreliable. A closed object sampled more densely decides it; pass orient='up' or a viewpoint "
-        "for an open scan.", HeatcurvWarning, stacklevel=stacklevel + 1)
+        f"{100 * agreement:.1f} % of its area, where closed objects reach {100 * CLOSED_SHARE:.0f} %, and is near 0 "
+        f"outside {100 * outside_share:.0f} % of it, where open scans stay below {100 * OUTSIDE_SHARE:.0f} %): every "
+        "normal's side is flagged unreliable. A closed object sampled more densely decides it; pass orient='up' or "
+        "a viewpoint for an open scan.", HeatcurvWarning, stacklevel=stacklevel + 1)
 
 
 def _unsupported(source: np.ndarray, bad: np.ndarray, neighbourhood: Neighbourhood, excluded: np.ndarray):

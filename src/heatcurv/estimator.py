@@ -223,7 +223,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             fitted = _facing_viewpoint(fitted, op.points, towards)
     orientation = replace(orientation, report=_explained(orientation.report, policy, op.points.shape[0]))
     if orientation.report.undecided:
-        warn_undecided(orientation.report.agreement, stacklevel=3)
+        warn_undecided(orientation.report.agreement, orientation.report.outside_share, stacklevel=3)
     return _result(op, fitted, planarity, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
                    rounding=rounding)
 

@@ -170,6 +170,9 @@ class OrientationReport:
         ``"outward"`` on a whole cloud: the share of its area whose winding-number
         levels agree with their sides (:class:`heatcurv.enclosure.PatchSides`);
         None otherwise.
+    outside_share : float or None
+        With ``agreement``: the share of the area whose outside level is near 0
+        (the normals point out of something; an open sheet's field there is about -1/2).
     undecided : bool
         ``"outward"``: the winding number could not tell whether the cloud
         encloses a volume (:data:`heatcurv.enclosure.UNDECIDED_SHARE`): its
@@ -195,6 +198,7 @@ class OrientationReport:
     turned: int = 0
     unsupported: int = 0
     agreement: float | None = None
+    outside_share: float | None = None
     undecided: bool = False
     reason: str = ""
     policy: AutoPolicy | None = None
@@ -421,22 +425,23 @@ def orient(
     oriented *= sign[labels][:, None]
 
     # the winding number decides inside from outside, part by part, and flags what it contradicts
-    unsupported, closed, undecided, turned, agreement, part = np.zeros(n, dtype=bool), None, False, 0, None, {}
+    unsupported, closed, undecided, turned, part = np.zeros(n, dtype=bool), None, False, 0, {}
+    agreement = outside_share = None
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
         part = {"patch": patches(points, tree, cut, cloud_points), "weights": w,
                 "sources": sampled_sources(points, cut, n if cloud_points is None else cloud_points)}
     else:
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded)
-        oriented, unsupported, closed, undecided, turned, agreement = (
-            enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.undecided, enclosure.flipped,
-            enclosure.agreement)
+        oriented, unsupported, closed, undecided, turned = (
+            enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.undecided, enclosure.flipped)
+        agreement, outside_share = enclosure.agreement, enclosure.outside_share
     ambiguous = _conflicting(points, oriented, graph) | unsupported
     report = OrientationReport(
         mode=mode, components=_surface_components(labels, excluded),
         by_convention=0 if closed or undecided else int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
         closed=closed, turned=turned, unsupported=int(unsupported.sum()), agreement=agreement,
-        undecided=undecided,
+        outside_share=outside_share, undecided=undecided,
     )
     return Orientation(oriented, ambiguous, report, **part)
 

@@ -173,7 +173,7 @@ class TiledReport:
         The global choices every tile got, in plain numbers (:func:`.compute.describe`).
     orientation : dict or None
         The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`),
-        with the winding step's: ``closed``, ``undecided``, ``agreement`` and, for a
+        with the winding step's: ``closed``, ``undecided``, ``agreement``, ``outside_share`` and, for a
         closed or undecided cloud, ``turned`` and ``unsupported`` (:func:`.winding.flag_unsupported`).
     parameters : dict
         Everything written into the output's VLR / PLY comment.
@@ -702,9 +702,9 @@ def _orient(run: _Run, plan: TilePlan, context: SurveyContext, timings: dict, ba
     orientation["closed"] = bool(sides is not None and sides.closed)
     orientation["undecided"] = bool(sides is not None and sides.undecided)
     if sides is not None:
-        orientation["agreement"] = sides.agreement
+        orientation["agreement"], orientation["outside_share"] = sides.agreement, sides.outside_share
     if sides is not None and sides.undecided:
-        warn_undecided(sides.agreement)
+        warn_undecided(sides.agreement, sides.outside_share)
     if sides is not None and (sides.closed or sides.undecided):
         flips.append((sides.column, sides.keys, sides.flip))
         orientation.update(flag_unsupported(results_path, run.source, context.choices.frame, sides))

@@ -120,6 +120,8 @@ class WindingSides:
     agreement : float
     undecided : bool
         Whether the field cannot tell (:class:`heatcurv.enclosure.PatchSides`): every point is flagged.
+    outside_share : float
+        (:class:`heatcurv.enclosure.PatchSides`)
     """
 
     column: str
@@ -131,6 +133,7 @@ class WindingSides:
     closed: bool
     agreement: float
     undecided: bool = False
+    outside_share: float = 0.0
 
 
 def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray) -> WindingSides | None:
@@ -175,7 +178,8 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
     weight = area * (arrays["winding_total"].sum() / area.sum())
     sides = patch_sides(x, nrm, weight, index, keys.size)
     flip = (sides.sign < 0) if sides.closed or sides.undecided else np.zeros(keys.size, dtype=bool)
-    return WindingSides(column, keys, flip, rows, x, sides.bad, sides.closed, sides.agreement, sides.undecided)
+    return WindingSides(column, keys, flip, rows, x, sides.bad, sides.closed, sides.agreement, sides.undecided,
+                        sides.outside_share)
 
 
 def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: int = 1 << 20) -> dict:
