@@ -9,9 +9,13 @@ import heatcurv.estimator
 import heatcurv.features
 import heatcurv.operator
 import heatcurv.render
+import heatcurv.shading
 import heatcurv.view
 
-MODULES = [heatcurv.estimator, heatcurv.features, heatcurv.operator, heatcurv.render, heatcurv.view, heatcurv.data]
+MODULES = [
+    heatcurv.estimator, heatcurv.features, heatcurv.operator, heatcurv.render, heatcurv.shading, heatcurv.view,
+    heatcurv.data,
+]
 
 
 @pytest.mark.parametrize("module", MODULES, ids=lambda m: m.__name__)

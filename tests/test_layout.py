@@ -10,7 +10,7 @@ import heatcurv
 
 PACKAGE = Path(heatcurv.__file__).parent
 #: Packages and modules around the numerical core; the core imports none of them.
-OUTER = ("io", "cli", "render", "view", "surfaces", "data", "tiles")
+OUTER = ("io", "cli", "render", "shading", "view", "surfaces", "data", "tiles")
 #: Modules that are the package's facades, not the core.
 FACADES = ("__init__", "__main__")
 MAX_LINES = 900

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import heatcurv
-from heatcurv import render, surfaces
+from heatcurv import render, shading, surfaces
 from heatcurv.render import camera_frames, colour_limits, render_field
 
 
@@ -267,13 +267,13 @@ def test_shading_lights_the_side_facing_the_light(tmp_path):
         centre = np.array([rows.min() + rows.max(), cols.min() + cols.max()]) / 2
         radius = (rows.max() - rows.min()) / 2
         red = []
-        for right, up in (render.LIGHT[:2], (0.55, -0.73)):  # mean red of a 5x5 patch there on the sphere's disc
+        for right, up in (shading.LIGHT[:2], (0.55, -0.73)):  # mean red of a 5x5 patch there on the sphere's disc
             row, col = np.round(centre + radius * np.array([-up, right])).astype(int)
             red.append(float(rgb[row - 2 : row + 3, col - 2 : col + 3, 0].mean()))
         brightness[shade] = tuple(red)
     lit, limb = brightness[True]  # where the normal is the light's direction; the lower right limb
     assert lit / limb > 2.0
-    assert limb == pytest.approx(render.AMBIENT * 214 / 255, abs=0.03)
+    assert limb == pytest.approx(shading.AMBIENT * 214 / 255, abs=0.03)
     flat_lit, flat_limb = brightness[False]
     assert flat_lit == pytest.approx(214 / 255, abs=0.01) and flat_limb == pytest.approx(flat_lit, abs=0.01)
 
@@ -323,9 +323,9 @@ def test_shade_off_draws_the_flat_colours_of_the_colour_bar(tmp_path):
 
 def test_without_normals_the_points_are_shaded_from_fitted_normals(tmp_path):
     sphere = surfaces.Sphere().sample(3000, "fibonacci")
-    fitted = render._estimated_normals(sphere.points)
+    fitted = shading.estimated_normals(sphere.points)
     assert np.min(np.abs(np.sum(fitted * sphere.normals, axis=1))) > 0.99  # either sign
-    assert render._estimated_normals(sphere.points[:3]) is None
+    assert shading.estimated_normals(sphere.points[:3]) is None
     out = render_field(sphere.points, sphere.points[:, 0], tmp_path / "a.png", field="x", size=(300, 300))
     assert out.shading == "estimated normals" and out.hidden == (0,)
     tiny = render_field(sphere.points[:3], [1.0, 2.0, 3.0], tmp_path / "b.png", field="x", size=(300, 300))
@@ -334,11 +334,11 @@ def test_without_normals_the_points_are_shaded_from_fitted_normals(tmp_path):
 
 def test_shade_is_two_sided_lambert_light():
     rgba = np.tile([0.8, 0.4, 0.2, 0.5], (5, 1))
-    side = np.cross(render.LIGHT, [0.0, 0.0, 1.0])
-    normals = np.array([render.LIGHT, -render.LIGHT, side / np.linalg.norm(side), [0, 0, 1.0], [np.nan] * 3])
-    shaded = render._shade(rgba, normals)
+    side = np.cross(shading.LIGHT, [0.0, 0.0, 1.0])
+    normals = np.array([shading.LIGHT, -shading.LIGHT, side / np.linalg.norm(side), [0, 0, 1.0], [np.nan] * 3])
+    shaded = shading.shade_colours(rgba, normals)
     factor = shaded[:, 0] / 0.8
-    ambient, facing = render.AMBIENT, render.AMBIENT + (1 - render.AMBIENT) * render.LIGHT[2]
+    ambient, facing = shading.AMBIENT, shading.AMBIENT + (1 - shading.AMBIENT) * shading.LIGHT[2]
     np.testing.assert_allclose(factor, [1.0, 1.0, ambient, facing, facing])
     np.testing.assert_allclose(shaded[:, :3], rgba[:, :3] * factor[:, None])
     np.testing.assert_array_equal(shaded[:, 3], 0.5)
@@ -349,12 +349,21 @@ def test_hidden_back_faces_of_closed_and_open_clouds():
     screen = sphere.points[:, [0, 1, 2]]  # camera on +z
     facing = sphere.normals[:, 2]
     diameter = 0.06
-    outward = render._hidden_back_faces(screen, facing, diameter)
+    outward = shading.hidden_back_faces(screen, facing, diameter)
     assert np.all(facing[outward] < 0) and np.all(screen[outward, 2] < 0)
     assert outward.sum() > 0.9 * np.sum(facing < 0)  # the far half, but for its outline
-    np.testing.assert_array_equal(render._hidden_back_faces(screen, -facing, diameter), outward)  # inward normals
+    np.testing.assert_array_equal(shading.hidden_back_faces(screen, -facing, diameter), outward)  # inward normals
     cap = screen[:, 2] < 0  # an open cap seen from behind: nothing in front of it, nothing hidden
-    assert not render._hidden_back_faces(screen[cap], facing[cap], diameter).any()
+    assert not shading.hidden_back_faces(screen[cap], facing[cap], diameter).any()
     unknown = facing.copy()
     unknown[:] = np.nan
-    assert not render._hidden_back_faces(screen, unknown, diameter).any()
+    assert not shading.hidden_back_faces(screen, unknown, diameter).any()
+
+
+def test_the_names_other_modules_import_from_render_stay_there():
+    # heatcurv.view and the command line import these from heatcurv.render; the lighting moved to heatcurv.shading
+    for name in ("DIVERGING_CMAP", "SEQUENTIAL_CMAP", "MASK_COLOURS", "MISSING_COLOUR", "PICTURE_RANGES",
+                 "camera_frames", "colour_limits", "field_style", "render_field", "supported_picture_formats"):
+        assert hasattr(render, name), name
+    for name in ("AMBIENT", "LIGHT", "HIDDEN_DEPTH"):
+        assert getattr(render, name) is getattr(shading, name), name

@@ -28,20 +28,21 @@ Drawing
   and back; 4: every quarter turn); ``elevation`` tilts the camera up. The
   points are drawn from far to near, so near points cover far ones.
 * **Shading.** Each point's colour is lit by a headlight slightly above and
-  left of the camera (:data:`AMBIENT` light plus Lambert's diffuse light,
-  from the normals given, else from normals fitted to each point's nearest
-  neighbours), as 3-D viewers light a surface: surfaces facing the
-  viewer keep their colour, the outline and the lower right darken, so the
-  shape reads. Lighting is two-sided (normals of either sign light alike).
-  ``shade=False`` draws the flat colours of the colour bar.
+  left of the camera (:data:`heatcurv.shading.AMBIENT` light plus Lambert's
+  diffuse light, from the normals given, else from normals fitted to each
+  point's nearest neighbours), as 3-D viewers light a surface: surfaces
+  facing the viewer keep their colour, the outline and the lower right
+  darken, so the shape reads. Lighting is two-sided (normals of either sign
+  light alike). ``shade=False`` draws the flat colours of the colour bar.
 * **Hidden points.** With normals given, the points facing away from the
   camera that lie behind a surface facing it (a point facing the camera
   within two disc diameters on the picture and more than
-  :data:`HIDDEN_DEPTH` diameters nearer: the far side of a closed object)
-  are not drawn, so they cannot show through the gaps between the near
-  side's discs; the back of an open scan, with nothing in front of it, is
-  drawn. Normals of either orientation work: the sign that hides more is
-  used.
+  :data:`heatcurv.shading.HIDDEN_DEPTH` diameters nearer: the far side of a
+  closed object) are not drawn, so they cannot show through the gaps between
+  the near side's discs; the back of an open scan, with nothing in front of
+  it, is drawn. Normals of either orientation work: the sign that hides more
+  is used. :mod:`heatcurv.shading` computes the lighting and the hidden
+  points.
 * **Points** are discs 1.2 (regular samples) to 2 (random samples) times as
   wide as the side of the surface area per point (from the distance to the
   8th nearest neighbour), so the surface looks closed even where a random
@@ -65,6 +66,12 @@ import numpy as np
 
 from .errors import HeatcurvError
 from .options import SEED_RANGE, Range, range_problem
+
+# the lighting constants stay importable from here, where the pictures are described
+from .shading import AMBIENT as AMBIENT
+from .shading import HIDDEN_DEPTH as HIDDEN_DEPTH
+from .shading import LIGHT as LIGHT
+from .shading import estimated_normals, hidden_back_faces, shade_colours
 
 __all__ = [
     "FIELD_STYLES",
@@ -93,17 +100,6 @@ DISC_FACTOR = 2.0
 #: size. The wide discs fill the gaps a random sample leaves between the discs (the surface, not
 #: whatever is behind it, shows through them: coverage 1 - exp(-pi (1.75 x 2)^2 / 4) > 99.99 %).
 UNDERLAY = 1.75
-#: Share of a point's colour kept where the light grazes its surface or misses it (ambient light);
-#: the rest is diffuse (Lambert) light.
-AMBIENT = 0.4
-#: Direction the light comes from, in screen coordinates (right, up, towards the camera): a
-#: headlight slightly above and left of the camera, so surfaces facing the viewer are bright,
-#: the outline darkens and bumps read as lit from the upper left.
-LIGHT = np.array([-0.3, 0.4, 1.0]) / np.linalg.norm([-0.3, 0.4, 1.0])
-#: A point facing away from the camera is hidden when a point facing it, next to it on the
-#: picture, is nearer to the camera by more than this many disc diameters
-#: (:func:`_hidden_back_faces`).
-HIDDEN_DEPTH = 2.0
 
 
 @dataclass(frozen=True)
@@ -640,99 +636,6 @@ def _disc_pixels(xyz: np.ndarray, point_size, scale: float, dpi: int, disc: floa
     return float(np.clip(disc * scale * dpi, 1.0, 80.0)) if disc > 0 else 3.0
 
 
-def _estimated_normals(xyz: np.ndarray, k: int = 10) -> np.ndarray | None:
-    """Unoriented normals for shading: the direction of least spread of each point's ``k`` nearest neighbours.
-
-    None with fewer than 4 points. The sign is arbitrary, which two-sided
-    lighting (:func:`_shade`) does not see.
-    """
-    from scipy.spatial import cKDTree
-
-    if xyz.shape[0] < 4:
-        return None
-    k = min(k, xyz.shape[0])
-    tree = cKDTree(xyz)
-    normals = np.empty_like(xyz)
-    for start in range(0, xyz.shape[0], 100_000):  # blocks: a few tens of MB at a time
-        _, neighbours = tree.query(xyz[start : start + 100_000], k=k, workers=-1)
-        around = xyz[neighbours]
-        around -= around.mean(axis=1, keepdims=True)
-        _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", around, around))
-        normals[start : start + 100_000] = vectors[:, :, 0]
-    return normals
-
-
-def _shade(rgba: np.ndarray, normals_on_screen: np.ndarray) -> np.ndarray:
-    """``rgba`` lit by :data:`LIGHT`: the colour times ``AMBIENT + (1 - AMBIENT) max(0, n . light)``.
-
-    ``normals_on_screen`` are unit normals in screen coordinates (right, up,
-    towards the camera). Lighting is two-sided: a normal facing away is
-    turned to face the camera first, so open scans seen from behind and
-    normals of either sign are lit alike. Points without a finite normal get
-    the brightness of a surface facing the camera. Alpha is kept.
-    """
-    n = normals_on_screen
-    toward = np.where(n[:, 2:3] < 0, -n, n)
-    diffuse = np.clip(toward @ LIGHT, 0.0, 1.0)
-    diffuse = np.where(np.isfinite(diffuse), diffuse, LIGHT[2])
-    shaded = np.array(rgba, dtype=np.float64, copy=True)
-    shaded[:, :3] *= (AMBIENT + (1.0 - AMBIENT) * diffuse)[:, None]
-    return shaded
-
-
-def _hidden_back_faces(screen: np.ndarray, facing: np.ndarray, diameter: float) -> np.ndarray:
-    """Mask of the points that face away from the camera and lie behind a surface that faces it.
-
-    Parameters
-    ----------
-    screen : ndarray, shape (n, 3)
-        Right, up and depth towards the camera of each point.
-    facing : ndarray, shape (n,)
-        Normal component towards the camera (NaN: unknown, never hidden).
-    diameter : float
-        Disc diameter in length units.
-
-    Returns
-    -------
-    ndarray of bool, shape (n,)
-
-    Notes
-    -----
-    The picture is cut into square cells one disc diameter wide. A point
-    facing away is hidden when a point facing the camera lies in its cell or
-    one of the 8 around it (1 to 2 diameters away on the picture) and is
-    nearer by more than :data:`HIDDEN_DEPTH` diameters: it is on the far side
-    of a closed surface, and drawn it would show through the gaps between the
-    near side's discs. Points facing away with nothing in front of them (the
-    back of an open scan, the outline of a closed one) stay. Normals may be
-    oriented either way: both signs are tried and the one that hides more is
-    kept (inward normals hide nothing with the outward sign).
-    """
-    from scipy.ndimage import maximum_filter
-
-    hidden = np.zeros(screen.shape[0], dtype=bool)
-    known = np.isfinite(facing)
-    if not known.any():
-        return hidden
-    cell = max(diameter, float(np.ptp(screen[:, :2], axis=0).max()) / 2048.0, 1e-300)  # at most 2048^2 cells
-    cells = np.floor((screen[:, :2] - screen[:, :2].min(axis=0)) / cell).astype(np.int64)
-    shape = tuple(cells.max(axis=0) + 1)
-    margin = HIDDEN_DEPTH * diameter
-    for sign in (1.0, -1.0):
-        front = known & (sign * facing > 0)
-        back = known & (sign * facing < 0)
-        if not front.any() or not back.any():
-            continue
-        nearest = np.full(shape, -np.inf)  # per cell, the depth of the nearest point facing the camera
-        np.maximum.at(nearest, (cells[front, 0], cells[front, 1]), screen[front, 2])
-        nearest = maximum_filter(nearest, size=3, mode="constant", cval=-np.inf)  # and the 8 cells around
-        behind = back.copy()
-        behind[back] = nearest[cells[back, 0], cells[back, 1]] > screen[back, 2] + margin
-        if behind.sum() > hidden.sum():
-            hidden = behind
-    return hidden
-
-
 def _paint(axes: list, screens: list, colours: list, diameter: float, dpi: int, shown: list) -> None:
     """The points as discs of ``diameter`` pixels in each view's axes, drawn far to near (rasterised).
 
@@ -898,15 +801,15 @@ def render_field(
     if not shade:
         lit, shading = None, "flat"
     elif lit is None:
-        lit, shading = _estimated_normals(xyz), "estimated normals"
+        lit, shading = estimated_normals(xyz), "estimated normals"
     colours, drawn, hidden = [], [], []
     for frame, screen in zip(frames, screens):
         behind = np.zeros(xyz.shape[0], dtype=bool)
         if normals is not None:
-            behind = _hidden_back_faces(screen, normals @ frame[2], diameter / (layout.scale * dpi))
+            behind = hidden_back_faces(screen, normals @ frame[2], diameter / (layout.scale * dpi))
         drawn.append(~behind)
         hidden.append(int(behind.sum()))
-        colours.append(rgba if lit is None else _shade(rgba, lit @ frame.T))
+        colours.append(rgba if lit is None else shade_colours(rgba, lit @ frame.T))
     _paint(axes, screens, colours, diameter, dpi, drawn)
     _save(fig, path, ext, dpi)
     return Rendering(
