@@ -211,23 +211,35 @@ def decision(report) -> str:
     return "closed" if report.closed else "undecided" if report.undecided else "open"
 
 
-def decision_row(name: str, report, wrong: float, silent: float) -> list[str]:
+def median_roundness(points: np.ndarray) -> float:
+    """The median ball's PCA roundness (``lambda_0 / lambda_1`` of the 60 nearest, tapered, as the estimator's)."""
+    from heatcurv.neighbourhood import knn_neighbourhood
+    from heatcurv.normals import pca_normals
+
+    _, _, roundness = pca_normals(points, knn_neighbourhood(points, 60), taper=True, roundness=True)
+    return float(np.nanmedian(roundness))
+
+
+def decision_row(name: str, points: np.ndarray, report, wrong: float, silent: float) -> list[str]:
     return [name, f"{100 * report.agreement:.1f}", f"{100 * report.outside_share:.1f}", decision(report),
-            f"{wrong:.2f}", f"{silent:.2f}"]
+            f"{median_roundness(points):.2f}", f"{wrong:.2f}", f"{silent:.2f}"]
 
 
-DECISION_HEAD = ["cloud", "levels agree %", "outside near 0 %", "decision", "wrong %", "wrong & reliable %"]
+DECISION_HEAD = ["cloud", "levels agree %", "outside near 0 %", "decision", "roundness", "wrong %",
+                 "wrong & reliable %"]
 
 
 def coarse_tori() -> list[list[str]]:
     """Tori with a thin tube (radius 0.08-0.15 of the ring's), a few hundred random points: closed, but coarse."""
     cells = []
-    for r, n in ((0.08, 800), (0.1, 600), (0.1, 800), (0.1, 1000), (0.12, 700), (0.15, 500), (0.15, 600)):
+    for r, n in ((0.08, 800), (0.1, 600), (0.1, 800), (0.1, 1000), (0.12, 700), (0.15, 500), (0.15, 600), (0.2, 800),
+                 (0.2, 1500)):
         for seed in (0, 1, 2):
             sample = hs.Torus(r, 1.0).sample(n, "random", seed=seed)
             normals, reliable, _ = run_heatcurv(sample.points)
             wrong = np.einsum("ij,ij->i", normals, sample.normals) < 0
-            cells.append(decision_row(f"torus r {r}, {n} points, seed {seed}", DECISIONS[-1], 100 * wrong.mean(),
+            cells.append(decision_row(f"torus r {r}, {n} points, seed {seed}", sample.points, DECISIONS[-1],
+                                      100 * wrong.mean(),
                                       100 * (wrong & reliable).mean()))
     return cells
 
@@ -418,7 +430,7 @@ def main(argv=None) -> int:
                 r["seconds"] = seconds
                 results[method] = r
                 if method == "heatcurv":
-                    decisions.append(decision_row(f"{model['name']} {kind}", DECISIONS[-1], r["wrong"],
+                    decisions.append(decision_row(f"{model['name']} {kind}", points, DECISIONS[-1], r["wrong"],
                                                   r["wrong_reliable"]))
                 if r["nan"]:
                     notes.append(f"{kind} {model['name']}: {method} left {r['nan']} normals without value (wrong)")
@@ -439,7 +451,8 @@ def main(argv=None) -> int:
                          "agreeing, undecided from 10 % with the outside near 0 on at least 50 %)",
                          DECISION_HEAD, decisions, args.markdown))
     if args.coarse_tori:
-        print(text_table("coarse thin tori (closed; truth: the torus's outward normals)", DECISION_HEAD,
+        print(text_table("coarse thin tori (closed; truth: the torus's outward normals; roundness: the median "
+                         "ball's lambda_0 / lambda_1, too coarse from 0.65 on half of the balls)", DECISION_HEAD,
                          coarse_tori(), args.markdown))
     for note in notes:
         print(f"note: {note}")

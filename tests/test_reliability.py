@@ -53,3 +53,35 @@ def test_cloud_flags_join_local_flags_misfits_and_resolution():
         warnings.simplefilter("error")
         part = inputs.take(np.arange(10))
         assert part.residual.shape == (10,) and cloud_flags(part)[0].all()
+
+
+def test_round_balls_count_past_any_resolution_limit():
+    # rho is infinite where a ball is round (the surface wraps around within it); NaN (undefined) is left out
+    rho = np.array([0.1, np.inf, np.inf, np.nan, 0.2])
+    assert resolution(rho, np.ones(5, bool)) == np.inf
+    assert resolution(rho[[0, 1, 4]], np.ones(3, bool)) == pytest.approx(0.2)
+    from heatcurv.tiles.medians import streaming_medians
+
+    def chunks():
+        yield np.zeros(5, np.int64), rho
+    assert streaming_medians(chunks) == {0: np.inf}
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_torus_whose_tube_is_three_spacings_across_is_too_coarse(seed):
+    # 800 random points on a torus with tube radius 0.1 (about 9 points around the tube): the balls wrap around
+    # the tube (median PCA roundness 0.77), the fit's curvature comes out far too small, and with the spanning
+    # tree's sides split the cloud was 39-41 % inside out *and reliable* before its round balls counted
+    import heatcurv
+    from heatcurv import surfaces
+
+    sample = surfaces.Torus(0.1, 1.0).sample(800, "random", seed=seed)
+    with pytest.warns(HeatcurvWarning, match="most of its balls are round"):
+        res = heatcurv.estimate(sample.points)
+    assert not res.reliable.any() and res.info["resolution"] == np.inf
+    # a tube twice as thick, as coarse in spacings along the ring, resolves: nothing changes there
+    thick = surfaces.Torus(0.2, 1.0).sample(800, "random", seed=seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", HeatcurvWarning)
+        res = heatcurv.estimate(thick.points)
+    assert res.reliable.mean() > 0.97 and res.info["resolution"] < RESOLUTION_LIMIT

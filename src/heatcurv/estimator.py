@@ -53,6 +53,7 @@ from .progress import StageClock
 from .reliability import (
     PRECISION_COVERAGE,
     PRECISION_TOLERANCE,
+    ROUND_BALL,
     PrecisionReport,
     ReliabilityInputs,
     cloud_flags,
@@ -203,7 +204,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         with clock.stage("outliers"):
             outliers = find_outliers(op.points, op.neighbourhood)
         towards = _reference(op, mode, viewpoint)
-        nrm, planarity, orientation, policy = _normal_stages(op, normals, mode, towards, outliers.mask, clock,
+        nrm, ball_shape, orientation, policy = _normal_stages(op, normals, mode, towards, outliers.mask, clock,
                                                              keys, choices)
         mode = orientation.report.mode
         with clock.stage("mean_curvature_normal"):
@@ -224,7 +225,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     orientation = replace(orientation, report=_explained(orientation.report, policy, op.points.shape[0]))
     if orientation.report.undecided:
         warn_undecided(orientation.report.agreement, orientation.report.outside_share, stacklevel=3)
-    return _result(op, fitted, planarity, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
+    return _result(op, fitted, ball_shape, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
                    rounding=rounding)
 
 
@@ -299,7 +300,7 @@ def _reference(op: HeatKernelOperator, mode: str, viewpoint):
 
 def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np.ndarray, clock: StageClock,
                    keys: np.ndarray, choices=None):
-    """Stages ``normals`` and ``orientation``: oriented unit normals, PCA planarity and the orientation.
+    """Stages ``normals`` and ``orientation``: oriented unit normals, the balls' PCA shape and the orientation.
 
     ``mode="auto"`` is decided first (:func:`_auto_policy`). Outliers get no
     weight in the outward vote (one far point would drag the centroid). Given
@@ -309,7 +310,9 @@ def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: n
     Returns
     -------
     normals : ndarray, shape (m, 3)
-    planarity : ndarray, shape (m,)
+    ball_shape : tuple of ndarray, shape (m,) each
+        The balls' PCA planarity and roundness (:func:`heatcurv.normals.pca_normals`; 1 and NaN
+        for given normals).
     orientation : Orientation
     policy : AutoPolicy or None
         What ``"auto"`` chose, None for the other modes.
@@ -319,15 +322,15 @@ def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: n
         with clock.stage("normals"):
             nrm = prepare_normals(given, prepared)
         kept = Orientation(nrm, np.zeros(X.shape[0], dtype=bool), OrientationReport("given"))
-        return nrm, np.ones(X.shape[0]), kept, None
+        return nrm, (np.ones(X.shape[0]), np.full(X.shape[0], np.nan)), kept, None
     with clock.stage("normals"):
-        nrm, planarity = pca_normals(X, nbhd, taper=op.options.taper)
+        nrm, planarity, roundness = pca_normals(X, nbhd, taper=op.options.taper, roundness=True)
     with clock.stage("orientation"):
         policy = _auto_policy(op, keys, choices) if mode == "auto" else None
         orientation = orient(X, nrm, nbhd, op.areas, mode=mode if policy is None else policy.mode, towards=towards,
                              excluded=outlier, whole_cloud=choices is None,
                              cloud_points=None if choices is None else choices.frame.n_points)
-    return orientation.normals, planarity, orientation, policy
+    return orientation.normals, (planarity, roundness), orientation, policy
 
 
 def _facing_viewpoint(fitted: _Fitted, points: np.ndarray, towards: np.ndarray) -> _Fitted:
@@ -579,13 +582,14 @@ def _corrected_areas(
     return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2) * coverage
 
 
-def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, planarity, orientation: Orientation,
+def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, ball_shape, orientation: Orientation,
                         outliers: Outliers, areas: np.ndarray, coarse: np.ndarray | None = None) -> ReliabilityInputs:
     """Each distinct point's contribution to ``reliable`` (:mod:`heatcurv.reliability`), shape (m,) each.
 
     ``coarse``: points whose coordinates are too coarse for their curvature (:func:`_precision`), or None.
     """
     nbhd, pc = op.neighbourhood, fitted.principal
+    planarity, roundness = ball_shape
     local = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~fitted.border
     local &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask
     if coarse is not None:
@@ -596,6 +600,8 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, planarity, orie
     counts = np.maximum(nbhd.counts, 1)
     with np.errstate(invalid="ignore", over="ignore"):
         rho = nbhd.radius * np.sqrt(np.pi / counts) * np.maximum(np.abs(pc.k1), np.abs(pc.k2))
+    # a round ball holds a tube, not a disc: its fitted curvature is no measure of the sampling
+    rho = np.where(roundness > ROUND_BALL, np.inf, rho)
     residual = None if fitted.residual is None else fitted.residual / op.h
     return ReliabilityInputs(local, residual, width, rho, ~outliers.mask)
 
@@ -628,7 +634,7 @@ def _precision(op: HeatKernelOperator, fitted: _Fitted, rounding) -> tuple:
                                    reason)
 
 
-def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: Orientation, outliers: Outliers,
+def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation: Orientation, outliers: Outliers,
             timings, whole_cloud: bool = True, rounding=None):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
@@ -644,7 +650,7 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, planarity, K, orientation: 
     unit = prepared.unit
     areas = np.where(outliers.mask, 0.0, fitted.areas)
     coarse, precision = _precision(op, fitted, rounding)
-    inputs = _reliability_inputs(op, fitted, planarity, orientation, outliers, areas, coarse)
+    inputs = _reliability_inputs(op, fitted, ball_shape, orientation, outliers, areas, coarse)
     back = prepared.to_input_order
     if whole_cloud:
         reliable, resolution = cloud_flags(inputs, stacklevel=3)

@@ -29,8 +29,9 @@ __all__ = [
 
 
 def pca_normals(
-    points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | None = None, *, taper: bool = False
-) -> tuple[np.ndarray, np.ndarray]:
+    points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | None = None, *, taper: bool = False,
+    roundness: bool = False,
+) -> tuple[np.ndarray, ...]:
     """Unoriented PCA normals of the ball neighbourhoods.
 
     Parameters
@@ -47,6 +48,8 @@ def pca_normals(
         Weight each neighbour by :func:`heatcurv.kernel.ball_taper` (without
         storing it), which makes the normal a continuous function of the
         points. Not together with ``weights``.
+    roundness : bool, optional
+        Also return each ball's roundness (below).
 
     Returns
     -------
@@ -56,6 +59,11 @@ def pca_normals(
         ``(lambda_1 - lambda_0) / lambda_2`` with ``lambda_0 <= lambda_1 <= lambda_2``:
         near 1 for a clean surface patch, near 0 where the neighbourhood is
         not a surface (a line, a blob) and the normal is not defined.
+    roundness : ndarray, shape (n,)
+        With ``roundness=True``: ``lambda_0 / lambda_1``, near 0 for a disc of
+        surface, near 1 where the ball's cross-section is round: the surface
+        wraps around within it (a tube a few spacings across). NaN where
+        ``lambda_1`` vanishes.
     """
     if weights is not None and taper:
         raise HeatcurvError("give pca_normals either weights or taper=True, not both")
@@ -64,7 +72,7 @@ def pca_normals(
             points, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, TAPER_START, taper
         )
         normals, evals = kernels.smallest_eigenvectors(cov)
-        return normals, _planarity(evals)
+        return (normals, _planarity(evals)) + ((_roundness(evals),) if roundness else ())
 
     # given weights (no compiled kernel takes them): numpy blocks of pairs, LAPACK's eigh
     def block_covariances(lo, hi, block):
@@ -73,7 +81,13 @@ def pca_normals(
 
     cov = nbhd.blockwise(block_covariances)
     evals, evecs = np.linalg.eigh(cov)
-    return evecs[:, :, 0], _planarity(evals)
+    return (evecs[:, :, 0], _planarity(evals)) + ((_roundness(evals),) if roundness else ())
+
+
+def _roundness(evals):
+    """``lambda_0 / lambda_1`` of ascending eigenvalues, NaN where ``lambda_1`` vanishes."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(evals[:, 1] > 0, evals[:, 0] / evals[:, 1], np.nan)
 
 
 def _planarity(evals):

@@ -34,8 +34,9 @@ from .errors import HeatcurvError, HeatcurvWarning
 
 __all__ = [
     "FLAT_CURVATURE", "MISFIT_FACTOR", "MISFIT_FLOOR", "PRECISION_COVERAGE", "PRECISION_TOLERANCE",
-    "RESOLUTION_LIMIT", "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "imprecise",
-    "misfit_baselines", "misfits", "precision_step", "resolution", "rounding_uncertainty",
+    "RESOLUTION_LIMIT", "ROUND_BALL", "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding",
+    "imprecise",
+    "misfit_baselines", "misfits", "precision_step", "resolution", "rounding_uncertainty", "warn_too_coarse",
 ]
 
 #: A point whose chord-fit residual (in units of its spacing) exceeds this multiple of the
@@ -55,6 +56,13 @@ MISFIT_FLOOR = 1e-3
 #: spheres of 150 points 0.29 (0.4 %); ellipsoids (1, 0.6, 0.3) of 150-600 points 0.24-0.48;
 #: noisy clouds of 3000-10 000 points 0.04-0.18.
 RESOLUTION_LIMIT = 0.5
+#: A ball whose two smallest PCA eigenvalues are this close (``lambda_0 / lambda_1``,
+#: :func:`heatcurv.normals.pca_normals`) holds a tube, not a disc: the surface wraps around within it,
+#: and its fitted curvature, far too small, says nothing of the sampling; its spacing counts as infinitely
+#: many radii of curvature (``rho``). Measured (median ball, benchmarks/orientation.py --coarse-tori):
+#: tori whose tube is 2.5-3 spacings across 0.66-0.79 (13-42 % of their points inside out and reliable
+#: without this rule), a tube 4 spacings across 0.32; CGAL's closed models (docs/orientation.md) below.
+ROUND_BALL = 0.65
 #: Error of a point's curvature that the rounding of the coordinates may cause before the point is
 #: unreliable, as a share of its curvature scale (:func:`imprecise`): the k1 / k2 target of the accuracy
 #: tables (docs/accuracy.md, 1 %).
@@ -87,7 +95,8 @@ class ReliabilityInputs:
     width : ndarray of int
         Kernel width (neighbours) the point was fitted at (0: one width).
     rho : ndarray
-        Sampling spacing in radii of curvature (nan where undefined).
+        Sampling spacing in radii of curvature (nan where undefined, inf
+        where the ball is round: :data:`ROUND_BALL`).
     counted : ndarray of bool
         Points the medians are taken over: distinct surface points (not
         outliers; one row per set of exact duplicates).
@@ -136,9 +145,22 @@ def misfits(residual: np.ndarray | None, width: np.ndarray, baselines: dict) -> 
 
 
 def resolution(rho: np.ndarray, counted: np.ndarray) -> float:
-    """The median counted point's spacing in radii of curvature (:data:`RESOLUTION_LIMIT`); 0 if none counts."""
-    values = rho[counted & np.isfinite(rho)]
+    """The median counted point's spacing in radii of curvature (:data:`RESOLUTION_LIMIT`); 0 if none counts.
+
+    Round balls (``rho`` infinite) count, as beyond any limit; undefined ones (NaN) do not.
+    """
+    values = rho[counted & ~np.isnan(rho)]
     return float(np.median(values)) if values.size else 0.0
+
+
+def warn_too_coarse(rho: float, stacklevel: int = 2) -> None:
+    """Warn that the cloud's resolution ``rho`` (:func:`resolution`) is past :data:`RESOLUTION_LIMIT`."""
+    measure = ("most of its balls are round, not flat: the surface wraps around within them (a part a few "
+               "spacings across)") if np.isinf(rho) else (
+        f"a median point's spacing is {rho:.2g} radii of curvature (at most {RESOLUTION_LIMIT:g}: about 12 "
+        "points around a curve), so its neighbourhoods wrap around the surface")
+    warnings.warn(f"the cloud is too coarse for its curvature: {measure}; every value is marked unreliable. Sample "
+                  "it more densely.", HeatcurvWarning, stacklevel=stacklevel + 1)
 
 
 def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolution_value: float | None = None,
@@ -170,12 +192,7 @@ def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolu
     reliable = inputs.local & ~misfits(inputs.residual, inputs.width, baselines or {})
     rho = resolution(inputs.rho, inputs.counted) if resolution_value is None else resolution_value
     if rho > RESOLUTION_LIMIT:
-        warnings.warn(
-            f"the cloud is too coarse for its curvature: a median point's spacing is {rho:.2g} radii of "
-            f"curvature (at most {RESOLUTION_LIMIT:g}: about 12 points around a curve), so its neighbourhoods "
-            "wrap around the surface; every value is marked unreliable. Sample it more densely.",
-            HeatcurvWarning, stacklevel=stacklevel + 1,
-        )
+        warn_too_coarse(rho, stacklevel + 1)
         reliable = np.zeros_like(reliable)
     return reliable, rho
 

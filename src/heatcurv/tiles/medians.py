@@ -35,7 +35,7 @@ def streaming_medians(chunks) -> dict:
     ----------
     chunks : callable
         ``chunks()`` yields ``(groups, values)`` pairs of equal-length arrays
-        (int group labels, non-negative finite floats; NaN is skipped), the
+        (int group labels, non-negative floats, infinity included; NaN is skipped), the
         same sequence each time it is called (it is called twice).
 
     Returns
@@ -45,7 +45,7 @@ def streaming_medians(chunks) -> dict:
     """
     counts: dict = {}
     for groups, values in chunks():
-        ok = np.isfinite(values)
+        ok = ~np.isnan(values)
         groups, values = groups[ok], values[ok]
         for g in np.unique(groups):
             hist = np.bincount(_bins(values[groups == g]), minlength=1 << BIN_BITS)
@@ -60,7 +60,7 @@ def streaming_medians(chunks) -> dict:
         wanted[g] = (bins, [r - b for r, b in zip(ranks, below)])
     gathered: dict = {g: [] for g in wanted}
     for groups, values in chunks():
-        ok = np.isfinite(values)
+        ok = ~np.isnan(values)
         groups, values = groups[ok], values[ok]
         for g, (bins, _) in wanted.items():
             mine = values[groups == g]
@@ -94,10 +94,7 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
     HeatcurvWarning
         When the cloud is too coarse for its curvature (every row unreliable).
     """
-    import warnings
-
-    from ..errors import HeatcurvWarning
-    from ..reliability import MISFIT_FLOOR, RESOLUTION_LIMIT, misfits
+    from ..reliability import MISFIT_FLOOR, RESOLUTION_LIMIT, misfits, warn_too_coarse
     from .output import read_results, write_records
 
     def blocks():
@@ -117,12 +114,7 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
     resolution = streaming_medians(resolutions).get(0, 0.0)
     coarse = resolution > RESOLUTION_LIMIT
     if coarse:
-        warnings.warn(
-            f"the cloud is too coarse for its curvature: a median point's spacing is {resolution:.2g} radii of "
-            f"curvature (at most {RESOLUTION_LIMIT:g}: about 12 points around a curve), so its neighbourhoods "
-            "wrap around the surface; every value is marked unreliable. Sample it more densely.",
-            HeatcurvWarning, stacklevel=3,
-        )
+        warn_too_coarse(resolution, stacklevel=3)
     for start, block, _ in blocks():  # rewritten chunk by chunk: no map of the whole file stays resident
         width = block["fit_width"]
         for k in np.unique(width).tolist():
