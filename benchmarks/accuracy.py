@@ -173,7 +173,7 @@ same samples, motions, noise and evaluation points.
 Usage::
 
     python benchmarks/accuracy.py --quick
-    python benchmarks/accuracy.py --markdown docs/accuracy.md --png docs/accuracy.png
+    python benchmarks/accuracy.py --markdown tables.md --png docs/accuracy.png   # tables for docs/accuracy.md's end
     python benchmarks/accuracy.py --only quadric --sizes 10000
     python benchmarks/accuracy.py --tables noise lownoise mixed     # the noise tables only
     python benchmarks/accuracy.py --tables noise --noise-sizes      # no torus size rows

@@ -48,7 +48,8 @@ Run ``python benchmarks/speed.py`` (about 15 minutes on a 2-core machine with
 the peers, plus the 1M-point LAZ row) or ``--sizes 100000 --peer-sizes 100000
 --noisy-sizes 100000 --laz-sizes 100000`` for a quick look (``--noisy-sizes``,
 ``--peer-sizes`` or ``--laz-sizes`` with no value skips those runs); ``--out
-docs/speed.md`` writes the tables as Markdown with the machine they came from.
+FILE`` writes the tables as Markdown with the machine they came from (docs/speed.md
+quotes them; writing over it would lose the page's text).
 """
 
 from __future__ import annotations

@@ -6,11 +6,12 @@ from README.md itself, so the README cannot go stale when the estimator changes.
 takes 20-60 s on 2 cores and is not recomputed: the README names the machine that printed it.
 
 The README's Python example runs and must print the text block under it, the example of
-docs/getting_started.md runs on the shipped bunny scan; the command-line sessions
+docs/getting_started.md runs on the shipped bunny scan, and every other ```python block of docs/ runs
+(in a temporary directory) unless ``NOT_RUN`` says why it cannot; the command-line sessions
 (```console blocks of README.md and docs/cli.md) run on the shipped bunny scan and must print what
 they show, but for the time an estimate took. Every relative link of README.md and docs/*.md must
-lead to a file (and a heading, for a ``#`` anchor), mkdocs.yml's navigation must list every page, and
-``mkdocs build --strict`` must pass.
+lead to a file (and a heading, for a ``#`` anchor), so must CHANGELOG.md's, mkdocs.yml's navigation must
+list every page, and ``mkdocs build --strict`` must pass.
 """
 
 import contextlib
@@ -21,6 +22,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +34,7 @@ from heatcurv.surfaces.accuracy import compare
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+CHANGELOG = ROOT / "CHANGELOG.md"
 DOCS = ROOT / "docs"
 PAGES = sorted(DOCS.glob("*.md"))
 COLUMNS = ("mean", "k1", "k2", "Gaussian", "total area", "d1", "normal")
@@ -102,6 +105,70 @@ def test_getting_started_example_runs():
     assert scope["L"].shape == (n, n) and lap.n == n
 
 
+def _examples(path):
+    """The ```python blocks of a Markdown file, indented ones (inside a list) included, dedented."""
+    found = re.findall(r"^( *)```python\n(.*?)^\1```$", path.read_text(encoding="utf-8"), flags=re.S | re.M)
+    return [textwrap.dedent(code) for _, code in found]
+
+
+# (page, block number) of the docs' Python examples that the tests do not run, why, and a string the block
+# must contain for the reason to hold (so that an edited block is looked at again)
+NOT_RUN = {
+    ("tiles.md", 0): ("it computes a cloud larger than memory, 'big.laz'; tests/tiles/ run compute_file on small "
+                      "clouds in tiles", "big.laz"),
+    ("tiles.md", 1): ("it needs a SLURM cluster (dask_jobqueue); tests/tiles/ run the Dask schedulers on a local "
+                      "cluster", "SLURMCluster"),
+}
+# run by a test of their own, which also checks what they return
+RUN_ELSEWHERE = {("getting_started.md", 0)}
+
+
+def _bunny_points():
+    from heatcurv.io import read_points
+
+    return read_points(heatcurv.data.bunny_path()).points
+
+
+def _check_laplacian(scope):
+    n = len(scope["points"])
+    values, u = scope["values"], scope["u"]
+    assert values.shape == (20,) and np.all(np.diff(values) >= -1e-9) and abs(values[0]) < 1e-6
+    assert scope["vectors"].shape == (n, 20) and scope["K"].shape == (n, 3)
+    # the heat flow spreads the unit of heat from its point and keeps the total, sum_i A_i u_i
+    area, u0 = scope["lap"].area, scope["u0"]
+    assert u.shape == (n,) and u.max() < 0.5 and abs(area @ u - area @ u0) <= 1e-9 * (area @ u0)
+
+
+def _check_viewer(scope):
+    assert scope["view"].shown == 20000 and Path("torus.html").is_file()
+
+
+# a fragment that names data it does not define is run with that data; some examples' results are checked
+SCOPES = {("index.md", 0): lambda: {"points": _bunny_points()}}
+CHECKS = {("laplacian.md", 0): _check_laplacian, ("viewer.md", 0): _check_viewer}
+DOC_EXAMPLES = [(page.name, i, code) for page in PAGES for i, code in enumerate(_examples(page))]
+
+
+@pytest.mark.parametrize("name, number, code", [
+    pytest.param(name, number, code, id=f"{name}-{number}") for name, number, code in DOC_EXAMPLES
+    if (name, number) not in NOT_RUN and (name, number) not in RUN_ELSEWHERE])
+def test_docs_python_examples_run(name, number, code, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # examples that write a file write it here
+    scope = {"__name__": f"docs_{name}", **SCOPES.get((name, number), dict)()}
+    exec(compile(code, f"docs/{name}", "exec"), scope)
+    if (name, number) in CHECKS:
+        CHECKS[name, number](scope)
+
+
+def test_docs_examples_not_run_are_named_with_their_reason():
+    blocks = {(name, number): code for name, number, code in DOC_EXAMPLES}
+    for key, (reason, marker) in NOT_RUN.items():
+        assert key in blocks, f"NOT_RUN names {key}, which is not a python block of docs/"
+        assert reason and marker in blocks[key], f"{key} no longer contains {marker!r}: run it or say why not"
+    assert RUN_ELSEWHERE <= set(blocks)
+    assert len(DOC_EXAMPLES) >= 5
+
+
 def _sessions(path):
     """``(command, printed lines)`` of every ``$ heatcurv ...`` line of the file's console blocks."""
     sessions = []
@@ -150,7 +217,7 @@ def _links(path):
     return [t for t in targets if not re.match(r"[a-z]+:", t)]
 
 
-@pytest.mark.parametrize("page", [README, *PAGES], ids=lambda p: p.name)
+@pytest.mark.parametrize("page", [README, CHANGELOG, *PAGES], ids=lambda p: p.name)
 def test_every_relative_link_leads_to_a_file_and_heading(page):
     links = _links(page)
     for link in links:
@@ -161,6 +228,13 @@ def test_every_relative_link_leads_to_a_file_and_heading(page):
         if anchor:
             headings = re.findall(r"^#+ (.*)$", resolved.read_text(encoding="utf-8"), flags=re.M)
             assert anchor in {_slug(h) for h in headings}, f"{page.name} links to {link}: no such heading"
+
+
+def test_the_changelog_is_in_the_site():
+    # MkDocs builds docs/ only: the changelog lives there, the repository's root points to it
+    assert "](docs/changelog.md)" in CHANGELOG.read_text(encoding="utf-8")
+    text = (DOCS / "changelog.md").read_text(encoding="utf-8")
+    assert "## [Unreleased]" in text and all(f"\n### {group}\n" in text for group in ("Added", "Changed", "Fixed"))
 
 
 def test_the_site_lists_every_page():
