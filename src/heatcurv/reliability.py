@@ -61,7 +61,7 @@ RESOLUTION_LIMIT = 0.5
 #: and its fitted curvature, far too small, says nothing of the sampling; its spacing counts as infinitely
 #: many radii of curvature (``rho``). Measured (median ball, benchmarks/orientation.py --coarse-tori):
 #: tori whose tube is 2.5-3 spacings across 0.66-0.79 (13-42 % of their points inside out and reliable
-#: without this rule), a tube 4 spacings across 0.32; CGAL's closed models (docs/orientation.md) below.
+#: without this rule), a tube 4 spacings across 0.32; CGAL's twelve closed models at most 0.46.
 ROUND_BALL = 0.65
 #: Error of a point's curvature that the rounding of the coordinates may cause before the point is
 #: unreliable, as a share of its curvature scale (:func:`imprecise`): the k1 / k2 target of the accuracy
