@@ -189,7 +189,7 @@ def one(renderer: str, cloud: str, n: int, out: Path) -> dict:
             result = draw_matplotlib(data, path)
         else:
             result = draw_pyvista(data, path, "heatcurv" if renderer == "pyvista-shaded" else "vtk")
-    except Exception as exc:  # noqa: BLE001  (reported in the table: why this renderer could not draw here)
+    except Exception as exc:  # reported in the table: why this renderer could not draw here
         return {"renderer": renderer, "cloud": cloud, "error": f"{type(exc).__name__}: {exc}"}
     return {"renderer": renderer, "cloud": cloud, "points": len(data["points"]), "base_mb": base,
             "peak_mb": _memory_mb("VmHWM"), "path": str(path), **result}
@@ -247,11 +247,8 @@ def install_weight() -> dict:
     core = closure(dependencies)
     plotting = closure(["matplotlib"]) - closure([name for name in dependencies if name != "matplotlib"])
     weight = {"matplotlib": (installed_mb(plotting), sorted(plotting))}
-    try:
-        extra = closure(["pyvista"]) - core
-        weight["pyvista"] = (installed_mb(extra), sorted(extra))
-    except Exception as exc:  # noqa: BLE001
-        weight["pyvista"] = (float("nan"), [f"not installed ({exc})"])
+    extra = closure(["pyvista"]) - core
+    weight["pyvista"] = (installed_mb(extra), sorted(extra)) if extra else (float("nan"), ["not installed"])
     return weight
 
 
