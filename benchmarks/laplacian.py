@@ -225,7 +225,7 @@ def timing_table(sizes):
 def pictures(folder):
     """Heat diffused from one point, and an eigenfunction, on the packaged bunny scan (docs/laplacian_bunny_*.png)."""
     from heatcurv.data import load_bunny
-    from heatcurv.render import render_field
+    from heatcurv.render import FieldStyle, render_field
 
     pts = np.asarray(load_bunny().points, dtype=np.float64)
     pts = np.unique(pts, axis=0)
@@ -235,12 +235,17 @@ def pictures(folder):
     spike[source] = 1.0 / lap.area[source]
     heat = lap.heat(spike, time=4.0, steps=8)
     normals = heatcurv.estimate(pts).normals  # oriented: they shade the points and hide the far side
-    render_field(pts, np.log10(np.maximum(heat, 1e-12)), f"{folder}/laplacian_bunny_heat.png", field="log10 heat",
-                 views=2, normals=normals,
+    # the heat of a unit spike is a density: 1/length^2, its total over the surface 1
+    heat_style = FieldStyle("log10 of the heat", "heat in 1/{L}²", "sequential")
+    render_field(pts, np.log10(np.maximum(heat, 1e-12)), f"{folder}/laplacian_bunny_heat.png", field=heat_style,
+                 views=2, size=(1600, 800), normals=normals,
                  title=f"heat diffused from the ear's tip, time 4 (bunny scan, {len(pts)} points)")
     values, vectors = lap.eigenpairs(12)
-    render_field(pts, vectors[:, 11], f"{folder}/laplacian_bunny_eigen.png", field="eigenfunction", views=2,
-                 normals=normals, title=f"12th Laplace-Beltrami eigenfunction, lambda = {values[11]:.3f} (bunny scan)")
+    # eigenfunctions of unit norm in the area inner product (sum of area * v^2 = 1): 1/length
+    eigen_style = FieldStyle("eigenfunction", "1/{L}", "signed")
+    render_field(pts, vectors[:, 11], f"{folder}/laplacian_bunny_eigen.png", field=eigen_style, views=2,
+                 size=(1600, 800), normals=normals,
+                 title=f"12th Laplace-Beltrami eigenfunction, lambda = {values[11]:.3f} (bunny scan)")
     print(f"pictures: bunny {len(pts)} points, h = {lap.h:.3f}, first eigenvalues {np.round(values[:6], 4)}")
 
 

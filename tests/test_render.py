@@ -39,12 +39,15 @@ def test_png_of_the_requested_size_and_not_blank(tmp_path, torus):
     )
     image = read_image(tmp_path / "torus.png")
     assert image.shape in ((480, 640, 3), (480, 640, 4))
-    assert out.size == (640, 480) and out.drawn == out.total == 3000 and out.kind == "signed"
+    assert out.size == (640, 480) and out.drawn == out.total == 3000
     assert len(colours_of(image)) > 200
-    # mean curvature > 0 everywhere on the torus: red points, no blue ones
+    # mean curvature > 0 everywhere on the torus: the sequential map over the values' own range
+    assert res.mean.min() > 0 and out.kind == "sequential"
+    assert out.limits == pytest.approx(tuple(np.percentile(res.mean, [2, 98])))
     rgb = np.asarray(image)[..., :3].reshape(-1, 3)
-    reddish = (rgb[:, 0] > 0.6) & (rgb[:, 2] < 0.4)
-    assert reddish.mean() > 0.1
+    yellowish = (rgb[:, 0] > 0.6) & (rgb[:, 1] > 0.6) & (rgb[:, 2] < 0.4)  # viridis' high end
+    reddish = (rgb[:, 0] > 0.6) & (rgb[:, 1] < 0.4) & (rgb[:, 2] < 0.4)  # coolwarm's positive end
+    assert yellowish.mean() > 0.005 and reddish.mean() < 0.001
     assert list(tmp_path.iterdir()) == [tmp_path / "torus.png"]  # no temporary file left
 
 
@@ -122,7 +125,59 @@ def test_colour_limits():
     assert colour_limits(rng.normal(size=100))[2] == "signed"  # both signs: diverging
     assert colour_limits(np.array([0, 1, 1, 0], dtype=np.uint8))[2] == "mask"
     assert colour_limits(rng.normal(size=100), value_range=(-0.5, 2.0)) == (-0.5, 2.0, "signed")
+    assert colour_limits(rng.normal(size=100), "signed", value_range=(0.5, 2.0)) == (0.5, 2.0, "sequential")
     assert colour_limits(np.full(10, 3.0), "sequential")[:2] == pytest.approx((2.97, 3.03))
+    assert colour_limits(np.zeros(10), "signed") == (-1.0, 1.0, "signed")  # zero: the neutral colour
+
+
+def test_colour_limits_of_a_signed_field_of_one_sign_come_from_its_data(torus):
+    # the torus (r1 = 1, r2 = 2.3701): mean curvature from 0.135 (inner equator) to 0.648 (outer), all positive
+    sample, res = torus
+    mean = res.mean
+    assert 0.13 < sample.mean.min() < mean.min() and mean.max() < 0.66
+    low, high, kind = colour_limits(mean, "signed")
+    assert kind == "sequential" and low != -high
+    assert (low, high) == pytest.approx(tuple(np.percentile(mean, [2, 98])))
+    assert 0.13 < low < 0.16 and 0.63 < high < 0.66  # the bar spans the values' spread, not -0.65..0.65
+    # all negative (inward normals): the same, mirrored
+    low, high, kind = colour_limits(-mean, "signed")
+    assert kind == "sequential" and (low, high) == pytest.approx(tuple(np.percentile(-mean, [2, 98])))
+    assert -0.66 < low < -0.63 and -0.16 < high < -0.13
+    # a few negative values below the 2nd percentile do not make it diverging
+    outliers = mean.copy()
+    outliers[:30] = -5.0  # 1 % of the points
+    low, high, kind = colour_limits(outliers, "signed")
+    assert kind == "sequential" and 0.13 < low < 0.2 and 0.63 < high < 0.66
+    # values that change sign within the robust range: symmetric about zero
+    changing = mean - 0.3
+    low, high, kind = colour_limits(changing, "signed")
+    bound = np.abs(np.percentile(changing, [2, 98])).max()
+    assert kind == "signed" and (low, high) == pytest.approx((-bound, bound))
+    # heatcurv's signed fields are diverging only when they change sign; the others never are
+    assert colour_limits(mean, render.field_style("mean").kind)[2] == "sequential"
+    assert colour_limits(changing, render.field_style("k1").kind)[2] == "signed"
+    assert colour_limits(changing, render.field_style("area").kind)[2] == "sequential"
+
+
+def test_the_colour_bar_label_carries_the_unit(tmp_path, torus):
+    sample, res = torus
+    labels = {"mean": "mean curvature (1/mm)", "gaussian": "Gaussian curvature (1/mm²)",
+              "k1": "maximal principal curvature k1 (1/mm)", "area": "area per point (mm²)",
+              "feature_score": "feature score (turning angle) (degrees)", "reliable": "reliable"}
+    for name, label in labels.items():
+        assert render.field_style(name).bar_label("mm") == label
+    assert render.field_style("mean").bar_label() == "mean curvature (1/length)"
+    out = render_field(sample.points, res.gaussian, tmp_path / "g.svg", field="gaussian", size=(500, 400),
+                       length_unit="mm", normals=res.normals)
+    assert out.label == "Gaussian curvature (1/mm²)"
+    # matplotlib's SVG draws text as paths, each text preceded by a comment holding it
+    svg = (tmp_path / "g.svg").read_text()
+    assert "<!-- Gaussian curvature (1/mm²) -->" in svg
+    assert "<!-- Gaussian curvature -->" in svg  # the title, without the unit
+    other = render.FieldStyle("temperature", "K")  # a quantity heatcurv does not name, with its unit
+    out = render_field(sample.points, sample.points[:, 2] + 300, tmp_path / "t.svg", field=other, size=(400, 300))
+    assert out.label == "temperature (K)" and out.kind == "sequential"
+    assert "<!-- temperature (K) -->" in (tmp_path / "t.svg").read_text()
     with pytest.raises(heatcurv.HeatcurvError, match="no finite values"):
         colour_limits(np.full(3, np.nan))
 

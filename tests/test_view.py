@@ -71,6 +71,9 @@ def test_colour_limits_are_the_pictures_and_leave_out_unreliable_points(tmp_path
         assert (entries[name]["low"], entries[name]["high"], entries[name]["kind"]) == (low, high, kind)
         assert entries[name]["grey"] is True
     assert view.limits["reliable"] == (-0.5, 1.5, "mask") and entries["reliable"]["grey"] is False
+    # the mean curvature here is positive everywhere: the sequential map over its own range, as in the pictures
+    low, high, kind = view.limits["mean"]
+    assert kind == "sequential" and 0.25 < low < 0.5 < high < 0.75
     # the robust limits lie inside the values' range
     area = fields["area"][reliable]
     assert area.min() < view.limits["area"][0] < view.limits["area"][1] < area.max()

@@ -8,16 +8,25 @@ demo`` draw.
 
 Drawing
 -------
-* **Colours.** Signed fields (mean, Gaussian and principal curvatures, normal
-  and direction components) use a diverging map (``"coolwarm"``: blue
-  negative, grey zero, red positive) with limits symmetric about 0, so equal
-  magnitudes get equal strength and zero is always the neutral colour.
-  Non-negative fields (area, feature score, spacing) use a sequential map
-  (``"viridis"``); masks (``feature``, ``reliable``, ``border``) two colours.
-  The limits are robust: the 2nd and 98th percentiles of the values (the
-  larger magnitude of the two for signed fields), so a few wild values at
-  holes and borders do not wash the picture out; the colour bar's arrows
-  say that values beyond them exist. ``value_range`` fixes the limits.
+* **Colours.** The limits come from the data and are robust: the 2nd and
+  98th percentiles of the values, so a few wild values at holes and borders
+  do not wash the picture out; the colour bar's arrows say that values
+  beyond them exist. A signed field (mean, Gaussian and principal
+  curvatures, normal and direction components) whose values change sign
+  (the 2nd percentile negative, the 98th positive) uses a diverging map
+  (``"coolwarm"``: blue negative, grey zero, red positive) with limits
+  symmetric about 0 (the larger magnitude of the two percentiles), so
+  equal magnitudes get equal strength and zero is the neutral colour. A
+  signed field of one sign (a sphere's or a torus's mean curvature, all
+  positive) and the non-negative fields (area, feature score, spacing) use
+  the sequential map (``"viridis"``, dark to light as the values grow, read
+  alike by colour-blind viewers and in grey print) from the 2nd to the 98th
+  percentile, so the whole bar shows the values' spread rather than half
+  of it standing empty; the colour bar's numbers give the sign. Masks
+  (``feature``, ``reliable``, ``border``) get two colours. The colour bar
+  is labelled with the field and its unit (``1/m`` for curvature with
+  ``length_unit="m"``, ``m²`` for area, ``degrees`` for feature scores).
+  ``value_range`` fixes the limits (diverging if they hold both signs).
   Points whose value is NaN are drawn light grey.
 * **View.** The camera looks along the smallest principal axis of the
   points (a scan is seen face-on, a terrain from above), from the side most
@@ -126,6 +135,11 @@ class FieldStyle:
         """The unit with the length unit filled in (``"1/m"``), or ``""``."""
         return self.unit.replace("{L}", length_unit)
 
+    def bar_label(self, length_unit: str = "length") -> str:
+        """The colour bar's label: the field and its unit (``"mean curvature (1/m)"``), or the field alone."""
+        unit = self.unit_text(length_unit)
+        return f"{self.label} ({unit})" if unit else self.label
+
 
 #: Styles of the fields heatcurv writes (``heatcurv compute``), by name.
 FIELD_STYLES: dict[str, FieldStyle] = {
@@ -148,8 +162,13 @@ FIELD_STYLES: dict[str, FieldStyle] = {
 }
 
 
-def field_style(name: str) -> FieldStyle:
-    """The style of field ``name``: from :data:`FIELD_STYLES`, else the name itself, kind from the data."""
+def field_style(name) -> FieldStyle:
+    """The style of field ``name``: from :data:`FIELD_STYLES`, else the name itself, kind from the data.
+
+    A :class:`FieldStyle` given as ``name`` is returned as it is (a quantity heatcurv does not name).
+    """
+    if isinstance(name, FieldStyle):
+        return name
     return FIELD_STYLES.get(name, FieldStyle(name))
 
 
@@ -179,6 +198,9 @@ class Rendering:
     hidden : tuple of int
         Per view, the points not drawn because they face away from the camera
         behind a surface that faces it (only with normals given).
+    label : str
+        The colour bar's label, the field and its unit
+        (``"mean curvature (1/mm)"``).
     """
 
     path: Path
@@ -189,6 +211,7 @@ class Rendering:
     size: tuple
     shading: str = "flat"
     hidden: tuple = ()
+    label: str = ""
 
 
 def supported_picture_formats() -> tuple:
@@ -204,15 +227,17 @@ def _is_mask(values: np.ndarray) -> bool:
 
 
 def colour_limits(values, kind: str | None = None, *, percentiles=(2.0, 98.0), value_range=None):
-    """Colour limits and kind of a field: robust percentiles, symmetric about 0 when signed.
+    """Colour limits and kind of a field: robust percentiles, symmetric about 0 when the values change sign.
 
     Parameters
     ----------
     values : array_like, shape (n,)
         The field (NaN values are ignored).
     kind : {"signed", "sequential", "mask"}, optional
-        Default: ``"mask"`` for booleans, ``"signed"`` if the percentile
-        range holds both signs, else ``"sequential"``.
+        What the field is: ``"signed"`` a quantity of either sign (a
+        curvature), ``"sequential"`` one to colour from low to high,
+        ``"mask"`` two values. Default: ``"mask"`` for booleans and 0/1
+        values, else ``"signed"``.
     percentiles : (float, float), optional
         Lower and upper percentile of the robust range.
     value_range : (float, float), optional
@@ -221,9 +246,14 @@ def colour_limits(values, kind: str | None = None, *, percentiles=(2.0, 98.0), v
     Returns
     -------
     low, high : float
-        ``low < high``. Signed fields without ``value_range``: ``-v, v`` with
-        ``v`` the larger magnitude of the two percentiles.
+        ``low < high``: the two percentiles of the values, or
+        ``value_range``. A signed field whose robust range holds both signs
+        gets ``-v, v``, ``v`` the larger magnitude of the two percentiles.
     kind : str
+        ``"signed"`` (diverging colours, 0 at the centre) only for a signed
+        field whose range holds both signs (``low < 0 < high``);
+        ``"sequential"`` for a signed field of one sign (a sphere's mean
+        curvature) as for non-negative fields; ``"mask"``.
 
     Raises
     ------
@@ -243,24 +273,20 @@ def colour_limits(values, kind: str | None = None, *, percentiles=(2.0, 98.0), v
         low, high = (float(v) for v in value_range)
         if not (np.isfinite(low) and np.isfinite(high) and low < high):
             raise HeatcurvError(f"the colour range must be two finite numbers LOW < HIGH, got {low:g}, {high:g}")
-        if kind is None:
-            kind = "signed" if low < 0 < high else "sequential"
-        return low, high, kind
+        return low, high, "signed" if kind != "sequential" and low < 0 < high else "sequential"
     p_low, p_high = (float(p) for p in percentiles)
     if not 0 <= p_low < p_high <= 100:
         raise HeatcurvError(f"percentiles must satisfy 0 <= LOW < HIGH <= 100, got {p_low:g}, {p_high:g}")
     low, high = (float(v) for v in np.percentile(finite, [p_low, p_high]))
-    if kind is None:
-        kind = "signed" if low < 0 < high else "sequential"
-    if kind == "signed":
-        bound = max(abs(low), abs(high))
-        if not bound > 0:
-            bound = 1.0
-        return -bound, bound, kind
+    if kind != "sequential" and low < 0 < high:  # the values change sign: 0 at the centre, equal magnitudes alike
+        bound = max(-low, high)
+        return -bound, bound, "signed"
     if not high > low:  # a constant field
+        if low == 0 and kind != "sequential":  # a signed field that is zero: the diverging map's neutral colour
+            return -1.0, 1.0, "signed"
         pad = abs(low) * 0.01 if low != 0 else 1.0
         low, high = low - pad, high + pad
-    return low, high, kind
+    return low, high, "sequential"
 
 
 def _unit(vector, name: str) -> np.ndarray:
@@ -702,10 +728,12 @@ def render_field(
         ``.svg``, ``.jpg``, ... see :func:`supported_picture_formats`). It is
         written to a temporary file first and then renamed, so a failure
         leaves no partial picture.
-    field : str, optional
+    field : str or FieldStyle, optional
         The field's name: picks the label, unit and colour map
         (:data:`FIELD_STYLES`; other names: labelled by the name, a diverging
-        map if the values hold both signs).
+        map if the values hold both signs). A :class:`FieldStyle` labels
+        any other quantity with its unit
+        (``FieldStyle("temperature", "K")``).
     views : int, optional
         Views side by side, the camera turned by ``360 / views`` degrees
         about the up axis each time.
@@ -728,7 +756,8 @@ def render_field(
     title : str, optional
         Figure title; default the field's label.
     length_unit : str, optional
-        Name of the length unit in the colour-bar label (``"m"`` gives ``1/m``).
+        Name of the length unit in the colour bar's label, which carries the
+        field's unit: ``"m"`` gives ``mean curvature (1/m)``, ``area (m²)``.
     normals : array_like, shape (n, 3), optional
         Surface normals (any length, either orientation): they shade the
         points, hide the points facing away from the camera behind the near
@@ -793,8 +822,7 @@ def render_field(
     layout = _layout(views, span, width, height, dpi, title)
     diameter = _disc_pixels(xyz, point_size, layout.scale, dpi, disc)
     axes = _add_panels(fig, layout, views, middles, span)
-    unit = style.unit_text(length_unit)
-    label = f"{style.label} ({unit})" if unit else style.label
+    label = style.bar_label(length_unit)
     _add_colour_bar(fig, layout, colour_map, norm, shown, low, high, kind, label)
     _add_title(fig, layout, title if title is not None else style.label)
     lit, shading = normals, "normals"
@@ -814,5 +842,5 @@ def render_field(
     _save(fig, path, ext, dpi)
     return Rendering(
         path=path, limits=(float(low), float(high)), kind=kind, drawn=int(keep.size), total=int(points.shape[0]),
-        size=(width, height), shading=shading if lit is not None else "flat", hidden=tuple(hidden),
+        size=(width, height), shading=shading if lit is not None else "flat", hidden=tuple(hidden), label=label,
     )

@@ -9,7 +9,8 @@ it: everything it uses is inline). It is what ``heatcurv view`` writes.
 The page
 --------
 * **Colours** follow :mod:`heatcurv.render`: the same colour maps
-  (diverging for signed fields, sequential otherwise, two colours for masks)
+  (diverging for signed fields whose values change sign, sequential
+  otherwise, two colours for masks)
   and the same robust limits (:func:`heatcurv.render.colour_limits`, the 2nd
   and 98th percentiles), computed here from every point of the field. Points
   whose value is NaN, and unreliable points (``reliable`` given) in the
@@ -308,8 +309,7 @@ def page_data(
     finite_rows = np.isfinite(points).all(axis=1)
     for name in names:
         style = field_style(name)
-        unit = style.unit_text(length_unit)
-        entry = {"name": name, "label": f"{style.label} ({unit})" if unit else style.label,
+        entry = {"name": name, "label": style.bar_label(length_unit),
                  "grey": reliable is not None and name in grey}
         if name in fields:
             values = fields[name]

@@ -79,6 +79,9 @@ def test_demo_on_the_bunny(tmp_path):
     out = run("demo", "--bunny", "-o", "bunny.png", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     assert "1839 points" in out.stdout and BUNNY_ATTRIBUTION in out.stdout
+    # the picture greys the unreliable points, as heatcurv render does, and says how many
+    reliable = int(re.search(r"(\d+) of 1839 points reliable", out.stdout).group(1))
+    assert f"front and back; grey: the {1839 - reliable} unreliable point(s)" in out.stdout
     image = read_image(tmp_path / "bunny.png")
     assert image.shape[:2] == (800, 1600) and distinct_colours(image) > 100
 

@@ -46,8 +46,20 @@ def test_render_computes_a_field_a_raw_cloud_lacks(tmp_path):
         "--range", "0,0.02",
     )
     assert out.returncode == 0, out.stderr
-    assert "estimated curvature" in out.stdout and "colours 0 .. 0.02" in out.stdout
+    assert "estimated curvature" in out.stdout and "colours 0 .. 0.02 length²" in out.stdout
     assert read_image(tmp_path / "area.png").shape[:2] == (400, 500)
+
+
+def test_render_labels_the_colour_bar_with_the_unit_and_colours_one_sign_from_the_data(tmp_path):
+    sample = surfaces.Sphere(radius=2.0).sample(2000, "random", seed=5)
+    io.write_points(tmp_path / "sphere.xyz", sample.points)
+    out = run("render", tmp_path / "sphere.xyz", "-o", tmp_path / "mean.svg", "--field", "mean", "--size", "500x400",
+              "--unit", "mm")
+    assert out.returncode == 0, out.stderr
+    # mean curvature 1/2 everywhere: limits about 0.5 .. 0.5, not -0.5 .. 0.5
+    low, high = (float(v) for v in out.stdout.rsplit("colours ", 1)[1].split(" 1/mm")[0].split(" .. "))
+    assert 0.45 < low <= high < 0.55  # printed to 4 digits
+    assert "<!-- mean curvature (1/mm) -->" in (tmp_path / "mean.svg").read_text()  # the colour bar's label
 
 
 def test_render_errors(tmp_path, bunny_fields, capsys):

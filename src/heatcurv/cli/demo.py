@@ -75,12 +75,23 @@ def _demo_surface(args, picture, log: Log) -> int:
 
         res = rows[0][4]
         render_field(
-            sample.points, res.mean, picture, field="mean", size=(1400, 1000), normals=res.normals,
-            elevation=35.0 if surface.name == "torus" else 0.0,
+            sample.points, _grey_unreliable(res.mean, res.reliable), picture, field="mean", size=(1400, 1000),
+            normals=res.normals, elevation=35.0 if surface.name == "torus" else 0.0,
             title=f"heatcurv demo: mean curvature of the {surface.name}, {len(sample.points)} {args.sampler} points",
         )
-        print(f"\nwrote {picture}: the mean curvature (default method)")
+        print(f"\nwrote {picture}: the mean curvature (default method){_grey_note(res.reliable)}")
     return EXIT_OK
+
+
+def _grey_unreliable(values: np.ndarray, reliable: np.ndarray) -> np.ndarray:
+    """The values with the unreliable points' as NaN: drawn grey, as ``heatcurv render`` draws them."""
+    return np.where(reliable, values, np.nan)
+
+
+def _grey_note(reliable: np.ndarray) -> str:
+    """``"; grey: the N unreliable points"``, or ``""`` if every point is reliable."""
+    unreliable = int(np.count_nonzero(~np.asarray(reliable, dtype=bool)))
+    return f"; grey: the {unreliable} unreliable point(s)" if unreliable else ""
 
 
 def _print_error_table(rows) -> None:
@@ -133,10 +144,11 @@ def _demo_bunny(picture, log: Log) -> int:
         from ..render import render_field
 
         render_field(
-            cloud.points, res.mean, picture, field="mean", views=2, size=(1600, 800), normals=res.normals,
+            cloud.points, _grey_unreliable(res.mean, res.reliable), picture, field="mean", views=2, size=(1600, 800),
+            normals=res.normals,
             title=f"heatcurv demo: mean curvature of the Stanford bunny scan ({len(cloud)} points)",
         )
-        print(f"\nwrote {picture}: the mean curvature, front and back")
+        print(f"\nwrote {picture}: the mean curvature, front and back{_grey_note(res.reliable)}")
     print("\nthe same from the command line:")
     print(f"  heatcurv compute {path} -o bunny_curvature.ply")
     print("  heatcurv render bunny_curvature.ply -o bunny_mean.png --field mean --views 2")

@@ -92,11 +92,13 @@ def _add_picture_options(parser) -> None:
     group.add_argument("--dpi", type=in_range("dpi"), default=150,
                        help="dots per inch, 10-2400: the scale of the text (default: %(default)s)")
     group.add_argument("--range", dest="value_range", type=pair, metavar="LOW,HIGH",
-                       help="colour limits (default: from the percentiles; signed fields symmetric about 0)")
+                       help="colour limits (default: from the percentiles, symmetric about 0 for a signed "
+                       "field whose values change sign)")
     group.add_argument("--percentiles", type=percentile_pair, default=(2.0, 98.0), metavar="LOW,HIGH",
                        help="robust colour range (default: 2,98)")
     group.add_argument("--cmap", metavar="NAME",
-                       help="matplotlib colour map (default: coolwarm for signed fields, viridis otherwise)")
+                       help="matplotlib colour map (default: coolwarm for signed fields whose values change sign, "
+                       "viridis otherwise)")
     group.add_argument("--max-points", type=in_range("max_points"), default=200_000, metavar="N",
                        help="draw a random subset of N points (1-100000000) from larger clouds "
                        "(default: %(default)s)")

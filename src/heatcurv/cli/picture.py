@@ -138,7 +138,8 @@ def run(args, log: Log) -> int:
     )
     low, high = drawn.limits
     points = f"a random {drawn.drawn} of {drawn.total}" if drawn.drawn < drawn.total else f"{drawn.drawn}"
-    colours = "no / yes" if drawn.kind == "mask" else f"{low:.4g} .. {high:.4g}"
+    unit = field_style(field).unit_text(args.unit)
+    colours = "no / yes" if drawn.kind == "mask" else f"{low:.4g} .. {high:.4g}" + (f" {unit}" if unit else "")
     log.info(f"wrote {output}: {field} of {points} points, {args.views} view(s), "
              f"{drawn.size[0]}x{drawn.size[1]} pixels, colours {colours}")
     shading = {"normals": "shaded by the normals", "estimated normals": "shaded by normals fitted to the points",
