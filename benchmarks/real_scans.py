@@ -545,7 +545,10 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
     pts = case.points
     n = len(pts)
     made = []
-    mean_kw = {"values": res.mean, "field": "mean", "normals": res.normals, "length_unit": case.unit}
+    # unreliable points are drawn grey (NaN), as `heatcurv render` draws them
+    shown = np.where(res.reliable, res.mean, np.nan)
+    grey = f" Grey: the {int(np.count_nonzero(~res.reliable))} unreliable points."
+    mean_kw = {"values": shown, "field": "mean", "normals": res.normals, "length_unit": case.unit}
     lit = {"normals": res.normals}  # every panel shaded by, and hiding its far side with, the computed normals
 
     def out(kind):
@@ -560,7 +563,7 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
             {**mean_kw, **side, "value_range": limits, "title": "turned 60 degrees"},
         ], out("mean"))
         made.append((out("mean").name, f"face000.ply ({n} points): mean curvature (default run), seen "
-                     "from its camera and turned by 60 degrees."))
+                     "from its camera and turned by 60 degrees." + grey))
         flip = 1.0 if m["orient"] >= 50.0 else -1.0
         render_panels(pts, [
             {**mean_kw, "values": flip * res.mean, **front, "value_range": limits,
@@ -592,7 +595,7 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
         render_panels(pts, [{**mean_kw, **view}], out("mean"),
                       title=f"LiDAR tile ({n} points): mean curvature, from the south and the north, 40 degrees up")
         made.append((out("mean").name, f"lidar_tile(20000) ({n} points, `orient=\"up\"`): mean curvature, seen "
-                     "from the south and from the north, 40 degrees above the horizon."))
+                     "from the south and from the north, 40 degrees above the horizon." + grey))
         render_panels(pts, [{"values": feats.mask, "field": "feature", **view, **lit}], out("features"),
                       title=f"LiDAR tile: sharp features ({int(feats.mask.sum())} points)")
         made.append((out("features").name, "lidar_tile(20000): the points `sharp_features` flags, same views."))
@@ -602,14 +605,14 @@ def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
                       title=f"CAD part ({n} points): mean curvature, two opposite corners, 35 degrees up")
         made.append((out("mean").name, f"cad_part(20000) ({n} points): mean curvature from two opposite "
                      "corners, 35 degrees up; colour range fixed at +-0.25 /mm (boss +0.083, hole -0.125, the "
-                     "edges far beyond)."))
+                     "edges far beyond)." + grey))
         render_panels(pts, [{"values": feats.mask, "field": "feature", **view, **lit}], out("features"),
                       title=f"CAD part: sharp features ({int(feats.mask.sum())} points)")
         made.append((out("features").name, "cad_part(20000): the points `sharp_features` flags, same views."))
     elif case.key != "face_camera":
         render_panels(pts, [{**mean_kw, "views": 2}], out("mean"),
                       title=f"{case.title} ({n} points): mean curvature, seen from both sides")
-        made.append((out("mean").name, f"{case.title} ({n} points): mean curvature, seen from both sides."))
+        made.append((out("mean").name, f"{case.title} ({n} points): mean curvature, seen from both sides." + grey))
     return made
 
 
