@@ -899,8 +899,9 @@ def page(cases: list[Case], results: dict, pictures: list, info: list[str], wall
         lines += [
             "## Pictures",
             "",
-            "Mean curvature: blue negative, red positive, grey near zero; the colour bar is symmetric about 0",
-            "and clipped at the 2nd and 98th percentiles (arrows: values beyond). Masks: the flagged points red.",
+            "Mean curvature: blue negative, red positive, near white at zero (the colour bar symmetric about 0",
+            "where the values change sign), clipped at the 2nd and 98th percentiles (arrows: values beyond);",
+            "unreliable points mid grey. Masks: the flagged points red. Every picture is lit from the normals.",
             "",
         ]
         for name, caption in pictures:
