@@ -359,8 +359,10 @@ def test_options_beyond_what_the_cloud_carries_are_refused(options, message):
 def test_a_cloud_too_coarse_for_its_curvature_is_unreliable_with_a_warning(n):
     # before: a 200-point torus had 53 inward normals among points flagged reliable; a 300-point
     # one mean errors of 5.5 % (median) to 15 % (90th percentile) of its largest curvature
+    # (at 150 and 200 points most balls of 60 neighbours hold a whole cross-section of the tube: round)
     sample = heatcurv.surfaces.Torus(0.6, 1.4).sample(n, "random", seed=1)
-    with pytest.warns(heatcurv.HeatcurvWarning, match=r"too coarse for its curvature: a median point's spacing"):
+    why = r"a median point's spacing" if n > 200 else r"most of its balls are round"
+    with pytest.warns(heatcurv.HeatcurvWarning, match=r"too coarse for its curvature: " + why):
         res = heatcurv.estimate(sample.points)
     assert res.info["resolution"] > 0.5
     assert not res.reliable.any()
