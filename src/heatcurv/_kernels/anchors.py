@@ -56,8 +56,8 @@ MIN_AGREEMENT = 0.5
 #: The regression of the anchors' own tensors is refused (the weighted mean instead) where the anchors' weighted
 #: centroid is more than this many times the row's farthest anchor distance from the point: anchors on one side
 #: (an open border), where the polynomial extrapolates. A point on a straight border has its anchors in a
-#: half disc, offset about 0.27 with these weights (0.3 catches corners only); below 0.25 interior points begin
-#: to lose the regression (docs/how_it_works.md, thresholds).
+#: half disc, offset about 0.27 with these weights (0.3 catches corners only); at 0.2 interior points begin to
+#: lose the regression (docs/how_it_works.md, thresholds).
 REGRESSION_MAX_OFFSET = 0.25
 #: Least squared Cholesky pivot, relative to the largest diagonal entry, of a regression's normal
 #: matrix (:func:`carry_anchor_fits` with ``degree``): below it the degree is lowered.
