@@ -2,6 +2,9 @@
 
 import ast
 import importlib
+import io
+import re
+import tokenize
 from pathlib import Path
 
 import pytest
@@ -117,3 +120,52 @@ def test_the_public_api_is_short_and_the_building_blocks_stay_in_their_modules()
 @pytest.mark.parametrize("name", ["pipeline", "baseline", "evaluation", "_deprecation", "testing"])
 def test_no_shim_or_test_harness_is_installed(name):
     assert not (PACKAGE / f"{name}.py").exists() and not (PACKAGE / name).exists()
+
+
+#: History in a comment or docstring: it belongs in git and in docs/, the source says why the code is as it is.
+HISTORY = {
+    "commit hash": re.compile(r"\b(?=[0-9a-f]*[0-9])(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b"),
+    "date": re.compile(r"\b(19|20)\d{2}-\d{2}-\d{2}\b"),
+    "issue number": re.compile(r"\b(issue|pr|pull request)\s*#?\d+\b|(?<![\w&#])#\d+\b", re.IGNORECASE),
+    "measurement log": re.compile(r"\bmeasured(\s*\([^)]*\))?\s*:", re.IGNORECASE),
+    "before -> after": re.compile(r"\d\s*(%|s|deg)?\s*->\s*-?\d"),
+}
+
+
+def _comments_and_docstrings(path: Path) -> list:
+    """``(line, text)`` of every comment and every module, class and function docstring of ``path``."""
+    source = path.read_text()
+    found = [(tok.start[0], tok.string) for tok in tokenize.generate_tokens(io.StringIO(source).readline)
+             if tok.type == tokenize.COMMENT]
+    for node in ast.walk(ast.parse(source, filename=str(path))):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            doc = ast.get_docstring(node, clean=False)
+            if doc is not None:
+                found.append((node.body[0].lineno, doc))
+    return found
+
+
+def _history(text: str) -> list:
+    return [f"{kind}: {m.group(0)!r}" for kind, pattern in HISTORY.items() for m in pattern.finditer(text)]
+
+
+@pytest.mark.parametrize("text, kinds", [
+    ("# chosen in commit 3f9a2c1 after a long run", ["commit hash"]),
+    ("#: since 2026-11-30 the gate is stricter", ["date"]),
+    ('"""The fix of issue 28 (see also issue #12 and #7)."""', ["issue number"] * 3),
+    ("#: Measured: torus 0.63, 0.62 and 0.53", ["measurement log"]),
+    ("#: Measured (median, random samples): 0.4", ["measurement log"]),
+    ("#: the torus went from 5.34 -> 5.68 %", ["before -> after"]),
+    ("#: a straight border's ball is a half disc, whose centroid lies 4R/(3 pi) inside", []),
+    ('"""``x -> x + w x x``, 1e-7 of the diagonal, 0123456789, 4R/(3 pi)."""', []),
+])
+def test_the_history_check_finds_history_and_nothing_else(text, kinds):
+    assert [found.split(":")[0] for found in _history(text)] == kinds
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_comments_explain_the_code_not_its_history(path):
+    # no commit hashes, dates, issue numbers or measurement logs: the measurements are in docs/
+    # (docs/how_it_works.md, thresholds), the history in git
+    offenders = [f"line {line}: {found}" for line, text in _comments_and_docstrings(path) for found in _history(text)]
+    assert offenders == []

@@ -33,15 +33,12 @@ neighbours: the nearest anchor's model is 0.12 % off in the mean curvature withi
 (:func:`anchors_per_ball`) and each point's tensor is a weighted cubic regression
 of its :data:`REGRESSED_ANCHORS` nearest anchors' *own* tensors, at their centres
 (:func:`carry_degree`): it reproduces any cubic variation of the curvature field.
-Measured on that torus (seeds 1-3, with the kernel one doubling
-wider than Lepski's rule chose, :data:`heatcurv.scale.LOW_NOISE_LEVELS`, and the
-denoised form's low-noise refit): mean 0.167-0.176 %, k2 0.39-0.42 %, against
-0.25 % and 0.64 % without the low-noise path.
+Its accuracy, on and off, is in docs/accuracy.md (very low noise).
 
 Every value of a point depends only on the points within its **support
 radius** ``max_a (|p - a| + R_a)`` over the anchors it uses, the regression's
-included (measured: with the regression a median 1.96 and at most 2.2 ball radii on a torus at 1e-5,
-at most 2.98 on a saddle; 1-1.5 without it): the halo a tiled run needs, per point.
+included (a few ball radii with the regression, about one without it; docs/how_it_works.md,
+thresholds): the halo a tiled run needs, per point.
 """
 
 from __future__ import annotations
@@ -72,18 +69,14 @@ __all__ = [
 
 #: Anchors per fitted ball: their spacing is about ``R sqrt(pi / 16) = 0.44 R``.
 ANCHORS_PER_BALL = 16
-#: Anchors per fitted ball under very low noise (:func:`anchors_per_ball`): spacing about ``0.36 R``. Measured
-#: (low-noise table, torus / saddle at 1e-5 of the diagonal, mean and k1 %, the kernel of Lepski's rule widened two
-#: doublings): 16 with the regression 0.27 / 0.47 (too sparse to regress), 20: 0.15 / 0.24, 24: 0.135 / 0.152,
-#: 32: 0.117 / 0.101, 64: 0.115 / 0.048; a million-point LAZ with millimetre rounding took 3.5-4.1x its kNN
-#: query at 24 per ball in the first form of this path (its refit also in the kernel choice), 100 s at 64 against
-#: a query of 15-17.7 s (the speed budget is 4x); now 3.0-3.6x at 24 in CPU seconds (docs/speed.md).
+#: Anchors per fitted ball under very low noise (:func:`anchors_per_ball`): spacing about ``0.36 R``, dense
+#: enough for the regression of their tensors and within the speed budget of 4x the k-NN query; denser anchors
+#: gain little accuracy for much time (docs/how_it_works.md, thresholds; docs/speed.md).
 LOW_NOISE_ANCHORS_PER_BALL = 24
 #: Narrowest kernel the low-noise refit is fitted at (``fit_anchors(low_noise=True)``): the narrowest the very-low-
 #: noise path widens to (Lepski's 120 neighbours, one doubling wider: :data:`heatcurv.scale.LOW_NOISE_LEVELS`).
-#: Regions of such a cloud whose kernel the rule kept at 60 keep the plain denoised fit: the refit's 15 unknowns
-#: at 60 neighbours gave a torus at 1e-5 of its diagonal a mean error of 1.80 % against 0.55 % (0.65 against
-#: 0.61 % at 120; measured at the centres, 20 000 points).
+#: Regions of such a cloud whose widened kernel is narrower (the rule kept them at 60) keep the plain denoised
+#: fit: the refit's 15 unknowns are too many for 60 or 120 neighbours (docs/how_it_works.md, thresholds).
 LOW_NOISE_MIN_NEIGHBOURS = 240
 #: Kernels of at most this many times :data:`ANCHORS_PER_BALL` neighbours are fitted at every point
 #: (a 60-neighbour kernel: its pair work is small, and small clouds keep their own fits).
@@ -91,17 +84,16 @@ EVERY_POINT = 4
 #: Anchors each point's values are carried from (the farthest gets weight 0).
 CARRIED_ANCHORS = 8
 #: Anchors whose fit's residual ``sigma`` is at least this many ball radii carry their models to first order
-#: in the offset, the others exactly. The exact surface of a noisy model carries its noise non-linearly:
-#: measured (noise table, 20 000 points), where ``sigma / R`` was 0.021-0.054 (0.6 % noise) the exact carry lost
-#: (torus mean 5.34 -> 5.68 %, ellipsoid 3.09 -> 3.32 %, saddle k1 3.07 -> 3.40 %), where it was 0.004-0.011
-#: (0.12 %) it gained (torus 3.0 -> 1.81 %, cylinder 1.05 -> 0.88 %, saddle k1 1.27 -> 1.12 %).
+#: in the offset, the others exactly. The exact surface of a noisy model carries its noise non-linearly, so
+#: the exact carry wins at moderate noise and loses at strong noise; this value lies between the two
+#: (docs/how_it_works.md, thresholds).
 EXACT_CARRY_SIGMA = 0.015
 #: Points carried at a time (:func:`carry_fits`): their anchor lists are held at once.
 CARRY_BLOCK = 262_144
 #: Anchors whose own tensors are regressed at each point under very low noise (:func:`carry_degree`).
 REGRESSED_ANCHORS = 24
-#: Degree of that regression: cubic (measured against quadratic over 16 anchors, torus and saddle at
-#: 1e-5 of the diagonal: k2 0.19 against 0.23 %, k1 0.067 against 0.081 %).
+#: Degree of that regression: cubic, which beat quadratic on the torus and the saddle
+#: (docs/how_it_works.md, thresholds).
 REGRESSION_DEGREE = 3
 #: Most neighbours of an anchor's PCA normal (:func:`anchor_normals`): enough to average noise
 #: of several spacings (a 480-point ball is 12 spacings wide), cheap beside the fit.

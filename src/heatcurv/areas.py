@@ -191,10 +191,9 @@ def density_areas(nbhd: Neighbourhood, fraction: float = 1.0) -> np.ndarray:
     ``beta = (1 + q)/2`` leaves at most ``(1 - q)/(2 mu)``, about 0.1 % with
     60 neighbours in the ball, for any sampling between the two.
 
-    Measured total-area errors on spheres with 60 neighbours: random -0.14 %
-    on average over 8 samples of 10 000 points (standard deviation 0.14 %,
-    worst -0.48 %) and -0.09 % at 30 000 points (0.06 %); Fibonacci
-    +0.08..+0.22 %, jittered +0.17..+0.24 % (3000-30 000 points). On other
+    On spheres with 60 neighbours the total area is within half a per cent
+    for random, Fibonacci and jittered samples (docs/how_it_works.md,
+    thresholds). On other
     surfaces the ball's cut is larger than ``pi R^2``; multiply by
     :func:`ball_area_factor` once the principal curvatures are known.
 

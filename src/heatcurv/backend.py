@@ -1,6 +1,6 @@
 """The compiled kernels' thread count.
 
-Decision (recorded here because this module used to hold the switch it replaces):
+Why there is no backend to choose:
 
 * numba is required. Every hot stage (PCA covariances and eigenvectors,
   orientation costs, areas, fit weights, the mean-curvature normal, the chord

@@ -41,9 +41,8 @@ every other cloud) the denoised form refits with quartic terms ``r^2 c^4 .. r^2 
 denominator from a height fit with quartic terms, and pair weights
 ``w lambda^4 / (D^4 + lambda^4)`` (``lambda^2 = sigma / 6e-4``, ball radii): pairs
 nearer than ``lambda`` weigh as in the chord fit (exact on circles), farther ones
-as in the height fit (:func:`_denoised_refit`). Measured at the centres
-(``benchmarks/lownoise_variants.py``, torus at 1e-5, 480 neighbours): mean 0.125 %
-against 0.61 %.
+as in the height fit (:func:`_denoised_refit`): at a wide kernel its error at the
+centres is a fraction of the plain denoised fit's (docs/how_it_works.md, thresholds).
 """
 
 from __future__ import annotations

@@ -74,8 +74,8 @@ PLANARITY_MIN = 0.05
 #: Noise (``sigma`` over the operator's median spacing ``h``, ``info["scale"].relative_noise``) above
 #: which the operator's balls (radius ``2 h``) are swamped: their PCA normals tilt by tens of degrees
 #: and their orientation breaks apart, so the wide kernel's anchors find and orient their own
-#: normals (:func:`heatcurv.anchors.anchor_normals`). Measured: a torus whose noise is 0.69 h had 21 %
-#: of its normals inward and a mean curvature off by 83 %; clouds at 0.04-0.3 h orient fine.
+#: normals (:func:`heatcurv.anchors.anchor_normals`). Between the noisiest clouds that orient fine on the
+#: operator's balls and a torus that did not (docs/how_it_works.md, thresholds).
 STRONG_NOISE = 0.5
 
 

@@ -14,14 +14,12 @@ the operator's balls:
 * the **effective neighbours** of the fit's weights, ``(sum w)^2 / sum w^2``
   (:func:`heatcurv.kernel.effective_neighbours`): a median below the fit's
   floor (:data:`SUPPORT_LIMITS`) is an error that names the values that work
-  for this cloud; a median just above it, a warning. The floors are measured:
-  the chord fit interpolates (exact on clean data with any positive weights)
-  and needs little (random sphere and torus: ``alpha = 8``, 2.4 effective
-  neighbours, mean curvature 0.13 % off, 7 % of points unreliable;
-  ``alpha = 12``, 1.5, 4.7 % off, 84 % unreliable), the paper's tensor fit
-  and its quadratures average and need more (Fibonacci sphere: ``m = 0.1``,
-  4.5 effective neighbours, mean curvature 33 % off and every point
-  "reliable"; ``m = 0.15``, 5.4, 8 %; ``m = 1/4``, 7.1, 0.4 %);
+  for this cloud; a median just above it, a warning. The floors differ by
+  fit: the chord fit interpolates (exact on clean data with any positive
+  weights) and needs little (a few effective neighbours), the paper's tensor
+  fit and its quadratures average and need more (below about 5 its mean
+  curvature is off by tens of per cent with every point "reliable"); the
+  runs behind each floor are in docs/how_it_works.md (thresholds);
 * the **kernel at the ball's edge**, relative to its centre: the paper's
   quadratures assume the ball holds the whole kernel, so a kernel cut above
   1e-3 of its peak warns (``alpha = 2`` at ``m = 1/4`` cuts it at 1.8 %; a
@@ -60,7 +58,7 @@ __all__ = [
 ]
 
 #: Median effective neighbours of each fit below which it is an error, and below which a
-#: warning (measured: see the module docstring).
+#: warning (why: see the module docstring).
 SUPPORT_LIMITS = {"chord": (2.0, 3.0), "tensor": (5.0, 6.5)}
 #: Largest kernel weight at the ball's edge (relative to the centre's) the paper's
 #: untapered quadratures accept without a warning, and the tapered chord fit's.

@@ -155,9 +155,9 @@ class Neighbourhood:
 
         A sparse graph that still reaches across the whole ball: the ``k``
         nearest alone can all lie on one scan line when a scanner samples
-        densely along its lines and sparsely across them (measured: a sphere
-        scanned 16x denser along 40 lines than across split into 40
-        components of the 10-nearest graph, one of this one's). Rows with at
+        densely along its lines and sparsely across them (a sphere scanned
+        16x denser along 40 lines than across splits into 40 components of
+        the 10-nearest graph, and stays one in this one). Rows with at
         most ``k`` neighbours are kept whole; the rows come out sorted by distance.
         """
         near = self if (self.by_distance or self._sorted_by_distance()) else self.nearest(self.counts.max())

@@ -44,10 +44,9 @@ for at most :data:`LOCAL_HOPS` rounds. A point's side then depends only on
 the points a few balls around it (:attr:`Orientation.reach`), never on how
 far the cloud goes on: a tile of a tiled run (:mod:`heatcurv.tiles`) whose
 halo holds that reach gives every point the side the whole cloud gives it.
-The spanning tree these modes used before carried a wall's side from the
-nearest anchor *along the tree*, a path a tile's piece of the cloud could
-not reproduce (measured on ``lidar_tile(40000)`` in 11 tiles: 13 points off,
-12 crown normals flipped; on ``lidar_tile(12000)`` in 12 tiles: 55 off).
+A spanning tree would carry a wall's side from the nearest anchor *along
+the tree*, a path a tile's piece of the cloud cannot reproduce: points of a
+tiled ``lidar_tile`` would take another side than in one piece.
 Points no anchor reaches within the rounds are flagged ambiguous and face
 their reference direction.
 
@@ -58,13 +57,13 @@ The spanning tree compares two normals by ``s_ij = n_i . n_j - (n_i . e)(n_j
 . e)`` (``e`` the unit edge): their agreement once the components along the
 edge are removed, which equals ``n_i . n_j`` on a smooth surface but stays
 clear across a sharp edge (0.5 at a right angle), where ``n_i . n_j`` is near
-0 and the plain Hoppe rule flips at random (measured: a closed pancake
-ellipsoid came out half inside out). The edge cost is ``1 - |s_ij|`` plus how
+0 and the plain Hoppe rule flips at random (it turns a closed pancake
+ellipsoid half inside out). The edge cost is ``1 - |s_ij|`` plus how
 far the edge leaves the tangent planes, ``max(|n_i . e|, |n_j . e|)``: an edge
 across a thin part (an ear, a sheet, a fin) joins parallel normals of
 opposite sides, which the plain Hoppe cost takes for the cheapest edge of all
-and which then turns one side inside out (measured on a 28k-point bunny scan:
-3.6 % of the normals, on the back of an ear).
+and which then turns one side inside out (on a 28k-point bunny scan, the
+back of an ear).
 
 Where no consistent side exists (two sheets closer than the ball, points
 no anchor reaches within :data:`LOCAL_HOPS` rounds, a side the winding
@@ -103,9 +102,8 @@ GRAPH_NEIGHBOURS = 10
 ANCHOR_COSINE = 0.3
 #: Rounds of the local propagation of ``"up"`` and ``"viewpoint"`` (:func:`local_sides`): each
 #: carries the anchors' sides one graph edge further. A wall takes about its half-height over
-#: the graph's edge length (measured on ``lidar_tile(10**6)``, 280 points per m^2 of ground,
-#: 0.6 m wall balls, eaves 5-8 m high: 10 rounds; ``lidar_tile(40000)``: 2); points still
-#: undecided after these are flagged ambiguous.
+#: the graph's edge length, a few to ten rounds on our LiDAR tiles, so this leaves a wide margin
+#: (docs/how_it_works.md, thresholds); points still undecided after these are flagged ambiguous.
 LOCAL_HOPS = 32
 #: A neighbour is compared when the edge to it is within 30 degrees of the
 #: tangent plane (``|n . e| <= 0.5``) and the normal axes within 45 degrees.
@@ -388,8 +386,8 @@ def orient(
         side). Without this, a far stray point's long edges, whose normal is
         that of a whole distant chunk of the surface, can bridge regions of
         the spanning tree and turn part of a closed surface inside out
-        (measured: 272 of the 510 points of a grid-sampled torus with three
-        points 25 diagonals away).
+        (about half of a grid-sampled torus with three points 25 diagonals
+        away).
     whole_cloud : bool, optional
         ``"outward"``: whether ``points`` is the whole cloud, whose inside the
         winding number decides (:mod:`heatcurv.enclosure`). A tile's piece is

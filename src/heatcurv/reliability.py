@@ -41,42 +41,35 @@ __all__ = [
 
 #: A point whose chord-fit residual (in units of its spacing) exceeds this multiple of the
 #: cloud's median is not explained by one smooth surface at the kernel's scale: a sharp edge
-#: inside the ball, vegetation, a veil. Measured (residual / median): noisy tori at most 1.4,
-#: a CAD part's faces 0.1 and the band of a ball's width along its edges 3-450, a LiDAR tile's
-#: ground 0.8-7 and its tree crowns 20-36.
+#: inside the ball, vegetation, a veil. Smooth surfaces, noisy or not, stay within a few times the
+#: median; edges and tree crowns reach tens to hundreds (docs/how_it_works.md, thresholds).
 MISFIT_FACTOR = 10.0
 #: Floor of the median residual (in spacings) a clean cloud's misfits are measured against.
 MISFIT_FLOOR = 1e-3
 #: A cloud whose median point has a sampling spacing ``s = R sqrt(pi / count)`` (its ball's radius
 #: ``R`` holding ``count`` neighbours) more than this many radii of curvature ``1 / max(|k1|, |k2|)``
 #: (fewer than about 12 points around an osculating circle) does not resolve its surface: its
-#: balls wrap around it. Measured (median, random samples): tori (r 0.6, R 1.4) of 150, 200 and
-#: 300 points 0.63, 0.62 and 0.53, with 45 and 53 inward normals among the "reliable" points of
-#: the first two and mean errors of 5.5-24 % of the largest curvature; 600 points 0.38 (2.9 %);
-#: spheres of 150 points 0.29 (0.4 %); ellipsoids (1, 0.6, 0.3) of 150-600 points 0.24-0.48;
-#: noisy clouds of 3000-10 000 points 0.04-0.18.
+#: balls wrap around it: the tori that came out with inward normals and errors of several per cent
+#: lie above it, the clouds that resolve their surface below (docs/how_it_works.md, thresholds).
 RESOLUTION_LIMIT = 0.5
 #: A ball whose two smallest PCA eigenvalues are this close (``lambda_0 / lambda_1``,
 #: :func:`heatcurv.normals.pca_normals`) holds a tube, not a disc: the surface wraps around within it,
 #: and its fitted curvature, far too small, says nothing of the sampling; its spacing counts as infinitely
-#: many radii of curvature (``rho``). Measured (median ball, benchmarks/orientation.py --coarse-tori):
-#: tori whose tube is 2.5-3 spacings across 0.66-0.79 (13-42 % of their points inside out and reliable
-#: without this rule), a tube 4 spacings across 0.32; CGAL's twelve closed models at most 0.46.
+#: many radii of curvature (``rho``). Tubes only a few spacings across lie above it, a resolved tube and
+#: closed scanned models below (docs/how_it_works.md, thresholds; ``benchmarks/orientation.py --coarse-tori``).
 ROUND_BALL = 0.65
 #: Error of a point's curvature that the rounding of the coordinates may cause before the point is
 #: unreliable, as a share of its curvature scale (:func:`imprecise`): the k1 / k2 target of the accuracy
 #: tables (docs/accuracy.md, 1 %).
 PRECISION_TOLERANCE = 0.01
 #: Standard deviations of the rounding's mean-curvature error (:func:`rounding_uncertainty`) held against
-#: that tolerance. Measured (clouds moved by uniform errors of 1e-7 to 1e-3 per coordinate, the fit's form
-#: unchanged: tori of 2000 and 20 000 points, a sphere of 5000, a saddle of 3000): the change of k1 or k2
-#: over the mean's standard deviation is at most 3.0-3.4 at the 99th percentile and 3.8-5.8 at the 99.9th
-#: in the chord fit, 4.1-5.0 and 5.8-9.8 in the denoised fit.
+#: that tolerance: at least the 99th percentile, in either fit, of the change of k1 or k2 that moving the
+#: coordinates by up to their rounding makes, in units of that standard deviation (docs/how_it_works.md, thresholds).
 PRECISION_COVERAGE = 5.0
 #: Floor of a point's curvature scale, in inverse radii of its fit's ball: a nearly flat point is judged
 #: against the curvature that bends the surface by 1.5 % of the ball's radius across it. Below every point
-#: of the clean 10 000-point clouds of the accuracy tables, whose own curvature always counts (largest
-#: |k| times the fit's radius, measured: saddle 0.034-, paraboloid 0.051-, sphere 0.12-, torus 0.33-).
+#: of the clean 10 000-point clouds of the accuracy tables, whose own curvature always counts
+#: (docs/how_it_works.md, thresholds).
 FLAT_CURVATURE = 0.03
 
 

@@ -37,16 +37,15 @@ grows with ``R^2``). :func:`select_scale` picks the width per cloud:
 5. a cloud in the very-low-noise band (``relative_noise`` from :data:`NO_NOISE`
    to below :data:`LOW_NOISE`, e.g. coordinate rounding) is fitted with the
    denoised form's low-noise refit (:mod:`heatcurv.anchors`), whose bias is far
-   below the plain fit's that the rule measured: where the rule widened the
+   below that of the plain fit the rule compares. Where the rule widened the
    kernel of the median centre, every widened centre's kernel is :data:`LOW_NOISE_LEVELS` doubling wider.
 
-Measured: a torus with 0.05 % noise on one half and 0.6 % on the other
-chose 960 and 1920 neighbours (mean errors 1.6 % and 4.4 %; the best single
-width for each half, with hindsight, 1.9 % and 4.0 %). Lepski's rule with
-windows of a tenth of the cloud for the bias decision too was worse (an
-open patch with 0.6 % noise: 16-27 % instead of 10 %): the per-region test
-is noisy, and the cost of a too-narrow kernel is larger than that of a
-slightly biased one.
+The bias decision pools every centre of a noise bin, and only the guard of
+step 4 looks at small regions: a per-region test is noisy, and a too-narrow
+kernel costs more than a slightly biased one. A cloud whose noise changes from
+region to region still gets each region about the width its own noise calls
+for (docs/accuracy.md, mixed noise; the per-region variant is in
+docs/how_it_works.md, thresholds).
 """
 
 from __future__ import annotations
@@ -403,27 +402,19 @@ def fit_at_scale(
 #: wider (:func:`decide_scale`), the denoised form's low-noise refit (:func:`heatcurv.chordfit.chord_fit`), dense
 #: anchors and the regression of their tensors (:mod:`heatcurv.anchors`): :attr:`ScaleChoice.low_noise`.
 #: Noise (``sigma`` over the median spacing, ``info["scale"].relative_noise``) below which the cloud is in the
-#: band: measured 0.0008-0.0096 at 1e-5-1e-4 of the diagonal (torus, saddle, sphere; 20 000 points), 0.0153 on
-#: a million-point torus rounded to 1e-4 of its diagonal (a LAZ file's millimetres), 0.084-0.088 at 0.12 %.
-#: Scans measured 0.019 (the bunny, the face: in the band, but Lepski's rule keeps their narrowest kernel)
-#: and 0.028 (the synthetic LiDAR tile, 12 000 points): with 0.03 here its kernel went from 240 to 960
-#: neighbours and 36 % of its tree crowns passed as reliable (0 % without the low-noise path).
+#: band: above the rounding of a LAZ file's millimetres and synthetic noise up to 1e-4 of the diagonal, below
+#: 0.12 % noise and below the synthetic LiDAR tile, whose tree crowns a wider kernel would pass as reliable
+#: (docs/how_it_works.md, thresholds).
 LOW_NOISE = 0.02
 #: ... and above which: a cloud whose measured noise is at rounding level (two planes meeting at a fold:
-#: ``relative_noise`` 1e-16) has no noise for the denser anchors to resolve and keeps the ordinary fit and carry
-#: (with 64 anchors per ball its 120-neighbour kernel was fitted at every point, and the sharp-feature mask
-#: of a 60-degree fold spread to 2.36 h from the crease, against 1.41 h).
+#: ``relative_noise`` 1e-16) has no noise for the denser anchors to resolve and keeps the ordinary fit and carry,
+#: whose sharp-feature mask stays narrower (docs/how_it_works.md, thresholds).
 NO_NOISE = 1e-6
 #: Doublings of ``k`` a very-low-noise cloud's kernel is widened by beyond the choice of Lepski's rule
 #: (:func:`decide_scale`). The rule compares the plain denoised fits, whose third-order model's bias sets
-#: the width; the low-noise refit (quartic terms) has less, so its kernel can be wider and average more.
-#: Measured (docs/accuracy.md's low-noise table, 20 000 points; mean / k1 % of the torus and the saddle at noise
-#: 1e-5, 3e-5 and 1e-4 of the diagonal): widened by 0: torus 0.43 / 0.26, 0.38 / 0.24, 1.13 / 0.73, saddle
-#: k1 0.115, 0.24, 0.24; by 1: torus 0.162 / 0.103, 0.195 / 0.165, 0.457 / 0.324, saddle k1 0.074, 0.112,
-#: 0.183; by 2: torus 0.135 / 0.123, 0.96 / 0.94, 1.1 / 0.94 (too wide above 1e-5), saddle k1 0.152, 0.144,
-#: 0.183; without the low-noise path torus 0.246 / 0.153, 0.379 / 0.248, 0.686 / 0.44, saddle k1 0.212,
-#: 0.248, 0.483. The sphere, whose chord fit is exact, is worse with the refit whatever the width (0.017 %
-#: against 0.0088 % at 1e-5: the quartic terms' variance). Lepski's rule is not run on the refit itself:
+#: the width; the low-noise refit (quartic terms) has less, so its kernel can be wider and average more. One
+#: doubling: two are too wide above 1e-5 of the diagonal (docs/accuracy.md, very low noise, the widening
+#: table). Lepski's rule is not run on the refit itself:
 #: a tiled run's survey fits the plain candidates (:mod:`heatcurv.survey`), and the noise gate must see
 #: the plain fit (a clean jittered grid read its model misfit as noise through the refit's residual).
 LOW_NOISE_LEVELS = 1
@@ -522,9 +513,8 @@ def _nested_centres(sub: np.ndarray, keys: np.ndarray | None, seed: int) -> np.n
 
 
 #: Widest candidate kernel (neighbours) on any cloud: a tiled run measures every candidate at sample
-#: centres tile by tile, so the widest ball must fit in a tile's halo. Measured: the widest chosen on
-#: our noisy clouds was 7680 (a million-point LAZ with millimetre rounding); a 100 000-point torus
-#: with 0.6 % noise chose 3840.
+#: centres tile by tile, so the widest ball must fit in a tile's halo. Twice the widest any of our noisy
+#: clouds chose (docs/how_it_works.md, thresholds).
 WIDEST_KERNEL = 15360
 
 
@@ -612,12 +602,11 @@ def select_scale(
         of the narrower candidate (pure noise gives about 0.67).
     clean_ratio : float, optional
         The cloud counts as clean, and the chord fit at ``base_k`` is used, when the chord fit's residual is at most
-        this multiple of the denoised fit's. Without noise both residuals are the model's error (measured 0-2.0 on
-        clean clouds of 4000-30 000 points; ellipsoids 1.8-2.0, where the chord fit still errs half as much); noise
-        enters the chord residual through ``2 z / |x_i - x_j|^2`` amplified, and the ratio jumps to about 4 (2.2-2.4
-        at noise 1e-7 of the bounding-box diagonal, where both fits err alike, 3.4-4.0 from 1e-6 to 1e-4). Strong
-        noise saturates the chord residual (``|kN| <= 1/|z|``) and the ratio falls back (1.4 at ``sigma / h = 0.37``),
-        so a cloud with ``sigma / h`` above 1 % never counts as clean (clean clouds measured at most 3.5e-4).
+        this multiple of the denoised fit's. Without noise both residuals are the model's error and the ratio stays
+        at most 2.0; noise enters the chord residual through ``2 z / |x_i - x_j|^2`` amplified, and the ratio jumps
+        to about 4 (docs/accuracy.md, the noise gate's ratio). Strong noise saturates the chord residual
+        (``|kN| <= 1/|z|``) and the ratio falls back, so a cloud with ``sigma / h`` above 1 % never counts as clean
+        (clean clouds stay far below it).
     fixed_k : int, optional
         Use this kernel width instead of choosing one: only the noise is
         measured, to pick the chord fit (clean) or the denoised one.

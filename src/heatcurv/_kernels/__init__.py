@@ -47,9 +47,8 @@ kernels are written to compile fast (measured by ``benchmarks/first_run.py``):
   arrays, int32 neighbour indices where they fit, Python scalars), so each
   kernel compiles once, whatever dtypes the caller used.
 
-Together these took a fresh install's first ``heatcurv demo -n 5000`` from
-39 s to 14.5 s on a 2-core machine (compilation 36 s -> 11 s; a run with the
-cache filled takes 3.4 s either way), at the same run-time speed.
+Together they cut a fresh install's first run to about a third, at the same
+run-time speed (docs/how_it_works.md, thresholds).
 
 The first compilation in a process is announced once, before it starts, as an
 INFO message on the ``heatcurv.kernels`` logger (:data:`COMPILE_NOTICE`):
@@ -88,9 +87,7 @@ __all__ = [
 LOGGER_NAME = "heatcurv.kernels"
 #: What compiling the clean path's kernels takes on the 2-core machine of ``benchmarks/first_run.py``.
 COMPILE_SECONDS = 15
-#: ... and the noisy path's on top (the anchors' fit and carry): measured 17 s (a 20 000-point torus with
-#: 0.12 % noise after a clean one, ``NUMBA_CACHE_DIR`` empty: 18.8 s, 1.6 s with the cache; 31 s
-#: with the carry inlined at three call sites).
+#: ... and the noisy path's on top (the anchors' fit and carry), on the same machine (docs/speed.md).
 NOISY_COMPILE_SECONDS = 17
 #: The notice, logged once per process when the first kernel starts compiling.
 COMPILE_NOTICE = (

@@ -55,13 +55,9 @@ MAX_SLOPE = 0.9
 MIN_AGREEMENT = 0.5
 #: The regression of the anchors' own tensors is refused (the weighted mean instead) where the anchors' weighted
 #: centroid is more than this many times the row's farthest anchor distance from the point: anchors on one side
-#: (an open border), where the polynomial extrapolates. Measured on a saddle at 1e-5 noise (20 000 points, seeds
-#: 3 and 4; k1 error of reliable points within R/4 of the border): 0.607 / 0.523 % without, 0.325 / 0.386 at 0.3,
-#: 0.291 / 0.271 at 0.25, 0.273 / 0.200 at 0.2, where interior points began to lose (0.062 / 0.066 -> 0.064 /
-#: 0.072 %, the torus's directions 0.0421 -> 0.0428 deg). A point on a straight border has its anchors in a
-#: half disc, offset about 0.27 with these weights (0.3 catches corners only); the low-noise table (interior points
-#: only) at 0.25: saddle 1e-5 k1 0.0743 -> 0.0759 %, d1 0.0117 -> 0.013 deg, mean 0.753 -> 0.743 %, torus and
-#: sphere within 1 %.
+#: (an open border), where the polynomial extrapolates. A point on a straight border has its anchors in a
+#: half disc, offset about 0.27 with these weights (0.3 catches corners only); at 0.2 interior points begin to
+#: lose the regression (docs/how_it_works.md, thresholds).
 REGRESSION_MAX_OFFSET = 0.25
 #: Least squared Cholesky pivot, relative to the largest diagonal entry, of a regression's normal
 #: matrix (:func:`carry_anchor_fits` with ``degree``): below it the degree is lowered.

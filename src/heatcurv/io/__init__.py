@@ -385,5 +385,5 @@ _WRITERS = {
     ".npz": _write_npz,
 }
 
-# the old private name, used by heatcurv.render until it imports heatcurv.io.atomic.atomic_write
+# a private alias of atomic_write; nothing in heatcurv calls it (tests/io/test_io_atomic.py checks it)
 _atomic_write = atomic_write

@@ -122,12 +122,9 @@ __all__ = ["compute_file", "TiledReport", "RETRIES", "DRIVER_MEMORY", "estimator
 #: Times a tile is resubmitted after its worker process died.
 RETRIES = 2
 #: A cloud of at most this many tiles is surveyed in one round (:func:`.tasks.run_survey`), others in two
-#: (:func:`.tasks.run_keys`, :func:`.tasks.run_centres`). Measured (CPU seconds, single thread, the same
-#: choice bit for bit): a 3M-point terrain in 16 tiles of 187k points, two rounds 151 s (keys 44, centres
-#: 107: 125 centres a tile, whose balls cover about the whole tile) against one round 148 s; a 1M terrain in
-#: 2 tiles, two rounds' survey 835 s wall against 427 s for the tiles. Round 2's cost falls with the centres
-#: per tile (2000 / tiles), round 1 costs about 0.3 of one round: two rounds should pay from about 64 tiles
-#: (31 centres a tile), an estimate not measured yet.
+#: (:func:`.tasks.run_keys`, :func:`.tasks.run_centres`); both choose the same kernel bit for bit. Round 2's
+#: cost falls with the centres per tile (2000 / tiles) and round 1 costs about 0.3 of one round, so two rounds
+#: pay from about 64 tiles (31 centres a tile), an estimate (docs/how_it_works.md, thresholds).
 ONE_ROUND_TILES = 63
 #: Core points of stored tiles after which :func:`.output.slim_tiles` fsyncs ``results.rec`` and slims their
 #: files (about 350 MB of rows): the scratch stays near one copy of the results, the loop rarely waits.
