@@ -81,7 +81,6 @@ def test_atomic_write_is_public_and_replaces_only_when_complete(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         atomic_write(path, fail)
     assert path.read_bytes() == b"first" and leftovers(tmp_path) == [path.name]
-    assert hio._atomic_write is atomic_write  # the old private name, until heatcurv.render switches
 
 
 def test_check_writable_refuses_at_once(tmp_path, monkeypatch):

@@ -384,6 +384,3 @@ _WRITERS = {
     ".txt": _write_xyz,
     ".npz": _write_npz,
 }
-
-# a private alias of atomic_write; nothing in heatcurv calls it (tests/io/test_io_atomic.py checks it)
-_atomic_write = atomic_write
