@@ -539,14 +539,14 @@ def render_panels(points, panels, path, size=PICTURE, title=None) -> None:
 
 def make_pictures(case: Case, m: dict, outdir: Path) -> list[tuple[str, str]]:
     """The case's pictures: ``[(file name, caption), ...]``."""
-    from heatcurv.render import colour_limits
+    from heatcurv.render import colour_limits, grey_unreliable
 
     res, feats = m["res"], m["features"]
     pts = case.points
     n = len(pts)
     made = []
     # unreliable points are drawn grey (NaN), as `heatcurv render` draws them
-    shown = np.where(res.reliable, res.mean, np.nan)
+    shown = grey_unreliable(res.mean, res.reliable)
     grey = f" Grey: the {int(np.count_nonzero(~res.reliable))} unreliable points."
     mean_kw = {"values": shown, "field": "mean", "normals": res.normals, "length_unit": case.unit}
     lit = {"normals": res.normals}  # every panel shaded by, and hiding its far side with, the computed normals

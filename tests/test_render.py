@@ -422,3 +422,10 @@ def test_the_names_other_modules_import_from_render_stay_there():
         assert hasattr(render, name), name
     for name in ("AMBIENT", "LIGHT", "HIDDEN_DEPTH"):
         assert getattr(render, name) is getattr(shading, name), name
+
+
+def test_grey_unreliable_turns_only_the_unreliable_values_into_nan():
+    from heatcurv.render import grey_unreliable
+
+    out = grey_unreliable(np.array([1.0, -2.0, 3.0]), np.array([True, False, True]))
+    assert out[0] == 1.0 and np.isnan(out[1]) and out[2] == 3.0

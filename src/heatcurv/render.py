@@ -89,6 +89,7 @@ __all__ = [
     "camera_frames",
     "colour_limits",
     "field_style",
+    "grey_unreliable",
     "render_field",
     "supported_picture_formats",
 ]
@@ -224,6 +225,21 @@ def supported_picture_formats() -> tuple:
 def _is_mask(values: np.ndarray) -> bool:
     finite = values[np.isfinite(values)]
     return values.dtype.kind == "b" or (finite.size > 0 and bool(np.all((finite == 0) | (finite == 1))))
+
+
+def grey_unreliable(values: np.ndarray, reliable: np.ndarray) -> np.ndarray:
+    """``values`` with the unreliable points' set to NaN, so that :func:`render_field` draws them grey.
+
+    Parameters
+    ----------
+    values : ndarray, shape (n,)
+    reliable : ndarray of bool, shape (n,)
+
+    Returns
+    -------
+    ndarray, shape (n,), float
+    """
+    return np.where(np.asarray(reliable, dtype=bool), values, np.nan)
 
 
 def colour_limits(values, kind: str | None = None, *, percentiles=(2.0, 98.0), value_range=None):

@@ -71,21 +71,16 @@ def _demo_surface(args, picture, log: Log) -> int:
         for w in paper_warnings:
             log.detail(f"the paper's method warned: {' '.join(str(w.message).split())}")
     if picture is not None:
-        from ..render import render_field
+        from ..render import grey_unreliable, render_field
 
         res = rows[0][4]
         render_field(
-            sample.points, _grey_unreliable(res.mean, res.reliable), picture, field="mean", size=(1400, 1000),
+            sample.points, grey_unreliable(res.mean, res.reliable), picture, field="mean", size=(1400, 1000),
             normals=res.normals, elevation=35.0 if surface.name == "torus" else 0.0,
             title=f"heatcurv demo: mean curvature of the {surface.name}, {len(sample.points)} {args.sampler} points",
         )
         print(f"\nwrote {picture}: the mean curvature (default method){_grey_note(res.reliable)}")
     return EXIT_OK
-
-
-def _grey_unreliable(values: np.ndarray, reliable: np.ndarray) -> np.ndarray:
-    """The values with the unreliable points' as NaN: drawn grey, as ``heatcurv render`` draws them."""
-    return np.where(reliable, values, np.nan)
 
 
 def _grey_note(reliable: np.ndarray) -> str:
@@ -141,10 +136,10 @@ def _demo_bunny(picture, log: Log) -> int:
         print(f"{name:10s} {low:9.3g} {mid:9.3g} {high:9.3g}  {unit}")
     print(f"total area {res.area.sum():.4g} length^2 (the scan has holes and a cut base)")
     if picture is not None:
-        from ..render import render_field
+        from ..render import grey_unreliable, render_field
 
         render_field(
-            cloud.points, _grey_unreliable(res.mean, res.reliable), picture, field="mean", views=2, size=(1600, 800),
+            cloud.points, grey_unreliable(res.mean, res.reliable), picture, field="mean", views=2, size=(1600, 800),
             normals=res.normals,
             title=f"heatcurv demo: mean curvature of the Stanford bunny scan ({len(cloud)} points)",
         )

@@ -110,7 +110,9 @@ def _grey_unreliable(values, reliable, field: str, log: Log):
     grey = ~reliable & np.isfinite(values)
     if grey.any():
         log.info(f"{int(grey.sum())} unreliable point(s) drawn grey (--unreliable coloured draws them coloured)")
-    return np.where(grey, np.nan, values)
+    from ..render import grey_unreliable
+
+    return grey_unreliable(values, ~grey)
 
 
 def run(args, log: Log) -> int:
