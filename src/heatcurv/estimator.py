@@ -64,7 +64,8 @@ from .reliability import (
 )
 from .results import CurvatureResult
 from .sampling import geometric_keys, key_sample
-from .scale import ScaleReport, select_form, select_scale
+from .scale import ScaleReport, centre_noise, select_form, select_scale
+from .sheets import second_sheet
 from .validation import prepare_normals
 
 __all__ = ["CurvatureResult", "estimate"]
@@ -251,17 +252,24 @@ def _orientation_mode(orient_option: str, normals, viewpoint) -> str:
     return orient_option
 
 
-def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices) -> AutoPolicy:
+def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices, normals: np.ndarray,
+                 outlier: np.ndarray) -> AutoPolicy:
     """``orient="auto"`` without a viewpoint: ``"up"`` or ``"outward"`` (:func:`heatcurv.orientation.auto_policy`).
 
     Decided on the scale choice's sample centres (the ``n_sub`` points of
-    smallest keys), or taken from ``choices`` (a tiled run's survey decided it
-    on the same centres of the whole cloud).
+    smallest keys) and the noise the choice measures there
+    (:func:`heatcurv.scale.centre_noise`, on the unoriented ``normals``), or
+    taken from ``choices`` (a tiled run's survey decided it on the same
+    centres of the whole cloud).
     """
     if choices is not None and getattr(choices, "orientation", None) is not None:
         return choices.orientation
-    tuning = op.options.scale_tuning
-    return auto_policy(op.points[key_sample(keys, tuning.n_sub, tuning.seed)])
+    opts = op.options
+    tuning = opts.scale_tuning
+    fit_areas = np.where(outlier, 0.0, np.maximum(op.areas, 0.0))
+    noise = centre_noise(op.points, op.tree, normals, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
+                         n_sub=tuning.n_sub, seed=tuning.seed, keys=keys, workers=opts.workers)
+    return auto_policy(op.points[key_sample(keys, tuning.n_sub, tuning.seed)], noise)
 
 
 def _explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> OrientationReport:
@@ -326,7 +334,7 @@ def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: n
     with clock.stage("normals"):
         nrm, planarity, roundness = pca_normals(X, nbhd, taper=op.options.taper, roundness=True)
     with clock.stage("orientation"):
-        policy = _auto_policy(op, keys, choices) if mode == "auto" else None
+        policy = _auto_policy(op, keys, choices, nrm, outlier) if mode == "auto" else None
         orientation = orient(X, nrm, nbhd, op.areas, mode=mode if policy is None else policy.mode, towards=towards,
                              excluded=outlier, whole_cloud=choices is None,
                              cloud_points=None if choices is None else choices.frame.n_points)
@@ -638,7 +646,8 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
             timings, whole_cloud: bool = True, rounding=None):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
-    Outliers stand for no measured surface: area 0, never reliable. The stages
+    Outliers stand for no measured surface, and a point whose ball holds a second sheet
+    (:func:`heatcurv.sheets.second_sheet`) for no one sheet: area 0, never reliable. The stages
     ran in the unit ``prepared.unit`` (a power of two, 1 for all but extreme
     extents): lengths are multiplied by it, curvatures divided, exactly. When
     the points are only a part of the cloud (``whole_cloud`` False), the flags
@@ -648,7 +657,10 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
     """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     unit = prepared.unit
-    areas = np.where(outliers.mask, 0.0, fitted.areas)
+    # a ball holding two sheets (a thin part's two sides, or a sheet over the point) is no
+    # two-dimensional neighbourhood: no area, and so not reliable
+    sheets = second_sheet(op.points, fitted.normals, nbhd, op.h)
+    areas = np.where(outliers.mask | sheets, 0.0, fitted.areas)
     coarse, precision = _precision(op, fitted, rounding)
     inputs = _reliability_inputs(op, fitted, ball_shape, orientation, outliers, areas, coarse)
     back = prepared.to_input_order
@@ -678,7 +690,8 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
                                 "normals": back(orientation.normals), "weight": weight}
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
-        "outliers": outliers.count, "resolution": resolution, **extra,
+        "outliers": outliers.count, "second_sheet": int(np.count_nonzero(back(sheets))), "resolution": resolution,
+        **extra,
     }
     if precision is not None:
         info["precision"] = precision

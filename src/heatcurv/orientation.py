@@ -127,6 +127,18 @@ AUTO_DOWN_SHARE = 0.005
 AUTO_FLATNESS = 0.15
 #: Nearest sample points each sample normal and the sample's spanning tree use.
 AUTO_NEIGHBOURS = 16
+#: ... and at most this share of its flat, near-horizontal points has another sample point straight above
+#: or below it (within the median sample spacing sideways, more than 45 degrees out of its plane, and
+#: further along its normal than :data:`AUTO_LAYER_HEIGHT` sample spacings and :data:`AUTO_LAYER_NOISE` times
+#: the cloud's noise): a thin closed object lying flat (a plate, a lid) is two sheets, one over the other,
+#: that the spanning tree over the sample can orient alike around their unresolved rim, so its ``n_z`` all
+#: face up (docs/orientation.md, the thin plates).
+AUTO_LAYERED_SHARE = 0.1
+#: Smallest height of a second sheet over a sample point, in median sample spacings.
+AUTO_LAYER_HEIGHT = 0.5
+#: Smallest height of a second sheet over a sample point, in units of the cloud's noise (the scale choice's
+#: ``sigma``): noise scatters a sheet's sample points over and under each other.
+AUTO_LAYER_NOISE = 3.0
 #: Outward vote below this share of ``sum_i A_i |n_i . (x_i - c)|``: the component is too flat to
 #: tell inside from outside, and takes the flat-patch convention. Low, because the switch between the
 #: two rules is where a cloud and a random half of it can differ: a LiDAR tile turned away from "up"
@@ -275,23 +287,30 @@ class AutoPolicy:
         either side), the share of ``sum_i |n_z,i|`` over its flat points on
         those facing down (the smaller of the two sums): 0 for a surface over
         the horizontal plane, 1/2 for a closed one.
+    layered : float
+        Share of the sample's flat, near-horizontal points with another
+        sample point straight above or below them (:data:`AUTO_LAYERED_SHARE`):
+        near 0 for a surface over the horizontal plane, large for a thin
+        closed object lying flat.
     """
 
     mode: str
     vertical: float
     down: float
+    layered: float = 0.0
 
     @property
     def reason(self) -> str:
         """Why, in words: the report's :attr:`OrientationReport.reason`."""
         measured = (f"{100 * self.vertical:.0f} % of the sampled normals within 45 degrees of vertical; "
-                    f"consistently oriented, {100 * self.down:.1f} % of their vertical extent faces down")
+                    f"consistently oriented, {100 * self.down:.1f} % of their vertical extent faces down; "
+                    f"{100 * self.layered:.0f} % of the flat ones lie over or under another sheet")
         if self.mode == "up":
             return f"auto: an open surface over the horizontal plane, oriented up (+z) ({measured})"
         return f"auto: not a surface over the horizontal plane ({measured})"
 
 
-def auto_policy(centres: np.ndarray) -> AutoPolicy:
+def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     """``orient="auto"`` without a viewpoint: ``"up"`` for an open surface over the ground plane, else ``"outward"``.
 
     A surface whose consistent orientation puts every normal's ``n_z`` on the
@@ -303,7 +322,10 @@ def auto_policy(centres: np.ndarray) -> AutoPolicy:
     tree of :func:`orient`, and the cloud is oriented ``"up"`` when at least
     :data:`AUTO_SHARE` of them lie within 45 degrees of vertical and at most
     :data:`AUTO_DOWN_SHARE` of the ``sum |n_z|`` of the flat ones
-    (:data:`AUTO_FLATNESS`: not a tree crown's scatter) faces down.
+    (:data:`AUTO_FLATNESS`: not a tree crown's scatter) faces down, and at
+    most :data:`AUTO_LAYERED_SHARE` of those flat points lie straight over or
+    under another sheet (:func:`_layered_share`: a thin closed object lying
+    flat, whose two sides the tree can orient alike).
 
     Parameters
     ----------
@@ -311,6 +333,9 @@ def auto_policy(centres: np.ndarray) -> AutoPolicy:
         A sample of the cloud's distinct points spread over it, any order (they
         are sorted first, so that the same set decides alike): the scale
         choice's ``n_sub`` centres.
+    noise : float, optional
+        The cloud's noise, length units (:func:`heatcurv.scale.centre_noise`,
+        the scale choice's ``sigma``).
 
     Returns
     -------
@@ -339,8 +364,43 @@ def auto_policy(centres: np.ndarray) -> AutoPolicy:
     total = float((upward + downward).sum())
     down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
     share = float(np.mean(np.abs(nz) >= AUTO_VERTICAL_COSINE))
-    mode = "up" if share >= AUTO_SHARE and down <= AUTO_DOWN_SHARE else "outward"
-    return AutoPolicy(mode, share, down)
+    layered = _layered_share(centres, normals, flat & (np.abs(normals[:, 2]) >= AUTO_VERTICAL_COSINE), noise, tree)
+    mode = "up" if share >= AUTO_SHARE and down <= AUTO_DOWN_SHARE and layered <= AUTO_LAYERED_SHARE else "outward"
+    return AutoPolicy(mode, share, down, layered)
+
+
+def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, noise: float, tree: cKDTree) -> float:
+    """Share of the ``flat`` sample points with another straight over or under them (:data:`AUTO_LAYERED_SHARE`).
+
+    Parameters
+    ----------
+    centres, normals : ndarray, shape (q, 3)
+        The sample and its unoriented PCA normals.
+    flat : ndarray, shape (q,), bool
+        Flat sample points whose normal lies within 45 degrees of vertical.
+    noise : float
+        The cloud's noise, length units.
+    tree : cKDTree
+        Of ``centres``.
+
+    Returns
+    -------
+    float
+        0 when no point is flat.
+    """
+    rows = np.flatnonzero(flat)
+    if rows.size < 2:
+        return 0.0
+    spacing = float(np.median(tree.query(centres, 2)[0][:, 1]))
+    # pairs within one spacing of each other seen from above, at any height
+    pairs = cKDTree(centres[rows, :2]).query_pairs(spacing, output_type="ndarray")
+    # ordered both ways: a point over another is layered, and so is the one under it
+    first, second = rows[np.concatenate([pairs[:, 0], pairs[:, 1]])], rows[np.concatenate([pairs[:, 1], pairs[:, 0]])]
+    offset = centres[second] - centres[first]
+    height = np.abs(np.einsum("ij,ij->i", offset, normals[first]))
+    lateral = np.sqrt(np.maximum(np.einsum("ij,ij->i", offset, offset) - height**2, 0.0))
+    over = (height > lateral) & (height > max(AUTO_LAYER_HEIGHT * spacing, AUTO_LAYER_NOISE * noise))
+    return float(np.unique(first[over]).size / rows.size)
 
 
 def orient(

@@ -641,6 +641,31 @@ def select_scale(
     return choice.at_points(points, workers)
 
 
+def centre_noise(points, tree, normals, areas, *, base_k: int = 60, alpha: float = 2.0, n_sub: int = 2000,
+                 seed: int = 0, keys: np.ndarray | None = None, workers: int = -1) -> float:
+    """The cloud's noise as the kernel choice measures it (``ScaleChoice.sigma``), without the choice.
+
+    The median residual of the denoised fit at ``base_k`` over the same sample
+    centres :func:`select_scale` uses (:func:`heatcurv.orientation.auto_policy`
+    needs it before the choice is made).
+
+    Parameters
+    ----------
+    points, tree, areas, base_k, alpha, n_sub, seed, keys, workers
+        As :func:`select_scale`.
+    normals : ndarray, shape (n, 3)
+        Unit normals, either sign.
+
+    Returns
+    -------
+    float
+        Length units.
+    """
+    centres = draw_subset(points.shape[0], n_sub, seed, keys)
+    fitter = CentreFitter(points, tree, normals[centres], areas, centres, alpha=alpha, workers=workers)
+    return float(np.median(fitter(Scale(base_k, True), centres.shape[0]).sigma))
+
+
 @dataclass(frozen=True)
 class CentreFits:
     """One candidate kernel's fit at the first sample centres (what Lepski's rule compares).

@@ -229,7 +229,7 @@ def _decide(fits, positions: np.ndarray, frame: CloudFrame, opts) -> CloudChoice
         clean_ratio=tuning.clean_ratio, fixed_k=None if opts.scale == "auto" else int(opts.scale),
         workers=opts.workers,
     )
-    return CloudChoices(frame, choice, auto_policy(positions))
+    return CloudChoices(frame, choice, auto_policy(positions, choice.sigma))
 
 
 # ----------------------------------------------------------------------------------------------------
