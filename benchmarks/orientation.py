@@ -53,7 +53,7 @@ Usage::
 
     python benchmarks/orientation.py                        # every model, variant and method
     python benchmarks/orientation.py --models camel,cow --variants clean --methods heatcurv
-    python benchmarks/orientation.py --markdown --coarse-tori
+    python benchmarks/orientation.py --markdown --coarse-tori --plates
 
 ``--data DIR`` picks the cache directory of the models (default
 :func:`support.scans.cgal_cache_dir`). A full run takes about 3
@@ -172,7 +172,32 @@ def load_model(directory: Path, name: str) -> dict:
     thick = np.isinf(thickness(mesh, normals, THIN_SPACINGS * spacing))
     return {"name": name, "points": mesh.vertices[used], "truth": normals[used], "thick": thick[used],
             "spacing": spacing, "diagonal": float(np.linalg.norm(np.ptp(mesh.vertices, axis=0))),
-            "closed": mesh.closed}
+            "closed": mesh.closed, "mesh": mesh}
+
+
+def mesh_winding(mesh, queries: np.ndarray, chunk: int = 64) -> np.ndarray:
+    """The mesh's generalised winding number at ``queries`` (van Oosterom-Strackee solid angles), shape (q,)."""
+    v, f = mesh.vertices, mesh.faces
+    a0, b0, c0 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    out = np.zeros(len(queries))
+    for lo in range(0, len(queries), chunk):
+        q = queries[lo:lo + chunk, None]
+        a, b, c = a0 - q, b0 - q, c0 - q
+        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
+        det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("pfi,pfi->pf", a, b) * lc + np.einsum("pfi,pfi->pf", b, c) * la
+               + np.einsum("pfi,pfi->pf", c, a) * lb)
+        out[lo:lo + chunk] = (2.0 * np.arctan2(det, den)).sum(axis=1) / (4.0 * np.pi)
+    return out
+
+
+def inside_own_solid(model: dict, points: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Points whose outside, a third of a spacing along the mesh's outward normal, is inside the mesh's own solid.
+
+    Where a mesh intersects itself (an arm through a torso) its vertices there lie inside another part:
+    "outward" is not defined, and the truth of those points is doubtful.
+    """
+    return mesh_winding(model["mesh"], points + model["spacing"] / 3.0 * truth) > 0.5
 
 
 def variant(model: dict, kind: str, seed: int = 0):
@@ -241,6 +266,36 @@ def coarse_tori() -> list[list[str]]:
             cells.append(decision_row(f"torus r {r}, {n} points, seed {seed}", sample.points, DECISIONS[-1],
                                       100 * wrong.mean(),
                                       100 * (wrong & reliable).mean()))
+    return cells
+
+
+PLATE_HEAD = ["cloud", "thickness / spacing", "orientation", "layered %", "inward %", "inward & reliable %",
+              "second sheet %", "reliable %", "tiled inward & reliable %"]
+
+
+def plates() -> list[list[str]]:
+    """Flattened ellipsoids 1 x 1 x c lying flat and turned 30/50/20 degrees: in memory and in 4 tiles."""
+    from scipy.spatial.transform import Rotation
+
+    turn = Rotation.from_euler("xyz", (30.0, 50.0, 20.0), degrees=True).as_matrix()
+    cells = []
+    for c in (0.02, 0.04, 0.06, 0.08, 0.15):
+        sample = hs.Ellipsoid(1.0, 1.0, c).sample(20000, "random", seed=0)
+        spacing = float(np.median(cKDTree(sample.points).query(sample.points, k=2)[0][:, 1]))
+        for pose, matrix in (("flat", np.eye(3)), ("turned", turn)):
+            points, truth = sample.points @ matrix.T, sample.normals @ matrix.T
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", heatcurv.HeatcurvWarning)
+                res = heatcurv.estimate(points)
+            inward = np.einsum("ij,ij->i", res.normals, truth) < 0
+            report = res.info["orientation"]
+            tiled_normals, tiled_reliable, _ = run_tiled(points)
+            tiled_inward = np.einsum("ij,ij->i", tiled_normals, truth) < 0
+            cells.append([f"c {c}, {pose}", f"{2 * c / spacing:.1f}", report.mode,
+                          f"{100 * report.policy.layered:.1f}" if report.policy is not None else "-",
+                          f"{100 * inward.mean():.2f}", f"{100 * (inward & res.reliable).mean():.2f}",
+                          f"{100 * res.info['second_sheet'] / len(points):.1f}", f"{100 * res.reliable.mean():.1f}",
+                          f"{100 * (tiled_inward & tiled_reliable).mean():.2f}"])
     return cells
 
 
@@ -386,6 +441,8 @@ def parse_args(argv=None):
     parser.add_argument("--markdown", action="store_true", help="print the tables as Markdown")
     parser.add_argument("--coarse-tori", action="store_true",
                         help="also run tori with a tube a few spacings across (the decision table)")
+    parser.add_argument("--plates", action="store_true",
+                        help="also run thin closed plates lying flat and turned (auto's choice, second sheets)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return parser.parse_args(argv)
 
@@ -421,6 +478,7 @@ def main(argv=None) -> int:
     decisions = []
     for kind in args.variants:
         rows = []
+        own_solid = []
         for model in models:
             points, truth, thick = variant(model, kind)
             results = {}
@@ -430,6 +488,10 @@ def main(argv=None) -> int:
                 r["seconds"] = seconds
                 results[method] = r
                 if method == "heatcurv":
+                    silent = np.flatnonzero(~(np.einsum("ij,ij->i", normals, truth) >= 0) & reliable)
+                    inside = int(inside_own_solid(model, points[silent], truth[silent]).sum()) if silent.size else 0
+                    if inside:
+                        own_solid.append(f"{model['name']} {inside} of {silent.size}")
                     decisions.append(decision_row(f"{model['name']} {kind}", points, DECISIONS[-1], r["wrong"],
                                                   r["wrong_reliable"]))
                 if r["nan"]:
@@ -446,6 +508,13 @@ def main(argv=None) -> int:
         if "open3d" in methods:
             title += " (open3d: the better of its two global signs)"
         print(text_table(title, header_row(methods), cells, args.markdown))
+        if own_solid:
+            notes.append(f"{kind}: heatcurv's inside out and reliable points that lie inside the mesh's own solid (the "
+                         f"mesh intersects itself there; outward is not defined): {', '.join(own_solid)}")
+    if args.plates:
+        print(text_table("thin plates lying flat: ellipsoids 1 x 1 x c, 20 000 random points (truth: the ellipsoid's "
+                         "outward normals; layered: the share auto's sample found over or under another sheet)",
+                         PLATE_HEAD, plates(), args.markdown))
     if decisions:
         print(text_table("heatcurv: closed, undecided or open (the winding number's two shares; closed from 30 % "
                          "agreeing, undecided from 10 % with the outside near 0 on at least 50 %)",

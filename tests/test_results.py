@@ -19,5 +19,5 @@ def test_result_record():
     np.testing.assert_array_equal(res.mean[-3:], res.mean[:3])
     np.testing.assert_allclose(res.area.sum(), 4 * np.pi * 4, rtol=0.005)
     assert res.info["n_distinct"] == 1000 and set(res.info) == {
-        "n_distinct", "area_solve", "scale", "timings", "orientation", "outliers", "resolution"
+        "n_distinct", "area_solve", "scale", "timings", "orientation", "outliers", "second_sheet", "resolution"
     }

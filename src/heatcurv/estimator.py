@@ -646,8 +646,8 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
             timings, whole_cloud: bool = True, rounding=None):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
-    Outliers stand for no measured surface, and a point whose ball holds a second sheet
-    (:func:`heatcurv.sheets.second_sheet`) for no one sheet: area 0, never reliable. The stages
+    Outliers stand for no measured surface, and a point whose ball holds both sides of a thin
+    part (:func:`heatcurv.sheets.second_sheet`) for no one sheet: area 0, never reliable. The stages
     ran in the unit ``prepared.unit`` (a power of two, 1 for all but extreme
     extents): lengths are multiplied by it, curvatures divided, exactly. When
     the points are only a part of the cloud (``whole_cloud`` False), the flags
@@ -657,8 +657,7 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
     """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     unit = prepared.unit
-    # a ball holding two sheets (a thin part's two sides, or a sheet over the point) is no
-    # two-dimensional neighbourhood: no area, and so not reliable
+    # a ball holding both sides of a thin part is no one sheet's neighbourhood: no area, and so not reliable
     sheets = second_sheet(op.points, fitted.normals, nbhd, op.h)
     areas = np.where(outliers.mask | sheets, 0.0, fitted.areas)
     coarse, precision = _precision(op, fitted, rounding)

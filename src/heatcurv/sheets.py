@@ -1,27 +1,28 @@
-"""Points whose neighbourhood holds a second sheet: the other side of a thin part, or a sheet over them.
+"""Points whose ball holds the other side of a thin part: two sheets, not one.
 
 A point's curvature and area come from its ball, read as one sheet of surface
 with the point on it. Where a part is only a few spacings thick (a leg, an ear,
-a thin plate, a wing) the ball also holds the part's other side, and where a
-sheet's side was oriented wrongly another sheet can lie right in front of it.
-Neither is one sheet: the fit mixes two surfaces, the density counts two sides'
-points, and the side the normal points to is no longer backed by the
-neighbourhood. :func:`second_sheet` finds those points from the oriented
-normals alone; they get no area and are not ``reliable``.
+a wing, a thin plate) the ball also holds the part's other side: the fit mixes
+two surfaces and the density counts both sides' points, so neither the
+curvature nor the area is the sheet's. :func:`second_sheet` finds those points
+from the oriented normals; they get no area and are not ``reliable``.
 
-A neighbour ``q`` of a point ``p`` (normals ``n_p``, ``n_q``) lies on a second
-sheet when it is
+A neighbour ``q`` of a point ``p`` (normals ``n_p``, ``n_q``) lies on the other
+side when it is
 
 * straight over or under ``p``: its height ``h = (q - p) . n_p`` is larger
   than its distance from ``p``'s normal line, and larger than half ``p``'s
   spacing (a neighbour on the same sheet lies in or near the tangent plane:
   more than 45 degrees out of it takes a quarter turn of the surface between
   them, which a resolved surface does not make within a few spacings), and
-* on a sheet parallel to ``p``'s (``|n_p . n_q| >`` :data:`SHEET_ALIGNED`), and
-* either facing the other way (``n_p . n_q < 0``: ``p`` and ``q`` are the two
-  sides of a thin part, however both are oriented) or lying in front of ``p``
-  (``h > 0``: a sheet facing the same way right over ``p``, so ``p`` faces
-  into the part it bounds, or a stray layer in front of the surface).
+* facing the other way: ``n_p . n_q < -`` :data:`SHEET_ALIGNED` (the two sides
+  of a thin part face away from each other, and both turn together when the
+  part is inside out, so the test holds whichever side they were given).
+
+Noise scatters one sheet's points over and under each other, but leaves their
+normals alike, so it does not trip the test. A sheet lying right over a point
+and facing the same way (a part whose one side alone is inside out, a stray
+layer) is not counted: under noise it cannot be told from the scatter.
 """
 
 from __future__ import annotations
@@ -35,14 +36,14 @@ __all__ = ["SHEET_ALIGNED", "SHEET_HEIGHT", "SHEET_NEIGHBOURS", "second_sheet"]
 #: Nearest neighbours of each point looked at: the inner part of the operator's ball (60), where a
 #: second sheet changes the fit most.
 SHEET_NEIGHBOURS = 20
-#: Smallest height over the tangent plane, in the point's spacings, of a neighbour on a second sheet.
+#: Smallest height over the tangent plane, in the point's spacings, of a neighbour on the other side.
 SHEET_HEIGHT = 0.5
-#: ``|n_p . n_q|`` above which two normals lie on one axis (within 60 degrees).
+#: ``-n_p . n_q`` above which two normals face away from each other (within 60 degrees of opposite).
 SHEET_ALIGNED = 0.5
 
 
 def second_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, spacing: np.ndarray) -> np.ndarray:
-    """Points with a neighbour on a second sheet (module docstring), shape (n,), bool.
+    """Points with a neighbour on the other side of their part (module docstring), shape (n,), bool.
 
     Parameters
     ----------
@@ -65,8 +66,8 @@ def second_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, s
     n_p = normals[rows]
     height = np.einsum("ij,ij->i", offset, n_p)
     lateral2 = np.maximum(np.einsum("ij,ij->i", offset, offset) - height**2, 0.0)
-    aligned = np.einsum("ij,ij->i", normals[cols], n_p)
+    facing = np.einsum("ij,ij->i", normals[cols], n_p)
     with np.errstate(invalid="ignore"):
-        over = (height**2 > lateral2) & (np.abs(height) > SHEET_HEIGHT * spacing[rows])
-        second = over & (np.abs(aligned) > SHEET_ALIGNED) & ((aligned < 0) | (height > 0))
-    return np.bincount(rows[second], minlength=nbhd.n_points) > 0
+        other_side = ((height**2 > lateral2) & (np.abs(height) > SHEET_HEIGHT * spacing[rows])
+                      & (facing < -SHEET_ALIGNED))
+    return np.bincount(rows[other_side], minlength=nbhd.n_points) > 0

@@ -210,6 +210,10 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
         why = ", or a side the winding number contradicts" if orientation.unsupported else ""
         log.info(f"{orientation.ambiguous} point(s) have no consistent side for their normal (two sheets closer "
                  f"than the kernel, or no way to tell up from down{why}): flagged unreliable")
+    sheets = res.info.get("second_sheet", 0)
+    if sheets:
+        log.info(f"{sheets} point(s) have both sides of a thin part in their neighbourhood (a part a few spacings "
+                 "thick): no area, flagged unreliable")
     if log.verbose:
         _report_details(res, log)
     return res
