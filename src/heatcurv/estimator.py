@@ -258,9 +258,11 @@ def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices, normals: np.
 
     Decided on the scale choice's sample centres (the ``n_sub`` points of
     smallest keys) and the noise the choice measures there
-    (:func:`heatcurv.scale.centre_noise`, on the unoriented ``normals``), or
-    taken from ``choices`` (a tiled run's survey decided it on the same
-    centres of the whole cloud).
+    (:func:`heatcurv.scale.centre_noise`: the same fit the choice makes
+    next, on the unoriented ``normals``, shape (m, 3), with no weight on the
+    ``outlier`` points, shape (m,), bool), or taken from ``choices`` (a tiled
+    run's survey decided it on the same centres of the whole cloud, with the
+    choice's ``sigma``).
     """
     if choices is not None and getattr(choices, "orientation", None) is not None:
         return choices.orientation
@@ -658,7 +660,7 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     unit = prepared.unit
     # a ball holding both sides of a thin part is no one sheet's neighbourhood: no area, and so not reliable
-    sheets = second_sheet(op.points, fitted.normals, nbhd, op.h)
+    sheets = second_sheet(op.points, fitted.normals, nbhd, op.h) & ~outliers.mask
     areas = np.where(outliers.mask | sheets, 0.0, fitted.areas)
     coarse, precision = _precision(op, fitted, rounding)
     inputs = _reliability_inputs(op, fitted, ball_shape, orientation, outliers, areas, coarse)
@@ -689,7 +691,7 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
                                 "normals": back(orientation.normals), "weight": weight}
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
-        "outliers": outliers.count, "second_sheet": int(np.count_nonzero(back(sheets))), "resolution": resolution,
+        "outliers": outliers.count, "second_sheet": int(np.count_nonzero(sheets)), "resolution": resolution,
         **extra,
     }
     if precision is not None:

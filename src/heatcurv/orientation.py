@@ -90,6 +90,7 @@ from .neighbourhood import Neighbourhood, knn_neighbourhood
 __all__ = [
     "ORIENT_MODES", "ANCHOR_COSINE", "GRAPH_NEIGHBOURS", "LOCAL_HOPS", "Orientation", "OrientationReport", "orient",
     "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy", "AUTO_SHARE", "AUTO_DOWN_SHARE",
+    "AUTO_LAYERED_SHARE", "AUTO_LAYER_HEIGHT", "AUTO_LAYER_NOISE",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
@@ -127,7 +128,8 @@ AUTO_DOWN_SHARE = 0.005
 AUTO_FLATNESS = 0.15
 #: Nearest sample points each sample normal and the sample's spanning tree use.
 AUTO_NEIGHBOURS = 16
-#: ... and at most this share of its flat, near-horizontal points has another sample point straight above
+#: ``orient="auto"`` orients ``"up"`` only when, besides the two shares above, at most this share of the
+#: sample's flat, near-horizontal points has another sample point straight above
 #: or below it (within the median sample spacing sideways, more than 45 degrees out of its plane, and
 #: further along its normal than :data:`AUTO_LAYER_HEIGHT` sample spacings and :data:`AUTO_LAYER_NOISE` times
 #: the cloud's noise): a thin closed object lying flat (a plate, a lid) is two sheets, one over the other,
@@ -386,7 +388,7 @@ def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, n
     Returns
     -------
     float
-        0 when no point is flat.
+        0 when fewer than two points are flat.
     """
     rows = np.flatnonzero(flat)
     if rows.size < 2:

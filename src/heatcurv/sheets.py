@@ -7,8 +7,8 @@ two surfaces and the density counts both sides' points, so neither the
 curvature nor the area is the sheet's. :func:`second_sheet` finds those points
 from the oriented normals; they get no area and are not ``reliable``.
 
-A neighbour ``q`` of a point ``p`` (normals ``n_p``, ``n_q``) lies on the other
-side when it is
+A neighbour ``q`` among the nearest of a point ``p`` (normals ``n_p``, ``n_q``)
+lies on the other side when it is
 
 * straight over or under ``p``: its height ``h = (q - p) . n_p`` is larger
   than its distance from ``p``'s normal line, and larger than half ``p``'s
@@ -33,8 +33,9 @@ from .neighbourhood import Neighbourhood
 
 __all__ = ["SHEET_ALIGNED", "SHEET_HEIGHT", "SHEET_NEIGHBOURS", "second_sheet"]
 
-#: Nearest neighbours of each point looked at: the inner part of the operator's ball (60), where a
-#: second sheet changes the fit most.
+#: Nearest neighbours of each point looked at: the inner third of the operator's ball (60 by default,
+#: radius about ``2 h``), where the fit's tapered heat weights are; beyond about ``1.2 h`` they fall
+#: under a tenth of the centre's.
 SHEET_NEIGHBOURS = 20
 #: Smallest height over the tangent plane, in the point's spacings, of a neighbour on the other side.
 SHEET_HEIGHT = 0.5
