@@ -27,6 +27,7 @@ from heatcurv.mean_curvature import mean_curvature_normal
 from heatcurv.neighbourhood import Neighbourhood, knn_neighbourhood
 from heatcurv.normals import orient_normals, pca_normals
 from heatcurv.outliers import find_outliers, neighbour_medians
+from heatcurv.sheets import second_sheet
 from reference import chordfit as reference_chordfit
 from reference import segment as reference
 
@@ -152,6 +153,10 @@ def test_stages_give_the_same_with_the_references(torus_cloud, monkeypatch):
     areas = density_areas(nb)
     h = nb.radius / 2
     scrambled = normals * np.where(np.arange(6000) % 3 == 0, -1.0, 1.0)[:, None]
+    # the torus and a copy of it just inside, facing the other way: the two sides of a thin shell
+    shell = np.vstack([pts, pts - 0.8 * np.median(h) * normals])
+    shell_normals = np.vstack([normals, -normals])
+    shell_nb = knn_neighbourhood(shell, 40)
 
     def stages():
         return dict(
@@ -166,6 +171,7 @@ def test_stages_give_the_same_with_the_references(torus_cloud, monkeypatch):
             outliers=find_outliers(pts, nb).mask,
             medians=neighbour_medians(areas, nb),  # (find_outliers needs medians only for rows it cannot count)
             offset_centres=centroid_offset(pts, nb.rows_slice(10, 60), normals[10:60], centres=pts[10:60] + 0.01),
+            sheets=second_sheet(shell, shell_normals, shell_nb, shell_nb.radius / 2),
         )
 
     b = stages()
@@ -180,7 +186,8 @@ def test_stages_give_the_same_with_the_references(torus_cloud, monkeypatch):
         np.testing.assert_allclose(b[key][1], a[key][1], rtol=1e-12, atol=1e-12)
     expected = np.exp(-(nb.distances**2) / np.repeat(h, 40) ** 2) * ball_taper(nb) * areas[nb.indices]
     np.testing.assert_allclose(a["fit_weights"], expected, rtol=1e-13)
-    assert np.array_equal(a["oriented"], b["oriented"])
+    assert np.array_equal(a["oriented"], b["oriented"]) and np.array_equal(a["sheets"], b["sheets"])
+    assert a["sheets"].mean() > 0.5
     assert np.array_equal(a["outliers"], b["outliers"]) and np.array_equal(a["medians"], b["medians"])
     for key in ("K", "K_given", "offset", "offset_centres", "fit_weights"):
         np.testing.assert_allclose(b[key], a[key], rtol=1e-10, atol=1e-12 * np.abs(a[key]).max())
@@ -261,3 +268,14 @@ def test_orientation_conflicts(cloud, request):
     got = compiled.orientation_conflicts(*args)
     np.testing.assert_array_equal(got, reference.orientation_conflicts(*args))
     assert got[:, 1].sum() > 0
+
+
+@pytest.mark.parametrize("cloud", ["torus_cloud", "ball_cloud"])
+def test_opposite_sheet_counts(cloud, request):
+    pts, normals, nb = request.getfixturevalue(cloud)
+    signs = np.where(np.arange(len(pts)) % 3 == 0, -1.0, 1.0)[:, None]  # some neighbours face the other way
+    reach = 0.8 * nb.radius
+    args = pts, normals * signs, nb.indptr, nb.indices, nb.distances, reach, 0.05 * nb.radius, 0.5
+    got = compiled.opposite_sheet_counts(*args)
+    assert got.dtype == np.int64
+    np.testing.assert_array_equal(got, reference.opposite_sheet_counts(*args))

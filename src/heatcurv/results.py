@@ -31,12 +31,15 @@ class CurvatureResult:
         Unit principal directions, tangent, ``d1 x d2 = normals``. Their sign
         is arbitrary; at umbilic points (sphere, plane) any tangent pair.
     area : ndarray, shape (n,)
-        Per-point area, length^2; the sum estimates the surface area.
+        Per-point area, length^2; the sum estimates the surface area. 0 for
+        outliers and for points whose ball holds both sides of a thin part
+        (:func:`heatcurv.sheets.second_sheet`, ``info["second_sheet"]``).
     reliable : ndarray, shape (n,), bool
         False where the values are not to be trusted: the point's ball held
         too few neighbours (nearest neighbours were used instead), its
         neighbourhood is not surface-like (PCA planarity < 0.05), the tensor
-        fit was ill-posed, its area came out non-positive, it is a border
+        fit was ill-posed, its area came out non-positive (or is 0: both
+        sides of a thin part in its ball), it is a border
         point, an outlier, its normal has no consistent side
         (``info["orientation"]``), the chord fit's residual is ten times the
         cloud's median (the ball holds more than one smooth surface: a sharp

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._kernels import segment as kernels
 from .neighbourhood import Neighbourhood
 
 __all__ = ["SHEET_ALIGNED", "SHEET_HEIGHT", "SHEET_NEIGHBOURS", "second_sheet"]
@@ -61,14 +62,12 @@ def second_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, s
     -------
     ndarray of bool, shape (n,)
     """
-    near = nbhd.nearest(SHEET_NEIGHBOURS)
-    rows, cols = near.rows, near.indices
-    offset = points[cols] - points[rows]
-    n_p = normals[rows]
-    height = np.einsum("ij,ij->i", offset, n_p)
-    lateral2 = np.maximum(np.einsum("ij,ij->i", offset, offset) - height**2, 0.0)
-    facing = np.einsum("ij,ij->i", normals[cols], n_p)
-    with np.errstate(invalid="ignore"):
-        other_side = ((height**2 > lateral2) & (np.abs(height) > SHEET_HEIGHT * spacing[rows])
-                      & (facing < -SHEET_ALIGNED))
-    return np.bincount(rows[other_side], minlength=nbhd.n_points) > 0
+    counts = nbhd.counts
+    if nbhd.by_distance and counts.size:  # k-NN rows, nearest first: the k-th's distance
+        last = nbhd.indptr[:-1] + np.minimum(counts, SHEET_NEIGHBOURS) - 1
+        reach = np.where(counts > 0, nbhd.distances[np.maximum(last, 0)] if nbhd.n_pairs else 0.0, 0.0)
+    else:
+        reach = nbhd.nearest(SHEET_NEIGHBOURS).radius
+    found = kernels.opposite_sheet_counts(points, normals, nbhd.indptr, nbhd.indices, nbhd.distances, reach,
+                                          SHEET_HEIGHT * np.asarray(spacing, dtype=np.float64), SHEET_ALIGNED)
+    return found > 0

@@ -138,3 +138,13 @@ def orientation_conflicts(points, normals, indptr, indices, distances, in_plane,
     return np.column_stack([
         _segment_sum(indptr, compared.astype(float)), _segment_sum(indptr, (compared & (dot < 0)).astype(float))
     ])
+
+
+def opposite_sheet_counts(points, normals, indptr, indices, distances, reach, min_height, opposite):
+    """Neighbours within reach, over or under the row's point, facing the other way, per row."""
+    rows = _rows(indptr)
+    dot = np.einsum("ij,ij->i", normals[rows], normals[indices])
+    height = np.einsum("ij,ij->i", normals[rows], points[indices] - points[rows])
+    counted = ((distances <= reach[rows]) & (dot < -opposite) & (np.abs(height) > min_height[rows])
+               & (2.0 * height**2 > distances**2))
+    return _segment_sum(indptr, counted.astype(float)).astype(np.int64)

@@ -35,6 +35,7 @@ __all__ = [
     "counts_below",
     "same_label_counts",
     "orientation_conflicts",
+    "opposite_sheet_counts",
 ]
 
 
@@ -464,3 +465,40 @@ def _orientation_conflicts(row0, row1, points, normals, indptr, indices, distanc
                     against += 1.0
         out[i, 0] = compared
         out[i, 1] = against
+
+
+def opposite_sheet_counts(points, normals, indptr, indices, distances, reach, min_height, opposite):
+    """Per row ``i``, its neighbours on the other side of a thin part (heatcurv.sheets), shape (n,), int64.
+
+    Neighbour ``j`` within ``reach[i]`` of ``i`` counts when its height
+    ``h = n_i . (xj - xi)`` exceeds both its distance from ``i``'s normal line
+    and ``min_height[i]``, and ``n_i . n_j < -opposite``.
+    """
+    points, normals = as_floats(points), as_floats(normals)
+    indptr, distances = as_pointers(indptr), as_floats(distances)
+    out = np.empty(indptr.shape[0] - 1, dtype=np.int64)
+    args = (points, normals, indptr, as_indices(indices, normals.shape[0]), distances, as_floats(reach),
+            as_floats(min_height), float(opposite))
+    parallel_rows(_opposite_sheet_counts, out.shape[0], *args, out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _opposite_sheet_counts(row0, row1, points, normals, indptr, indices, distances, reach, min_height, opposite,
+                           out):
+    for i in range(row0, row1):
+        count = 0
+        for p in range(indptr[i], indptr[i + 1]):
+            if distances[p] > reach[i]:
+                continue
+            j = indices[p]
+            dot = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
+            if not dot < -opposite:  # most neighbours: their position is not read
+                continue
+            height = 0.0
+            for a in range(3):
+                height += normals[i, a] * (points[j, a] - points[i, a])
+            # over or under i (more than 45 degrees out of its tangent plane): h^2 > |d|^2 - h^2
+            if abs(height) > min_height[i] and 2.0 * height * height > distances[p] * distances[p]:
+                count += 1
+        out[i] = count
