@@ -25,15 +25,20 @@ def _flags(points, normals):
     return second_sheet(points, normals, nbhd, spacing), float(np.median(spacing))
 
 
+def _sheets_apart(gap, bottom_up):
+    """The two squares ``gap`` spacings ``h`` apart (``h`` of one square alone) and their flags."""
+    points, normals = _two_sheets(0.0, bottom_up)
+    top = np.arange(len(points)) < len(points) // 2
+    _, h = _flags(points[top], normals[top])
+    points[top, 2] = gap * h
+    return points, _flags(points, normals)[0]
+
+
 def test_the_two_sides_of_a_plate_under_a_spacing_thick_are_flagged():
     # a point is flagged when a point of the other side lies within 45 degrees of its normal among its
     # 20 nearest and higher than h / 2: measured 99.4 % of the interior points at a gap of 0.75 h (98 %
     # at h / 2, 72 % at h, 14 % at 1.25 h, none at h / 4 and from 2.5 h)
-    points, normals = _two_sheets(0.0, bottom_up=False)
-    top = np.arange(len(points)) < len(points) // 2
-    _, h = _flags(points[top], normals[top])
-    points[top, 2] = 0.75 * h
-    flagged, _ = _flags(points, normals)
+    points, flagged = _sheets_apart(0.75, bottom_up=False)
     interior = np.all((points[:, :2] > 0.1) & (points[:, :2] < 0.9), axis=1)
     assert flagged[interior].mean() >= 0.98
 
@@ -41,11 +46,7 @@ def test_the_two_sides_of_a_plate_under_a_spacing_thick_are_flagged():
 def test_sheets_facing_the_same_way_are_not_flagged():
     # one over the other and facing alike, they look like one noisy sheet: noise scatters points over
     # each other with their normals alike, and is no reason to drop an area
-    points, normals = _two_sheets(0.0, bottom_up=True)
-    top = np.arange(len(points)) < len(points) // 2
-    _, h = _flags(points[top], normals[top])
-    points[top, 2] = 0.75 * h
-    flagged, _ = _flags(points, normals)
+    _, flagged = _sheets_apart(0.75, bottom_up=True)
     assert not flagged.any()
 
 
@@ -57,8 +58,7 @@ def test_a_noisy_sheet_and_sheets_far_apart_are_not():
     noisy = points[top] + np.random.default_rng(1).normal(scale=[0.0, 0.0, h / 2], size=(top.sum(), 3))
     assert not _flags(noisy, normals[top])[0].any()
     # the two sides 3 h apart: beyond the 20 nearest (measured: 5 points flagged at 2 h, at the edges; none from 2.5 h)
-    points[top, 2] = 3.0 * h
-    assert not _flags(points, normals)[0].any()
+    assert not _sheets_apart(3.0, bottom_up=False)[1].any()
 
 
 def test_curved_resolved_surfaces_are_one_sheet():

@@ -33,6 +33,7 @@ from .kernel import TAPER_START, area_normalisation, flat_top
 from .neighbourhood import Neighbourhood
 
 __all__ = [
+    "fit_areas",
     "area_matrix", "point_areas", "AreaSolve", "density_areas", "taper_sums", "ball_area_factor", "cut_ball_coverage",
 ]
 
@@ -57,6 +58,12 @@ class AreaSolve:
     iterations: int
     residual: float
     converged: bool
+
+
+def fit_areas(areas: np.ndarray, excluded: np.ndarray) -> np.ndarray:
+    """The areas weighting a fit, shape (n,): negative ones (the paper's ``H A = 1`` on irregular samples) 0,
+    because a least-squares fit with negative weights has no minimum, and ``excluded`` points (outliers) 0."""
+    return np.where(excluded, 0.0, np.maximum(areas, 0.0))
 
 
 def area_matrix(nbhd: Neighbourhood, weights: np.ndarray, h: np.ndarray, m: float = 0.25) -> sp.csr_matrix:

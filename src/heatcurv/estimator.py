@@ -32,7 +32,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from .anchors import anchor_normals, anchor_rows, anchors_per_ball, carry_degree, carry_fits, fit_anchors
-from .areas import ball_area_factor, cut_ball_coverage, density_areas
+from .areas import ball_area_factor, cut_ball_coverage, density_areas, fit_areas
 from .backend import threads
 from .border import BORDER_OFFSET, border_points, centroid_offset
 from .choices import frame_of
@@ -268,9 +268,8 @@ def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices, normals: np.
         return choices.orientation
     opts = op.options
     tuning = opts.scale_tuning
-    fit_areas = np.where(outlier, 0.0, np.maximum(op.areas, 0.0))
-    noise = centre_noise(op.points, op.tree, normals, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
-                         n_sub=tuning.n_sub, seed=tuning.seed, keys=keys, workers=opts.workers)
+    noise = centre_noise(op.points, op.tree, normals, fit_areas(op.areas, outlier), base_k=int(opts.neighbours),
+                         alpha=opts.alpha, n_sub=tuning.n_sub, seed=tuning.seed, keys=keys, workers=opts.workers)
     return auto_policy(op.points[key_sample(keys, tuning.n_sub, tuning.seed)], noise)
 
 
@@ -363,7 +362,7 @@ def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, ou
         # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
         # samples can give negative A_j; a least-squares objective with negative
         # weights has no minimum, so those neighbours get weight zero.
-        pair_w = op.weights * nbhd.distances**2 * np.where(outlier, 0.0, np.maximum(op.areas, 0.0))[nbhd.indices]
+        pair_w = op.weights * nbhd.distances**2 * fit_areas(op.areas, outlier)[nbhd.indices]
         pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
         if opts.fit == "unconstrained":
             mean = pc.mean
@@ -415,28 +414,27 @@ def _default_fit_stages(
     opts, X, base = op.options, op.points, op.neighbourhood
     tuning = opts.scale_tuning
     n = X.shape[0]
-    # fit weights W_ij A_j: negative areas (the paper's H A = 1 on irregular samples) get weight
-    # zero, as in the paper's fit; the density areas are positive by construction; outliers weigh nothing
-    fit_areas = np.where(outlier, 0.0, np.maximum(op.areas, 0.0))
+    # the areas of the fit weights W_ij A_j (the density areas are positive by construction)
+    weights_areas = fit_areas(op.areas, outlier)
     fixed_radius = opts.radius is not None
     with clock.stage("kernel_choice"):
         if fixed_radius:  # radius=: the operator's balls are the fit's; only the fit's form is chosen
             choice = select_form(
-                X, base, nrm, fit_areas, alpha=opts.alpha, n_sub=tuning.n_sub, clean_ratio=tuning.clean_ratio,
+                X, base, nrm, weights_areas, alpha=opts.alpha, n_sub=tuning.n_sub, clean_ratio=tuning.clean_ratio,
                 seed=tuning.seed, keys=keys,
             )
         elif chosen is not None:
             choice = chosen.at_points(X, opts.workers)
         else:
             choice = select_scale(
-                X, op.tree, nrm, fit_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
+                X, op.tree, nrm, weights_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
                 fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, keys=keys,
                 n_cloud=n_cloud, **asdict(tuning),
             )
     scale = choice.scale
     if not fixed_radius and (scale.denoise or scale.k > tuning.k_fit):
         # noisy clouds, and kernels too wide to fit at every point: fitted at anchors
-        return _anchored_fit_stages(op, nrm, keep_normals, fit_areas, choice, keys, clock, mode, towards, outlier)
+        return _anchored_fit_stages(op, nrm, keep_normals, weights_areas, choice, keys, clock, mode, towards, outlier)
     # the operator's neighbourhood already is the kernel's when the density ball holds k points
     reuse_base = fixed_radius or (opts.spacing == "density" and scale.k == int(opts.neighbours))
     # a kernel wider than the operator's counts its own density for the areas
@@ -455,7 +453,7 @@ def _default_fit_stages(
             )
         with clock.stage("fit_weights", report=False):
             # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
-            weights = tapered_heat_weights(nbhd, nbhd.radius / opts.alpha, fit_areas)
+            weights = tapered_heat_weights(nbhd, nbhd.radius / opts.alpha, weights_areas)
         start = nrm[lo:hi]
         if not keep_normals:
             with clock.stage("normal_refinement", report=False):

@@ -120,6 +120,16 @@ class Neighbourhood:
             by_distance=all(p.by_distance for p in parts),
         )
 
+    def kth_distance(self, k: int) -> np.ndarray:
+        """Distance of each row's ``k``-th nearest stored neighbour (its farthest if fewer; 0 if none), shape (n,)."""
+        counts = self.counts
+        if self.n_pairs == 0:
+            return np.zeros(self.n_points)
+        if not (self.by_distance or self._sorted_by_distance()):
+            return np.where(counts > 0, self.nearest(k).radius, 0.0)
+        last = self.indptr[:-1] + np.minimum(counts, k) - 1  # rows nearest first: no pairs are copied
+        return np.where(counts > 0, self.distances[np.maximum(last, 0)], 0.0)
+
     def nearest(self, k: int) -> Neighbourhood:
         """Each row's ``k`` nearest stored neighbours (all of a shorter row), nearest first.
 

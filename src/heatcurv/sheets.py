@@ -62,12 +62,7 @@ def second_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, s
     -------
     ndarray of bool, shape (n,)
     """
-    counts = nbhd.counts
-    if nbhd.by_distance and counts.size:  # k-NN rows, nearest first: the k-th's distance
-        last = nbhd.indptr[:-1] + np.minimum(counts, SHEET_NEIGHBOURS) - 1
-        reach = np.where(counts > 0, nbhd.distances[np.maximum(last, 0)] if nbhd.n_pairs else 0.0, 0.0)
-    else:
-        reach = nbhd.nearest(SHEET_NEIGHBOURS).radius
+    reach = nbhd.kth_distance(SHEET_NEIGHBOURS)
     found = kernels.opposite_sheet_counts(points, normals, nbhd.indptr, nbhd.indices, nbhd.distances, reach,
                                           SHEET_HEIGHT * np.asarray(spacing, dtype=np.float64), SHEET_ALIGNED)
     return found > 0

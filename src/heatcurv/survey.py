@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .areas import fit_areas
 from .choices import CloudChoices, CloudFrame
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood
@@ -150,12 +151,12 @@ def survey_part(points, core, frame: CloudFrame, **options) -> CentreSurvey:
     keys = geometric_keys(X, base, frame)
     outliers = find_outliers(X, base)
     normals, _ = pca_normals(X, base, taper=opts.taper)
-    fit_areas = np.where(outliers.mask, 0.0, np.maximum(op.areas, 0.0))
     ladder = _ladder(int(opts.neighbours), tuning.max_k, frame.n_points)
     q = min(tuning.n_sub, frame.n_points)
     sizes = level_sizes(ladder, q)
     rows = _candidate_rows(keys, core_rows, q, tuning.seed)
-    fitter = CentreFitter(X, op.tree, normals[rows], fit_areas, rows, alpha=opts.alpha, workers=opts.workers)
+    fitter = CentreFitter(X, op.tree, normals[rows], fit_areas(op.areas, outliers.mask), rows, alpha=opts.alpha,
+                          workers=opts.workers)
     base_k = int(opts.neighbours)
     fits = {Scale(base_k, False).label: fitter(Scale(base_k, False), min(q, rows.shape[0]))}
     widest = np.zeros(rows.shape[0])
@@ -455,8 +456,8 @@ def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, levels: int
         raise HeatcurvError("a survey centre is missing from its tile's points (the scratch files changed?)")
     outliers = find_outliers(X, base)
     normals, _ = pca_normals(X, base, taper=opts.taper)
-    fit_areas = np.where(outliers.mask, 0.0, np.maximum(op.areas, 0.0))
-    fitter = CentreFitter(X, op.tree, normals[rows], fit_areas, rows, alpha=opts.alpha, workers=opts.workers)
+    fitter = CentreFitter(X, op.tree, normals[rows], fit_areas(op.areas, outliers.mask), rows, alpha=opts.alpha,
+                          workers=opts.workers)
     base_k = int(opts.neighbours)
     fits = {Scale(base_k, False).label: fitter(Scale(base_k, False), places.shape[0])}
     widest = np.zeros(places.shape[0])
