@@ -40,7 +40,7 @@ ROW_CORES = {
     "_centroid_offsets", "_smallest_eigenvectors", "_assemble_normal_equations", "_weighted_height_residual",
     "_assemble_full_model", "_residual_full_model", "_solve_normal_equations", "_neighbour_medians",
     "_counts_below", "_same_label_counts", "_orientation_conflicts", "_two_height_residuals",
-    "_two_residuals_full_model", "_opposite_sheet_counts",
+    "_two_residuals_full_model", "_opposite_sheet_counts", "_flagged_within", "_quadric_residual_moments",
 }
 #: The chord fit's general cores, for fits without the tilt or the cubic terms: the estimator runs
 #: the full model's cores only, so these compile only when such a fit is asked for.

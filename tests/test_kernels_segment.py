@@ -279,3 +279,47 @@ def test_opposite_sheet_counts(cloud, request):
     got = compiled.opposite_sheet_counts(*args)
     assert got.dtype == np.int64
     np.testing.assert_array_equal(got, reference.opposite_sheet_counts(*args))
+
+
+@pytest.mark.parametrize("cloud", ["torus_cloud", "ball_cloud"])
+def test_flagged_within(cloud, request):
+    pts, _, nb = request.getfixturevalue(cloud)
+    flags = np.arange(len(pts)) % 3 == 0
+    reach = 0.8 * nb.radius
+    got = compiled.flagged_within(flags, nb.indptr, nb.indices, nb.distances, reach)
+    assert got.dtype == np.int64
+    np.testing.assert_array_equal(got, reference.flagged_within(flags, nb.indptr, nb.indices, nb.distances, reach))
+    assert 0 < got[:, 1].sum() < got[:, 0].sum()
+
+
+@pytest.mark.parametrize("cloud", ["torus_cloud", "ball_cloud"])
+def test_quadric_residual_moments(cloud, request):
+    pts, normals, nb = request.getfixturevalue(cloud)
+    normals = np.array(normals, dtype=np.float64)
+    normals[7] = np.nan  # no normal: no fit
+    scale = nb.radius / 2
+    got = compiled.quadric_residual_moments(pts, normals, nb.indptr, nb.indices, scale)
+    want = reference.quadric_residual_moments(pts, normals, nb.indptr, nb.indices, scale)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    assert np.isnan(got[7]).all()
+    # the normal equations against a least-squares solver: rounding of the fit's residuals
+    np.testing.assert_allclose(got[:, 0], want[:, 0], rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(got[:, 1], want[:, 1], rtol=1e-5)
+
+
+def test_quadric_residual_moments_of_exact_shapes():
+    # on a quadric the residual is rounding; two layers of equal size about the fitted mid surface give
+    # residuals of +-d: a root mean square of d and a kurtosis of 1
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-1.0, 1.0, size=(400, 2))
+    z = 0.3 * xy[:, 0] ** 2 - 0.2 * xy[:, 0] * xy[:, 1] + 0.1 * xy[:, 1] ** 2 + 0.05 * xy[:, 0]
+    points = np.column_stack([xy, z])
+    indptr = np.array([0, 399], dtype=np.int64)
+    normals = np.array([[0.0, 0.0, 1.0]])
+    got = compiled.quadric_residual_moments(points, normals, indptr, np.arange(1, 400), np.ones(1))
+    assert got[0, 0] < 1e-12
+    # every (x, y) once in each layer, the row's point included
+    xy[0] = 0.0
+    layers = np.vstack([np.column_stack([xy[:200], np.full(200, z)]) for z in (0.1, -0.1)])
+    got = compiled.quadric_residual_moments(layers, normals, indptr, np.arange(1, 400), np.ones(1))
+    assert got[0, 0] == pytest.approx(0.1, rel=1e-9) and got[0, 1] == pytest.approx(1.0, rel=1e-9)

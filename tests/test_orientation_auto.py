@@ -6,7 +6,7 @@ from scipy.spatial.transform import Rotation
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.orientation import AUTO_DOWN_SHARE, AUTO_LAYERED_SHARE, AUTO_SHARE, auto_policy
+from heatcurv.orientation import AUTO_DOWN_SHARE, AUTO_LAYERED_SHARE, AUTO_SHARE, AUTO_SPLIT_SHARE, auto_policy
 
 
 def _sample(points, size=2000, seed=0):
@@ -157,12 +157,28 @@ def test_a_thin_plate_lying_flat_is_closed_not_terrain(thickness):
     assert np.mean(inward & result.reliable) <= 5e-4
 
 
+def test_a_plate_too_thin_for_the_layer_test_is_closed_not_terrain():
+    # an ellipsoid 1 x 1 x 0.03 lying flat, 1.9 spacings thick: the noise the kernel choice measures is
+    # the gap between its faces, so the layer test's noise floor hides them (0.9 % layered), and "up"
+    # turned the bottom face inside out: 38 % of the points inward and reliable. Its sample's balls hold
+    # both faces: their residuals split in two layers (measured 71 % of the sample; terrain at most 2 %)
+    sample = surfaces.Ellipsoid(1.0, 1.0, 0.03).sample(20000, "random", seed=0)
+    result = heatcurv.estimate(sample.points)
+    policy = result.info["orientation"].policy
+    assert policy.mode == "outward" and policy.layered <= AUTO_LAYERED_SHARE and policy.split > AUTO_SPLIT_SHARE
+    # outward, it is closed (the winding number): measured 6.1 % inward, none of them reliable
+    inward = np.einsum("ij,ij->i", result.normals, sample.normals) < 0
+    assert inward.mean() <= 0.12
+    assert np.mean(inward & result.reliable) <= 5e-4
+
+
 @pytest.mark.parametrize("name", sorted(OVER_THE_GROUND))
 def test_terrain_is_one_sheet_seen_from_above(name):
     # measured: at most 0.6 % of the flat sample points over or under another sheet (the tile's walls),
-    # without the noise floor
+    # without the noise floor, and at most 1.9 % of the sample with balls split in two layers
     policy = auto_policy(_sample(OVER_THE_GROUND[name]()))
     assert policy.layered <= 0.02
+    assert policy.split <= 0.05
 
 
 def test_noise_is_not_a_second_sheet():
@@ -174,6 +190,8 @@ def test_noise_is_not_a_second_sheet():
     result = heatcurv.estimate(points)
     assert result.info["orientation"].mode == "up"
     assert result.info["orientation"].policy.layered <= 0.02
+    # its noise is one normal group, not two layers: measured 5 % of the sample's balls look split
+    assert result.info["orientation"].policy.split <= 0.1
 
 
 def test_a_tiled_run_takes_a_thin_plate_for_closed_too(tmp_path):

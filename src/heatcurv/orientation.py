@@ -86,11 +86,12 @@ from ._kernels import segment as kernels
 from .enclosure import enclose, patches, sampled_sources
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood, knn_neighbourhood
+from .sheets import LAYER_KURTOSIS, LAYER_RESIDUAL
 
 __all__ = [
     "ORIENT_MODES", "ANCHOR_COSINE", "GRAPH_NEIGHBOURS", "LOCAL_HOPS", "Orientation", "OrientationReport", "orient",
     "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy", "AUTO_SHARE", "AUTO_DOWN_SHARE",
-    "AUTO_LAYERED_SHARE", "AUTO_LAYER_HEIGHT", "AUTO_LAYER_NOISE",
+    "AUTO_LAYERED_SHARE", "AUTO_LAYER_HEIGHT", "AUTO_LAYER_NOISE", "AUTO_SPLIT_SHARE", "AUTO_SPLIT_NEIGHBOURS",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
@@ -141,6 +142,16 @@ AUTO_LAYER_HEIGHT = 0.5
 #: Smallest height of a second sheet over a sample point, in units of the cloud's noise (the scale choice's
 #: ``sigma``): noise scatters a sheet's sample points over and under each other.
 AUTO_LAYER_NOISE = 3.0
+#: ``orient="auto"`` orients ``"up"`` only when, besides the shares above, at most this share of the
+#: sample has balls (its :data:`AUTO_SPLIT_NEIGHBOURS` nearest sample points) whose quadric residuals
+#: split in two layers (:func:`heatcurv.sheets.layered_balls`): a plate under about two spacings thick,
+#: whose faces the noise floor above takes for noise (flattened ellipsoids 0.7-2.3 spacings thick
+#: 66-76 %; saddles with noise of 0.3-3 % of their diagonal, the LiDAR tile, its tree crowns and a face
+#: range map 0-5 %; docs/orientation.md).
+AUTO_SPLIT_SHARE = 0.25
+#: Nearest sample points in the balls :data:`AUTO_SPLIT_SHARE` reads (16 give too few residuals for a
+#: kurtosis: the plates and the noisy saddles overlap).
+AUTO_SPLIT_NEIGHBOURS = 30
 #: Outward vote below this share of ``sum_i A_i |n_i . (x_i - c)|``: the component is too flat to
 #: tell inside from outside, and takes the flat-patch convention. Low, because the switch between the
 #: two rules is where a cloud and a random half of it can differ: a LiDAR tile turned away from "up"
@@ -294,19 +305,25 @@ class AutoPolicy:
         sample point straight above or below them (:data:`AUTO_LAYERED_SHARE`):
         near 0 for a surface over the horizontal plane, large for a thin
         closed object lying flat.
+    split : float
+        Share of the sample's points whose balls' residuals split in two
+        layers (:data:`AUTO_SPLIT_SHARE`): large for a plate too thin for
+        ``layered``.
     """
 
     mode: str
     vertical: float
     down: float
     layered: float = 0.0
+    split: float = 0.0
 
     @property
     def reason(self) -> str:
         """Why, in words: the report's :attr:`OrientationReport.reason`."""
         measured = (f"{100 * self.vertical:.0f} % of the sampled normals within 45 degrees of vertical; "
                     f"consistently oriented, {100 * self.down:.1f} % of their vertical extent faces down; "
-                    f"{100 * self.layered:.0f} % of the flat ones lie over or under another sheet")
+                    f"{100 * self.layered:.0f} % of the flat ones lie over or under another sheet, "
+                    f"{100 * self.split:.0f} % have balls split in two layers")
         if self.mode == "up":
             return f"auto: an open surface over the horizontal plane, oriented up (+z) ({measured})"
         return f"auto: not a surface over the horizontal plane ({measured})"
@@ -327,7 +344,9 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     (:data:`AUTO_FLATNESS`: not a tree crown's scatter) faces down, and at
     most :data:`AUTO_LAYERED_SHARE` of those flat points lie straight over or
     under another sheet (:func:`_layered_share`: a thin closed object lying
-    flat, whose two sides the tree can orient alike).
+    flat, whose two sides the tree can orient alike) and at most
+    :data:`AUTO_SPLIT_SHARE` have balls whose residuals split in two layers
+    (:func:`_split_share`: the same object thinner still).
 
     Parameters
     ----------
@@ -366,9 +385,40 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     total = float((upward + downward).sum())
     down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
     share = float(np.mean(np.abs(nz) >= AUTO_VERTICAL_COSINE))
-    layered = _layered_share(centres, normals, flat & (np.abs(normals[:, 2]) >= AUTO_VERTICAL_COSINE), noise, tree)
-    mode = "up" if share >= AUTO_SHARE and down <= AUTO_DOWN_SHARE and layered <= AUTO_LAYERED_SHARE else "outward"
-    return AutoPolicy(mode, share, down, layered)
+    level = flat & (np.abs(normals[:, 2]) >= AUTO_VERTICAL_COSINE)
+    layered = _layered_share(centres, normals, level, noise, tree)
+    split = _split_share(centres, normals, tree)
+    terrain = share >= AUTO_SHARE and down <= AUTO_DOWN_SHARE
+    mode = "up" if terrain and layered <= AUTO_LAYERED_SHARE and split <= AUTO_SPLIT_SHARE else "outward"
+    return AutoPolicy(mode, share, down, layered, split)
+
+
+def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree) -> float:
+    """Share of the sample whose balls' residuals split in two layers (:data:`AUTO_SPLIT_SHARE`).
+
+    The ball is the point's :data:`AUTO_SPLIT_NEIGHBOURS` nearest sample points, read as
+    :func:`heatcurv.sheets.layered_balls` reads a point's ball, with the median sample spacing as the spacing.
+
+    Parameters
+    ----------
+    centres, normals : ndarray, shape (q, 3)
+        The sample and its unoriented PCA normals.
+    tree : cKDTree
+        Of ``centres``.
+
+    Returns
+    -------
+    float
+    """
+    k = min(AUTO_SPLIT_NEIGHBOURS, centres.shape[0] - 1)
+    if k < 6:
+        return 0.0
+    ball = knn_neighbourhood(centres, k, tree=tree, workers=1)
+    spacing = float(np.median(ball.distances[ball.indptr[:-1]]))  # each point's nearest: rows nearest first
+    moments = kernels.quadric_residual_moments(centres, normals, ball.indptr, ball.indices,
+                                               np.full(centres.shape[0], spacing))
+    split = (moments[:, 0] > LAYER_RESIDUAL * spacing) & (moments[:, 1] < LAYER_KURTOSIS)
+    return float(np.count_nonzero(split) / centres.shape[0])
 
 
 def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, noise: float, tree: cKDTree) -> float:

@@ -148,3 +148,32 @@ def opposite_sheet_counts(points, normals, indptr, indices, distances, reach, mi
     counted = ((distances <= reach[rows]) & (dot < -opposite) & (np.abs(height) > min_height[rows])
                & (2.0 * height**2 > distances**2))
     return _segment_sum(indptr, counted.astype(float)).astype(np.int64)
+
+
+def flagged_within(flags, indptr, indices, distances, reach):
+    """Neighbours within reach, and how many of them are flagged, per row."""
+    rows = _rows(indptr)
+    within = distances <= reach[rows]
+    return np.column_stack([_segment_sum(indptr, within.astype(float)),
+                            _segment_sum(indptr, (within & flags[indices]).astype(float))]).astype(np.int64)
+
+
+def quadric_residual_moments(points, normals, indptr, indices, scale):
+    """Root mean square and kurtosis of the residuals of a least-squares quadric over each row and its point."""
+    out = np.full((indptr.shape[0] - 1, 2), np.nan)
+    for i in range(indptr.shape[0] - 1):
+        n = normals[i]
+        ball = np.vstack([points[i], points[indices[indptr[i]:indptr[i + 1]]]]) - points[i]
+        if not np.all(np.isfinite(n)) or ball.shape[0] < 7 or not scale[i] > 0:
+            continue
+        # any orthonormal tangent frame: the residuals do not depend on it
+        u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        x, y, z = ball @ u / scale[i], ball @ np.cross(n, u) / scale[i], ball @ n
+        design = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
+        coef = np.linalg.lstsq(design, z, rcond=None)[0]
+        r = z - design @ coef
+        out[i, 0] = np.sqrt(np.mean(r**2))
+        if out[i, 0] > 0:
+            out[i, 1] = np.mean(r**4) / np.mean(r**2) ** 2
+    return out

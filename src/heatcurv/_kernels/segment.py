@@ -36,6 +36,8 @@ __all__ = [
     "same_label_counts",
     "orientation_conflicts",
     "opposite_sheet_counts",
+    "quadric_residual_moments",
+    "flagged_within",
 ]
 
 
@@ -502,3 +504,146 @@ def _opposite_sheet_counts(row0, row1, points, normals, indptr, indices, distanc
             if abs(height) > min_height[i] and 2.0 * height * height > distances[p] * distances[p]:
                 count += 1
         out[i] = count
+
+
+def flagged_within(flags, indptr, indices, distances, reach):
+    """Per row ``i``, its neighbours within ``reach[i]`` and how many of them are ``flags``, shape (n, 2), int64."""
+    flags, indptr = np.ascontiguousarray(flags, dtype=np.bool_), as_pointers(indptr)
+    out = np.empty((indptr.shape[0] - 1, 2), dtype=np.int64)
+    parallel_rows(_flagged_within, out.shape[0], flags, indptr, as_indices(indices, flags.shape[0]),
+                  as_floats(distances), as_floats(reach), out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _flagged_within(row0, row1, flags, indptr, indices, distances, reach, out):
+    for i in range(row0, row1):
+        within = flagged = 0
+        for p in range(indptr[i], indptr[i + 1]):
+            if distances[p] <= reach[i]:
+                within += 1
+                flagged += flags[indices[p]]
+        out[i, 0], out[i, 1] = within, flagged
+
+
+def quadric_residual_moments(points, normals, indptr, indices, scale):
+    """Per row, the residual of a least-squares quadric over the point and its neighbours, shape (n, 2).
+
+    In the frame of ``n_i`` (heights ``z = n_i . (xj - xi)``, tangent coordinates
+    over ``scale[i]``), ``z = c0 + c1 x + c2 y + c3 x^2 + c4 x y + c5 y^2`` fitted
+    with equal weights over the row's neighbours and the point itself. Column 0
+    is the residuals' root mean square, column 1 their kurtosis
+    ``mean(r^4) / mean(r^2)^2`` (NaN for a NaN normal, fewer than 7 points, a
+    singular system or residuals that are all 0).
+    """
+    points, normals = as_floats(points), as_floats(normals)
+    indptr = as_pointers(indptr)
+    out = np.empty((indptr.shape[0] - 1, 2))
+    args = points, normals, indptr, as_indices(indices, normals.shape[0]), as_floats(scale), out
+    parallel_rows(_quadric_residual_moments, out.shape[0], *args)
+    return out
+
+
+@njit(**ROW_CORE)
+def _quadric_residual_moments(row0, row1, points, normals, indptr, indices, scale, out):
+    width = 1
+    for i in range(row0, row1):
+        width = max(width, indptr[i + 1] - indptr[i] + 1)
+    xs, ys, zs = np.empty(width), np.empty(width), np.empty(width)
+    a = np.empty((6, 7))  # the normal equations, right-hand side in the last column
+    for i in range(row0, row1):
+        out[i, 0] = out[i, 1] = np.nan
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        count = indptr[i + 1] - indptr[i] + 1  # the neighbours and the point itself (at the origin)
+        if not (nx == nx and ny == ny and nz == nz) or count < 7 or not scale[i] > 0.0:
+            continue
+        # a tangent frame (u, v) of n_i, both of length 1 / scale[i]
+        if abs(nx) < 0.9:
+            ux, uy, uz = 0.0, nz, -ny
+        else:
+            ux, uy, uz = -nz, 0.0, nx
+        norm = math.sqrt(ux * ux + uy * uy + uz * uz) * scale[i]
+        ux, uy, uz = ux / norm, uy / norm, uz / norm
+        vx, vy, vz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+        # the power sums x^a y^b (a + b <= 4) and x^a y^b z (a + b <= 2) over the ball
+        s10 = s01 = s20 = s11 = s02 = s30 = s21 = s12 = s03 = s40 = s31 = s22 = s13 = s04 = 0.0
+        z0 = z10 = z01 = z20 = z11 = z02 = 0.0
+        xs[0] = ys[0] = zs[0] = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            dx, dy, dz = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
+            x, y, z = ux * dx + uy * dy + uz * dz, vx * dx + vy * dy + vz * dz, nx * dx + ny * dy + nz * dz
+            k = p - indptr[i] + 1
+            xs[k], ys[k], zs[k] = x, y, z
+            xx, xy, yy = x * x, x * y, y * y
+            s10 += x
+            s01 += y
+            s20 += xx
+            s11 += xy
+            s02 += yy
+            s30 += xx * x
+            s21 += xx * y
+            s12 += x * yy
+            s03 += yy * y
+            s40 += xx * xx
+            s31 += xx * xy
+            s22 += xx * yy
+            s13 += xy * yy
+            s04 += yy * yy
+            z0 += z
+            z10 += x * z
+            z01 += y * z
+            z20 += xx * z
+            z11 += xy * z
+            z02 += yy * z
+        # rows and columns in the order 1, x, y, x^2, x y, y^2
+        a[0, 0], a[0, 1], a[0, 2], a[0, 3], a[0, 4], a[0, 5], a[0, 6] = count, s10, s01, s20, s11, s02, z0
+        a[1, 1], a[1, 2], a[1, 3], a[1, 4], a[1, 5], a[1, 6] = s20, s11, s30, s21, s12, z10
+        a[2, 2], a[2, 3], a[2, 4], a[2, 5], a[2, 6] = s02, s21, s12, s03, z01
+        a[3, 3], a[3, 4], a[3, 5], a[3, 6] = s40, s31, s22, z20
+        a[4, 4], a[4, 5], a[4, 6] = s22, s13, z11
+        a[5, 5], a[5, 6] = s04, z02
+        for r in range(6):
+            for c in range(r):
+                a[r, c] = a[c, r]
+        if not _solve_in_place(a):
+            continue
+        m2 = m4 = 0.0
+        for k in range(count):
+            x, y = xs[k], ys[k]
+            r = zs[k] - (a[0, 6] + a[1, 6] * x + a[2, 6] * y + a[3, 6] * x * x + a[4, 6] * x * y + a[5, 6] * y * y)
+            r *= r
+            m2 += r
+            m4 += r * r
+        m2 /= count
+        m4 /= count
+        out[i, 0] = math.sqrt(m2)
+        if m2 > 0.0:
+            out[i, 1] = m4 / (m2 * m2)
+
+
+@njit(inline="always", cache=True)
+def _solve_in_place(a):
+    # Gaussian elimination with partial pivoting of the (6, 7) augmented system: the solution in
+    # column 6; False for a singular system
+    n = a.shape[0]
+    for c in range(n):
+        pivot = c
+        for r in range(c + 1, n):
+            if abs(a[r, c]) > abs(a[pivot, c]):
+                pivot = r
+        if not abs(a[pivot, c]) > 1e-12 * abs(a[0, 0]):
+            return False
+        if pivot != c:
+            for k in range(n + 1):
+                a[c, k], a[pivot, k] = a[pivot, k], a[c, k]
+        for r in range(c + 1, n):
+            f = a[r, c] / a[c, c]
+            for k in range(c, n + 1):
+                a[r, k] -= f * a[c, k]
+    for c in range(n - 1, -1, -1):
+        total = a[c, n]
+        for k in range(c + 1, n):
+            total -= a[c, k] * a[k, n]
+        a[c, n] = total / a[c, c]
+    return True

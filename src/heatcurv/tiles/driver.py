@@ -130,7 +130,7 @@ ONE_ROUND_TILES = 63
 #: files (about 350 MB of rows): the scratch stays near one copy of the results, the loop rarely waits.
 SLIM_POINTS = 2_000_000
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 8
+PLAN_VERSION = 9
 
 
 @dataclass
