@@ -269,7 +269,7 @@ def coarse_tori() -> list[list[str]]:
     return cells
 
 
-PLATE_HEAD = ["cloud", "thickness / h", "orientation", "layered %", "inward %", "inward & reliable %",
+PLATE_HEAD = ["cloud", "thickness / h", "orientation", "layered %", "split %", "inward %", "inward & reliable %",
               "second sheet %", "reliable %", "tiled inward & reliable %"]
 
 
@@ -279,7 +279,7 @@ def plates() -> list[list[str]]:
 
     turn = Rotation.from_euler("xyz", (30.0, 50.0, 20.0), degrees=True).as_matrix()
     cells = []
-    for c in (0.02, 0.04, 0.06, 0.08, 0.15):
+    for c in (0.01, 0.02, 0.03, 0.04, 0.06, 0.08, 0.15):
         sample = hs.Ellipsoid(1.0, 1.0, c).sample(20000, "random", seed=0)
         spacing = None
         for pose, matrix in (("flat", np.eye(3)), ("turned", turn)):
@@ -294,6 +294,7 @@ def plates() -> list[list[str]]:
             tiled_inward = np.einsum("ij,ij->i", tiled_normals, truth) < 0
             cells.append([f"c {c}, {pose}", f"{2 * c / spacing:.1f}", report.mode,
                           f"{100 * report.policy.layered:.1f}" if report.policy is not None else "-",
+                          f"{100 * report.policy.split:.1f}" if report.policy is not None else "-",
                           f"{100 * inward.mean():.2f}", f"{100 * (inward & res.reliable).mean():.2f}",
                           f"{100 * res.info['second_sheet'] / len(points):.1f}", f"{100 * res.reliable.mean():.1f}",
                           f"{100 * (tiled_inward & tiled_reliable).mean():.2f}"])
@@ -517,7 +518,8 @@ def main(argv=None) -> int:
     if args.plates:
         print(text_table("thin plates lying flat: ellipsoids 1 x 1 x c, 20 000 random points (truth: the ellipsoid's "
                          "outward normals; h: heatcurv's median spacing, res.spacing; layered: the share auto's sample "
-                         "found over or under another sheet)",
+                         "found over or under another sheet; split: the share of auto's sample whose balls' residuals "
+                         "split in two layers)",
                          PLATE_HEAD, plates(), args.markdown))
     if decisions:
         print(text_table("heatcurv: closed, undecided or open (the winding number's two shares; closed from 30 % "
