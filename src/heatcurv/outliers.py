@@ -7,7 +7,7 @@ else. Their balls must hold ``k`` neighbours, so they reach out to whatever
 lies nearest: the curvature there is meaningless, and the density area of a
 point whose ball spans a void is huge (measured on an 86k-point face range
 scan: 919 stray points carried 80 % of the total area, one point 32,000 mm^2
-against 0.23 mm^2 typical). Three tests, free of any length threshold:
+against 0.23 mm^2 typical). Four tests, free of any length threshold:
 
 1. **Detached.** Link two points when each lies in the other's ball (a
    mutual-neighbour graph over 10 of each ball's neighbours, spread to its
@@ -29,6 +29,10 @@ against 0.23 mm^2 typical). Three tests, free of any length threshold:
    small tight cluster or a short trail inside a much emptier ball has
    ``(R / d_6)^2 > SPARSE_FACTOR * count / 6``: the density at the ball's scale
    is less than ``1 / SPARSE_FACTOR`` of the density at the point.
+4. **Amid strays.** A point more than half of whose ball the three tests
+   above flag: its kernel measures strays, not a surface (a trail of a few
+   points along a scan line inside a veil, one spacing apart and many from
+   anything else, whose area was two hundred times the typical one).
 
 Outliers are flagged unreliable and get area 0: ``result.area.sum()`` is the
 area of the measured surface, strays excluded.
@@ -59,7 +63,8 @@ SPARSE_FACTOR = 16.0
 ISOLATION_FACTOR = 3.0
 #: A point whose ball radius exceeds this multiple of its neighbours' median ball radius is isolated.
 BALL_RATIO_MAX = 2.0
-#: Least share of the ball's neighbours in the point's own component.
+#: Least share of the ball's neighbours in the point's own component; also the largest share of them that may
+#: be strays (test 4).
 OWN_SHARE = 0.5
 
 
@@ -70,7 +75,7 @@ class Outliers:
     Attributes
     ----------
     mask : ndarray, shape (n,), bool
-        ``detached | isolated | sparse``.
+        ``detached | isolated | sparse``, and the points whose balls are mostly those.
     detached : ndarray, shape (n,), bool
         Fewer than half of the ball's neighbours in the point's own component
         of the mutual-neighbour graph, or a component smaller than a typical ball
@@ -129,7 +134,11 @@ def find_outliers(points: np.ndarray, nbhd: Neighbourhood) -> Outliers:
     sparse &= ball_counts > SPACING_RANK
     isolated = exceeds_neighbour_median(spacing, ISOLATION_FACTOR, nbhd)
     isolated |= exceeds_neighbour_median(nbhd.radius, BALL_RATIO_MAX, nbhd)
-    return Outliers(detached | isolated | sparse, detached, isolated, sparse, int(n_comp))
+    strays = detached | isolated | sparse
+    # a point whose ball is mostly strays measures them, not a surface (a short trail in a veil)
+    amid = kernels.flagged_within(strays, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius)
+    amid_strays = ~strays & (amid[:, 1] > OWN_SHARE * ball_counts)
+    return Outliers(strays | amid_strays, detached, isolated, sparse, int(n_comp))
 
 
 def exceeds_neighbour_median(values: np.ndarray, factor: float, nbhd: Neighbourhood) -> np.ndarray:

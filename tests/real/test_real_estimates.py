@@ -102,6 +102,10 @@ def test_face_stray_points_are_outliers_with_no_area(face, records):
     assert res.outlier[strays].mean() >= 0.66  # docs/scans.md: two thirds of them (445)
     np.testing.assert_array_equal(res.area[res.outlier], 0.0)
     typical = np.median(res.area[res.reliable])
+    # a short trail of points along a scan line inside a veil has no area: its ball is mostly strays.
+    # Before, seven such points were reliable with 134-222 times the typical area; measured now at
+    # most 37 times (a sparse rim)
+    assert res.area[res.reliable].max() <= 50 * typical
     # the largest area (a sparse rim point) in % of the typical reliable one: once 140,000x
     records.check(
         "real_estimates/face-strays", missed=shortfall(res.outlier[strays].mean()),
@@ -110,11 +114,11 @@ def test_face_stray_points_are_outliers_with_no_area(face, records):
 
 
 def test_face_reliable_area_agrees_with_its_mesh(face, records):
-    # the mesh (19,880 mm^2) leaves out the scan's sparse rims and the surface in its gaps
-    # (docs/scans.md: "the reliable surface 3.5 % above the mesh's", "total 22,407 mm^2")
+    # the mesh (19,880 mm^2) leaves out the scan's sparse rims and the surface in its gaps: measured,
+    # the reliable surface 1.3 % above the mesh's, all of it 8.6 % (21,584 mm^2)
     mesh, _, res = face
-    assert 1.03 < res.area[res.reliable].sum() / mesh.area < 1.04
-    assert 1.12 < res.area.sum() / mesh.area < 1.135
+    assert 1.005 < res.area[res.reliable].sum() / mesh.area < 1.02
+    assert 1.08 < res.area.sum() / mesh.area < 1.09
     records.check(
         "real_estimates/face-area", reliable_area=100 * (res.area[res.reliable].sum() / mesh.area - 1),
         area=100 * (res.area.sum() / mesh.area - 1),
