@@ -386,14 +386,15 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
     share = float(np.mean(np.abs(nz) >= AUTO_VERTICAL_COSINE))
     level = flat & (np.abs(normals[:, 2]) >= AUTO_VERTICAL_COSINE)
-    layered = _layered_share(centres, normals, level, noise, tree)
-    split = _split_share(centres, normals, tree)
+    spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
+    layered = _layered_share(centres, normals, level, noise, tree, spacing)
+    split = _split_share(centres, normals, tree, spacing)
     terrain = share >= AUTO_SHARE and down <= AUTO_DOWN_SHARE
     mode = "up" if terrain and layered <= AUTO_LAYERED_SHARE and split <= AUTO_SPLIT_SHARE else "outward"
     return AutoPolicy(mode, share, down, layered, split)
 
 
-def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree) -> float:
+def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree, spacing: float) -> float:
     """Share of the sample whose balls' residuals split in two layers (:data:`AUTO_SPLIT_SHARE`).
 
     The ball is the point's :data:`AUTO_SPLIT_NEIGHBOURS` nearest sample points, read as
@@ -405,6 +406,8 @@ def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree) -> flo
         The sample and its unoriented PCA normals.
     tree : cKDTree
         Of ``centres``.
+    spacing : float
+        The median distance from a sample point to its nearest.
 
     Returns
     -------
@@ -414,14 +417,14 @@ def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree) -> flo
     if k < 6:
         return 0.0
     ball = knn_neighbourhood(centres, k, tree=tree, workers=1)
-    spacing = float(np.median(ball.distances[ball.indptr[:-1]]))  # each point's nearest: rows nearest first
     moments = kernels.quadric_residual_moments(centres, normals, ball.indptr, ball.indices,
                                                np.full(centres.shape[0], spacing))
     split = (moments[:, 0] > LAYER_RESIDUAL * spacing) & (moments[:, 1] < LAYER_KURTOSIS)
     return float(np.count_nonzero(split) / centres.shape[0])
 
 
-def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, noise: float, tree: cKDTree) -> float:
+def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, noise: float, tree: cKDTree,
+                   spacing: float) -> float:
     """Share of the ``flat`` sample points with another straight over or under them (:data:`AUTO_LAYERED_SHARE`).
 
     Parameters
@@ -434,6 +437,8 @@ def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, n
         The cloud's noise, length units.
     tree : cKDTree
         Of ``centres``.
+    spacing : float
+        The median distance from a sample point to its nearest.
 
     Returns
     -------
@@ -443,7 +448,6 @@ def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, n
     rows = np.flatnonzero(flat)
     if rows.size < 2:
         return 0.0
-    spacing = float(np.median(tree.query(centres, 2)[0][:, 1]))
     # pairs within one spacing of each other seen from above, at any height
     pairs = cKDTree(centres[rows, :2]).query_pairs(spacing, output_type="ndarray")
     # ordered both ways: a point over another is layered, and so is the one under it

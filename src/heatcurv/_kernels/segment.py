@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
+from .chordfit import _cholesky, _cholesky_solve
 
 __all__ = [
     "orientation_costs",
@@ -534,7 +535,7 @@ def quadric_residual_moments(points, normals, indptr, indices, scale):
     with equal weights over the row's neighbours and the point itself. Column 0
     is the residuals' root mean square, column 1 their kurtosis
     ``mean(r^4) / mean(r^2)^2`` (NaN for a NaN normal, fewer than 7 points, a
-    singular system or residuals that are all 0).
+    system that is not positive definite or residuals that are all 0).
     """
     points, normals = as_floats(points), as_floats(normals)
     indptr = as_pointers(indptr)
@@ -550,7 +551,8 @@ def _quadric_residual_moments(row0, row1, points, normals, indptr, indices, scal
     for i in range(row0, row1):
         width = max(width, indptr[i + 1] - indptr[i] + 1)
     xs, ys, zs = np.empty(width), np.empty(width), np.empty(width)
-    a = np.empty((6, 7))  # the normal equations, right-hand side in the last column
+    a, factor = np.empty((6, 6)), np.empty((6, 6))  # the normal equations and their Cholesky factor
+    b, c = np.empty(6), np.empty(6)  # their right-hand side and the quadric's coefficients
     for i in range(row0, row1):
         out[i, 0] = out[i, 1] = np.nan
         nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
@@ -597,21 +599,23 @@ def _quadric_residual_moments(row0, row1, points, normals, indptr, indices, scal
             z11 += xy * z
             z02 += yy * z
         # rows and columns in the order 1, x, y, x^2, x y, y^2
-        a[0, 0], a[0, 1], a[0, 2], a[0, 3], a[0, 4], a[0, 5], a[0, 6] = count, s10, s01, s20, s11, s02, z0
-        a[1, 1], a[1, 2], a[1, 3], a[1, 4], a[1, 5], a[1, 6] = s20, s11, s30, s21, s12, z10
-        a[2, 2], a[2, 3], a[2, 4], a[2, 5], a[2, 6] = s02, s21, s12, s03, z01
-        a[3, 3], a[3, 4], a[3, 5], a[3, 6] = s40, s31, s22, z20
-        a[4, 4], a[4, 5], a[4, 6] = s22, s13, z11
-        a[5, 5], a[5, 6] = s04, z02
+        a[0, 0], a[0, 1], a[0, 2], a[0, 3], a[0, 4], a[0, 5] = count, s10, s01, s20, s11, s02
+        a[1, 1], a[1, 2], a[1, 3], a[1, 4], a[1, 5] = s20, s11, s30, s21, s12
+        a[2, 2], a[2, 3], a[2, 4], a[2, 5] = s02, s21, s12, s03
+        a[3, 3], a[3, 4], a[3, 5] = s40, s31, s22
+        a[4, 4], a[4, 5] = s22, s13
+        a[5, 5] = s04
+        b[0], b[1], b[2], b[3], b[4], b[5] = z0, z10, z01, z20, z11, z02
         for r in range(6):
-            for c in range(r):
-                a[r, c] = a[c, r]
-        if not _solve_in_place(a):
+            for k in range(r):
+                a[r, k] = a[k, r]
+        if not _cholesky(a, factor):
             continue
+        _cholesky_solve(factor, b, c)
         m2 = m4 = 0.0
         for k in range(count):
             x, y = xs[k], ys[k]
-            r = zs[k] - (a[0, 6] + a[1, 6] * x + a[2, 6] * y + a[3, 6] * x * x + a[4, 6] * x * y + a[5, 6] * y * y)
+            r = zs[k] - (c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y)
             r *= r
             m2 += r
             m4 += r * r
@@ -620,30 +624,3 @@ def _quadric_residual_moments(row0, row1, points, normals, indptr, indices, scal
         out[i, 0] = math.sqrt(m2)
         if m2 > 0.0:
             out[i, 1] = m4 / (m2 * m2)
-
-
-@njit(inline="always", cache=True)
-def _solve_in_place(a):
-    # Gaussian elimination with partial pivoting of the (6, 7) augmented system: the solution in
-    # column 6; False for a singular system
-    n = a.shape[0]
-    for c in range(n):
-        pivot = c
-        for r in range(c + 1, n):
-            if abs(a[r, c]) > abs(a[pivot, c]):
-                pivot = r
-        if not abs(a[pivot, c]) > 1e-12 * abs(a[0, 0]):
-            return False
-        if pivot != c:
-            for k in range(n + 1):
-                a[c, k], a[pivot, k] = a[pivot, k], a[c, k]
-        for r in range(c + 1, n):
-            f = a[r, c] / a[c, c]
-            for k in range(c, n + 1):
-                a[r, k] -= f * a[c, k]
-    for c in range(n - 1, -1, -1):
-        total = a[c, n]
-        for k in range(c + 1, n):
-            total -= a[c, k] * a[k, n]
-        a[c, n] = total / a[c, c]
-    return True
