@@ -58,7 +58,7 @@ SHEET_HEIGHT = 0.5
 #: ``-n_p . n_q`` above which two normals face away from each other (within 60 degrees of opposite).
 SHEET_ALIGNED = 0.5
 #: Largest kurtosis of a layered ball's quadric residuals: below the 2.3 that one sheet with normal noise
-#: stays above in 9 of 10 balls of 60 (3 in the mean), above the 1.4-1.8 of a plate 0.7-1.4 spacings thick.
+#: stays above in 9 of 10 balls of 60 (median 2.8), above the median 1.4-1.8 of plates 0.7-1.9 spacings thick.
 LAYER_KURTOSIS = 2.0
 #: Smallest quadric residual (root mean square, in the point's spacings) of a layered ball: a clean
 #: surface's residual (rounding, the quadric's own misfit) has no shape worth reading.
