@@ -30,6 +30,15 @@ Peers (:data:`PEERS`, in this order)
 ``heatcurv-quadric``
     :func:`support.baseline.quadric_curvature` with ``k = 40``: oriented
     normals, principal curvatures and directions from k-NN quadric fits.
+``cloudcompare-curv``
+    The CloudCompare command line (Debian's ``cloudcompare`` package,
+    ``QT_QPA_PLATFORM=offscreen CloudCompare -SILENT -O cloud.ply -CURV MEAN
+    r -SAVE_CLOUDS``): its quadric mean curvature in a ball of radius ``r``
+    chosen to hold about ``k = 40`` points (the median 40th-neighbour
+    distance of 2000 points, computed before the clock starts), as a user
+    runs it: the timed part is the whole command, reading the binary PLY,
+    the curvature and writing the result. Its peak memory is the command's
+    own (``RUSAGE_CHILDREN``).
 
 Every computation is one cold call in a fresh process (no warm-up run), as a
 user's first call would be.
@@ -57,10 +66,12 @@ temporary ``.npy`` file, runs every peer and prints a plain-text table.
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib.util
 import json
 import os
 import resource
+import shutil
 import signal
 import subprocess
 import sys
@@ -81,7 +92,7 @@ __all__ = [
 ]
 
 #: Peer names, in the order they are run and printed.
-PEERS = ("knn40", "open3d-normals", "pymeshlab-apss", "robust-laplacian", "heatcurv-quadric")
+PEERS = ("knn40", "open3d-normals", "pymeshlab-apss", "robust-laplacian", "heatcurv-quadric", "cloudcompare-curv")
 
 #: Importable module that each peer needs (checked by :func:`installed`).
 PACKAGES = {
@@ -90,6 +101,7 @@ PACKAGES = {
     "pymeshlab-apss": "pymeshlab",
     "robust-laplacian": "robust_laplacian",
     "heatcurv-quadric": "heatcurv",
+    "cloudcompare-curv": "exe:CloudCompare",
 }
 
 #: What each peer computes (the ``note`` of its row).
@@ -99,6 +111,7 @@ NOTES = {
     "pymeshlab-apss": "point-cloud normals k=40 + APSS Mean + APSS Gauss (default APSS settings)",
     "robust-laplacian": "L and M, n_neighbors=30 (package default)",
     "heatcurv-quadric": "k=40 quadric fit: oriented normals, k1, k2, d1, d2, H, K",
+    "cloudcompare-curv": "command line: read PLY + CURV MEAN (ball of about 40 points) + write; mean curvature only",
 }
 
 #: Default per-peer time limit, seconds.
@@ -137,6 +150,8 @@ def installed(name: str) -> bool:
         If ``name`` is not a peer.
     """
     module = PACKAGES[name]
+    if module.startswith("exe:"):
+        return shutil.which(module[4:]) is not None
     try:
         return importlib.util.find_spec(module) is not None
     except (ImportError, ValueError):
@@ -511,6 +526,47 @@ def _prepare_heatcurv_quadric():
     return compute
 
 
+def _write_binary_ply(points: np.ndarray, path: str) -> None:
+    """``points`` as a binary little-endian PLY of double x, y, z (what CloudCompare reads)."""
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {points.shape[0]}\n"
+              "property double x\nproperty double y\nproperty double z\nend_header\n")
+    with open(path, "wb") as out:
+        out.write(header.encode("ascii"))
+        out.write(np.ascontiguousarray(points, dtype="<f8").tobytes())
+
+
+def _prepare_cloudcompare_curv():
+    from scipy.spatial import cKDTree
+
+    executable = shutil.which("CloudCompare")
+    if executable is None:
+        raise RuntimeError("CloudCompare is not on the PATH")
+    directory = tempfile.mkdtemp(prefix="heatcurv-cc-")
+    atexit.register(shutil.rmtree, directory, True)
+
+    def setup(points):
+        """Write the PLY and choose the radius, before the clock starts."""
+        source = os.path.join(directory, "cloud.ply")
+        _write_binary_ply(points, source)
+        sample = points[np.random.default_rng(0).choice(points.shape[0], min(2000, points.shape[0]), replace=False)]
+        radius = float(np.median(cKDTree(points).query(sample, K)[0][:, -1]))
+        return source, radius
+
+    def compute(prepared, stages):
+        source, radius = prepared
+        command = [executable, "-SILENT", "-NO_TIMESTAMP", "-C_EXPORT_FMT", "PLY", "-O", source,
+                   "-CURV", "MEAN", f"{radius:.9g}", "-SAVE_CLOUDS", "FILE", os.path.join(directory, "out.ply")]
+        env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
+        done = subprocess.run(command, capture_output=True, text=True, env=env, stdin=subprocess.DEVNULL)
+        if done.returncode != 0 or not os.path.exists(os.path.join(directory, "out.ply")):
+            raise RuntimeError(f"CloudCompare {_exit_reason(done.returncode)}: {_last_line(done.stdout)}")
+        return done
+
+    compute.setup = setup
+    compute.own_memory = True  # the command's peak RSS, not this process's
+    return compute
+
+
 #: Child-side setup per peer: imports the package (not timed) and returns
 #: ``compute(points, stages)`` (timed).
 _PREPARE = {
@@ -519,6 +575,7 @@ _PREPARE = {
     "pymeshlab-apss": _prepare_pymeshlab_apss,
     "robust-laplacian": _prepare_robust_laplacian,
     "heatcurv-quadric": _prepare_heatcurv_quadric,
+    "cloudcompare-curv": _prepare_cloudcompare_curv,
 }
 
 
@@ -552,18 +609,29 @@ def _child_main(name: str, points_file: str) -> int:
         _emit(_row(name, f"failed: import: {_one_line(error)}"))
         return 0
 
+    try:
+        prepared = compute.setup(points) if hasattr(compute, "setup") else points
+    except Exception as error:  # noqa: BLE001 - reported in the row
+        _emit(_row(name, f"failed: setup: {_one_line(error)}"))
+        return 0
     stages = _Stages()
     rss_before = peak_rss_bytes()
     cpu_start = _cpu_seconds()
     start = time.perf_counter()
     try:
-        result = compute(points, stages)
+        result = compute(prepared, stages)
     except Exception as error:  # noqa: BLE001 - reported in the row
         _emit(_row(name, f"failed: {_one_line(error)}", stages=stages.seconds))
         return 0
     seconds = time.perf_counter() - start
     cpu_seconds = _cpu_seconds() - cpu_start
     del result
+    peak = peak_rss_bytes()
+    if getattr(compute, "own_memory", False):  # a command's own peak and CPU time, not this process's
+        children = resource.getrusage(resource.RUSAGE_CHILDREN)
+        peak = children.ru_maxrss * (1 if sys.platform == "darwin" else 1024)
+        cpu_seconds = children.ru_utime + children.ru_stime
+        rss_before = 0
 
     note = NOTES[name]
     if stages.seconds:
@@ -573,7 +641,7 @@ def _child_main(name: str, points_file: str) -> int:
             name,
             "ok",
             seconds=seconds,
-            peak_rss_gb=peak_rss_bytes() / _GB,
+            peak_rss_gb=peak / _GB,
             note=note,
             cpu_seconds=cpu_seconds,
             rss_before_gb=rss_before / _GB,
