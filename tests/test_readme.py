@@ -143,9 +143,17 @@ def _check_viewer(scope):
     assert scope["view"].shown == 20000 and Path("torus.html").is_file()
 
 
+def _check_plan(scope):
+    # the plan's line, as the page prints it under the example
+    page = (DOCS / "getting_started.md").read_text(encoding="utf-8")
+    shown = re.search(r'print\(plan\.describe\(\)\)\n```\n\n```text\n(.*?)\n```', page).group(1)
+    assert scope["plan"].describe() == shown
+
+
 # a fragment that names data it does not define is run with that data; some examples' results are checked
 SCOPES = {("index.md", 0): lambda: {"points": _bunny_points()}}
-CHECKS = {("laplacian.md", 0): _check_laplacian, ("viewer.md", 0): _check_viewer}
+CHECKS = {("laplacian.md", 0): _check_laplacian, ("viewer.md", 0): _check_viewer,
+          ("getting_started.md", 1): _check_plan}
 DOC_EXAMPLES = [(page.name, i, code) for page in PAGES for i, code in enumerate(_examples(page))]
 
 

@@ -15,9 +15,12 @@ then ``method="paper"`` (section 3)::
 and ``method="default"`` (the chord fit, :mod:`heatcurv.chordfit`)::
 
     -> kernel_choice                                      (noise and kernel width, heatcurv.scale)
-    -> per block of points:
+    -> the fit plan                                       (heatcurv.plan: the one place that chooses)
+    -> at every point, per block of points:
          fit_neighbourhood -> fit_weights -> normal_refinement
          -> curvature_fit -> border -> area_correction
+       or at anchors (noise, or a kernel wider than k_fit; heatcurv.anchors):
+         anchor_fit -> carry -> area_correction
 
 Each stage is timed under its own name (``result.info["timings"]``; the
 command line's ``--verbose``); :mod:`heatcurv.progress` lists them. The default
@@ -31,7 +34,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from .anchors import anchor_normals, anchor_rows, anchors_per_ball, carry_degree, carry_fits, fit_anchors
+from .anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
 from .areas import ball_area_factor, cut_ball_coverage, density_areas, fit_areas
 from .backend import threads
 from .border import BORDER_OFFSET, border_points, centroid_offset
@@ -48,6 +51,7 @@ from .operator import HeatKernelOperator
 from .options import resolve_options
 from .orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient, row_reach
 from .outliers import Outliers, find_outliers
+from .plan import FitPlan, plan_fit
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
 from .reliability import (
@@ -72,12 +76,6 @@ __all__ = ["CurvatureResult", "estimate"]
 
 #: PCA planarity below which a neighbourhood is not treated as a surface patch.
 PLANARITY_MIN = 0.05
-#: Noise (``sigma`` over the operator's median spacing ``h``, ``info["scale"].relative_noise``) above
-#: which the operator's balls (radius ``2 h``) are swamped: their PCA normals tilt by tens of degrees
-#: and their orientation breaks apart, so the wide kernel's anchors find and orient their own
-#: normals (:func:`heatcurv.anchors.anchor_normals`). Between the noisiest clouds that orient fine on the
-#: operator's balls and a torus that did not (docs/how_it_works.md, thresholds).
-STRONG_NOISE = 0.5
 
 
 @dataclass(frozen=True)
@@ -89,6 +87,7 @@ class _Fitted:
     principal: PrincipalCurvatures
     areas: np.ndarray
     border: np.ndarray
+    plan: FitPlan
     scale: ScaleReport | None = None
     residual: np.ndarray | None = None
     radius: np.ndarray | None = None
@@ -210,16 +209,23 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         mode = orientation.report.mode
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()
+        # the areas of the fit weights W_ij A_j (the density areas are positive by construction)
+        weights_areas = fit_areas(op.areas, outliers.mask)
+        choice = None
         if opts.fit == "chord":
-            scale = None if choices is None else choices.scale
-            fitted = _default_fit_stages(
-                op, nrm, normals is not None, outliers.mask, keys, clock, mode, towards, frame.n_points, scale,
-                rounded=rounding is not None,
-            )
+            with clock.stage("kernel_choice"):
+                choice = _kernel_choice(op, nrm, weights_areas, keys, frame.n_points,
+                                        None if choices is None else choices.scale)
+        plan = plan_fit(opts, choice, keep_normals=normals is not None)  # the one place that chooses the fit
+        if plan.form.startswith("paper"):
+            fitted = _paper_fit_stages(op, plan, nrm, K, weights_areas, clock)
+        elif plan.anchored:
+            fitted = _anchored_fit_stages(op, plan, choice, nrm, weights_areas, keys, clock, mode, towards,
+                                          outliers.mask)
             if fitted.orientation is not None:  # oriented again over the anchors (strong noise)
                 orientation = fitted.orientation
         else:
-            fitted = _paper_fit_stages(op, nrm, K, outliers.mask, clock)
+            fitted = _point_fit_stages(op, plan, choice, nrm, weights_areas, clock, rounded=rounding is not None)
         if mode == "viewpoint" and normals is None:
             # a scanner sees only surfaces facing it: the fit's refined normals must too
             fitted = _facing_viewpoint(fitted, op.points, towards)
@@ -352,9 +358,12 @@ def _facing_viewpoint(fitted: _Fitted, points: np.ndarray, towards: np.ndarray) 
     return replace(fitted, normals=normals, mean=pc.mean, principal=pc)
 
 
-def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, outlier: np.ndarray,
+def _paper_fit_stages(op: HeatKernelOperator, plan: FitPlan, nrm: np.ndarray, K: np.ndarray, weights_areas: np.ndarray,
                       clock: StageClock) -> _Fitted:
-    """Stages ``mean``, ``principal`` and ``border`` of the paper's method (section 3); outliers get no weight."""
+    """Stages ``mean``, ``principal`` and ``border`` of the paper's tensor fit (section 3).
+
+    ``weights_areas``, shape (m,): the areas of the fit weights, 0 for outliers (no weight).
+    """
     opts, X, nbhd = op.options, op.points, op.neighbourhood
     with clock.stage("mean"):
         mean = mean_curvature(K, nrm, opts.mean_formula)
@@ -362,44 +371,72 @@ def _paper_fit_stages(op: HeatKernelOperator, nrm: np.ndarray, K: np.ndarray, ou
         # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
         # samples can give negative A_j; a least-squares objective with negative
         # weights has no minimum, so those neighbours get weight zero.
-        pair_w = op.weights * nbhd.distances**2 * fit_areas(op.areas, outlier)[nbhd.indices]
-        pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=opts.fit == "constrained")
-        if opts.fit == "unconstrained":
+        pair_w = op.weights * nbhd.distances**2 * weights_areas[nbhd.indices]
+        pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=plan.form == "paper-constrained")
+        if plan.form == "paper-free":
             mean = pc.mean
     with clock.stage("border"):
         # border of open surfaces, on the neighbourhood the curvature was fitted on
         border = border_points(X, nbhd, nrm, taper=opts.taper)
-    return _Fitted(nrm, mean, pc, op.areas, border)
+    return _Fitted(nrm, mean, pc, op.areas, border, plan)
 
 
-def _default_fit_stages(
-    op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, outlier: np.ndarray, keys: np.ndarray,
-    clock: StageClock, mode: str = "outward", towards=None, n_cloud: int | None = None, chosen=None,
-    rounded: bool = False,
-) -> _Fitted:
-    """The default method's chord fit: ``kernel_choice``, then the per-block stages.
+def _kernel_choice(op: HeatKernelOperator, nrm: np.ndarray, weights_areas: np.ndarray, keys: np.ndarray,
+                   n_cloud: int, chosen=None):
+    """Stage ``kernel_choice``: the noise and the chord fit's kernel widths (:mod:`heatcurv.scale`).
 
     Parameters
     ----------
     op : HeatKernelOperator
     nrm : ndarray, shape (m, 3)
         Oriented starting normals.
-    keep_normals : bool
-        The caller gave the normals: no refinement, and the result keeps them.
-    outlier : ndarray, shape (m,), bool
-        Points that get no weight in anyone's fit (:mod:`heatcurv.outliers`).
+    weights_areas : ndarray, shape (m,)
+        The areas of the fit weights (0 for outliers).
     keys : ndarray, shape (m,)
-        Sampling keys of the kernel choice's subsample and the anchors
-        (:func:`heatcurv.sampling.geometric_keys`).
-    clock : StageClock
-    mode, towards : optional
-        The orientation policy and its reference (:func:`_reference`), for
-        normals oriented again at the anchors under strong noise.
-    n_cloud : int, optional
-        Rows of the whole cloud (default: the points at hand).
+        Sampling keys of the choice's subsample (:func:`heatcurv.sampling.geometric_keys`).
+    n_cloud : int
+        Rows of the whole cloud.
     chosen : heatcurv.scale.ScaleChoice, optional
         The whole cloud's kernel widths (a tile's :class:`heatcurv.choices.CloudChoices`);
         default: chosen here.
+
+    Returns
+    -------
+    heatcurv.scale.ScaleChoice
+        With ``radius=``: the form alone (the operator's balls are the fit's).
+    """
+    opts, X = op.options, op.points
+    tuning = opts.scale_tuning
+    if opts.radius is not None:
+        return select_form(X, op.neighbourhood, nrm, weights_areas, alpha=opts.alpha, n_sub=tuning.n_sub,
+                           clean_ratio=tuning.clean_ratio, seed=tuning.seed, keys=keys)
+    if chosen is not None:
+        return chosen.at_points(X, opts.workers)
+    return select_scale(
+        X, op.tree, nrm, weights_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
+        fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, keys=keys,
+        n_cloud=n_cloud, **asdict(tuning),
+    )
+
+
+def _point_fit_stages(
+    op: HeatKernelOperator, plan: FitPlan, choice, nrm: np.ndarray, weights_areas: np.ndarray, clock: StageClock,
+    rounded: bool = False,
+) -> _Fitted:
+    """The chord fit (or, with ``radius=``, its denoised form) at every point, block by block.
+
+    Parameters
+    ----------
+    op : HeatKernelOperator
+    plan : FitPlan
+        Not anchored.
+    choice : heatcurv.scale.ScaleChoice
+        The kernel choice the plan was made from.
+    nrm : ndarray, shape (m, 3)
+        Oriented starting normals (kept when ``plan.keep_normals``).
+    weights_areas : ndarray, shape (m,)
+        The areas of the fit weights (0 for outliers: no weight in anyone's fit).
+    clock : StageClock
     rounded : bool, optional
         The coordinates are rounded (:func:`heatcurv.reliability.coordinate_rounding`): the
         variance factor also counts the centre point's own height error (:func:`_centre_gain`).
@@ -412,34 +449,14 @@ def _default_fit_stages(
         fit's ball.
     """
     opts, X, base = op.options, op.points, op.neighbourhood
-    tuning = opts.scale_tuning
     n = X.shape[0]
-    # the areas of the fit weights W_ij A_j (the density areas are positive by construction)
-    weights_areas = fit_areas(op.areas, outlier)
-    fixed_radius = opts.radius is not None
-    with clock.stage("kernel_choice"):
-        if fixed_radius:  # radius=: the operator's balls are the fit's; only the fit's form is chosen
-            choice = select_form(
-                X, base, nrm, weights_areas, alpha=opts.alpha, n_sub=tuning.n_sub, clean_ratio=tuning.clean_ratio,
-                seed=tuning.seed, keys=keys,
-            )
-        elif chosen is not None:
-            choice = chosen.at_points(X, opts.workers)
-        else:
-            choice = select_scale(
-                X, op.tree, nrm, weights_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
-                fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, keys=keys,
-                n_cloud=n_cloud, **asdict(tuning),
-            )
-    scale = choice.scale
-    if not fixed_radius and (scale.denoise or scale.k > tuning.k_fit):
-        # noisy clouds, and kernels too wide to fit at every point: fitted at anchors
-        return _anchored_fit_stages(op, nrm, keep_normals, weights_areas, choice, keys, clock, mode, towards, outlier)
+    keep_normals = plan.keep_normals
+    fixed_radius = plan.radius is not None
     # the operator's neighbourhood already is the kernel's when the density ball holds k points
-    reuse_base = fixed_radius or (opts.spacing == "density" and scale.k == int(opts.neighbours))
+    reuse_base = fixed_radius or (opts.spacing == "density" and plan.k == int(opts.neighbours))
     # a kernel wider than the operator's counts its own density for the areas
-    own_density = not fixed_radius and scale.k > opts.neighbours
-    k = min(scale.k, n - 1)
+    own_density = not fixed_radius and plan.k > opts.neighbours
+    k = min(plan.k, n - 1)
     blocks = base.row_blocks(BLOCK_PAIRS) if fixed_radius else block_ranges(n, rows_per_block(k))
 
     areas, border, radius, residual = np.empty(n), np.empty(n, dtype=bool), np.empty(n), np.empty(n)
@@ -457,9 +474,9 @@ def _default_fit_stages(
         start = nrm[lo:hi]
         if not keep_normals:
             with clock.stage("normal_refinement", report=False):
-                start = refine_normals(X, nbhd, start, weights, denoise=scale.denoise, centres=centres)
+                start = refine_normals(X, nbhd, start, weights, denoise=plan.denoise, centres=centres)
         with clock.stage("curvature_fit", report=False):
-            fit = chord_fit(X, nbhd, start, weights, denoise=scale.denoise, centres=centres, passes=1)
+            fit = chord_fit(X, nbhd, start, weights, denoise=plan.denoise, centres=centres, passes=1)
         with clock.stage("border", report=False):
             offset = centroid_offset(X, nbhd, fit.normals, taper=opts.taper, centres=centres)
             border[lo:hi] = offset > BORDER_OFFSET
@@ -467,14 +484,14 @@ def _default_fit_stages(
             areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, offset, reuse_base)
         radius[lo:hi] = nbhd.radius
         residual[lo:hi] = fit.sigma
-        if rounded and not scale.denoise:
+        if rounded and not plan.denoise:
             centre[lo:hi] = _centre_gain(nbhd, weights)
         fits.append(fit)
         clock.report("fit", hi / n)
     fit = ChordFit.concatenate(fits)
     pc = fit.principal
-    report = ScaleReport.from_choice(choice, radius, opts.alpha, opts.radius, support=radius)
-    return _Fitted(fit.normals, pc.mean, pc, areas, border, report, residual, radius, support=radius,
+    report = ScaleReport.from_choice(choice, plan.label, radius, opts.alpha, fixed_radius=fixed_radius, support=radius)
+    return _Fitted(fit.normals, pc.mean, pc, areas, border, plan, report, residual, radius, support=radius,
                    mean_variance_factor=fit.mean_variance_factor + centre**2)
 
 
@@ -494,25 +511,27 @@ def _centre_gain(nbhd, weights: np.ndarray) -> np.ndarray:
 
 
 def _anchored_fit_stages(
-    op: HeatKernelOperator, nrm: np.ndarray, keep_normals: bool, fit_areas: np.ndarray, choice, keys: np.ndarray,
+    op: HeatKernelOperator, plan: FitPlan, choice, nrm: np.ndarray, fit_areas: np.ndarray, keys: np.ndarray,
     clock: StageClock, mode: str, towards, outlier: np.ndarray,
 ) -> _Fitted:
-    """The noisy cloud's fit: the wide kernel at anchors, carried to every point (:mod:`heatcurv.anchors`).
+    """The anchored fit: the wide kernel at anchors, carried to every point (:mod:`heatcurv.anchors`).
 
-    Stages ``anchor_fit``, ``carry`` and ``area_correction``; the parameters are
-    those of :func:`_default_fit_stages` (``fit_areas``: the areas weighting the
-    fit, 0 for outliers; ``choice``: the kernel choice). Under noise above
-    :data:`STRONG_NOISE` the anchors start from their own PCA normals,
-    oriented over the anchors (:func:`heatcurv.anchors.anchor_normals`), and
-    the result's orientation is theirs.
+    Stages ``anchor_fit``, ``carry`` and ``area_correction``, as ``plan`` says
+    (anchors per ball, the anchors' own normals, the low-noise refit, the
+    carry); ``choice`` is the kernel choice, ``fit_areas`` the areas weighting
+    the fit (0 for outliers), ``keys`` the sampling keys the anchors are drawn
+    by, ``mode`` and ``towards`` the orientation policy and its reference
+    (:func:`_reference`) for the anchors' own normals. With :attr:`~heatcurv.plan.FitPlan.anchor_normals`
+    the result's orientation is the anchors' (:func:`heatcurv.anchors.anchor_normals`).
     """
     opts, X = op.options, op.points
     n = X.shape[0]
+    keep_normals = plan.keep_normals
     k_point = choice.k_per_point if choice.k_per_point is not None else np.full(n, choice.scale.k)
     with clock.stage("anchor_fit", report=False):
-        index = anchor_rows(keys, k_point, opts.scale_tuning.seed, anchors_per_ball(choice.low_noise))
+        index = anchor_rows(keys, k_point, opts.scale_tuning.seed, plan.anchors_per_ball)
     start, on_anchors, reoriented = nrm[index], None, None
-    if not keep_normals and choice.relative_noise > STRONG_NOISE:
+    if plan.anchor_normals:
         with clock.stage("anchor_fit", report=False):
             on_anchors = anchor_normals(
                 X, op.tree, index, k_point[index], fit_areas, mode=mode, towards=towards, excluded=outlier,
@@ -521,8 +540,8 @@ def _anchored_fit_stages(
         start = on_anchors.normals
     with clock.stage("anchor_fit", report=False):
         anchors = fit_anchors(
-            X, op.tree, start, fit_areas, index, k_point[index], denoise=True,
-            low_noise=choice.low_noise, alpha=opts.alpha, taper=opts.taper,
+            X, op.tree, start, fit_areas, index, k_point[index], denoise=plan.denoise,
+            low_noise=plan.refit, alpha=opts.alpha, taper=opts.taper,
             refine=not keep_normals, workers=opts.workers, progress=lambda f: clock.report("fit", 0.9 * f),
         )
     with clock.stage("carry", report=False):
@@ -530,7 +549,7 @@ def _anchored_fit_stages(
         # strong noise, where they are what the anchors replace)
         carried = carry_fits(
             X, anchors, normals=nrm if keep_normals else None, reference=nrm if on_anchors is None else None,
-            degree=carry_degree(choice.low_noise),
+            degree=plan.carry_degree,
             workers=opts.workers,
         )
         if on_anchors is not None:
@@ -555,10 +574,10 @@ def _anchored_fit_stages(
             areas = (carried.density_area * ball_area_factor(carried.radius, pc.k1, pc.k2)
                      * cut_ball_coverage(carried.offset, BORDER_OFFSET))
     clock.report("fit", 1.0)
-    report = ScaleReport.from_choice(choice, carried.radius, opts.alpha, support=carried.support,
+    report = ScaleReport.from_choice(choice, plan.label, carried.radius, opts.alpha, support=carried.support,
                                      anchors=index.shape[0], k=k_point)
     return _Fitted(
-        carried.normals, pc.mean, pc, areas, border, report, carried.sigma, carried.radius, reoriented, k_point,
+        carried.normals, pc.mean, pc, areas, border, plan, report, carried.sigma, carried.radius, reoriented, k_point,
         carried.support, carried.mean_variance_factor,
     )
 
@@ -694,6 +713,7 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
     }
     if precision is not None:
         info["precision"] = precision
+    info["plan"] = fitted.plan
     if fitted.scale is not None:
         info["scale"] = fitted.scale.in_unit(unit)
     info["timings"] = timings

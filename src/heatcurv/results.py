@@ -89,8 +89,9 @@ class CurvatureResult:
         :class:`heatcurv.orientation.OrientationReport`: the policy used and
         how many points it could not orient), ``outliers`` (their number), ``area_solve``
         (solver, iterations, residual), ``timings`` (seconds per named stage,
-        :data:`heatcurv.progress.STAGES`), and for the chord fit ``scale``, a
-        :class:`heatcurv.scale.ScaleReport`: the kernel chosen (``k``
+        :data:`heatcurv.progress.STAGES`), ``plan`` (a :class:`heatcurv.plan.FitPlan`:
+        the fit's form, kernel, anchors and carry, what ran), and for the chord fit
+        ``scale``, a :class:`heatcurv.scale.ScaleReport`: the kernel chosen (``k``
         neighbours, ``fit`` label, ``radius``: 99th percentile of its ball
         radii), the noise estimate ``sigma`` (length units) and
         ``relative_noise`` (``sigma / h``).

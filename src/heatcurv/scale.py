@@ -144,7 +144,8 @@ class ScaleReport:
     k : int
         Neighbours in the fit's kernel.
     fit : str
-        ``"chord-<k>"`` (clean cloud) or ``"denoised-<k>"``.
+        The fit plan's label (:attr:`heatcurv.plan.FitPlan.label`): ``"chord-<k>"`` (clean
+        cloud), ``"denoised-<k>"``, or ``"<form>-r<radius>"`` with ``radius=``.
     radius : float
         99th percentile of the fit's ball radii, length units.
     median_h : float
@@ -197,35 +198,29 @@ class ScaleReport:
 
     @classmethod
     def from_choice(
-        cls, choice: ScaleChoice, radius: np.ndarray, alpha: float, fixed_radius: float | None = None, *,
+        cls, choice: ScaleChoice, label: str, radius: np.ndarray, alpha: float, *, fixed_radius: bool = False,
         support: np.ndarray | None = None, anchors: int = 0, k: np.ndarray | None = None,
     ) -> ScaleReport:
-        """The report of ``choice`` fitted with ball radii ``radius`` (shape (n,)).
+        """The report of ``choice`` fitted as the plan ``label`` says (:attr:`heatcurv.plan.FitPlan.label`).
 
-        With ``fixed_radius`` (``radius=``) the label is ``"<form>-r<radius>"``.
-        ``support`` (shape (n,)) is each point's support radius (default ``radius``),
-        ``anchors`` the anchors' count and ``k`` (shape (n,)) each point's kernel width.
+        ``radius`` (shape (n,)) are the fit's ball radii, ``fixed_radius`` says they are the one
+        radius of ``radius=`` (the only candidate), ``support`` (shape (n,)) each point's support
+        radius (default ``radius``), ``anchors`` the anchors' count and ``k`` (shape (n,)) each
+        point's kernel width.
         """
-        label = choice.scale.label
-        if fixed_radius is not None:
-            label = f"{'denoised' if choice.scale.denoise else 'chord'}-r{fixed_radius:g}"
         support = radius if support is None else support
         finite = support[np.isfinite(support)]
-        k_median = choice.scale.k if k is None else int(np.median(k))
-        k_min = choice.scale.k if k is None else int(k.min())
-        k_max = choice.scale.k if k is None else int(k.max())
-        if k is not None:
-            label = f"{'denoised' if choice.scale.denoise else 'chord'}-{k_median}"
         return cls(
             support_radius=float(finite.max()) if finite.size else float("nan"), anchors=int(anchors),
-            k_min=k_min, k_max=k_max, low_noise=bool(choice.low_noise),
-            k=k_median,
+            k_min=choice.scale.k if k is None else int(k.min()), k_max=choice.scale.k if k is None else int(k.max()),
+            low_noise=bool(choice.low_noise),
+            k=choice.scale.k if k is None else int(np.median(k)),
             fit=label,
             radius=float(np.percentile(radius, 99)),
             median_h=float(np.median(radius / alpha)),
             sigma=choice.sigma,
             relative_noise=choice.relative_noise,
-            candidates=[label] if fixed_radius is not None else [c.label for c in choice.candidates],
+            candidates=[label] if fixed_radius else [c.label for c in choice.candidates],
             sd=choice.sd,
             median_radius=float(np.median(radius)),
         )

@@ -158,17 +158,19 @@ def test_verbose_prints_stage_timings_and_the_kernel(workdir, sphere_ply):
     assert out.returncode == 0, out.stderr
     # the default method's fit stage (named "principal" before the core named each stage of the chord fit)
     assert re.search(r"curvature_fit\s+\d+\.\d+ s", out.stdout), out.stdout
-    assert "chord-fit kernel: chord-60 (60 neighbours" in out.stdout
+    assert "fit plan: chord-60, at every point (clean)" in out.stdout
+    assert "kernel: chord-60 (60 neighbours" in out.stdout
 
 
 def test_a_noisy_cloud_writes_its_per_point_kernel_radius(tmp_path):
-    # issue 12: the chosen radius per point as an output field, the anchors and support in --verbose
+    # the chosen radius per point as an output field, the plan, the anchors and support in --verbose
     sample = heatcurv.surfaces.Torus().sample(5000, "random", noise=0.003, seed=1)
     path = tmp_path / "noisy.npy"
     np.save(path, sample.points)
     out = run("-v", "compute", path, "-o", tmp_path / "out.ply", "--fields", "mean,fit_radius")
     assert out.returncode == 0, out.stderr
-    assert re.search(r"wide kernel: .*fitted at \d+ anchors .* support radius", out.stdout), out.stdout
+    assert re.search(r"fit plan: denoised-\d+, at anchors \(16 per ball\), carried to every point", out.stdout)
+    assert re.search(r"fitted at \d+ anchors; support radius", out.stdout), out.stdout
     assert "very low noise" not in out.stdout
     back = io.read_points(tmp_path / "out.ply")
     res = heatcurv.estimate(sample.points)
@@ -183,6 +185,8 @@ def test_verbose_says_when_the_very_low_noise_path_ran(tmp_path):
     out = run("-v", "compute", tmp_path / "rounded.npy", "-o", tmp_path / "out.ply", "--fields", "mean")
     assert out.returncode == 0, out.stderr
     assert "very low noise (such as coordinate rounding)" in out.stdout, out.stdout
+    assert re.search(r"fit plan: denoised-\d+, at anchors \(24 per ball\), carried to every point by a degree-3 "
+                     r"regression of their tensors; low-noise refit", out.stdout), out.stdout
     assert heatcurv.estimate(points).info["scale"].low_noise
 
 

@@ -220,7 +220,7 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
 
 
 def _report_details(res, log: Log) -> None:
-    """``--verbose``: stage timings, the chord-fit kernel, the area solve and duplicates."""
+    """``--verbose``: stage timings, the fit plan and its kernel, the area solve and duplicates."""
     scale = res.info.get("scale")
     timings = res.info.get("timings", {})
     width = max([len(stage) for stage in timings] + [len("total")])
@@ -228,21 +228,22 @@ def _report_details(res, log: Log) -> None:
     for stage, value in timings.items():
         log.detail(f"    {stage:<{width}s} {value:8.3f} s")
     log.detail(f"    {'total':<{width}s} {sum(timings.values()):8.3f} s")
+    plan = res.info.get("plan")
+    if plan is not None:
+        log.detail(f"  fit plan: {plan.describe()}")
     if scale:
         log.detail(
-            f"  chord-fit kernel: {scale.fit} ({'median ' if res.options.radius is not None else ''}{scale.k} "
+            f"  kernel: {scale.fit} ({'median ' if res.options.radius is not None else ''}{scale.k} "
             f"neighbours; ball radius {scale.median_radius:.4g} median, {scale.radius:.4g} 99th percentile, in the "
             f"cloud's unit; spacing h {scale.median_h:.4g}); "
             f"noise sigma {scale.sigma:.3g} ({scale.relative_noise:.3g} h)"
         )
         if scale.anchors:
-            widths = f"{scale.k_min}-{scale.k_max} neighbours by region; " if scale.k_min != scale.k_max else ""
-            log.detail(f"  wide kernel: {widths}fitted at {scale.anchors} anchors and carried to every point; "
-                       f"support radius {scale.support_radius:.4g} (with the cloud-wide choices fixed, "
-                       "no point farther changes a point's values)")
-        if scale.low_noise:
-            log.detail("  very low noise (such as coordinate rounding): the kernel one doubling wider than chosen, "
-                       "the anchors' quartic refit and the regression of their tensors")
+            log.detail(f"  fitted at {scale.anchors} anchors; support radius {scale.support_radius:.4g} (with the "
+                       "cloud-wide choices fixed, no point farther changes a point's values)")
+    if plan is not None and plan.refit:
+        log.detail("  very low noise (such as coordinate rounding): the kernel one doubling wider than chosen, "
+                   "the anchors' quartic refit and the regression of their tensors")
     orientation = res.info.get("orientation")
     if orientation is not None and orientation.mode != "given":
         log.detail(f"  orientation: {orientation.mode}; {orientation.components} component(s); "

@@ -24,6 +24,8 @@ import numpy as np
 
 from ..choices import CloudFrame
 from ..estimator import estimate
+from ..options import resolve_options
+from ..plan import plan_fit
 from ..reliability import ReliabilityInputs, cloud_flags
 from ..survey import GATE_LEVELS, fit_centres, join_keys, key_part, merge_fits, survey_part, tile_options
 from ..survey import merge_surveys as merge_centre_surveys
@@ -299,15 +301,21 @@ def finish_reliability(columns, medians=None) -> tuple[np.ndarray, float]:
     return cloud_flags(inputs, baselines, rho, stacklevel=3)
 
 
-def describe(context: SurveyContext) -> dict:
-    """The choices of :func:`merge_surveys` as plain numbers (for the output file's parameters and the report)."""
+def describe(context: SurveyContext, options: dict) -> dict:
+    """The choices of :func:`merge_surveys` as plain numbers (for the output file's parameters and the report).
+
+    ``options``: the tiles' estimator keywords (:func:`.driver.estimator_options`); the kernel is
+    the label of the fit plan they and the survey's choice make (:func:`heatcurv.plan.plan_fit`).
+    """
     choices = context.choices
     frame, scale = choices.frame, choices.scale
+    estimator = {key: value for key, value in options.items() if key not in ("method", "viewpoint")}
+    plan = plan_fit(resolve_options(options.get("method", "default"), **estimator), scale)
     out = {
         "halo": float(context.halo), "support": float(context.support),
         "offset": frame.offset.tolist(), "unit": frame.unit, "points": frame.n_points,
         "centroid": (frame.centroid * frame.unit + frame.offset).tolist(), "rms_radius": frame.rms_radius * frame.unit,
-        "kernel": scale.scale.label, "sigma": scale.sigma * frame.unit, "relative_noise": scale.relative_noise,
+        "kernel": plan.label, "sigma": scale.sigma * frame.unit, "relative_noise": scale.relative_noise,
     }
     policy = getattr(choices, "orientation", None)
     if policy is not None:  # what orient="auto" without a viewpoint chose (heatcurv.orientation.auto_policy)

@@ -715,8 +715,8 @@ def _write(run: _Run, plan: TilePlan, context: SurveyContext, medians: dict, fli
 
     parameters = {
         "heatcurv": _version(), "tiled": True, "options": run.options, "tile_size": plan.tile_size,
-        "tiles": len(plan.tiling.counts), "halo": float(context.halo), "context": compute.describe(context),
-        "medians": medians, "source": run.src.name,
+        "tiles": len(plan.tiling.counts), "halo": float(context.halo),
+        "context": compute.describe(context, run.options), "medians": medians, "source": run.src.name,
     }
     bar.stage("writing")
     tic = time.perf_counter()
@@ -740,7 +740,7 @@ def _report(run: _Run, plan: TilePlan, context: SurveyContext, store: _TileStore
         tile_size=plan.tile_size, halo=float(context.halo), widened=sum(1 for r in results.values() if r["widened"]),
         resumed=resumed, scheduler=name, workers=workers, budget=run.budget,
         peak_memory={"driver": driver_peak, "worker": worker_peak, "estimate": driver_peak + workers * worker_peak},
-        timings=timings, context=compute.describe(context), orientation=orientation, parameters=parameters,
+        timings=timings, context=compute.describe(context, run.options), orientation=orientation, parameters=parameters,
         scratch=str(run.work), tile_seconds=[results[t]["seconds"] for t in sorted(results)],
     )
 

@@ -1,0 +1,171 @@
+"""How the curvature is fitted: the one place that chooses the fit's form, kernel, anchors and carry.
+
+The kernel choice (:mod:`heatcurv.scale`) measures the noise and picks a
+kernel width per region; the options may fix the width (``scale=``), the
+ball (``radius=``) or ask for the paper's tensor fit. :func:`plan_fit` turns
+these into a :class:`FitPlan`; the estimator runs what the plan says, and
+every label a result carries (``info["scale"].fit``, the command line's
+kernel, a tiled run's report) is the plan's.
+
+=======================  =======================================================================
+path                     when
+=======================  =======================================================================
+paper's tensor fit       ``fit="constrained"`` (eq 3.1, the paper's method) or ``"unconstrained"``:
+                         over the operator's balls, at every point
+chord fit at each point  a clean cloud (the noise gate of :func:`heatcurv.scale.select_scale`) and
+                         a kernel of at most ``k_fit`` neighbours
+one ball radius          ``radius=``: the chord or the denoised form (the noise gate) over that
+                         ball, at every point
+anchored denoised fit    noise, or a kernel wider than ``k_fit``: the denoised form fitted at
+                         anchors (:mod:`heatcurv.anchors`) and carried to every point
+ ... with anchor normals  noise above :data:`STRONG_NOISE` spacings: the anchors find and orient
+                         their own normals (the operator's balls are swamped)
+ ... very low noise       the very-low-noise band (:attr:`heatcurv.scale.ScaleChoice.low_noise`):
+                         the quartic refit, denser anchors and the cubic regression of their tensors
+=======================  =======================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .anchors import anchors_per_ball, carry_degree
+
+__all__ = ["FORMS", "STRONG_NOISE", "FitPlan", "plan_fit"]
+
+#: The fit forms a plan names: the chord fit, its denoised form (:mod:`heatcurv.chordfit`) and the paper's
+#: tensor fit with or without its constraint (:mod:`heatcurv.principal`).
+FORMS = ("chord", "denoised", "paper-constrained", "paper-free")
+#: Noise (``sigma`` over the operator's median spacing ``h``, ``info["scale"].relative_noise``) above
+#: which the operator's balls (radius ``2 h``) are swamped: their PCA normals tilt by tens of degrees
+#: and their orientation breaks apart, so the wide kernel's anchors find and orient their own
+#: normals (:func:`heatcurv.anchors.anchor_normals`). Between the noisiest clouds that orient fine on the
+#: operator's balls and a torus that did not (docs/how_it_works.md, thresholds).
+STRONG_NOISE = 0.5
+
+
+@dataclass(frozen=True)
+class FitPlan:
+    """What the curvature fit of one cloud runs (``result.info["plan"]``).
+
+    Attributes
+    ----------
+    form : str
+        One of :data:`FORMS`.
+    k : int
+        Neighbours in the median point's kernel (0 for the paper's fit and
+        with ``radius``: the ball decides).
+    k_min, k_max : int
+        Narrowest and widest kernel of any point (regions of different noise).
+    radius : float or None
+        The one ball radius of ``radius=``, input units.
+    anchored : bool
+        Fitted at anchors and carried to every point; otherwise fitted at every point.
+    anchors_per_ball : int
+        Anchors in each fitted ball (every point is one where the kernel is narrow;
+        :func:`heatcurv.anchors.anchor_rows`); 0 when not anchored.
+    anchor_normals : bool
+        The anchors start from their own PCA normals, oriented over the anchors.
+    refit : bool
+        The anchors' low-noise refit (quartic terms, near-pair weights).
+    carry_degree : int
+        How the anchors' fits reach every point: 0 a weighted mean of the carried
+        models, 3 the cubic regression of the anchors' own tensors (very low noise).
+    keep_normals : bool
+        The caller gave the normals: the fit keeps them.
+    reason : str
+        Why this path, in words.
+    """
+
+    form: str
+    k: int = 0
+    k_min: int = 0
+    k_max: int = 0
+    radius: float | None = None
+    anchored: bool = False
+    anchors_per_ball: int = 0
+    anchor_normals: bool = False
+    refit: bool = False
+    carry_degree: int = 0
+    keep_normals: bool = False
+    reason: str = ""
+
+    @property
+    def denoise(self) -> bool:
+        """Whether the fit is the denoised form (an offset and tilt fitted, not the chords' own heights)."""
+        return self.form == "denoised"
+
+    @property
+    def label(self) -> str:
+        """``"chord-60"``, ``"denoised-480"``, ``"chord-r0.5"`` or the paper's form."""
+        if self.form.startswith("paper"):
+            return self.form
+        if self.radius is not None:
+            return f"{self.form}-r{self.radius:g}"
+        return f"{self.form}-{self.k}"
+
+    def describe(self) -> str:
+        """The plan in one line (the command line's ``--verbose``)."""
+        if self.form.startswith("paper"):
+            where = "at every point, on the operator's balls"
+        elif not self.anchored:
+            where = "at every point"
+        else:
+            where = f"at anchors ({self.anchors_per_ball} per ball), carried to every point by " + (
+                "a weighted mean of their models" if self.carry_degree == 0 else
+                f"a degree-{self.carry_degree} regression of their tensors")
+        widths = f", {self.k_min}-{self.k_max} neighbours by region" if self.k_min != self.k_max else ""
+        extras = [text for flag, text in ((self.refit, "low-noise refit"),
+                                          (self.anchor_normals, "anchors orient their own normals"),
+                                          (self.keep_normals, "given normals kept")) if flag]
+        return (f"{self.label}{widths}, {where}" + "".join(f"; {text}" for text in extras)
+                + (f" ({self.reason})" if self.reason else ""))
+
+
+def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
+    """The fit a cloud gets, from the options and the kernel choice.
+
+    Parameters
+    ----------
+    options : heatcurv.options.Options
+        Resolved options (``fit``, ``radius``, ``scale_tuning.k_fit``).
+    choice : heatcurv.scale.ScaleChoice, optional
+        The kernel choice (:func:`heatcurv.scale.select_scale`, :func:`heatcurv.scale.select_form`
+        with ``radius=``, or a tiled run's survey); not used by the paper's fit.
+    keep_normals : bool, optional
+        The caller gave the normals.
+
+    Returns
+    -------
+    FitPlan
+    """
+    if options.fit != "chord":
+        form = "paper-constrained" if options.fit == "constrained" else "paper-free"
+        return FitPlan(form, keep_normals=keep_normals, reason=f"fit={options.fit!r}: the paper's tensor fit, eq 3.1")
+    if choice is None:
+        raise ValueError("the chord fit's plan needs the kernel choice")
+    scale = choice.scale
+    widths = np.asarray(choice.k_per_point) if choice.k_per_point is not None else np.array([scale.k])
+    k_min, k_max = int(widths.min()), int(widths.max())
+    form = "denoised" if scale.denoise else "chord"
+    gate = f"noise {choice.relative_noise:.2g} h" if scale.denoise else "clean"
+    if options.radius is not None:
+        return FitPlan(form, k=scale.k, k_min=k_min, k_max=k_max, radius=float(options.radius),
+                       keep_normals=keep_normals, reason=f"radius={options.radius:g}; {gate}")
+    k_fit = int(options.scale_tuning.k_fit)
+    if not scale.denoise and scale.k <= k_fit:
+        return FitPlan("chord", k=scale.k, k_min=k_min, k_max=k_max, keep_normals=keep_normals, reason=gate)
+    # noise, or a kernel too wide to fit at every point: the denoised form at anchors (its offset
+    # absorbs the centre's own height error, which a carried chord fit would keep)
+    why = gate if scale.denoise else f"clean, but {scale.k} neighbours is wider than k_fit = {k_fit}"
+    low_noise = bool(choice.low_noise)
+    if low_noise:
+        why += "; very low noise"
+    strong = not keep_normals and choice.relative_noise > STRONG_NOISE
+    return FitPlan(
+        "denoised", k=scale.k, k_min=k_min, k_max=k_max, anchored=True, anchors_per_ball=anchors_per_ball(low_noise),
+        anchor_normals=strong, refit=low_noise, carry_degree=carry_degree(low_noise), keep_normals=keep_normals,
+        reason=why,
+    )
