@@ -84,6 +84,9 @@ __all__ = [
 MAX_SOURCES = 6000
 #: Fewest points a patch aims at, and the most patches a cloud is cut into.
 PATCH_POINTS, MAX_PATCHES = 30, 300
+#: Pieces of fewer points than this (single points) join a neighbouring patch across any tree edge: one
+#: point's side is the tree's to give, not one more unknown of the energy.
+TINY_PATCH = 2
 #: A query sits this fraction of its tangent-plane disc's radius off the surface.
 QUERY_OFFSET = 0.5
 #: A level further than this from its target (0 outside, 1 inside) contradicts the point's side.
@@ -309,7 +312,11 @@ def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray,
     ``points`` are a part (a tile) of a cloud of that many; a piece of fewer than a quarter of that joins the patch
     across one of its cut tree edges (in one pass over them), so every patch
     is a subtree and the orientation inside it is the tree's. Tree edges
-    across which the normals or the tangent planes disagree join nothing.
+    across which the normals or the tangent planes disagree join nothing,
+    except that a piece of fewer than :data:`TINY_PATCH` points (a single
+    point) joins a neighbour across any of its tree edges: noise leaves
+    single points behind such edges, thousands on a noisy cloud of a
+    million points, and each would be one more unknown of the energy.
     Excluded points get -1.
     """
     n = points.shape[0]
@@ -323,6 +330,9 @@ def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray,
     side = np.sqrt(target) * (np.median(length) if length.size else 1.0)
     cell = _cell_ids(points, side)
     label = merged_components(n, i, j, (cell[i] == cell[j]) & sure, sure, int(target / 4))
+    # a point that only unsure edges reach (a noisy point whose normal disagrees with its neighbours')
+    # cannot carry a side of its own: it joins a neighbour across its tree edge
+    label = merged_components(n, i, j, label[i] == label[j], np.ones(i.size, dtype=bool), TINY_PATCH)
     label[excluded] = -1
     used = np.unique(label[label >= 0])
     relabel = np.full(label.max() + 2, -1)
