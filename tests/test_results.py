@@ -19,5 +19,7 @@ def test_result_record():
     np.testing.assert_array_equal(res.mean[-3:], res.mean[:3])
     np.testing.assert_allclose(res.area.sum(), 4 * np.pi * 4, rtol=0.005)
     assert res.info["n_distinct"] == 1000 and set(res.info) == {
-        "n_distinct", "area_solve", "scale", "timings", "orientation", "outliers", "second_sheet", "resolution"
+        "n_distinct", "area_solve", "plan", "scale", "timings", "orientation", "outliers", "second_sheet",
+        "resolution",
     }
+    assert res.info["plan"].label == res.info["scale"].fit == "chord-60"
