@@ -7,7 +7,7 @@ import scipy.sparse as sp
 import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.winding import winding_numbers
-from heatcurv.enclosure import LEVEL_TOLERANCE, Enclosure, enclose, patch_fields
+from heatcurv.enclosure import LEVEL_TOLERANCE, Enclosure, enclose, patch_fields, patches
 from heatcurv.neighbourhood import knn_neighbourhood
 from heatcurv.orientation import _spanning_forest
 
@@ -175,3 +175,31 @@ def test_an_open_scan_of_a_closed_surface_is_not_undecided():
     assert report.closed is False and not report.undecided and report.agreement < 0.1
     assert report.outside_share >= 0.5
     assert res.reliable.mean() > 0.9
+
+
+def _chain_forest(costs):
+    """The spanning forest of points 0, 1, ..., n - 1 on a line, edge ``k`` joining ``k`` and ``k + 1``."""
+    n = len(costs) + 1
+    i, j = np.arange(n - 1), np.arange(1, n)
+    forest = sp.coo_matrix((np.concatenate([costs, costs]), (np.concatenate([i, j]), np.concatenate([j, i]))),
+                           shape=(n, n)).tocsr()
+    points = np.zeros((n, 3))
+    points[:, 0] = np.arange(n)
+    return points, forest
+
+
+def test_a_single_point_behind_an_unsure_edge_joins_its_neighbours_patch():
+    costs = np.full(99, 0.1)
+    costs[49] = 0.9  # between two pieces of 50 points: the normals disagree there, the pieces stay apart
+    costs[98] = 0.9  # the last point alone behind such an edge
+    costs[0] = 0.9  # and the first
+    points, forest = _chain_forest(costs)
+    label = patches(points, forest, np.zeros(100, dtype=bool))
+    assert label[99] == label[98] and label[0] == label[1]
+    assert label[49] != label[50]
+    assert set(np.unique(label[:50])).isdisjoint(np.unique(label[50:]))
+    # an excluded point is no patch's, and a point whose only edge leads to it stays its own
+    excluded = np.zeros(100, dtype=bool)
+    excluded[98] = True
+    label = patches(points, forest, excluded)
+    assert label[98] == -1 and label[99] >= 0 and np.count_nonzero(label == label[99]) == 1
