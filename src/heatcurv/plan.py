@@ -18,9 +18,9 @@ one ball radius          ``radius=``: the chord or the denoised form (the noise 
                          ball, at every point
 anchored denoised fit    noise, or a kernel wider than ``k_fit``: the denoised form fitted at
                          anchors (:mod:`heatcurv.anchors`) and carried to every point
- ... with anchor normals  noise above :data:`STRONG_NOISE` spacings: the anchors find and orient
+with anchor normals      noise above :data:`STRONG_NOISE` spacings: the anchors find and orient
                          their own normals (the operator's balls are swamped)
- ... very low noise       the very-low-noise band (:attr:`heatcurv.scale.ScaleChoice.low_noise`):
+with very low noise      the very-low-noise band (:attr:`heatcurv.scale.ScaleChoice.low_noise`):
                          the quartic refit, denser anchors and the cubic regression of their tensors
 =======================  =======================================================================
 """
