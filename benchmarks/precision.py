@@ -9,8 +9,8 @@ points, moved 10^0 ... 10^4 of their size from the origin and stored as float32.
 * from the float32 points (the precision flag of :mod:`heatcurv.reliability`).
 
 A point is **off** when its ``k1``, ``k2`` or mean curvature moved by more than
-:data:`heatcurv.reliability.PRECISION_TOLERANCE` of its curvature scale (the larger of ``|k1|``,
-``|k2|`` and ``FLAT_CURVATURE`` over its fit's radius). The table counts the off points reliable
+``TUNING.precision_tolerance`` of its curvature scale (the larger of ``|k1|``,
+``|k2|`` and ``TUNING.flat_curvature`` over its fit's radius). The table counts the off points reliable
 without and with the flag, and the points the flag took out that were not off ("needlessly").
 "same fit" splits the clouds whose float32 estimate kept the float64 fit's form and anchor count
 from those where the rounding changed them: the kernel choice saw the rounding as noise, or a
@@ -29,7 +29,7 @@ import numpy as np
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.reliability import FLAT_CURVATURE, PRECISION_TOLERANCE
+from heatcurv.tuning import TUNING
 
 SURFACES = {"sphere": lambda: surfaces.Sphere(radius=1.0), "torus": lambda: surfaces.Torus(),
             "paraboloid": lambda: surfaces.Paraboloid(), "saddle": lambda: surfaces.Saddle()}
@@ -41,10 +41,10 @@ def measure(kind: str, sampler: str, noise: float, n: int, seed: int, exponent: 
     single = moved.astype(np.float32)
     exact, rounded = heatcurv.estimate(moved), heatcurv.estimate(single)
     unflagged = heatcurv.estimate(single, coordinate_precision=0).reliable
-    scale = np.maximum(np.maximum(np.abs(exact.k1), np.abs(exact.k2)), FLAT_CURVATURE / exact.fit_radius)
+    scale = np.maximum(np.maximum(np.abs(exact.k1), np.abs(exact.k2)), TUNING.flat_curvature / exact.fit_radius)
     moved_by = np.maximum.reduce([np.abs(rounded.k1 - exact.k1), np.abs(rounded.k2 - exact.k2),
                                   np.abs(rounded.mean - exact.mean)])
-    off = moved_by > PRECISION_TOLERANCE * scale
+    off = moved_by > TUNING.precision_tolerance * scale
     a, b = exact.info["scale"], rounded.info["scale"]
     return {"points": n, "off": int(off.sum()), "before": int((off & unflagged).sum()),
             "after": int((off & rounded.reliable).sum()),

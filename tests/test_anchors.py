@@ -8,10 +8,6 @@ import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.anchors import carry_anchor_fits
 from heatcurv.anchors import (
-    ANCHORS_PER_BALL,
-    EXACT_CARRY_SIGMA,
-    LOW_NOISE_ANCHORS_PER_BALL,
-    LOW_NOISE_MIN_NEIGHBOURS,
     anchor_rows,
     anchors_per_ball,
     carry_degree,
@@ -21,8 +17,9 @@ from heatcurv.anchors import (
 from heatcurv.areas import density_areas
 from heatcurv.neighbourhood import knn_neighbourhood
 from heatcurv.sampling import geometric_keys
-from heatcurv.scale import LOW_NOISE, NO_NOISE, Scale, fit_at_scale, in_low_noise_band
+from heatcurv.scale import Scale, fit_at_scale, in_low_noise_band
 from heatcurv.surfaces.accuracy import compare
+from heatcurv.tuning import TUNING
 
 
 def _anchored(points, normals, k, denoise=False):
@@ -40,7 +37,7 @@ def test_anchors_are_about_per_ball_in_each_ball():
     keys = geometric_keys(pts, knn_neighbourhood(pts, 60))
     for k in (480, 1920):
         index = anchor_rows(keys, np.full(len(pts), k))
-        assert len(index) == pytest.approx(len(pts) * ANCHORS_PER_BALL / k, rel=0.15)
+        assert len(index) == pytest.approx(len(pts) * TUNING.anchors_per_ball / k, rel=0.15)
         assert np.all(np.diff(index) > 0)
     assert len(anchor_rows(keys, np.full(len(pts), 8))) == len(pts)  # narrower than per_ball: every point
     # wider kernels, sparser anchors, point by point
@@ -317,13 +314,13 @@ def test_regression_does_not_extrapolate_beyond_the_anchors():
 def test_narrow_kernels_keep_the_plain_fit_under_very_low_noise():
     # a region whose kernel Lepski's rule kept at 60 neighbours in a very-low-noise cloud: its anchors (every
     # point) keep the plain denoised fit, whose error there is a third of the quartic refit's (a torus at
-    # 1e-5: 0.55 % against 1.80 %); from LOW_NOISE_MIN_NEIGHBOURS on, the refit
+    # 1e-5: 0.55 % against 1.80 %); from TUNING.low_noise_min_neighbours on, the refit
     sample = surfaces.Torus().sample(6000, "random", seed=2, noise=1e-5)
     pts, normals = sample.points, sample.normals
     tree = cKDTree(pts)
     areas = density_areas(knn_neighbourhood(pts, 60, tree=tree))
     index = np.arange(0, len(pts), 50)
-    for k, same in ((60, True), (LOW_NOISE_MIN_NEIGHBOURS, False)):
+    for k, same in ((60, True), (TUNING.low_noise_min_neighbours, False)):
         kk = np.full(index.shape[0], k)
         plain = fit_anchors(pts, tree, normals[index], areas, index, kk, denoise=True)
         low = fit_anchors(pts, tree, normals[index], areas, index, kk, denoise=True, low_noise=True)
@@ -380,7 +377,7 @@ def test_clean_clouds_keep_the_chord_fit(name, sampler, n, records):
 
 
 def test_noisy_models_are_carried_to_first_order():
-    # an anchor whose fit's residual is EXACT_CARRY_SIGMA ball radii or more carries its model to first order
+    # an anchor whose fit's residual is TUNING.exact_carry_sigma ball radii or more carries its model to first order
     # (the exact surface of a noisy model carries its noise non-linearly); on a sphere's model both are exact
     e1, e2, n = np.eye(3)
     R, curvature = 1.5, 0.4  # a sphere of radius 2.5, units of R: A = 0.6
@@ -409,12 +406,13 @@ def test_noisy_models_are_carried_to_first_order():
     assert np.abs(carry(general, 0.0) - carry(general, 1.0)).max() > 1e-3
     sample = surfaces.Sphere().sample(20_000, "random", seed=1, noise=0.006)
     anchors, _, _, _ = _anchored(sample.points, sample.normals, 960, denoise=True)
-    assert np.mean(anchors.fit.sigma >= EXACT_CARRY_SIGMA * anchors.radius) > 0.9  # 0.6 % noise: first order
+    assert np.mean(anchors.fit.sigma >= TUNING.exact_carry_sigma * anchors.radius) > 0.9  # 0.6 % noise: first order
 
 
 def test_no_noise_keeps_the_ordinary_carry():
     # the low-noise path is for noise that is there but small (coordinate rounding); a cloud whose measured
     # noise is at rounding level (two planes at a fold: relative_noise 1e-16) keeps the ordinary anchors
-    assert not in_low_noise_band(1e-16) and not in_low_noise_band(LOW_NOISE) and in_low_noise_band(NO_NOISE)
-    assert anchors_per_ball(False) == ANCHORS_PER_BALL and carry_degree(False) == 0
-    assert anchors_per_ball(True) == LOW_NOISE_ANCHORS_PER_BALL and carry_degree(True) > 0
+    assert not in_low_noise_band(1e-16) and not in_low_noise_band(TUNING.low_noise)
+    assert in_low_noise_band(TUNING.no_noise)
+    assert anchors_per_ball(False) == TUNING.anchors_per_ball and carry_degree(False) == 0
+    assert anchors_per_ball(True) == TUNING.low_noise_anchors_per_ball and carry_degree(True) > 0

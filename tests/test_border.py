@@ -4,9 +4,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from heatcurv import surfaces
-from heatcurv.border import BORDER_OFFSET, border_points, centroid_offset
+from heatcurv.border import border_points, centroid_offset
 from heatcurv.kernel import ball_taper
 from heatcurv.neighbourhood import ball_neighbourhood
+from heatcurv.tuning import TUNING
 
 
 def test_border_points_of_an_open_patch():
@@ -23,4 +24,4 @@ def test_border_points_of_an_open_patch():
     edge = sample.border_distance < 0.05 * R
     assert flagged[edge].all()
     assert not flagged[sample.border_distance > R].any()
-    assert np.median(offset[sample.border_distance > R]) < 0.1 < BORDER_OFFSET
+    assert np.median(offset[sample.border_distance > R]) < 0.1 < TUNING.border_offset

@@ -7,9 +7,10 @@ import scipy.sparse as sp
 import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.winding import winding_numbers
-from heatcurv.enclosure import LEVEL_TOLERANCE, Enclosure, enclose, patch_fields, patches
+from heatcurv.enclosure import Enclosure, enclose, patch_fields, patches
 from heatcurv.neighbourhood import knn_neighbourhood
 from heatcurv.orientation import _spanning_forest
+from heatcurv.tuning import TUNING
 
 
 def _reference_winding(queries, sources, dipoles, labels, n_labels):
@@ -52,7 +53,7 @@ def test_levels_of_a_closed_surface(noise, records):
     s, area = _sample("torus", 6000, noise=noise)
     along, against, _ = patch_fields(s.points, s.normals, area, np.zeros(6000, dtype=np.int64), 1)
     off = np.maximum(np.abs(along[:, 0]), np.abs(against[:, 0] - 1))
-    assert np.mean(off > LEVEL_TOLERANCE) <= (0 if noise == 0 else 0.003)
+    assert np.mean(off > TUNING.level_tolerance) <= (0 if noise == 0 else 0.003)
     records.check(f"enclosure/torus-levels-noise{noise:g}", median=np.median(off), p999=np.quantile(off, 0.999))
 
 

@@ -11,9 +11,10 @@ from heatcurv import HeatcurvError, HeatcurvWarning, surfaces
 from heatcurv.data import bunny_path
 from heatcurv.io import read_points
 from heatcurv.kernel import effective_neighbours
-from heatcurv.kernel_check import SUPPORT_LIMITS, _ball_counts, _round_up, measure_support
+from heatcurv.kernel_check import _ball_counts, _round_up, measure_support
 from heatcurv.neighbourhood import ball_neighbourhood, knn_neighbourhood
 from heatcurv.operator import build_operator
+from heatcurv.tuning import TUNING
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +56,7 @@ def test_the_presets_pass_silently_on_their_clouds(random_sphere, fibonacci_sphe
     assert "kernel_check" in res.info["timings"]
     op = build_operator(random_sphere)
     support = measure_support(op.neighbourhood, op.h, op.options)
-    assert support.fit == "chord" and support.effective_neighbours > 3 * SUPPORT_LIMITS["chord"][1]
+    assert support.fit == "chord" and support.effective_neighbours > 3 * TUNING.chord_support[1]
     assert support.edge_weight == pytest.approx(np.exp(-4.0))  # alpha = 2: exp(-alpha^2)
 
 

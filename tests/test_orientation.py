@@ -8,7 +8,8 @@ from heatcurv import surfaces
 from heatcurv.errors import HeatcurvError
 from heatcurv.neighbourhood import knn_neighbourhood
 from heatcurv.normals import pca_normals
-from heatcurv.orientation import ANCHOR_COSINE, as_viewpoint, local_sides, orient
+from heatcurv.orientation import as_viewpoint, local_sides, orient
+from heatcurv.tuning import TUNING
 
 
 def _knn(points, k=60):
@@ -221,14 +222,14 @@ def test_viewpoint_validation():
 
 
 def test_anchor_threshold_is_a_cosine():
-    assert 0.0 < ANCHOR_COSINE < 1.0
-    # a point on the equator of a sphere oriented up has |n_z| < ANCHOR_COSINE: it takes its side from
+    assert 0.0 < TUNING.anchor_cosine < 1.0
+    # a point on the equator of a sphere oriented up has |n_z| < TUNING.anchor_cosine: it takes its side from
     # its neighbours, so the equator band comes out outward like the rest of the upper hemisphere
     sample = surfaces.Sphere().sample(8000, "fibonacci")
     upper = sample.points[:, 2] > -0.2
     pts = sample.points[upper]
     res = heatcurv.estimate(pts, orient="up")
-    band = np.abs(sample.normals[upper][:, 2]) < ANCHOR_COSINE
+    band = np.abs(sample.normals[upper][:, 2]) < TUNING.anchor_cosine
     assert np.all(np.einsum("ij,ij->i", res.normals[band], sample.normals[upper][band]) > 0)
 
 
@@ -314,7 +315,7 @@ def test_up_carries_the_ground_up_a_wall_round_by_round(records):
     # two rounds only: the foot of the wall is decided, the rest not yet
     graph = nb.spread(10)
     facing = nrm[:, 2]
-    anchors = np.abs(facing) >= ANCHOR_COSINE
+    anchors = np.abs(facing) >= TUNING.anchor_cosine
     sides, reach = local_sides(pts, nrm, graph, np.where(anchors, np.sign(facing), 0.0), hops=2)
     decided = wall & ~anchors & (sides != 0)
     assert np.all(nrm[decided, 0] * sides[decided] > 0)  # +x

@@ -6,7 +6,8 @@ from scipy.spatial.transform import Rotation
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.orientation import AUTO_DOWN_SHARE, AUTO_LAYERED_SHARE, AUTO_SHARE, AUTO_SPLIT_SHARE, auto_policy
+from heatcurv.orientation import auto_policy
+from heatcurv.tuning import TUNING
 
 
 def _sample(points, size=2000, seed=0):
@@ -48,7 +49,7 @@ def test_a_closed_surface_faces_down_as_much_as_up(name, turn):
 def test_an_open_surface_over_the_ground_faces_up(name):
     # measured: nothing facing down on any of them; 58 % (the cap) to 93 % (the tile) within 45 degrees of vertical
     policy = auto_policy(_sample(OVER_THE_GROUND[name]()))
-    assert policy.mode == "up" and policy.vertical >= AUTO_SHARE and policy.down <= AUTO_DOWN_SHARE
+    assert policy.mode == "up" and policy.vertical >= TUNING.auto_share and policy.down <= TUNING.auto_down_share
 
 
 def test_an_upright_tube_and_a_standing_sheet_are_not_terrain():
@@ -74,7 +75,7 @@ def test_a_lidar_tile_without_options_is_oriented_up_and_says_why():
     report = auto.info["orientation"]
     assert report.mode == "up" and report.closed is None
     assert report.reason.startswith("auto: an open surface over the horizontal plane")
-    assert report.policy.mode == "up" and report.policy.down <= AUTO_DOWN_SHARE
+    assert report.policy.mode == "up" and report.policy.down <= TUNING.auto_down_share
     # a convention on the coordinates: every point counted, so that a turned cloud may differ
     assert report.by_convention == auto.info["n_distinct"]  # duplicates counted once
     assert np.array_equal(auto.normals, up.normals) and np.array_equal(auto.mean, up.mean)
@@ -149,7 +150,7 @@ def test_a_thin_plate_lying_flat_is_closed_not_terrain(thickness):
     sample = surfaces.Ellipsoid(1.0, 1.0, thickness).sample(20000, "random", seed=0)
     result = heatcurv.estimate(sample.points)
     policy = result.info["orientation"].policy
-    assert policy.mode == "outward" and policy.layered > AUTO_LAYERED_SHARE
+    assert policy.mode == "outward" and policy.layered > TUNING.auto_layered_share
     inward = np.einsum("ij,ij->i", result.normals, sample.normals) < 0
     # measured: 2.7 % inward at c = 0.04 (2 of them reliable, near the rim: 0.01 %), 0.3 % at 0.08
     # and none at 0.15, none of them reliable
@@ -165,7 +166,8 @@ def test_a_plate_too_thin_for_the_layer_test_is_closed_not_terrain():
     sample = surfaces.Ellipsoid(1.0, 1.0, 0.03).sample(20000, "random", seed=0)
     result = heatcurv.estimate(sample.points)
     policy = result.info["orientation"].policy
-    assert policy.mode == "outward" and policy.layered <= AUTO_LAYERED_SHARE and policy.split > AUTO_SPLIT_SHARE
+    assert policy.mode == "outward" and policy.layered <= TUNING.auto_layered_share
+    assert policy.split > TUNING.auto_split_share
     # outward, it is closed (the winding number): measured 6.1 % inward, none of them reliable
     inward = np.einsum("ij,ij->i", result.normals, sample.normals) < 0
     assert inward.mean() <= 0.12

@@ -12,8 +12,9 @@ import pytest
 import heatcurv
 from heatcurv import estimator, surfaces
 from heatcurv.options import ScaleTuning, resolve_options
-from heatcurv.plan import FORMS, STRONG_NOISE, FitPlan, plan_fit
+from heatcurv.plan import FORMS, FitPlan, plan_fit
 from heatcurv.scale import Scale, ScaleChoice
+from heatcurv.tuning import TUNING
 
 SPIED = ("principal_fit", "chord_fit", "refine_normals", "anchor_rows", "anchor_normals", "fit_anchors", "carry_fits")
 
@@ -113,7 +114,7 @@ def test_strong_noise_orients_the_anchors_own_normals_unless_normals_are_given(c
     points = torus(n=4000, noise=0.08, seed=2)
     res = heatcurv.estimate(points)
     plan = res.info["plan"]
-    assert res.info["scale"].relative_noise > STRONG_NOISE
+    assert res.info["scale"].relative_noise > TUNING.strong_noise
     assert plan.anchor_normals and len(calls["anchor_normals"]) == 1
     assert res.info["orientation"].on_anchors == res.info["scale"].anchors
     for name in SPIED:

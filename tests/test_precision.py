@@ -1,8 +1,8 @@
 """The precision of the input coordinates: float32 and grid-rounded (LAS) points too coarse for their curvature.
 
 A value is "off" when it differs from the estimate of the same points before rounding (float64) by more
-than :data:`PRECISION_TOLERANCE` of the point's curvature scale (the larger of ``|k1|``, ``|k2|`` and
-``FLAT_CURVATURE / fit radius``), in ``k1``, ``k2`` or the mean curvature.
+than ``TUNING.precision_tolerance`` of the point's curvature scale (the larger of ``|k1|``, ``|k2|`` and
+``TUNING.flat_curvature / fit radius``), in ``k1``, ``k2`` or the mean curvature.
 """
 
 
@@ -12,15 +12,16 @@ import pytest
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.errors import HeatcurvError
-from heatcurv.reliability import FLAT_CURVATURE, PRECISION_TOLERANCE, coordinate_rounding, imprecise
+from heatcurv.reliability import coordinate_rounding, imprecise
+from heatcurv.tuning import TUNING
 
 
 def off(rounded, exact) -> np.ndarray:
     """Points whose curvatures the rounding moved by more than the tolerance, shape (n,), bool."""
-    scale = np.maximum(np.maximum(np.abs(exact.k1), np.abs(exact.k2)), FLAT_CURVATURE / exact.fit_radius)
+    scale = np.maximum(np.maximum(np.abs(exact.k1), np.abs(exact.k2)), TUNING.flat_curvature / exact.fit_radius)
     moved = np.maximum.reduce([np.abs(rounded.k1 - exact.k1), np.abs(rounded.k2 - exact.k2),
                                np.abs(rounded.mean - exact.mean)])
-    return moved > PRECISION_TOLERANCE * scale
+    return moved > TUNING.precision_tolerance * scale
 
 
 @pytest.fixture(scope="module")

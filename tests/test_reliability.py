@@ -7,15 +7,13 @@ import pytest
 
 from heatcurv.errors import HeatcurvWarning
 from heatcurv.reliability import (
-    MISFIT_FACTOR,
-    MISFIT_FLOOR,
-    RESOLUTION_LIMIT,
     ReliabilityInputs,
     cloud_flags,
     misfit_baselines,
     misfits,
     resolution,
 )
+from heatcurv.tuning import TUNING
 
 
 def _inputs(n=1000):
@@ -30,11 +28,11 @@ def test_misfits_are_judged_against_their_own_widths_median():
     base = misfit_baselines(inputs.residual, inputs.width, inputs.counted)
     assert base[60] == pytest.approx(0.01, rel=1e-12) and base[240] == pytest.approx(0.05, rel=1e-12)
     residual = inputs.residual.copy()
-    residual[[0, 600]] = [MISFIT_FACTOR * 0.012, MISFIT_FACTOR * 0.012]  # a misfit at 60, not at 240
+    residual[[0, 600]] = [TUNING.misfit_factor * 0.012, TUNING.misfit_factor * 0.012]  # a misfit at 60, not at 240
     flags = misfits(residual, inputs.width, base)
     assert flags[0] and not flags[600] and flags.sum() == 1
     # uncounted points (outliers, duplicates) do not move the median; the floor holds for clean clouds
-    assert misfit_baselines(np.zeros(10), np.zeros(10, int), np.ones(10, bool)) == {0: MISFIT_FLOOR}
+    assert misfit_baselines(np.zeros(10), np.zeros(10, int), np.ones(10, bool)) == {0: TUNING.misfit_floor}
 
 
 def test_cloud_flags_join_local_flags_misfits_and_resolution():
@@ -44,10 +42,11 @@ def test_cloud_flags_join_local_flags_misfits_and_resolution():
     # the medians given (a tiled run's, over all tiles) are used as they are
     reliable, _ = cloud_flags(inputs, baselines={60: 1e-4, 240: 1.0}, resolution_value=0.1)
     assert not reliable[:500].any() and reliable[500:].all()
-    coarse = ReliabilityInputs(inputs.local, None, inputs.width, np.full(1000, 2 * RESOLUTION_LIMIT), inputs.counted)
+    rho = np.full(1000, 2 * TUNING.resolution_limit)
+    coarse = ReliabilityInputs(inputs.local, None, inputs.width, rho, inputs.counted)
     with pytest.warns(HeatcurvWarning, match="too coarse"):
         reliable, rho = cloud_flags(coarse)
-    assert not reliable.any() and rho == pytest.approx(2 * RESOLUTION_LIMIT)
+    assert not reliable.any() and rho == pytest.approx(2 * TUNING.resolution_limit)
     assert resolution(np.array([np.nan, 0.2, 0.4]), np.array([True, True, False])) == pytest.approx(0.2)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -84,4 +83,4 @@ def test_a_torus_whose_tube_is_three_spacings_across_is_too_coarse(seed):
     with warnings.catch_warnings():
         warnings.simplefilter("error", HeatcurvWarning)
         res = heatcurv.estimate(thick.points)
-    assert res.reliable.mean() > 0.97 and res.info["resolution"] < RESOLUTION_LIMIT
+    assert res.reliable.mean() > 0.97 and res.info["resolution"] < TUNING.resolution_limit

@@ -7,16 +7,16 @@ the cloud keeps the cost but throws away the averaging the wide kernel is for.
 
 A wide kernel only resolves the curvature field at its own scale, so it need not
 be fitted at every point. Here it is fitted, with *all* ``k`` neighbours of the
-ball, at **anchors**: a subset of the points with about :data:`ANCHORS_PER_BALL`
+ball, at **anchors**: a subset of the points with about ``TUNING.anchors_per_ball``
 anchors in each ball (a point is an anchor when its sampling key is below
-``ANCHORS_PER_BALL / k``, so the anchors of a wider kernel are sparser and the
-pair work stays about ``ANCHORS_PER_BALL`` pairs per point whatever ``k``).
+``TUNING.anchors_per_ball / k``, so the anchors of a wider kernel are sparser and the
+pair work stays about ``TUNING.anchors_per_ball`` pairs per point whatever ``k``).
 Every point then takes its :data:`CARRIED_ANCHORS` nearest anchors and carries
 their fitted models to itself (:mod:`heatcurv._kernels.anchors`): each anchor's
 model (tensor, tilt, cubic and, under very low noise, quartic terms) describes a
 surface, and the carry gives that surface's normal and curvature tensor *at the
 point's offset*, exactly (so exact on circles and spheres, and to every order
-the model has; a noisy model, ``sigma`` at least :data:`EXACT_CARRY_SIGMA` ball
+the model has; a noisy model, ``sigma`` at least ``TUNING.exact_carry_sigma`` ball
 radii, to first order in the offset); the point's values are their smooth
 weighted mean. The anchor
 spacing is about ``R / 2``, well inside the ball where an anchor's model is
@@ -24,8 +24,8 @@ fitted.
 
 A model fitted over a wide ball is less accurate away from its centre than at
 it. Under ordinary noise the fit's own variance hides that; under very low noise
-(``relative_noise`` from :data:`heatcurv.scale.NO_NOISE` to below
-:data:`heatcurv.scale.LOW_NOISE`, e.g. coordinate rounding, where the kernel
+(``relative_noise`` from ``TUNING.no_noise`` to below
+``TUNING.low_noise``, e.g. coordinate rounding, where the kernel
 choice widened the kernel: :attr:`heatcurv.scale.ScaleChoice.low_noise`) it
 would dominate (a torus at 1e-5 of its diagonal, 480
 neighbours: the nearest anchor's model is 0.12 % off in the mean curvature within
@@ -60,41 +60,18 @@ from .orientation import Orientation, orient
 from .principal import PrincipalCurvatures, tensor_to_principal
 from .sampling import key_thinning
 from .scale import Scale, fit_balls
+from .tuning import TUNING
 
-__all__ = [
-    "ANCHORS_PER_BALL", "CARRIED_ANCHORS", "EXACT_CARRY_SIGMA", "LOW_NOISE_ANCHORS_PER_BALL",
-    "LOW_NOISE_MIN_NEIGHBOURS", "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "REGRESSION_DEGREE", "AnchorFits",
+__all__ = ["CARRIED_ANCHORS", "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "AnchorFits",
     "CarriedFit", "anchor_normals", "anchor_rows", "anchors_per_ball", "carry_degree", "carry_fits", "fit_anchors",
 ]
 
-#: Anchors per fitted ball: their spacing is about ``R sqrt(pi / 16) = 0.44 R``.
-ANCHORS_PER_BALL = 16
-#: Anchors per fitted ball under very low noise (:func:`anchors_per_ball`): spacing about ``0.36 R``, dense
-#: enough for the regression of their tensors and within the speed budget of 4x the k-NN query; denser anchors
-#: gain little accuracy for much time (docs/how_it_works.md, thresholds; docs/speed.md).
-LOW_NOISE_ANCHORS_PER_BALL = 24
-#: Narrowest kernel the low-noise refit is fitted at (``fit_anchors(low_noise=True)``): the narrowest the very-low-
-#: noise path widens to (Lepski's 120 neighbours, one doubling wider: :data:`heatcurv.scale.LOW_NOISE_LEVELS`).
-#: Regions of such a cloud whose widened kernel is narrower (the rule kept them at 60) keep the plain denoised
-#: fit: the refit's 15 unknowns are too many for 60 or 120 neighbours (docs/how_it_works.md, thresholds).
-LOW_NOISE_MIN_NEIGHBOURS = 240
-#: Kernels of at most this many times :data:`ANCHORS_PER_BALL` neighbours are fitted at every point
-#: (a 60-neighbour kernel: its pair work is small, and small clouds keep their own fits).
-EVERY_POINT = 4
 #: Anchors each point's values are carried from (the farthest gets weight 0).
 CARRIED_ANCHORS = 8
-#: Anchors whose fit's residual ``sigma`` is at least this many ball radii carry their models to first order
-#: in the offset, the others exactly. The exact surface of a noisy model carries its noise non-linearly, so
-#: the exact carry wins at moderate noise and loses at strong noise; this value lies between the two
-#: (docs/how_it_works.md, thresholds).
-EXACT_CARRY_SIGMA = 0.015
 #: Points carried at a time (:func:`carry_fits`): their anchor lists are held at once.
 CARRY_BLOCK = 262_144
 #: Anchors whose own tensors are regressed at each point under very low noise (:func:`carry_degree`).
 REGRESSED_ANCHORS = 24
-#: Degree of that regression: cubic, which beat quadratic on the torus and the saddle
-#: (docs/how_it_works.md, thresholds).
-REGRESSION_DEGREE = 3
 #: Most neighbours of an anchor's PCA normal (:func:`anchor_normals`): enough to average noise
 #: of several spacings (a 480-point ball is 12 spacings wide), cheap beside the fit.
 PCA_NEIGHBOURS = 480
@@ -170,7 +147,7 @@ def anchors_per_ball(low_noise: bool) -> int:
     of the diagonal (480 neighbours, 20 000 points) the nearest anchor's model is off by 0.12 % in the
     mean curvature within 0.1 R of it and 0.5 % at 0.3-0.4 R. Under ordinary noise the fit's own
     variance hides that; under very low noise (coordinate rounding) it would dominate, so the anchors
-    are denser there (:data:`LOW_NOISE_ANCHORS_PER_BALL`).
+    are denser there (``TUNING.low_noise_anchors_per_ball``).
 
     Parameters
     ----------
@@ -181,9 +158,9 @@ def anchors_per_ball(low_noise: bool) -> int:
     Returns
     -------
     int
-        :data:`LOW_NOISE_ANCHORS_PER_BALL` under very low noise, else :data:`ANCHORS_PER_BALL`.
+        ``TUNING.low_noise_anchors_per_ball`` under very low noise, else ``TUNING.anchors_per_ball``.
     """
-    return LOW_NOISE_ANCHORS_PER_BALL if low_noise else ANCHORS_PER_BALL
+    return TUNING.low_noise_anchors_per_ball if low_noise else TUNING.anchors_per_ball
 
 
 def carry_degree(low_noise: bool) -> int:
@@ -194,7 +171,7 @@ def carry_degree(low_noise: bool) -> int:
     centres, are the better data: a weighted cubic regression of them over the
     :data:`REGRESSED_ANCHORS` nearest anchors reproduces any cubic variation of the curvature
     field, where a mean of carried models keeps the models' error. Under ordinary noise the
-    mean's smoothing is worth more (and the anchors stay :data:`ANCHORS_PER_BALL` per ball,
+    mean's smoothing is worth more (and the anchors stay ``TUNING.anchors_per_ball`` per ball,
     too sparse to regress).
 
     Parameters
@@ -205,12 +182,12 @@ def carry_degree(low_noise: bool) -> int:
     Returns
     -------
     int
-        :data:`REGRESSION_DEGREE` under very low noise, else 0 (the weighted mean).
+        ``TUNING.regression_degree`` under very low noise, else 0 (the weighted mean).
     """
-    return REGRESSION_DEGREE if low_noise else 0
+    return TUNING.regression_degree if low_noise else 0
 
 
-def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = ANCHORS_PER_BALL) -> np.ndarray:
+def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = TUNING.anchors_per_ball) -> np.ndarray:
     """The anchors of kernels of ``k`` neighbours: about ``per_ball`` in each ball.
 
     Parameters
@@ -226,10 +203,10 @@ def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = 
     Returns
     -------
     ndarray of int, shape (m,)
-        Increasing rows; every point is an anchor where ``k <= EVERY_POINT * per_ball``.
+        Increasing rows; every point is an anchor where ``k <= TUNING.every_point * per_ball``.
     """
     k = np.asarray(k, dtype=np.float64)
-    fraction = np.where(k <= EVERY_POINT * per_ball, 1.0, per_ball / k)
+    fraction = np.where(k <= TUNING.every_point * per_ball, 1.0, per_ball / k)
     return key_thinning(keys, fraction, seed)
 
 
@@ -353,7 +330,7 @@ def fit_anchors(
         The denoised height form of the fit.
     low_noise : bool, optional
         With ``denoise``, its low-noise refit (:func:`carry_degree`, :func:`heatcurv.chordfit.chord_fit`)
-        at the anchors whose kernel holds at least :data:`LOW_NOISE_MIN_NEIGHBOURS` neighbours.
+        at the anchors whose kernel holds at least ``TUNING.low_noise_min_neighbours`` neighbours.
     alpha : float, optional
         Ball radius in heat-kernel spacings (``h = R / alpha``, ``t = h^2 / 4``, eq 2.8).
     taper : bool, optional
@@ -379,7 +356,8 @@ def fit_anchors(
         # two passes (a tilt-refined normal, then the curvatures) unless the normals are the caller's
         nbhd, fit = fit_balls(
             points, tree, index[rows], normals[rows], areas, Scale(width, denoise), alpha=alpha,
-            passes=2 if refine else 1, workers=workers, low_noise=low_noise and width >= LOW_NOISE_MIN_NEIGHBOURS,
+            passes=2 if refine else 1, workers=workers,
+            low_noise=low_noise and width >= TUNING.low_noise_min_neighbours,
         )
         offset[rows] = centroid_offset(points, nbhd, fit.normals, taper=taper, centres=points[index[rows]])
         density[rows] = density_areas(nbhd)
@@ -461,7 +439,7 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     usable = (fit.principal.well_posed & np.all(np.isfinite(fit.coefficients), axis=1)).astype(np.float64)
     scalars = np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area,
                                fit.mean_variance_factor])
-    exact = (fit.sigma < EXACT_CARRY_SIGMA * anchors.radius).astype(np.float64)
+    exact = (fit.sigma < TUNING.exact_carry_sigma * anchors.radius).astype(np.float64)
     n = points.shape[0]
     tree = cKDTree(at)
     summed, tensor, values = np.empty((n, 3)), np.empty((n, 6)), np.empty((n, scalars.shape[1]))

@@ -31,6 +31,7 @@ from ._kernels import segment as kernels
 from .errors import HeatcurvError
 from .kernel import TAPER_START, area_normalisation, flat_top
 from .neighbourhood import Neighbourhood
+from .tuning import TUNING
 
 __all__ = [
     "fit_areas",
@@ -254,7 +255,7 @@ def cut_ball_coverage(offset: np.ndarray, threshold: float) -> np.ndarray:
         Tangential centroid offset in ball radii
         (:func:`heatcurv.border.centroid_offset`).
     threshold : float
-        Offset from which a ball counts as cut (:data:`heatcurv.border.BORDER_OFFSET`).
+        Offset from which a ball counts as cut (``TUNING.border_offset``).
 
     Returns
     -------
@@ -284,8 +285,6 @@ def _cut_disc_table(u0: float = TAPER_START) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([[0.0], c[::-1]]), np.concatenate([[1.0], f[::-1]])
 
 
-#: Largest correction :func:`ball_area_factor` applies.
-BALL_AREA_FACTOR_MAX = 1.5
 
 
 def ball_area_factor(radius: np.ndarray, k1: np.ndarray, k2: np.ndarray) -> np.ndarray:
@@ -302,7 +301,7 @@ def ball_area_factor(radius: np.ndarray, k1: np.ndarray, k2: np.ndarray) -> np.n
     of that larger area, so its per-point area is low by this factor.
 
     The expansion holds while ``R |k1 - k2|`` is small; the factor is capped
-    at :data:`BALL_AREA_FACTOR_MAX` (``R |k1 - k2| = 4``), beyond which the ball
+    at ``TUNING.ball_area_factor_max`` (``R |k1 - k2| = 4``), beyond which the ball
     is no patch of a surface of that curvature and the fitted curvatures of
     such a point are not trustworthy anyway (measured on a face range scan:
     uncapped, stray points reached factors of 100 and areas of 30,000 mm^2).
@@ -318,4 +317,4 @@ def ball_area_factor(radius: np.ndarray, k1: np.ndarray, k2: np.ndarray) -> np.n
     -------
     ndarray, shape (n,)
     """
-    return np.minimum(1.0 + radius**2 * (k1 - k2) ** 2 / 32.0, BALL_AREA_FACTOR_MAX)
+    return np.minimum(1.0 + radius**2 * (k1 - k2) ** 2 / 32.0, TUNING.ball_area_factor_max)

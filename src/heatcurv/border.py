@@ -17,14 +17,10 @@ from ._kernels import segment as kernels
 from .errors import HeatcurvError
 from .kernel import TAPER_START
 from .neighbourhood import Neighbourhood
+from .tuning import TUNING
 
-__all__ = ["BORDER_OFFSET", "centroid_offset", "border_points"]
+__all__ = ["centroid_offset", "border_points"]
 
-#: Offset (in ball radii) above which a point counts as a border point. With 60
-#: neighbours the interior offset has a standard deviation of about 0.065 R per
-#: axis, so 0.25 R is a false alarm for about 1 interior point in 1700; a point
-#: on a straight border has 0.42 R, one 0.3 R inside about 0.2 R.
-BORDER_OFFSET = 0.25
 
 
 def centroid_offset(
@@ -84,7 +80,7 @@ def border_points(
     points: np.ndarray,
     nbhd: Neighbourhood,
     normals: np.ndarray,
-    threshold: float = BORDER_OFFSET,
+    threshold: float = TUNING.border_offset,
     weights=None,
     *,
     taper: bool = False,

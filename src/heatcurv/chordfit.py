@@ -55,6 +55,7 @@ from ._kernels import chordfit as kernels
 from .neighbourhood import Neighbourhood
 from .normals import tangent_frames
 from .principal import PrincipalCurvatures, tensor_to_principal
+from .tuning import TUNING
 
 __all__ = ["ChordFit", "chord_fit", "refine_normals"]
 
@@ -368,12 +369,12 @@ def _denoised_refit(geometry, n_shape, unit, e1, e2, nrm, tilt, cubic) -> ChordF
     Very low noise (such as coordinate rounding) takes the ``LOW_NOISE_HEIGHT``
     refit: quartic terms, the denominator from a height fit with quartic terms
     (``QUARTIC_HEIGHT``), and pair weights ``w lambda^4 / (D^4 + lambda^4)`` with
-    ``lambda^2 = sigma / LOW_NOISE_SIGMA`` (``sigma`` that height fit's residual,
+    ``lambda^2 = sigma / TUNING.low_noise_sigma`` (``sigma`` that height fit's residual,
     units of the ball radius; at least ``LOW_NOISE_MIN_LAMBDA^2``), which weigh
     pairs nearer than ``lambda`` as the chord fit does (exact on circles) and
     farther ones as the height fit (whose heights the noise does not amplify). It is tried where the plain height fit's
-    residual is below ``LOW_NOISE_TRIED * LOW_NOISE_LIMIT * LOW_NOISE_SIGMA`` and
-    used where the quartic one's is below ``LOW_NOISE_LIMIT * LOW_NOISE_SIGMA``;
+    residual is below ``TUNING.low_noise_tried * TUNING.low_noise_limit * TUNING.low_noise_sigma`` and
+    used where the quartic one's is below ``TUNING.low_noise_limit * TUNING.low_noise_sigma``;
     the other centres take ``DENOISED_HEIGHT``, as without ``low_noise``. The reported
     ``sigma`` of a low-noise centre is the plain height fit's residual (the quartic terms
     absorb the model error a clean cloud's residual consists of).
@@ -384,7 +385,7 @@ def _denoised_refit(geometry, n_shape, unit, e1, e2, nrm, tilt, cubic) -> ChordF
     n = nrm.shape[0]
     p = n_shape + 1
     width = p + kernels.QUARTIC_COLUMNS
-    limit2 = (kernels.LOW_NOISE_LIMIT * kernels.LOW_NOISE_SIGMA) ** 2
+    limit2 = (TUNING.low_noise_limit * TUNING.low_noise_sigma) ** 2
     # 1) the height fits, plain and with quartic terms (the quartic one's residual is the noise: the plain
     #    one's holds the quartic shape, beyond the noise from about 200 neighbours on a torus; its heights
     #    are the refit's denominator)
@@ -404,13 +405,13 @@ def _denoised_refit(geometry, n_shape, unit, e1, e2, nrm, tilt, cubic) -> ChordF
     sigma2 = jet_sigma2.copy()
     low = np.zeros(n, dtype=bool)
     # 2) the low-noise refit where both residuals allow it
-    keep = (jet_sigma2 < kernels.LOW_NOISE_TRIED**2 * limit2) & (own < limit2)
+    keep = (jet_sigma2 < TUNING.low_noise_tried**2 * limit2) & (own < limit2)
     rows = np.flatnonzero(keep)
     low[rows] = True
     if rows.size:
         sub = geometry if rows.size == n else _take_rows(geometry, rows)
-        # lambda^4 = (sigma / LOW_NOISE_SIGMA)^2, one more column of the height fit
-        lam4 = np.maximum(own[rows] / kernels.LOW_NOISE_SIGMA**2, kernels.LOW_NOISE_MIN_LAMBDA**4)
+        # lambda^4 = (sigma / TUNING.low_noise_sigma)^2, one more column of the height fit
+        lam4 = np.maximum(own[rows] / TUNING.low_noise_sigma**2, kernels.LOW_NOISE_MIN_LAMBDA**4)
         hb = np.concatenate([quartic_beta[rows], lam4[:, None]], 1)
         fit_beta, _, fit_ok, fit_var = kernels.fit(
             kernels.LOW_NOISE_HEIGHT, width, sub, height_beta=hb, contrast=_mean_contrast(width)

@@ -23,15 +23,15 @@ inside) out of ``[0, 1]``. This module uses that field twice.
    for point clouds by regularizing the winding-number field"). It is solved
    relaxed (real ``s``, normal equations), rounded to signs, then improved by
    single-patch flips while any lowers it, turning a patch away from the tree's
-   side only for a clear gain (:data:`FLIP_MARGIN`). Tree edges across which
-   the normals or the tangent planes disagree (:data:`SURE_COST`) do not join
+   side only for a clear gain (``TUNING.flip_margin``). Tree edges across which
+   the normals or the tangent planes disagree (``TUNING.sure_cost``) do not join
    a patch.
 2. **Levels.** With the chosen signs, a point whose outside query is not near
-   0 or whose inside query is not near 1 (:data:`LEVEL_TOLERANCE`) has no
+   0 or whose inside query is not near 1 (``TUNING.level_tolerance``) has no
    side the field supports: a part too thin for ``delta`` (the inside query
    leaves it), a normal whose direction is wrong (its ball wraps around a thin
    part), a patch that straddles both sides. Such points are flagged, and so
-   is a point whose disc (below) holds more than :data:`SPREAD_SHARE` of
+   is a point whose disc (below) holds more than ``TUNING.spread_share`` of
    flagged points: a small spot turned inside out amid right ones has levels
    that agree (the field of a hole in a closed surface is 1/2 on both sides,
    and the spot's own disc adds the jump), its neighbours' do not.
@@ -44,12 +44,12 @@ than a disc of its own area would (:func:`heatcurv._kernels.winding.winding_numb
 so that neither the sampling next to a query nor noise decides its value.
 
 A cloud is taken to enclose a volume when the levels are close to their
-targets on enough of it (:data:`CLOSED_SHARE`, :data:`CLOSED_TOLERANCE`); an
+targets on enough of it (``TUNING.closed_share``, ``TUNING.closed_tolerance``); an
 open sheet's field is about ``-+1/2`` on its two sides (between 0 and 1/2 on
 both sides of one curved like a bowl), so open clouds keep the tree's
-orientation untouched. A cloud whose share lies between :data:`UNDECIDED_SHARE`
-and :data:`CLOSED_SHARE` while its outside levels are near 0 on most of it
-(:data:`OUTSIDE_SHARE`: its normals point out of something; an open scene's
+orientation untouched. A cloud whose share lies between ``TUNING.undecided_share``
+and ``TUNING.closed_share`` while its outside levels are near 0 on most of it
+(``TUNING.outside_share``: its normals point out of something; an open scene's
 field is about ``-1/2`` on one side of its sheets) is an object too coarse
 for its levels to be sure (legs a few spacings thick): it is *undecided*;
 its patches take the field's sides, which are right more often than the
@@ -74,26 +74,19 @@ from ._kernels.graph import merged_components
 from ._kernels.winding import clipped_dipole_terms, winding_numbers
 from .errors import HeatcurvWarning
 from .neighbourhood import Neighbourhood
+from .tuning import TUNING
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "MAX_SOURCES",
-    "CLOSED_SHARE", "UNDECIDED_SHARE", "OUTSIDE_SHARE", "LEVEL_TOLERANCE", "warn_undecided",
+    "warn_undecided",
 ]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
 MAX_SOURCES = 6000
 #: Fewest points a patch aims at, and the most patches a cloud is cut into.
 PATCH_POINTS, MAX_PATCHES = 30, 300
-#: Pieces of fewer points than this (single points) join a neighbouring patch across any tree edge: one
-#: point's side is the tree's to give, not one more unknown of the energy.
-TINY_PATCH = 2
 #: A query sits this fraction of its tangent-plane disc's radius off the surface.
 QUERY_OFFSET = 0.5
-#: A level further than this from its target (0 outside, 1 inside) contradicts the point's side.
-LEVEL_TOLERANCE = 0.4
-#: A tree edge joins a patch when its spanning-tree cost (:func:`heatcurv.orientation.orient`:
-#: ``1 - |s_ij|`` plus how far it leaves the tangent planes) is at most this.
-SURE_COST = 0.7
 #: Neighbours a query's tangent-plane disc is made of.
 DISC_NEIGHBOURS = 16
 #: Most a query's offset takes of the depth of the nearest neighbour off the tangent plane.
@@ -101,19 +94,6 @@ ACROSS = 0.5
 #: Queries clear the noise: this many robust standard deviations of the heights of the nearest
 #: ``NOISE_NEIGHBOURS`` neighbours over the tangent plane.
 NOISE_CLEARANCE, NOISE_NEIGHBOURS = 2.0, 6
-#: Energy a patch's flip away from the tree must gain, per unit of its queries' weight.
-FLIP_MARGIN = 0.1
-#: A source whose disc holds more than this share of disagreeing sources is flagged too.
-SPREAD_SHARE = 0.2
-#: Share of the area whose levels are within ``CLOSED_TOLERANCE`` of their targets from which a cloud
-#: encloses a volume (an open sheet curved like a bowl has levels near 0 and 1/2).
-CLOSED_SHARE, CLOSED_TOLERANCE = 0.3, 0.25
-#: Share from which, below :data:`CLOSED_SHARE`, a cloud whose outside levels are near 0 (within
-#: ``CLOSED_TOLERANCE``) on at least ``OUTSIDE_SHARE`` of its area may enclose a volume or not (closed
-#: models a few points across their legs: shares 0.12-0.26, outside near 0 on 0.63-0.77; open scans
-#: and scenes: a one-sided scan of a torus 0.06 and 0.65, LiDAR tiles turned at random 0.11-0.19
-#: and 0.31-0.35; docs/orientation.md).
-UNDECIDED_SHARE, OUTSIDE_SHARE = 0.1, 0.5
 
 
 @dataclass(frozen=True)
@@ -129,7 +109,7 @@ class Enclosure:
         Points whose side the field contradicts (all False when not
         ``closed``; every point not excluded when ``undecided``).
     closed : bool
-        Whether the levels agree on at least :data:`CLOSED_SHARE` of the area.
+        Whether the levels agree on at least ``TUNING.closed_share`` of the area.
     agreement : float
         That share, in ``[0, 1]``.
     flipped : int
@@ -204,18 +184,18 @@ class PatchSides:
         ``+1`` to keep each patch's normals, ``-1`` to flip them.
     bad : ndarray, shape (m,), bool
         Sources whose levels (with those signs) contradict their side, or
-        whose disc holds more than :data:`SPREAD_SHARE` of such sources.
+        whose disc holds more than ``TUNING.spread_share`` of such sources.
     agreement : float
         Share of the sources' weight whose levels are within
-        :data:`CLOSED_TOLERANCE` of their targets.
+        ``TUNING.closed_tolerance`` of their targets.
     closed : bool
-        ``agreement >= CLOSED_SHARE``: the sources enclose a volume.
+        ``agreement >= TUNING.closed_share``: the sources enclose a volume.
     undecided : bool
-        ``UNDECIDED_SHARE <= agreement < CLOSED_SHARE`` and ``outside_share >=
-        OUTSIDE_SHARE``: they may or may not.
+        ``TUNING.undecided_share <= agreement < TUNING.closed_share`` and ``outside_share >=
+        TUNING.outside_share``: they may or may not.
     outside_share : float
         Share of the sources' weight whose outside level is within
-        :data:`CLOSED_TOLERANCE` of 0.
+        ``TUNING.closed_tolerance`` of 0.
     """
 
     sign: np.ndarray
@@ -252,25 +232,26 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     field_along, field_against = along @ sign, against @ sign
     outside = np.where(own > 0, field_along, field_against)
     inside = np.where(own > 0, field_against, field_along)
-    agrees = (np.abs(outside) <= LEVEL_TOLERANCE) & (np.abs(inside - 1.0) <= LEVEL_TOLERANCE)
-    sure = (np.abs(outside) <= CLOSED_TOLERANCE) & (np.abs(inside - 1.0) <= CLOSED_TOLERANCE)
+    agrees = (np.abs(outside) <= TUNING.level_tolerance) & (np.abs(inside - 1.0) <= TUNING.level_tolerance)
+    sure = (np.abs(outside) <= TUNING.closed_tolerance) & (np.abs(inside - 1.0) <= TUNING.closed_tolerance)
     agreement = float(weight[sure].sum() / weight.sum())
-    outside_share = float(weight[np.abs(outside) <= CLOSED_TOLERANCE].sum() / weight.sum())
+    outside_share = float(weight[np.abs(outside) <= TUNING.closed_tolerance].sum() / weight.sum())
     # a source disagrees when its levels do, or many of its disc's do (a flipped spot's own levels agree)
     bad = ~agrees
     share = np.bincount(disc_rows, weights=bad[disc_members], minlength=bad.size) / np.bincount(
         disc_rows, minlength=bad.size)
-    bad |= share > SPREAD_SHARE
-    undecided = UNDECIDED_SHARE <= agreement < CLOSED_SHARE and outside_share >= OUTSIDE_SHARE
-    return PatchSides(sign, bad, agreement, agreement >= CLOSED_SHARE, undecided, outside_share)
+    bad |= share > TUNING.spread_share
+    undecided = TUNING.undecided_share <= agreement < TUNING.closed_share and outside_share >= TUNING.outside_share
+    return PatchSides(sign, bad, agreement, agreement >= TUNING.closed_share, undecided, outside_share)
 
 
 def warn_undecided(agreement: float, outside_share: float, stacklevel: int = 2) -> None:
     """Warn that the field cannot tell whether the cloud encloses a volume, so every side is flagged."""
     warnings.warn(
         f"cannot tell whether the cloud encloses a volume (the winding number agrees with its normals' sides on "
-        f"{100 * agreement:.1f} % of its area, where closed objects reach {100 * CLOSED_SHARE:.0f} %, and is near 0 "
-        f"outside {100 * outside_share:.0f} % of it, where open scans stay below {100 * OUTSIDE_SHARE:.0f} %): every "
+        f"{100 * agreement:.1f} % of its area, where closed objects reach {100 * TUNING.closed_share:.0f} %, "
+        f"and is near 0 outside {100 * outside_share:.0f} % of it, where open scans stay below "
+        f"{100 * TUNING.outside_share:.0f} %): every "
         "normal's side is flagged unreliable. A closed object sampled more densely decides it; pass orient='up' or "
         "a viewpoint for an open scan.", HeatcurvWarning, stacklevel=stacklevel + 1)
 
@@ -299,7 +280,7 @@ def _unsupported(source: np.ndarray, bad: np.ndarray, neighbourhood: Neighbourho
     slot = np.repeat(np.arange(rows.size), balls.counts)
     sources = np.bincount(slot, weights=is_source[balls.indices], minlength=rows.size)
     against = np.bincount(slot, weights=unsupported[balls.indices], minlength=rows.size)
-    unsupported[rows] = against > 0.5 * sources
+    unsupported[rows] = against > TUNING.against_share * sources
     return unsupported
 
 
@@ -313,7 +294,7 @@ def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray,
     across one of its cut tree edges (in one pass over them), so every patch
     is a subtree and the orientation inside it is the tree's. Tree edges
     across which the normals or the tangent planes disagree join nothing,
-    except that a piece of fewer than :data:`TINY_PATCH` points (a single
+    except that a piece of fewer than ``TUNING.tiny_patch`` points (a single
     point) joins a neighbour across any of its tree edges: noise leaves
     single points behind such edges, thousands on a noisy cloud of a
     million points, and each would be one more unknown of the energy.
@@ -325,14 +306,14 @@ def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray,
     keep = (i < j) & ~(excluded[i] | excluded[j])  # each undirected edge once
     i, j, cost = i[keep], j[keep], forest.data[keep]
     length = np.linalg.norm(points[j] - points[i], axis=1)
-    sure = cost <= SURE_COST
+    sure = cost <= TUNING.sure_cost
     target = max(PATCH_POINTS, (n - excluded.sum() if cloud_points is None else cloud_points) / MAX_PATCHES)
     side = np.sqrt(target) * (np.median(length) if length.size else 1.0)
     cell = _cell_ids(points, side)
     label = merged_components(n, i, j, (cell[i] == cell[j]) & sure, sure, int(target / 4))
     # a point that only unsure edges reach (a noisy point whose normal disagrees with its neighbours')
     # cannot carry a side of its own: it joins a neighbour across its tree edge
-    label = merged_components(n, i, j, label[i] == label[j], np.ones(i.size, dtype=bool), TINY_PATCH)
+    label = merged_components(n, i, j, label[i] == label[j], np.ones(i.size, dtype=bool), TUNING.tiny_patch)
     label[excluded] = -1
     used = np.unique(label[label >= 0])
     relabel = np.full(label.max() + 2, -1)
@@ -469,14 +450,14 @@ def _patch_signs(G: np.ndarray, c: np.ndarray, label: np.ndarray, weight: np.nda
     ``4 (G_kk - s_k (G s)_k + c_k s_k)``. The relaxed minimum, rounded, is the
     start; then single flips are made, the best first, while one lowers the
     energy, where turning a patch away from the tree's orientation must lower
-    it by :data:`FLIP_MARGIN` times the patch's query weight (a residual of
+    it by ``TUNING.flip_margin`` times the patch's query weight (a residual of
     about 1/2 at each of its queries) and turning it back may raise it by as
     much: evidence too weak to tell (noise, a coarse part) leaves the tree's
     orientation.
     """
     relaxed = np.linalg.lstsq(G, c, rcond=None)[0]
     sign = np.where(relaxed < 0, -1.0, 1.0)
-    margin = FLIP_MARGIN * 2.0 * np.bincount(label, weights=weight, minlength=sign.size)
+    margin = TUNING.flip_margin * 2.0 * np.bincount(label, weights=weight, minlength=sign.size)
     diag = np.diag(G)
     for _ in range(4 * sign.size):
         change = 4.0 * (diag - sign * (G @ sign) + c * sign)

@@ -37,7 +37,7 @@ import numpy as np
 from .anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
 from .areas import ball_area_factor, cut_ball_coverage, density_areas, fit_areas
 from .backend import threads
-from .border import BORDER_OFFSET, border_points, centroid_offset
+from .border import border_points, centroid_offset
 from .choices import frame_of
 from .chordfit import ChordFit, chord_fit, refine_normals
 from .enclosure import warn_undecided
@@ -55,9 +55,6 @@ from .plan import FitPlan, plan_fit
 from .principal import PrincipalCurvatures, principal_fit
 from .progress import StageClock
 from .reliability import (
-    PRECISION_COVERAGE,
-    PRECISION_TOLERANCE,
-    ROUND_BALL,
     PrecisionReport,
     ReliabilityInputs,
     cloud_flags,
@@ -70,12 +67,11 @@ from .results import CurvatureResult
 from .sampling import geometric_keys, key_sample
 from .scale import ScaleReport, centre_noise, select_form, select_scale
 from .sheets import second_sheet
+from .tuning import TUNING
 from .validation import prepare_normals
 
 __all__ = ["CurvatureResult", "estimate"]
 
-#: PCA planarity below which a neighbourhood is not treated as a surface patch.
-PLANARITY_MIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -142,7 +138,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         The step of the grid the coordinates were rounded to, input units,
         for all axes or one per axis (a LAS file's scale; 0: exact). Points
         whose curvature that rounding can move by more than
-        :data:`heatcurv.reliability.PRECISION_TOLERANCE` of its size are not
+        ``TUNING.precision_tolerance`` of its size are not
         reliable; ``info["precision"]`` (a
         :class:`heatcurv.reliability.PrecisionReport`) counts them. Default:
         from the type of ``points``: float32 coordinates (and float64 ones
@@ -479,7 +475,7 @@ def _point_fit_stages(
             fit = chord_fit(X, nbhd, start, weights, denoise=plan.denoise, centres=centres, passes=1)
         with clock.stage("border", report=False):
             offset = centroid_offset(X, nbhd, fit.normals, taper=opts.taper, centres=centres)
-            border[lo:hi] = offset > BORDER_OFFSET
+            border[lo:hi] = offset > TUNING.border_offset
         with clock.stage("area_correction", report=False):
             areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, offset, reuse_base)
         radius[lo:hi] = nbhd.radius
@@ -566,13 +562,13 @@ def _anchored_fit_stages(
             reoriented = Orientation(carried.normals, ambiguous, report, reach)
     pc = carried.principal
     with clock.stage("area_correction", report=False):
-        border = carried.offset > BORDER_OFFSET
+        border = carried.offset > TUNING.border_offset
         areas = op.areas
         if opts.area_method == "density":
             # the anchors' area per point (their wide balls count a less noisy density), the ball's
             # curved area and a border point's cut share, as for the per-point fit
             areas = (carried.density_area * ball_area_factor(carried.radius, pc.k1, pc.k2)
-                     * cut_ball_coverage(carried.offset, BORDER_OFFSET))
+                     * cut_ball_coverage(carried.offset, TUNING.border_offset))
     clock.report("fit", 1.0)
     report = ScaleReport.from_choice(choice, plan.label, carried.radius, opts.alpha, support=carried.support,
                                      anchors=index.shape[0], k=k_point)
@@ -605,7 +601,7 @@ def _corrected_areas(
         if not same_ball:  # the density was counted on the operator's ball: its own offset
             base = op.neighbourhood.rows_slice(lo, hi)
             offset = centroid_offset(op.points, base, fit.normals, taper=op.options.taper, centres=op.points[lo:hi])
-    coverage = cut_ball_coverage(offset, BORDER_OFFSET)
+    coverage = cut_ball_coverage(offset, TUNING.border_offset)
     return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2) * coverage
 
 
@@ -617,7 +613,7 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, ball_shape, ori
     """
     nbhd, pc = op.neighbourhood, fitted.principal
     planarity, roundness = ball_shape
-    local = ~nbhd.augmented & (planarity >= PLANARITY_MIN) & pc.well_posed & (areas > 0) & ~fitted.border
+    local = ~nbhd.augmented & (planarity >= TUNING.planarity_min) & pc.well_posed & (areas > 0) & ~fitted.border
     local &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask
     if coarse is not None:
         local &= ~coarse
@@ -628,7 +624,7 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, ball_shape, ori
     with np.errstate(invalid="ignore", over="ignore"):
         rho = nbhd.radius * np.sqrt(np.pi / counts) * np.maximum(np.abs(pc.k1), np.abs(pc.k2))
     # a round ball holds a tube, not a disc: its fitted curvature is no measure of the sampling
-    rho = np.where(roundness > ROUND_BALL, np.inf, rho)
+    rho = np.where(roundness > TUNING.round_ball, np.inf, rho)
     residual = None if fitted.residual is None else fitted.residual / op.h
     return ReliabilityInputs(local, residual, width, rho, ~outliers.mask)
 
@@ -645,8 +641,8 @@ def _precision(op: HeatKernelOperator, fitted: _Fitted, rounding) -> tuple:
     # the rounding happened in the input's coordinates: a row's error is its own (before centring)
     stage_step = (half_step[prepared.first] if half_step.ndim == 2 else half_step) / prepared.unit
     largest = float(np.max(half_step))
-    rule = (f"{PRECISION_COVERAGE:g} x the mean curvature's standard deviation under the rounding above "
-            f"{PRECISION_TOLERANCE:.0%} of the point's largest |k1|, |k2|")
+    rule = (f"{TUNING.precision_coverage:g} x the mean curvature's standard deviation under the rounding above "
+            f"{TUNING.precision_tolerance:.0%} of the point's largest |k1|, |k2|")
     if fitted.mean_variance_factor is None:
         n = prepared.n_input
         reason = f"{source}, errors up to {largest:.3g}: not assessed by method='paper' (the chord fit's only)"

@@ -13,7 +13,7 @@ the operator's balls:
 
 * the **effective neighbours** of the fit's weights, ``(sum w)^2 / sum w^2``
   (:func:`heatcurv.kernel.effective_neighbours`): a median below the fit's
-  floor (:data:`SUPPORT_LIMITS`) is an error that names the values that work
+  floor (``TUNING.chord_support``, ``TUNING.tensor_support``) is an error that names the values that work
   for this cloud; a median just above it, a warning. The floors differ by
   fit: the chord fit interpolates (exact on clean data with any positive
   weights) and needs little (a few effective neighbours), the paper's tensor
@@ -51,26 +51,18 @@ from .kernel import effective_neighbours, heat_kernel_weights, tapered_heat_weig
 from .neighbourhood import Neighbourhood
 from .options import METHODS, RANGES, Options
 from .sampling import draw_subset
+from .tuning import TUNING
 
 __all__ = [
-    "KernelSupport", "measure_support", "check_kernel", "SUPPORT_LIMITS", "FIT_UNKNOWNS", "neighbours_needed",
+    "KernelSupport", "measure_support", "check_kernel", "FIT_UNKNOWNS", "neighbours_needed",
     "check_ball_counts",
 ]
 
-#: Median effective neighbours of each fit below which it is an error, and below which a
-#: warning (why: see the module docstring).
-SUPPORT_LIMITS = {"chord": (2.0, 3.0), "tensor": (5.0, 6.5)}
-#: Largest kernel weight at the ball's edge (relative to the centre's) the paper's
-#: untapered quadratures accept without a warning, and the tapered chord fit's.
-EDGE_WEIGHT_MAX = {"untapered": 1e-3, "tapered": math.exp(-1.0)}
 #: Balls the measurement runs on.
 SAMPLE = 2000
 #: Unknowns of each fit: the chord fit's curvature tensor (3), normal tilt (2) and cubic terms (4);
 #: the paper's tensor fit, ``H``, ``p``, ``b`` (:mod:`heatcurv.principal`).
 FIT_UNKNOWNS = {"chord": 9, "tensor": 3}
-#: Share of the points whose ball the radius (or ``alpha``) named by :func:`check_ball_counts`
-#: fills with :func:`neighbours_needed` neighbours.
-FILLED_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -229,19 +221,20 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options, keys: np.
     ------
     HeatcurvError
         When the median point's fit has fewer effective neighbours than the
-        fit's floor (:data:`SUPPORT_LIMITS`) with options the caller chose;
+        fit's floor (``TUNING.chord_support``, ``TUNING.tensor_support``) with options the caller chose;
         with the method's own preset (the paper's on a random cloud) this is
         a warning: the literal method stays reproducible.
 
     Warns
     -----
     HeatcurvWarning
-        When it has barely more, or the ball cuts the kernel (:data:`EDGE_WEIGHT_MAX`).
+        When it has barely more, or the ball cuts the kernel (``TUNING.tapered_edge_weight``,
+        ``TUNING.untapered_edge_weight``).
     """
     sub, h_sub = _sample(nbhd, h, options, keys=keys)
     support = _measure(sub, h_sub, options, nbhd.n_points)
     n_eff = support.effective_neighbours
-    low, few = SUPPORT_LIMITS[support.fit]
+    low, few = TUNING.chord_support if support.fit == "chord" else TUNING.tensor_support
     what = f"alpha = {options.alpha:g}" + ("" if options.fit == "chord" else f", m = {options.m:g}")
     fit = "chord fit" if options.fit == "chord" else "paper's tensor fit"
     if n_eff < low:
@@ -266,7 +259,7 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options, keys: np.
             HeatcurvWarning,
             stacklevel=3,
         )
-    limit = EDGE_WEIGHT_MAX["tapered" if support.tapered else "untapered"]
+    limit = TUNING.tapered_edge_weight if support.tapered else TUNING.untapered_edge_weight
     if support.edge_weight > limit:
         if support.tapered:
             message = (
@@ -360,7 +353,7 @@ def check_ball_counts(points: np.ndarray, tree, nbhd: Neighbourhood, h: np.ndarr
         When a median point's ball holds fewer than :func:`neighbours_needed`
         neighbours; the message names the median spacing (nearest-neighbour
         distance) and the radius, or ``alpha``, within which
-        :data:`FILLED_SHARE` of the points have enough.
+        ``TUNING.filled_share`` of the points have enough.
     """
     if options.radius is None and options.spacing == "density":
         return
@@ -378,19 +371,19 @@ def check_ball_counts(points: np.ndarray, tree, nbhd: Neighbourhood, h: np.ndarr
         why = f"the {fit} has {unknowns} unknowns and needs at least {need}"
     else:
         why = f"min_neighbours = {need} asks for at least {need} (a point with fewer gets its nearest ones)"
-    advice = f"radius = {_round_up(float(np.quantile(distances[:, need], FILLED_SHARE)) * unit):.2g}"
+    advice = f"radius = {_round_up(float(np.quantile(distances[:, need], TUNING.filled_share)) * unit):.2g}"
     if options.radius is not None:
         what = f"radius = {options.radius:g}"
     else:
         what = f"alpha = {options.alpha:g} ({options.spacing} spacing)"
-        alpha = _round_up(float(np.quantile(distances[:, need] / h[rows], FILLED_SHARE)))
+        alpha = _round_up(float(np.quantile(distances[:, need] / h[rows], TUNING.filled_share)))
         if alpha <= RANGES["alpha"].high:
             advice = f"alpha = {alpha:.2g}"
     neighbours = "neighbour" if held == 1 else "neighbours"
     warnings.warn(
         f"{what} leaves a median point's ball with {held:g} {neighbours}; {why}, so many points will be "
         f"unreliable. The points' median spacing is {spacing:.2g}: {advice} gives "
-        f"{round(100 * FILLED_SHARE)} % of them at least {need} neighbours",
+        f"{round(100 * TUNING.filled_share)} % of them at least {need} neighbours",
         HeatcurvWarning,
         stacklevel=3,
     )

@@ -230,7 +230,7 @@ class ScaleTuning:
         of the denoised fit's (2.2; measured 0-2.0 clean, 2.2-4.0 noisy).
     max_k : int or None
         Widest candidate kernel; None: a quarter of the cloud, at most
-        :data:`heatcurv.scale.WIDEST_KERNEL`.
+        ``TUNING.widest_kernel``.
     seed : int
         Seed of the subsample and the anchors (results are reproducible).
     """

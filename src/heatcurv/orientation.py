@@ -34,13 +34,13 @@ outward vote (its convex side out), or the flat-patch convention;
 :attr:`OrientationReport.reason` says which rule oriented the cloud.
 
 For ``"up"`` and ``"viewpoint"`` every normal clearly facing or clearly facing
-away from its reference direction ``r_i`` (``|n_i . r_i| >= ANCHOR_COSINE``)
+away from its reference direction ``r_i`` (``|n_i . r_i| >= TUNING.anchor_cosine``)
 is an *anchor*, oriented on its own; the others (walls for ``"up"``, grazing
 views for ``"viewpoint"``) take their side from their neighbours by a bounded
 local propagation (:func:`local_sides`): in rounds, every point not yet
 decided takes the side its decided graph neighbours vote for, each vote
 ``s_ij`` (below) weighted by how well the edge stays in both tangent planes,
-for at most :data:`LOCAL_HOPS` rounds. A point's side then depends only on
+for at most ``TUNING.local_hops`` rounds. A point's side then depends only on
 the points a few balls around it (:attr:`Orientation.reach`), never on how
 far the cloud goes on: a tile of a tiled run (:mod:`heatcurv.tiles`) whose
 halo holds that reach gives every point the side the whole cloud gives it.
@@ -66,7 +66,7 @@ and which then turns one side inside out (on a 28k-point bunny scan, the
 back of an ear).
 
 Where no consistent side exists (two sheets closer than the ball, points
-no anchor reaches within :data:`LOCAL_HOPS` rounds, a side the winding
+no anchor reaches within ``TUNING.local_hops`` rounds, a side the winding
 number of a closed cloud contradicts), the points are flagged
 *ambiguous*, never silently guessed: :attr:`Orientation.ambiguous`, and
 ``estimate`` marks them unreliable.
@@ -86,77 +86,19 @@ from ._kernels import segment as kernels
 from .enclosure import enclose, patches, sampled_sources
 from .errors import HeatcurvError
 from .neighbourhood import Neighbourhood, knn_neighbourhood
-from .sheets import LAYER_KURTOSIS, LAYER_RESIDUAL
+from .tuning import TUNING
 
 __all__ = [
-    "ORIENT_MODES", "ANCHOR_COSINE", "GRAPH_NEIGHBOURS", "LOCAL_HOPS", "Orientation", "OrientationReport", "orient",
-    "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy", "AUTO_SHARE", "AUTO_DOWN_SHARE",
-    "AUTO_LAYERED_SHARE", "AUTO_LAYER_HEIGHT", "AUTO_LAYER_NOISE", "AUTO_SPLIT_SHARE", "AUTO_SPLIT_NEIGHBOURS",
+    "ORIENT_MODES", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
+    "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
 ORIENT_MODES = ("outward", "up", "viewpoint")
 #: Nearest neighbours per point in the orientation's spanning-tree graph.
 GRAPH_NEIGHBOURS = 10
-#: ``|n . r|`` from which a normal's side is read off its reference direction
-#: (72.5 degrees from it): a normal that close to perpendicular takes its side
-#: from its neighbours instead.
-ANCHOR_COSINE = 0.3
-#: Rounds of the local propagation of ``"up"`` and ``"viewpoint"`` (:func:`local_sides`): each
-#: carries the anchors' sides one graph edge further. A wall takes about its half-height over
-#: the graph's edge length, a few to ten rounds on our LiDAR tiles, so this leaves a wide margin
-#: (docs/how_it_works.md, thresholds); points still undecided after these are flagged ambiguous.
-LOCAL_HOPS = 32
-#: A neighbour is compared when the edge to it is within 30 degrees of the
-#: tangent plane (``|n . e| <= 0.5``) and the normal axes within 45 degrees.
-CONFLICT_IN_PLANE, CONFLICT_ALIGNED = 0.5, 0.7
-#: Share of the compared neighbours pointing the other way that makes a
-#: point's orientation ambiguous.
-CONFLICT_SHARE = 0.3
-#: ``orient="auto"`` orients ``"up"`` when at least this share of the sample's normals lie within
-#: 45 degrees of vertical (``|n_z| >= AUTO_VERTICAL_COSINE``; 2000-point samples: the LiDAR tile
-#: 92-93 %, a face range map seen from +z 66 %, the tile turned 30/50/20 degrees about x/y/z 7-9 %,
-#: a sphere 29-30 %) ...
-AUTO_SHARE, AUTO_VERTICAL_COSINE = 0.5, float(np.sqrt(0.5))
-#: ... and, once the sample is consistently oriented, at most this share of the vertical components
-#: ``|n_z|`` of its flat points faces down (the LiDAR tile and the face range map upright 0.0-0.2 %;
-#: the face tilted by about 45 degrees 1.1 %, where "up" put 4 % of its points against the rest, and
-#: turned 30/50/20 degrees 7.1-7.6 %, its chin against its forehead; closed surfaces, whose
-#: ``sum_i A_i n_z,i = 0``: spheres, tori, CAD part, CGAL models 24-50 %).
-AUTO_DOWN_SHARE = 0.005
-#: A sample point is flat when its smallest PCA eigenvalue is at most this times the middle one: tree
-#: crowns, whose normals are noise, are not.
-AUTO_FLATNESS = 0.15
 #: Nearest sample points each sample normal and the sample's spanning tree use.
 AUTO_NEIGHBOURS = 16
-#: ``orient="auto"`` orients ``"up"`` only when, besides the two shares above, at most this share of the
-#: sample's flat, near-horizontal points has another sample point straight above
-#: or below it (within the median sample spacing sideways, more than 45 degrees out of its plane, and
-#: further along its normal than :data:`AUTO_LAYER_HEIGHT` sample spacings and :data:`AUTO_LAYER_NOISE` times
-#: the cloud's noise): a thin closed object lying flat (a plate, a lid) is two sheets, one over the other,
-#: that the spanning tree over the sample can orient alike around their unresolved rim, so its ``n_z`` all
-#: face up (docs/orientation.md, the thin plates).
-AUTO_LAYERED_SHARE = 0.1
-#: Smallest height of a second sheet over a sample point, in median sample spacings.
-AUTO_LAYER_HEIGHT = 0.5
-#: Smallest height of a second sheet over a sample point, in units of the cloud's noise (the scale choice's
-#: ``sigma``): noise scatters a sheet's sample points over and under each other.
-AUTO_LAYER_NOISE = 3.0
-#: ``orient="auto"`` orients ``"up"`` only when, besides the shares above, at most this share of the
-#: sample has balls (its :data:`AUTO_SPLIT_NEIGHBOURS` nearest sample points) whose quadric residuals
-#: split in two layers (:func:`heatcurv.sheets.layered_balls`): a plate under about two spacings thick,
-#: whose faces the noise floor above takes for noise (flattened ellipsoids 0.7-2.3 spacings thick
-#: 66-76 %; saddles with noise of 0.3-3 % of their diagonal, the LiDAR tile, its tree crowns and a face
-#: range map 0-5 %; docs/orientation.md).
-AUTO_SPLIT_SHARE = 0.25
-#: Nearest sample points in the balls :data:`AUTO_SPLIT_SHARE` reads (16 give too few residuals for a
-#: kurtosis: the plates and the noisy saddles overlap).
-AUTO_SPLIT_NEIGHBOURS = 30
-#: Outward vote below this share of ``sum_i A_i |n_i . (x_i - c)|``: the component is too flat to
-#: tell inside from outside, and takes the flat-patch convention. Low, because the switch between the
-#: two rules is where a cloud and a random half of it can differ: a LiDAR tile turned away from "up"
-#: votes 0.12 and its random half 0.07 (the same sign, the convention the other).
-WEAK_VOTE = 0.03
 
 
 @dataclass(frozen=True)
@@ -198,7 +140,7 @@ class OrientationReport:
         (the normals point out of something; an open sheet's field there is about -1/2).
     undecided : bool
         ``"outward"``: the winding number could not tell whether the cloud
-        encloses a volume (:data:`heatcurv.enclosure.UNDECIDED_SHARE`): its
+        encloses a volume (``TUNING.undecided_share``): its
         sides are the field's and every point is flagged (``unsupported``).
     reason : str
         Which rule chose the sides, in words (``orient="auto"``: why this mode).
@@ -237,7 +179,7 @@ class Orientation:
         The input normals, flipped where needed.
     ambiguous : ndarray, shape (n,), bool
         No consistent side: in-plane neighbours pointing the other way,
-        (``"up"``, ``"viewpoint"``) no anchor within :data:`LOCAL_HOPS` edges,
+        (``"up"``, ``"viewpoint"``) no anchor within ``TUNING.local_hops`` edges,
         or (``"outward"``, a closed cloud) a side the winding number
         contradicts (:attr:`OrientationReport.unsupported`).
     report : OrientationReport
@@ -294,7 +236,7 @@ class AutoPolicy:
     mode : str
         ``"up"`` or ``"outward"``.
     vertical : float
-        Share of the sample's normals within 45 degrees of vertical (``|n_z| >= AUTO_VERTICAL_COSINE``).
+        Share of the sample's normals within 45 degrees of vertical (``|n_z| >= TUNING.auto_vertical_cosine``).
     down : float
         Once the sample is consistently oriented (per connected component,
         either side), the share of ``sum_i |n_z,i|`` over its flat points on
@@ -302,12 +244,12 @@ class AutoPolicy:
         the horizontal plane, 1/2 for a closed one.
     layered : float
         Share of the sample's flat, near-horizontal points with another
-        sample point straight above or below them (:data:`AUTO_LAYERED_SHARE`):
+        sample point straight above or below them (``TUNING.auto_layered_share``):
         near 0 for a surface over the horizontal plane, large for a thin
         closed object lying flat.
     split : float
         Share of the sample's points whose balls' residuals split in two
-        layers (:data:`AUTO_SPLIT_SHARE`): large for a plate too thin for
+        layers (``TUNING.auto_split_share``): large for a plate too thin for
         ``layered``.
     """
 
@@ -339,13 +281,13 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     whichever way it is turned. So the sample's PCA normals (each point's
     :data:`AUTO_NEIGHBOURS` nearest) are oriented consistently by the spanning
     tree of :func:`orient`, and the cloud is oriented ``"up"`` when at least
-    :data:`AUTO_SHARE` of them lie within 45 degrees of vertical and at most
-    :data:`AUTO_DOWN_SHARE` of the ``sum |n_z|`` of the flat ones
-    (:data:`AUTO_FLATNESS`: not a tree crown's scatter) faces down, and at
-    most :data:`AUTO_LAYERED_SHARE` of those flat points lie straight over or
+    ``TUNING.auto_share`` of them lie within 45 degrees of vertical and at most
+    ``TUNING.auto_down_share`` of the ``sum |n_z|`` of the flat ones
+    (``TUNING.auto_flatness``: not a tree crown's scatter) faces down, and at
+    most ``TUNING.auto_layered_share`` of those flat points lie straight over or
     under another sheet (:func:`_layered_share`: a thin closed object lying
     flat, whose two sides the tree can orient alike) and at most
-    :data:`AUTO_SPLIT_SHARE` have balls whose residuals split in two layers
+    ``TUNING.auto_split_share`` have balls whose residuals split in two layers
     (:func:`_split_share`: the same object thinner still).
 
     Parameters
@@ -375,7 +317,7 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     spread = near - near.mean(axis=1, keepdims=True)
     eigenvalues, eigenvectors = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))
     normals = eigenvectors[:, :, 0]
-    flat = eigenvalues[:, 0] <= AUTO_FLATNESS * eigenvalues[:, 1]
+    flat = eigenvalues[:, 0] <= TUNING.auto_flatness * eigenvalues[:, 1]
     oriented, _, labels = _tree_sides(centres, normals, nbhd)
     nz, n_comp = oriented[:, 2], int(labels.max()) + 1
     # per component, the smaller of the upward and downward sums of n_z over its flat points (either
@@ -384,20 +326,20 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     downward = np.bincount(labels, weights=np.clip(-nz, 0.0, None) * flat, minlength=n_comp)
     total = float((upward + downward).sum())
     down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
-    share = float(np.mean(np.abs(nz) >= AUTO_VERTICAL_COSINE))
-    level = flat & (np.abs(normals[:, 2]) >= AUTO_VERTICAL_COSINE)
+    share = float(np.mean(np.abs(nz) >= TUNING.auto_vertical_cosine))
+    level = flat & (np.abs(normals[:, 2]) >= TUNING.auto_vertical_cosine)
     spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
     layered = _layered_share(centres, normals, level, noise, tree, spacing)
     split = _split_share(centres, normals, tree, spacing)
-    terrain = share >= AUTO_SHARE and down <= AUTO_DOWN_SHARE
-    mode = "up" if terrain and layered <= AUTO_LAYERED_SHARE and split <= AUTO_SPLIT_SHARE else "outward"
+    terrain = share >= TUNING.auto_share and down <= TUNING.auto_down_share
+    mode = "up" if terrain and layered <= TUNING.auto_layered_share and split <= TUNING.auto_split_share else "outward"
     return AutoPolicy(mode, share, down, layered, split)
 
 
 def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree, spacing: float) -> float:
-    """Share of the sample whose balls' residuals split in two layers (:data:`AUTO_SPLIT_SHARE`).
+    """Share of the sample whose balls' residuals split in two layers (``TUNING.auto_split_share``).
 
-    The ball is the point's :data:`AUTO_SPLIT_NEIGHBOURS` nearest sample points, read as
+    The ball is the point's ``TUNING.auto_split_neighbours`` nearest sample points, read as
     :func:`heatcurv.sheets.layered_balls` reads a point's ball, with the median sample spacing as the spacing.
 
     Parameters
@@ -413,19 +355,19 @@ def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree, spacin
     -------
     float
     """
-    k = min(AUTO_SPLIT_NEIGHBOURS, centres.shape[0] - 1)
+    k = min(TUNING.auto_split_neighbours, centres.shape[0] - 1)
     if k < 6:
         return 0.0
     ball = knn_neighbourhood(centres, k, tree=tree, workers=1)
     moments = kernels.quadric_residual_moments(centres, normals, ball.indptr, ball.indices,
                                                np.full(centres.shape[0], spacing))
-    split = (moments[:, 0] > LAYER_RESIDUAL * spacing) & (moments[:, 1] < LAYER_KURTOSIS)
+    split = (moments[:, 0] > TUNING.layer_residual * spacing) & (moments[:, 1] < TUNING.layer_kurtosis)
     return float(np.count_nonzero(split) / centres.shape[0])
 
 
 def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, noise: float, tree: cKDTree,
                    spacing: float) -> float:
-    """Share of the ``flat`` sample points with another straight over or under them (:data:`AUTO_LAYERED_SHARE`).
+    """Share of the ``flat`` sample points with another straight over or under them (``TUNING.auto_layered_share``).
 
     Parameters
     ----------
@@ -455,7 +397,7 @@ def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, n
     offset = centres[second] - centres[first]
     height = np.abs(np.einsum("ij,ij->i", offset, normals[first]))
     lateral = np.sqrt(np.maximum(np.einsum("ij,ij->i", offset, offset) - height**2, 0.0))
-    over = (height > lateral) & (height > max(AUTO_LAYER_HEIGHT * spacing, AUTO_LAYER_NOISE * noise))
+    over = (height > lateral) & (height > max(TUNING.auto_layer_height * spacing, TUNING.auto_layer_noise * noise))
     return float(np.unique(first[over]).size / rows.size)
 
 
@@ -563,7 +505,7 @@ def orient(
 def _orient_locally(points, normals, graph, reference, mode, excluded) -> Orientation:
     """``"up"`` and ``"viewpoint"``: anchors by their reference direction, the others by :func:`local_sides`."""
     facing = np.einsum("ij,ij->i", normals, reference)
-    anchors = np.abs(facing) >= ANCHOR_COSINE
+    anchors = np.abs(facing) >= TUNING.anchor_cosine
     facing_side = np.where(facing < 0, -1.0, 1.0)
     side, own_reach = local_sides(points, normals, graph, np.where(anchors, facing_side, 0.0))
     undecided = side == 0
@@ -581,7 +523,7 @@ def _orient_locally(points, normals, graph, reference, mode, excluded) -> Orient
 
 
 def local_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood, sides: np.ndarray,
-                hops: int = LOCAL_HOPS) -> tuple[np.ndarray, np.ndarray]:
+                hops: int = TUNING.local_hops) -> tuple[np.ndarray, np.ndarray]:
     """Carry the anchors' sides over the graph in ``hops`` synchronous rounds; each point's side and reach.
 
     In round ``t`` every undecided point ``i`` sums over its decided graph
@@ -705,17 +647,17 @@ def _conflicting(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood) 
     """Points whose in-plane, aligned neighbours point the other way, shape (n,), bool.
 
     A neighbour ``j`` of ``i`` is compared when the edge lies near the tangent
-    plane, ``|n_i . (xj - xi)| <= CONFLICT_IN_PLANE |xj - xi|``, and the normal
-    axes agree, ``|n_i . n_j| >= CONFLICT_ALIGNED``; a point conflicts when at
-    least two and at least ``CONFLICT_SHARE`` of the compared ones have
+    plane, ``|n_i . (xj - xi)| <= TUNING.conflict_in_plane |xj - xi|``, and the normal
+    axes agree, ``|n_i . n_j| >= TUNING.conflict_aligned``; a point conflicts when at
+    least two and at least ``TUNING.conflict_share`` of the compared ones have
     ``n_i . n_j < 0``.
     """
 
     counts = kernels.orientation_conflicts(
-        points, normals, graph.indptr, graph.indices, graph.distances, CONFLICT_IN_PLANE, CONFLICT_ALIGNED
+        points, normals, graph.indptr, graph.indices, graph.distances, TUNING.conflict_in_plane, TUNING.conflict_aligned
     )
     compared, against = counts[:, 0], counts[:, 1]
-    return (against >= 2) & (against >= CONFLICT_SHARE * compared)
+    return (against >= 2) & (against >= TUNING.conflict_share * compared)
 
 
 def _reference_directions(points: np.ndarray, mode: str, towards) -> np.ndarray | None:
@@ -812,7 +754,7 @@ def _component_signs(points, oriented, labels, n_comp, w):
     strength = np.bincount(labels, weights=np.abs(radial), minlength=n_comp)
     sign = np.where(vote < 0, -1.0, 1.0)
     # a component without weight (excluded points) keeps its propagated side: nothing to decide
-    weak = (count > 0) & (np.abs(vote) <= WEAK_VOTE * strength)
+    weak = (count > 0) & (np.abs(vote) <= TUNING.weak_vote * strength)
     convention = np.zeros(n_comp, dtype=bool)
     for c in np.flatnonzero(weak):  # nearly flat patches: few components, small loop
         member = labels == c

@@ -19,16 +19,16 @@ against 0.23 mm^2 typical). Four tests, free of any length threshold:
    (its kernel is dominated by another piece of the cloud). Single far points
    are components of one.
 2. **Isolated.** A point much sparser than the surface around it: its own
-   ``d_6`` more than ``ISOLATION_FACTOR`` times the median ``d_6`` of its
-   ball's neighbours, or its ball more than ``BALL_RATIO_MAX`` times as wide
+   ``d_6`` more than ``TUNING.isolation_factor`` times the median ``d_6`` of its
+   ball's neighbours, or its ball more than ``TUNING.ball_ratio_max`` times as wide
    as theirs (a point off the surface, or the veil of mixed pixels a range
    scanner leaves in the gaps at depth discontinuities; measured on the face
    scan: no point of the scan's main surface exceeds 1.7 in ball ratio).
 3. **Sparse ball.** On a sampled surface the ball's radius ``R`` and the 6th
    neighbour's distance ``d_6`` obey ``(R / d_6)^2 ~ count / 6``. A point in a
    small tight cluster or a short trail inside a much emptier ball has
-   ``(R / d_6)^2 > SPARSE_FACTOR * count / 6``: the density at the ball's scale
-   is less than ``1 / SPARSE_FACTOR`` of the density at the point.
+   ``(R / d_6)^2 > TUNING.sparse_factor * count / 6``: the density at the ball's scale
+   is less than ``1 / TUNING.sparse_factor`` of the density at the point.
 4. **Amid strays.** A point more than half of whose ball the three tests
    above flag: its kernel measures strays, not a surface (a trail of a few
    points along a scan line inside a veil, one spacing apart and many from
@@ -47,9 +47,9 @@ import numpy as np
 from ._kernels import graph as graph_kernels
 from ._kernels import segment as kernels
 from .neighbourhood import Neighbourhood
+from .tuning import TUNING
 
-__all__ = [
-    "ISOLATION_FACTOR", "BALL_RATIO_MAX", "SPARSE_FACTOR", "Outliers", "find_outliers", "neighbour_medians",
+__all__ = ["Outliers", "find_outliers", "neighbour_medians",
     "exceeds_neighbour_median",
 ]
 
@@ -57,15 +57,6 @@ __all__ = [
 LINK_NEIGHBOURS = 10
 #: Rank of the neighbour whose distance is a point's local spacing.
 SPACING_RANK = 6
-#: Density ratio between the point's scale and the ball's scale that makes a sparse ball.
-SPARSE_FACTOR = 16.0
-#: A point whose ``d_6`` exceeds this multiple of its ball's median ``d_6`` is isolated.
-ISOLATION_FACTOR = 3.0
-#: A point whose ball radius exceeds this multiple of its neighbours' median ball radius is isolated.
-BALL_RATIO_MAX = 2.0
-#: Least share of the ball's neighbours in the point's own component; also the largest share of them that may
-#: be strays (test 4).
-OWN_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -128,16 +119,16 @@ def find_outliers(points: np.ndarray, nbhd: Neighbourhood) -> Outliers:
     # a component smaller than a typical ball cannot fill its own kernel
     too_small = np.bincount(labels, minlength=n_comp)[labels] < np.median(ball_counts)
     own_share = kernels.same_label_counts(labels, nbhd.indptr, nbhd.indices) / np.maximum(ball_counts, 1)
-    detached = too_small | (own_share < OWN_SHARE)
+    detached = too_small | (own_share < TUNING.own_share)
     with np.errstate(divide="ignore", invalid="ignore"):
-        sparse = (nbhd.radius / spacing) ** 2 > SPARSE_FACTOR * ball_counts / SPACING_RANK
+        sparse = (nbhd.radius / spacing) ** 2 > TUNING.sparse_factor * ball_counts / SPACING_RANK
     sparse &= ball_counts > SPACING_RANK
-    isolated = exceeds_neighbour_median(spacing, ISOLATION_FACTOR, nbhd)
-    isolated |= exceeds_neighbour_median(nbhd.radius, BALL_RATIO_MAX, nbhd)
+    isolated = exceeds_neighbour_median(spacing, TUNING.isolation_factor, nbhd)
+    isolated |= exceeds_neighbour_median(nbhd.radius, TUNING.ball_ratio_max, nbhd)
     strays = detached | isolated | sparse
     # a point whose ball is mostly strays measures them, not a surface (a short trail in a veil)
     amid = kernels.flagged_within(strays, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius)
-    amid_strays = ~strays & (amid[:, 1] > OWN_SHARE * ball_counts)
+    amid_strays = ~strays & (amid[:, 1] > TUNING.own_share * ball_counts)
     return Outliers(strays | amid_strays, detached, isolated, sparse, int(n_comp))
 
 

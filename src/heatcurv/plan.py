@@ -18,7 +18,7 @@ one ball radius          ``radius=``: the chord or the denoised form (the noise 
                          ball, at every point
 anchored denoised fit    noise, or a kernel wider than ``k_fit``: the denoised form fitted at
                          anchors (:mod:`heatcurv.anchors`) and carried to every point
-with anchor normals      noise above :data:`STRONG_NOISE` spacings: the anchors find and orient
+with anchor normals      noise above ``TUNING.strong_noise`` spacings: the anchors find and orient
                          their own normals (the operator's balls are swamped)
 with very low noise      the very-low-noise band (:attr:`heatcurv.scale.ScaleChoice.low_noise`):
                          the quartic refit, denser anchors and the cubic regression of their tensors
@@ -32,18 +32,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .anchors import anchors_per_ball, carry_degree
+from .tuning import TUNING
 
-__all__ = ["FORMS", "STRONG_NOISE", "FitPlan", "plan_fit"]
+__all__ = ["FORMS", "FitPlan", "plan_fit"]
 
 #: The fit forms a plan names: the chord fit, its denoised form (:mod:`heatcurv.chordfit`) and the paper's
 #: tensor fit with or without its constraint (:mod:`heatcurv.principal`).
 FORMS = ("chord", "denoised", "paper-constrained", "paper-free")
-#: Noise (``sigma`` over the operator's median spacing ``h``, ``info["scale"].relative_noise``) above
-#: which the operator's balls (radius ``2 h``) are swamped: their PCA normals tilt by tens of degrees
-#: and their orientation breaks apart, so the wide kernel's anchors find and orient their own
-#: normals (:func:`heatcurv.anchors.anchor_normals`). Between the noisiest clouds that orient fine on the
-#: operator's balls and a torus that did not (docs/how_it_works.md, thresholds).
-STRONG_NOISE = 0.5
 
 
 @dataclass(frozen=True)
@@ -163,7 +158,7 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     low_noise = bool(choice.low_noise)
     if low_noise:
         why += "; very low noise"
-    strong = not keep_normals and choice.relative_noise > STRONG_NOISE
+    strong = not keep_normals and choice.relative_noise > TUNING.strong_noise
     return FitPlan(
         "denoised", k=scale.k, k_min=k_min, k_max=k_max, anchored=True, anchors_per_ball=anchors_per_ball(low_noise),
         anchor_normals=strong, refit=low_noise, carry_degree=carry_degree(low_noise), keep_normals=keep_normals,

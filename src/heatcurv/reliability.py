@@ -6,10 +6,10 @@ every point of the cloud, so a tiled run (:mod:`heatcurv.tiles`) can only set
 them once all tiles are done:
 
 * a **misfit** is a point whose fit residual (in units of its spacing) exceeds
-  :data:`MISFIT_FACTOR` times the median of the points fitted at the same
+  ``TUNING.misfit_factor`` times the median of the points fitted at the same
   kernel width: one smooth surface does not explain its ball;
 * the **resolution** of the cloud is the median point's sampling spacing in
-  radii of curvature; above :data:`RESOLUTION_LIMIT` the balls wrap around the
+  radii of curvature; above ``TUNING.resolution_limit`` the balls wrap around the
   surface and no value is reliable.
 
 :class:`ReliabilityInputs` holds what each point contributes; the functions
@@ -20,7 +20,7 @@ coordinates. Coordinates stored in float32, or rounded to a grid (a LAS file's
 scale), are each off by up to half a step of that grid;
 :func:`coordinate_rounding` finds the step and :func:`imprecise` flags the
 points whose curvature that rounding can move by more than
-:data:`PRECISION_TOLERANCE` of its size.
+``TUNING.precision_tolerance`` of its size.
 """
 
 from __future__ import annotations
@@ -31,46 +31,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import HeatcurvError, HeatcurvWarning
+from .tuning import TUNING
 
-__all__ = [
-    "FLAT_CURVATURE", "MISFIT_FACTOR", "MISFIT_FLOOR", "PRECISION_COVERAGE", "PRECISION_TOLERANCE",
-    "RESOLUTION_LIMIT", "ROUND_BALL", "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding",
+__all__ = ["PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding",
     "imprecise",
     "misfit_baselines", "misfits", "precision_step", "resolution", "rounding_uncertainty", "warn_too_coarse",
 ]
 
-#: A point whose chord-fit residual (in units of its spacing) exceeds this multiple of the
-#: cloud's median is not explained by one smooth surface at the kernel's scale: a sharp edge
-#: inside the ball, vegetation, a veil. Smooth surfaces, noisy or not, stay within a few times the
-#: median; edges and tree crowns reach tens to hundreds (docs/how_it_works.md, thresholds).
-MISFIT_FACTOR = 10.0
-#: Floor of the median residual (in spacings) a clean cloud's misfits are measured against.
-MISFIT_FLOOR = 1e-3
-#: A cloud whose median point has a sampling spacing ``s = R sqrt(pi / count)`` (its ball's radius
-#: ``R`` holding ``count`` neighbours) more than this many radii of curvature ``1 / max(|k1|, |k2|)``
-#: (fewer than about 12 points around an osculating circle) does not resolve its surface: its
-#: balls wrap around it: the tori that came out with inward normals and errors of several per cent
-#: lie above it, the clouds that resolve their surface below (docs/how_it_works.md, thresholds).
-RESOLUTION_LIMIT = 0.5
-#: A ball whose two smallest PCA eigenvalues are this close (``lambda_0 / lambda_1``,
-#: :func:`heatcurv.normals.pca_normals`) holds a tube, not a disc: the surface wraps around within it,
-#: and its fitted curvature, far too small, says nothing of the sampling; its spacing counts as infinitely
-#: many radii of curvature (``rho``). Tubes only a few spacings across lie above it, a resolved tube and
-#: closed scanned models below (docs/how_it_works.md, thresholds; ``benchmarks/orientation.py --coarse-tori``).
-ROUND_BALL = 0.65
-#: Error of a point's curvature that the rounding of the coordinates may cause before the point is
-#: unreliable, as a share of its curvature scale (:func:`imprecise`): the k1 / k2 target of the accuracy
-#: tables (docs/accuracy.md, 1 %).
-PRECISION_TOLERANCE = 0.01
-#: Standard deviations of the rounding's mean-curvature error (:func:`rounding_uncertainty`) held against
-#: that tolerance: at least the 99th percentile, in either fit, of the change of k1 or k2 that moving the
-#: coordinates by up to their rounding makes, in units of that standard deviation (docs/how_it_works.md, thresholds).
-PRECISION_COVERAGE = 5.0
-#: Floor of a point's curvature scale, in inverse radii of its fit's ball: a nearly flat point is judged
-#: against the curvature that bends the surface by 1.5 % of the ball's radius across it. Below every point
-#: of the clean 10 000-point clouds of the accuracy tables, whose own curvature always counts
-#: (docs/how_it_works.md, thresholds).
-FLAT_CURVATURE = 0.03
 
 
 @dataclass(frozen=True)
@@ -89,7 +56,7 @@ class ReliabilityInputs:
         Kernel width (neighbours) the point was fitted at (0: one width).
     rho : ndarray
         Sampling spacing in radii of curvature (nan where undefined, inf
-        where the ball is round: :data:`ROUND_BALL`).
+        where the ball is round: ``TUNING.round_ball``).
     counted : ndarray of bool
         Points the medians are taken over: distinct surface points (not
         outliers; one row per set of exact duplicates).
@@ -110,7 +77,7 @@ class ReliabilityInputs:
 
 
 def misfit_baselines(residual: np.ndarray, width: np.ndarray, counted: np.ndarray) -> dict:
-    """The median residual of the counted points of each kernel width, at least :data:`MISFIT_FLOOR`.
+    """The median residual of the counted points of each kernel width, at least ``TUNING.misfit_floor``.
 
     Against one median per width (a wider kernel's residual holds more of the
     surface's shape: a low-poly bone with regions at 60 and 120 neighbours had
@@ -124,21 +91,21 @@ def misfit_baselines(residual: np.ndarray, width: np.ndarray, counted: np.ndarra
     baselines = {}
     for k in np.unique(width):
         surface = residual[(width == k) & counted]
-        baselines[int(k)] = max(float(np.median(surface)) if surface.size else 0.0, MISFIT_FLOOR)
+        baselines[int(k)] = max(float(np.median(surface)) if surface.size else 0.0, TUNING.misfit_floor)
     return baselines
 
 
 def misfits(residual: np.ndarray | None, width: np.ndarray, baselines: dict) -> np.ndarray:
-    """Points whose residual exceeds :data:`MISFIT_FACTOR` times their width's baseline, shape (n,), bool."""
+    """Points whose residual exceeds ``TUNING.misfit_factor`` times their width's baseline, shape (n,), bool."""
     if residual is None:
         return np.zeros(width.shape[0], dtype=bool)
     widths = np.array(sorted(baselines), dtype=np.int64)
-    limit = MISFIT_FACTOR * np.array([baselines[k] for k in widths.tolist()])
+    limit = TUNING.misfit_factor * np.array([baselines[k] for k in widths.tolist()])
     return residual > limit[np.searchsorted(widths, width)]
 
 
 def resolution(rho: np.ndarray, counted: np.ndarray) -> float:
-    """The median counted point's spacing in radii of curvature (:data:`RESOLUTION_LIMIT`); 0 if none counts.
+    """The median counted point's spacing in radii of curvature (``TUNING.resolution_limit``); 0 if none counts.
 
     Round balls (``rho`` infinite) count, as beyond any limit; undefined ones (NaN) do not.
     """
@@ -147,10 +114,10 @@ def resolution(rho: np.ndarray, counted: np.ndarray) -> float:
 
 
 def warn_too_coarse(rho: float, stacklevel: int = 2) -> None:
-    """Warn that the cloud's resolution ``rho`` (:func:`resolution`) is past :data:`RESOLUTION_LIMIT`."""
+    """Warn that the cloud's resolution ``rho`` (:func:`resolution`) is past ``TUNING.resolution_limit``."""
     measure = ("most of its balls are round, not flat: the surface wraps around within them (a part a few "
                "spacings across)") if np.isinf(rho) else (
-        f"a median point's spacing is {rho:.2g} radii of curvature (at most {RESOLUTION_LIMIT:g}: about 12 "
+        f"a median point's spacing is {rho:.2g} radii of curvature (at most {TUNING.resolution_limit:g}: about 12 "
         "points around a curve), so its neighbourhoods wrap around the surface")
     warnings.warn(f"the cloud is too coarse for its curvature: {measure}; every value is marked unreliable. Sample "
                   "it more densely.", HeatcurvWarning, stacklevel=stacklevel + 1)
@@ -184,7 +151,7 @@ def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolu
         baselines = misfit_baselines(inputs.residual, inputs.width, inputs.counted)
     reliable = inputs.local & ~misfits(inputs.residual, inputs.width, baselines or {})
     rho = resolution(inputs.rho, inputs.counted) if resolution_value is None else resolution_value
-    if rho > RESOLUTION_LIMIT:
+    if rho > TUNING.resolution_limit:
         warn_too_coarse(rho, stacklevel + 1)
         reliable = np.zeros_like(reliable)
     return reliable, rho
@@ -202,7 +169,7 @@ class PrecisionReport:
     largest_error : float
         The largest rounding error of a coordinate, input units: half the step of its grid.
     flagged : int
-        Input rows whose curvature the rounding can move by more than :data:`PRECISION_TOLERANCE` of its
+        Input rows whose curvature the rounding can move by more than ``TUNING.precision_tolerance`` of its
         scale (:func:`imprecise`): not reliable, whatever else flags them.
     uncertainty : ndarray, shape (n,)
         Standard deviation of each row's mean curvature under the rounding, 1/length; nan where it is
@@ -304,10 +271,10 @@ def rounding_uncertainty(half_step: np.ndarray, normals: np.ndarray, mean_varian
 def imprecise(uncertainty: np.ndarray, k1: np.ndarray, k2: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Points whose coordinates are too coarse for their curvature, shape (m,), bool.
 
-    A point is imprecise when :data:`PRECISION_COVERAGE` times its rounding ``uncertainty``
-    (:func:`rounding_uncertainty`) exceeds :data:`PRECISION_TOLERANCE` of its curvature scale, the larger
-    of ``|k1|``, ``|k2|`` and :data:`FLAT_CURVATURE` over the radius of its fit's ball.
+    A point is imprecise when ``TUNING.precision_coverage`` times its rounding ``uncertainty``
+    (:func:`rounding_uncertainty`) exceeds ``TUNING.precision_tolerance`` of its curvature scale, the larger
+    of ``|k1|``, ``|k2|`` and ``TUNING.flat_curvature`` over the radius of its fit's ball.
     """
     with np.errstate(invalid="ignore"):
-        scale = np.maximum(np.maximum(np.abs(k1), np.abs(k2)), FLAT_CURVATURE / radius)
-        return PRECISION_COVERAGE * uncertainty > PRECISION_TOLERANCE * scale
+        scale = np.maximum(np.maximum(np.abs(k1), np.abs(k2)), TUNING.flat_curvature / radius)
+        return TUNING.precision_coverage * uncertainty > TUNING.precision_tolerance * scale

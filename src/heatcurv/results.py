@@ -84,7 +84,7 @@ class CurvatureResult:
     info : dict
         ``n_distinct`` (points after merging duplicates), ``resolution`` (the
         median point's sampling spacing in radii of curvature; above
-        :data:`heatcurv.reliability.RESOLUTION_LIMIT` the cloud is too coarse
+        ``TUNING.resolution_limit`` the cloud is too coarse
         and every point unreliable), ``orientation`` (a
         :class:`heatcurv.orientation.OrientationReport`: the policy used and
         how many points it could not orient), ``outliers`` (their number), ``area_solve``

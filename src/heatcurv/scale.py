@@ -32,13 +32,13 @@ grows with ``R^2``). :func:`select_scale` picks the width per cloud:
    gives about 0.67). Wider kernels are accepted while their change is
    explainable by noise, and refused as soon as the change reveals bias;
 4. a local guard narrows a region's kernel where the median change over its
-   window exceeds :data:`TAU_LOCAL` standard deviations (clear local bias);
+   window exceeds ``TUNING.tau_local`` standard deviations (clear local bias);
    each point takes the choice of its nearest centre;
-5. a cloud in the very-low-noise band (``relative_noise`` from :data:`NO_NOISE`
-   to below :data:`LOW_NOISE`, e.g. coordinate rounding) is fitted with the
+5. a cloud in the very-low-noise band (``relative_noise`` from ``TUNING.no_noise``
+   to below ``TUNING.low_noise``, e.g. coordinate rounding) is fitted with the
    denoised form's low-noise refit (:mod:`heatcurv.anchors`), whose bias is far
    below that of the plain fit the rule compares. Where the rule widened the
-   kernel of the median centre, every widened centre's kernel is :data:`LOW_NOISE_LEVELS` doubling wider.
+   kernel of the median centre, every widened centre's kernel is ``TUNING.low_noise_levels`` doubling wider.
 
 The bias decision pools every centre of a noise bin, and only the guard of
 step 4 looks at small regions: a per-region test is noisy, and a too-narrow
@@ -60,9 +60,9 @@ from .chordfit import ChordFit, chord_fit
 from .kernel import tapered_heat_weights
 from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
 from .sampling import draw_subset, shifted_keys
+from .tuning import TUNING
 
-__all__ = [
-    "LOW_NOISE", "LOW_NOISE_LEVELS", "NO_NOISE", "CentreFits", "CentreFitter", "Scale", "ScaleChoice", "ScaleReport",
+__all__ = ["CentreFits", "CentreFitter", "Scale", "ScaleChoice", "ScaleReport",
     "decide_scale", "fit_balls", "fit_blocks", "in_low_noise_band",
     "fit_at_scale", "level_sizes", "select_scale", "select_form",
 ]
@@ -392,32 +392,11 @@ def fit_at_scale(
     return ChordFit.concatenate(fits), nbhd.radius / alpha, nbhd
 
 
-#: The very-low-noise band (coordinate rounding): a cloud whose ``relative_noise`` is from :data:`NO_NOISE` to
-#: below :data:`LOW_NOISE` and whose kernel Lepski's rule widened takes a kernel :data:`LOW_NOISE_LEVELS` doublings
-#: wider (:func:`decide_scale`), the denoised form's low-noise refit (:func:`heatcurv.chordfit.chord_fit`), dense
-#: anchors and the regression of their tensors (:mod:`heatcurv.anchors`): :attr:`ScaleChoice.low_noise`.
-#: Noise (``sigma`` over the median spacing, ``info["scale"].relative_noise``) below which the cloud is in the
-#: band: above the rounding of a LAZ file's millimetres and synthetic noise up to 1e-4 of the diagonal, below
-#: 0.12 % noise and below the synthetic LiDAR tile, whose tree crowns a wider kernel would pass as reliable
-#: (docs/how_it_works.md, thresholds).
-LOW_NOISE = 0.02
-#: ... and above which: a cloud whose measured noise is at rounding level (two planes meeting at a fold:
-#: ``relative_noise`` 1e-16) has no noise for the denser anchors to resolve and keeps the ordinary fit and carry,
-#: whose sharp-feature mask stays narrower (docs/how_it_works.md, thresholds).
-NO_NOISE = 1e-6
-#: Doublings of ``k`` a very-low-noise cloud's kernel is widened by beyond the choice of Lepski's rule
-#: (:func:`decide_scale`). The rule compares the plain denoised fits, whose third-order model's bias sets
-#: the width; the low-noise refit (quartic terms) has less, so its kernel can be wider and average more. One
-#: doubling: two are too wide above 1e-5 of the diagonal (docs/accuracy.md, very low noise, the widening
-#: table). Lepski's rule is not run on the refit itself:
-#: a tiled run's survey fits the plain candidates (:mod:`heatcurv.survey`), and the noise gate must see
-#: the plain fit (a clean jittered grid read its model misfit as noise through the refit's residual).
-LOW_NOISE_LEVELS = 1
 
 
 def in_low_noise_band(relative_noise: float) -> bool:
-    """Whether ``relative_noise`` is in the very-low-noise band: :data:`NO_NOISE` to below :data:`LOW_NOISE`."""
-    return NO_NOISE <= relative_noise < LOW_NOISE
+    """Whether ``relative_noise`` is in the very-low-noise band: ``TUNING.no_noise`` to below ``TUNING.low_noise``."""
+    return TUNING.no_noise <= relative_noise < TUNING.low_noise
 
 
 #: Centres each centre's Lepski test takes the median over (of ``n_sub``): the region a kernel is
@@ -429,28 +408,13 @@ PAIRS_PER_LEVEL = 500_000
 MIN_CENTRES = 100
 #: Fewest centres a median over a window takes.
 MIN_WINDOW = 50
-#: Candidates (doublings of the narrowest: up to 960 neighbours) whose residual counts in the noise
-#: estimate, while each doubling raises the median residual by less than :data:`NOISE_GROWTH`
-#: (noise being uncovered; bias grows as R^2, a factor 2 per doubling). A 100 000-point torus
-#: with noise of 0.6 % of its diagonal (2 spacings) needed them up to 960 to choose 3840
-#: neighbours (mean error 5.4 %; with the 60-neighbour residual alone, 960 and 26.6 %); a LiDAR
-#: tile's residuals, bias from 480 on, would have widened its kernel and hidden its tree crowns.
-NOISE_LEVELS = 4
-NOISE_GROWTH = 1.5
-#: Smallest share of the centres a noise region of its own must hold: a LiDAR tile's tree crowns
-#: (4 % of its points) were otherwise fitted as a noisier surface and passed as reliable, and a
-#: low-poly bone's coarser facets (10-25 %) took a 120-neighbour kernel whose normals reached a
-#: 95th-percentile error of 6.7 deg (3.4 deg at 60 everywhere).
-MIN_REGION = 0.25
-#: The local guard's tolerance (standard deviations): only a clear local bias narrows a region's kernel.
-TAU_LOCAL = 3.0
 
 
 def _is_clean(sigma_chord: float, sigma: float, h0: float, clean_ratio: float) -> bool:
     """The noise gate: the chord fit's residual is not clearly above the denoised fit's."""
     # large noise saturates the chord residual (|kN| <= 1/|z|), so the ratio alone
-    # cannot tell; past sigma/h = 1 % no clean cloud gets (measured <= 3.5e-4)
-    return sigma_chord <= clean_ratio * sigma and sigma < 0.01 * h0
+    # cannot tell; no clean cloud has sigma / h past TUNING.clean_noise_limit (measured <= 3.5e-4)
+    return sigma_chord <= clean_ratio * sigma and sigma < TUNING.clean_noise_limit * h0
 
 
 def select_form(
@@ -507,15 +471,11 @@ def _nested_centres(sub: np.ndarray, keys: np.ndarray | None, seed: int) -> np.n
     return sub[np.random.default_rng(seed + 1).permutation(sub.shape[0])]
 
 
-#: Widest candidate kernel (neighbours) on any cloud: a tiled run measures every candidate at sample
-#: centres tile by tile, so the widest ball must fit in a tile's halo. Twice the widest any of our noisy
-#: clouds chose (docs/how_it_works.md, thresholds).
-WIDEST_KERNEL = 15360
 
 
 def _ladder(base_k: int, max_k: int | None, n: int) -> list:
-    """The candidates ``base_k, 2 base_k, ...`` up to ``max_k`` (default :data:`WIDEST_KERNEL`) and ``n / 4``."""
-    top = min(WIDEST_KERNEL if max_k is None else max_k, n // 4)
+    """The candidates ``base_k, 2 base_k, ...`` up to ``max_k`` (default ``TUNING.widest_kernel``) and ``n / 4``."""
+    top = min(TUNING.widest_kernel if max_k is None else max_k, n // 4)
     ladder, k = [], base_k
     while k <= max(base_k, top):  # at least base_k itself (a base_k close to n)
         ladder.append(Scale(k, True))
@@ -782,7 +742,7 @@ def decide_scale(
         )
     # the local noise: the denoised residual's median over each centre's window; a narrow fit absorbs
     # part of strong noise (at sigma about 2 spacings the 60-neighbour residual was half the true
-    # sigma), so the noise is the largest of the narrow candidates' (up to NOISE_LEVELS doublings:
+    # sigma), so the noise is the largest of the narrow candidates' (up to TUNING.noise_levels doublings:
     # wider ones' residuals hold their bias, which on thin parts would widen the kernel further)
     noise = _window_medians(base.sigma, _windows(at, at, window, workers), q)
     tiny = np.finfo(float).tiny
@@ -800,7 +760,7 @@ def decide_scale(
         factors.append(fit.factor)
         sizes.append(size)
         residual = float(np.median(fit.sigma))
-        if j <= NOISE_LEVELS and growing[0] and residual < NOISE_GROWTH * residuals[-1]:
+        if j <= TUNING.noise_levels and growing[0] and residual < TUNING.noise_growth * residuals[-1]:
             mine = at[:size]
             own_windows = _windows(mine, mine, max(MIN_WINDOW, window * size // q), workers)
             own = _window_medians(fit.sigma, own_windows, size)
@@ -832,7 +792,7 @@ def decide_scale(
     # centres are vegetation, edges or stray parts, which the fit must not widen for (their
     # residual is what flags them), so small bins join the largest
     labels, counts = np.unique(noise_bin, return_counts=True)
-    small = labels[counts < MIN_REGION * q]
+    small = labels[counts < TUNING.min_region * q]
     noise_bin[np.isin(noise_bin, small)] = labels[np.argmax(counts)]
     # 2) Lepski's rule in each bin: the widest candidate whose median change (over the bin's
     #    centres) from every narrower one is within tau of that one's standard deviation
@@ -854,22 +814,22 @@ def decide_scale(
         if not open_bins:
             break
     # 3) a local guard: no region goes past a candidate whose change from a narrower one is clearly
-    #    bias there (median over the region's window above TAU_LOCAL standard deviations)
+    #    bias there (median over the region's window above TUNING.tau_local standard deviations)
     guarded = np.full(q, len(means) - 1)
     for j in range(1, len(means)):
         windows = _windows(at[: sizes[j]], at, max(MIN_WINDOW, window * sizes[j] // q), workers)
         biased = np.zeros(q, dtype=bool)
         for change in changes(j):
-            biased |= _window_medians(change, windows, q) > TAU_LOCAL
+            biased |= _window_medians(change, windows, q) > TUNING.tau_local
         guarded = np.where(biased & (guarded >= j), j - 1, guarded)
     chosen = np.minimum(chosen, guarded)
     # very low noise, where the rule widened the median centre's kernel: the low-noise refit's kernel is wider
-    # (LOW_NOISE_LEVELS). Where the rule kept the narrowest (scans: the bunny, the face, relative_noise
+    # (TUNING.low_noise_levels). Where the rule kept the narrowest (scans: the bunny, the face, relative_noise
     # 0.019, chose 60; widened to 240 the bunny's area moved 2 %, the face's 28 %) the bias is at the
     # narrowest scale already, and the cloud keeps the plain fit.
     low_noise = in_low_noise_band(sigma / h0) and np.median(chosen) > 0
     if low_noise:
-        chosen = np.where(chosen > 0, np.minimum(chosen + LOW_NOISE_LEVELS, len(ladder) - 1), chosen)
+        chosen = np.where(chosen > 0, np.minimum(chosen + TUNING.low_noise_levels, len(ladder) - 1), chosen)
         # the wider candidates are fitted too, so that a tiled run's survey measures their balls (its
         # halo) as it does the chosen ones'
         for j in range(len(means), int(chosen.max()) + 1):

@@ -15,7 +15,7 @@ lies on the other side when it is
   spacing (a neighbour on the same sheet lies in or near the tangent plane:
   more than 45 degrees out of it takes a quarter turn of the surface between
   them, which a resolved surface does not make within a few spacings), and
-* facing the other way: ``n_p . n_q < -`` :data:`SHEET_ALIGNED` (the two sides
+* facing the other way: ``n_p . n_q < -`` ``TUNING.sheet_aligned`` (the two sides
   of a thin part face away from each other, and both turn together when the
   part is inside out, so the test holds whichever side they were given).
 
@@ -30,11 +30,11 @@ out facing the same way. What tells the two apart is the *shape* of the
 scatter. Over a least-squares quadric through the ball, noise leaves residuals
 that are about normal (kurtosis ``mean(r^4) / mean(r^2)^2`` near 3), two layers
 residuals split in two groups (kurtosis near 1 for two equal layers, at most
-:data:`LAYER_KURTOSIS`), whichever way they face. A point is **layered** when its ball's residual is
-wider than :data:`LAYER_RESIDUAL` of its spacing with such a kurtosis
+``TUNING.layer_kurtosis``), whichever way they face. A point is **layered** when its ball's residual is
+wider than ``TUNING.layer_residual`` of its spacing with such a kurtosis
 (:func:`layered_balls`); a single ball's kurtosis scatters, so a point counts as
-a second sheet when more than :data:`LAYER_VOTE` of its
-:data:`SHEET_NEIGHBOURS` nearest are layered (:func:`second_sheet`).
+a second sheet when more than ``TUNING.layer_vote`` of its
+``TUNING.sheet_neighbours`` nearest are layered (:func:`second_sheet`).
 """
 
 from __future__ import annotations
@@ -43,28 +43,12 @@ import numpy as np
 
 from ._kernels import segment as kernels
 from .neighbourhood import Neighbourhood
+from .tuning import TUNING
 
 __all__ = [
-    "LAYER_KURTOSIS", "LAYER_RESIDUAL", "LAYER_VOTE", "SHEET_ALIGNED", "SHEET_HEIGHT", "SHEET_NEIGHBOURS",
     "layered_balls", "second_sheet",
 ]
 
-#: Nearest neighbours of each point looked at: the inner third of the operator's ball (60 by default,
-#: radius about ``2 h``), where the fit's tapered heat weights are; beyond about ``1.2 h`` they fall
-#: under a tenth of the centre's.
-SHEET_NEIGHBOURS = 20
-#: Smallest height over the tangent plane, in the point's spacings, of a neighbour on the other side.
-SHEET_HEIGHT = 0.5
-#: ``-n_p . n_q`` above which two normals face away from each other (within 60 degrees of opposite).
-SHEET_ALIGNED = 0.5
-#: Largest kurtosis of a layered ball's quadric residuals: below the 2.3 that one sheet with normal noise
-#: stays above in 9 of 10 balls of 60 (median 2.8), above the median 1.4-1.8 of plates 0.7-1.9 spacings thick.
-LAYER_KURTOSIS = 2.0
-#: Smallest quadric residual (root mean square, in the point's spacings) of a layered ball: a clean
-#: surface's residual (rounding, the quadric's own misfit) has no shape worth reading.
-LAYER_RESIDUAL = 0.15
-#: Share of a point's :data:`SHEET_NEIGHBOURS` nearest that must be layered balls for the point to count.
-LAYER_VOTE = 0.5
 
 
 def second_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, spacing: np.ndarray) -> np.ndarray:
@@ -80,7 +64,7 @@ def second_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, s
     normals : ndarray, shape (n, 3)
         Oriented unit normals (NaN rows: never flagged, never counted).
     nbhd : Neighbourhood
-        The operator's neighbourhood; its :data:`SHEET_NEIGHBOURS` nearest of each row are used.
+        The operator's neighbourhood; its ``TUNING.sheet_neighbours`` nearest of each row are used.
     spacing : ndarray, shape (n,)
         Each point's sampling spacing ``h`` (eq 2.6 / 2.7).
 
@@ -89,12 +73,12 @@ def second_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, s
     ndarray of bool, shape (n,)
     """
     spacing = np.asarray(spacing, dtype=np.float64)
-    reach = nbhd.kth_distance(SHEET_NEIGHBOURS)
+    reach = nbhd.kth_distance(TUNING.sheet_neighbours)
     found = kernels.opposite_sheet_counts(points, normals, nbhd.indptr, nbhd.indices, nbhd.distances, reach,
-                                          SHEET_HEIGHT * spacing, SHEET_ALIGNED)
+                                          TUNING.sheet_height * spacing, TUNING.sheet_aligned)
     layered = layered_balls(points, normals, nbhd, spacing)
     counts = kernels.flagged_within(layered, nbhd.indptr, nbhd.indices, nbhd.distances, reach)
-    return (found > 0) | (counts[:, 1] > LAYER_VOTE * counts[:, 0])
+    return (found > 0) | (counts[:, 1] > TUNING.layer_vote * counts[:, 0])
 
 
 def layered_balls(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, spacing: np.ndarray) -> np.ndarray:
@@ -108,8 +92,8 @@ def layered_balls(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, 
     Returns
     -------
     ndarray of bool, shape (n,)
-        ``rms > LAYER_RESIDUAL * h`` and ``kurtosis < LAYER_KURTOSIS`` (False where either is NaN).
+        ``rms > TUNING.layer_residual * h`` and ``kurtosis < TUNING.layer_kurtosis`` (False where either is NaN).
     """
     spacing = np.asarray(spacing, dtype=np.float64)
     moments = kernels.quadric_residual_moments(points, normals, nbhd.indptr, nbhd.indices, spacing)
-    return (moments[:, 0] > LAYER_RESIDUAL * spacing) & (moments[:, 1] < LAYER_KURTOSIS)
+    return (moments[:, 0] > TUNING.layer_residual * spacing) & (moments[:, 1] < TUNING.layer_kurtosis)

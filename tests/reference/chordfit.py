@@ -11,9 +11,9 @@ Only containers come from heatcurv (:class:`~heatcurv.chordfit.ChordFit`,
 :class:`~heatcurv.neighbourhood.Neighbourhood` argument is read as plain CSR
 arrays), and the documented parameters of the method: ``MIN_DOF_FRACTION``
 (floor of the residual's degrees-of-freedom correction), ``WELL_POSED_RCOND``
-(the well-posedness threshold) and the low-noise refit's ``LOW_NOISE_SIGMA``,
-``LOW_NOISE_LIMIT``, ``LOW_NOISE_TRIED`` and ``LOW_NOISE_MIN_LAMBDA`` from
-:mod:`heatcurv._kernels.chordfit`. The Tikhonov ridge, 1e-10 of ``trace(G) / p``
+(the well-posedness threshold) and the low-noise refit's ``LOW_NOISE_MIN_LAMBDA`` from
+:mod:`heatcurv._kernels.chordfit`, and the refit's ``low_noise_sigma``, ``low_noise_limit`` and
+``low_noise_tried`` from :data:`heatcurv.tuning.TUNING`. The Tikhonov ridge, 1e-10 of ``trace(G) / p``
 (of each diagonal entry for the quartic fits), is the documented default of
 :func:`reference.lstsq.segment_lstsq`'s ``ridge`` and is written here as
 :data:`RIDGE`.
@@ -37,15 +37,13 @@ at zero distance has chord curvature 0 and no response noise.
 import numpy as np
 
 from heatcurv._kernels.chordfit import (
-    LOW_NOISE_LIMIT,
     LOW_NOISE_MIN_LAMBDA,
-    LOW_NOISE_SIGMA,
-    LOW_NOISE_TRIED,
     MIN_DOF_FRACTION,
     WELL_POSED_RCOND,
 )
 from heatcurv.chordfit import ChordFit
 from heatcurv.principal import PrincipalCurvatures
+from heatcurv.tuning import TUNING
 
 __all__ = ["chord_fit", "refine_normals", "tangent_frames", "RIDGE"]
 
@@ -345,10 +343,11 @@ def refine_normals(points, nbhd, normals, weights, *, tilt=True, cubic=True, den
 def _low_noise_refit(indptr, weights, cols, quartic, r2, z, jet_sigma2):
     """The low-noise refit of the denoised form, where it is used.
 
-    Tried where the height fit's residual is below ``LOW_NOISE_TRIED LOW_NOISE_LIMIT LOW_NOISE_SIGMA``;
-    kept where the residual of the height fit with quartic terms is below ``LOW_NOISE_LIMIT LOW_NOISE_SIGMA``.
+    Tried where the height fit's residual is below ``tried limit sigma0`` and kept where the residual of the height
+    fit with quartic terms is below ``limit sigma0`` (``TUNING.low_noise_tried``, ``.low_noise_limit``,
+    ``.low_noise_sigma``).
     The refit: heights against ``[-D^2 / 2 (columns, quartic), 1]``, ``D^2 = r^2 + (zhat - z0)^2`` from the
-    quartic height fit, pairs weighted ``w lambda^4 / (D^4 + lambda^4)``, ``lambda^4 = (sigma / LOW_NOISE_SIGMA)^2``
+    quartic height fit, pairs weighted ``w lambda^4 / (D^4 + lambda^4)``, ``lambda^4 = (sigma / sigma0)^2``
     (at least ``LOW_NOISE_MIN_LAMBDA^4``); both fits with the ridge relative to each diagonal entry.
 
     Returns ``low`` (bool per centre) and ``(beta, well_posed, variance)`` of the refit, ``beta``
@@ -357,14 +356,14 @@ def _low_noise_refit(indptr, weights, cols, quartic, r2, z, jet_sigma2):
     rows = _pair_rows(indptr)
     ones = np.ones((len(z), 1))
     shape = np.hstack([cols, quartic])
-    limit2 = (LOW_NOISE_LIMIT * LOW_NOISE_SIGMA) ** 2
+    limit2 = (TUNING.low_noise_limit * TUNING.low_noise_sigma) ** 2
     height_design = np.hstack([-0.5 * r2[:, None] * shape, ones])
     height = _weighted_lstsq(indptr, height_design, z, weights, jacobi=True)
     own = _residual_variance(indptr, weights, z - np.sum(height_design * height[rows], axis=1), shape.shape[1] + 1)
-    low = (jet_sigma2 < LOW_NOISE_TRIED**2 * limit2) & (own < limit2)
+    low = (jet_sigma2 < TUNING.low_noise_tried**2 * limit2) & (own < limit2)
     dz = -0.5 * r2 * np.sum(shape * height[rows, :-1], axis=1)
     D2 = r2 + dz * dz
-    lam4 = np.maximum(own / LOW_NOISE_SIGMA**2, LOW_NOISE_MIN_LAMBDA**4)[rows]
+    lam4 = np.maximum(own / TUNING.low_noise_sigma**2, LOW_NOISE_MIN_LAMBDA**4)[rows]
     contrast = np.zeros(shape.shape[1] + 1)
     contrast[[0, 2]] = 0.5
     fit = _weighted_lstsq(

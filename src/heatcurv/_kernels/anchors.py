@@ -265,7 +265,7 @@ def _rotated_frame(a, normals, e1, e2, target, u, v):
 @njit(**ROW_CORE, inline="always")
 def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, frame_u, frame_v,
                        with_tensor):
-    """:func:`_carry_one` to first order in the offset, for noisy models (:data:`EXACT_CARRY_SIGMA`).
+    """:func:`_carry_one` to first order in the offset, for noisy models (``TUNING.exact_carry_sigma``).
 
     The slope ``s = grad P / 2`` and tensor ``[[A + 3 g0 x + g1 y, ...]] / R`` of the model, the
     normal ``sqrt(1 - |s|^2) n + s_1 e1 + s_2 e2`` (exact on a circle) and the tensor carried into

@@ -37,9 +37,6 @@ __all__ = [
     "DENOISED_HEIGHT",
     "LOW_NOISE_HEIGHT",
     "QUARTIC_HEIGHT",
-    "LOW_NOISE_SIGMA",
-    "LOW_NOISE_LIMIT",
-    "LOW_NOISE_TRIED",
     "LOW_NOISE_MIN_LAMBDA",
     "QUARTIC_COLUMNS",
     "MIN_DOF_FRACTION",
@@ -67,18 +64,10 @@ LOW_NOISE_HEIGHT = 3
 QUARTIC_HEIGHT = 4
 #: Quartic columns of the low-noise refit: ``r^2 c^4, r^2 c^3 s, r^2 c^2 s^2, r^2 c s^3, r^2 s^4``.
 QUARTIC_COLUMNS = 5
-#: ``lambda^2 = sigma / LOW_NOISE_SIGMA`` (both in units of the ball radius) in the low-noise refit's weights.
-LOW_NOISE_SIGMA = 6e-4
-#: The low-noise refit is kept where its own residual is below ``LOW_NOISE_LIMIT * LOW_NOISE_SIGMA``;
-#: noisier centres take ``DENOISED_HEIGHT``.
-LOW_NOISE_LIMIT = 4.0
-#: ... and it is tried only where the plain height fit's residual is below ``LOW_NOISE_TRIED`` times that
-#: (strong noise skips it: its residual would be the noise's).
-LOW_NOISE_TRIED = 10.0
 #: Least ``lambda`` of the low-noise refit, units of the ball radius: on a clean ball ``lambda -> 0`` and the
 #: weights ``1 / D^4`` of far pairs against ``1`` of a pair at the centre (``D = 0``) made the normal equations
 #: singular to rounding (a grid under a saddle: the numpy and compiled fits 7e-7 apart). The floor only acts
-#: where ``sigma`` is below ``LOW_NOISE_SIGMA * 0.05^2 = 1.5e-6`` ball radii (noise 1e-5 of a torus's
+#: where ``sigma`` is below ``TUNING.low_noise_sigma * 0.05^2 = 1.5e-6`` ball radii (noise 1e-5 of a torus's
 #: diagonal at 480 neighbours is 1.7e-4).
 LOW_NOISE_MIN_LAMBDA = 0.05
 

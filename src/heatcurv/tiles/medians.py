@@ -94,7 +94,8 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
     HeatcurvWarning
         When the cloud is too coarse for its curvature (every row unreliable).
     """
-    from ..reliability import MISFIT_FLOOR, RESOLUTION_LIMIT, misfits, warn_too_coarse
+    from ..reliability import misfits, warn_too_coarse
+    from ..tuning import TUNING
     from .output import read_results, write_records
 
     def blocks():
@@ -110,15 +111,15 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
         for _, block, ok in blocks():
             yield np.zeros(int(ok.sum()), dtype=np.int64), block["resolution_rho"][ok]
 
-    baselines = {k: max(v, MISFIT_FLOOR) for k, v in streaming_medians(residuals).items()}
+    baselines = {k: max(v, TUNING.misfit_floor) for k, v in streaming_medians(residuals).items()}
     resolution = streaming_medians(resolutions).get(0, 0.0)
-    coarse = resolution > RESOLUTION_LIMIT
+    coarse = resolution > TUNING.resolution_limit
     if coarse:
         warn_too_coarse(resolution, stacklevel=3)
     for start, block, _ in blocks():  # rewritten chunk by chunk: no map of the whole file stays resident
         width = block["fit_width"]
         for k in np.unique(width).tolist():
-            baselines.setdefault(int(k), MISFIT_FLOOR)  # a width with no counted row: the floor
+            baselines.setdefault(int(k), TUNING.misfit_floor)  # a width with no counted row: the floor
         local = block["reliable"] == 1
         bad = misfits(block["misfit_residual"], width, baselines)
         block["reliable"] = (local & ~bad & ~coarse).astype(np.uint8)

@@ -1,0 +1,180 @@
+"""Every threshold that picks a fit path or flags a point, in one frozen object.
+
+The estimator's stages compare their measurements against the fields of :data:`TUNING`
+and against no number of their own: the noise gate and the kernel choice
+(:mod:`heatcurv.scale`), the fit plan (:mod:`heatcurv.plan`), the anchors and their
+carry (:mod:`heatcurv.anchors`), the low-noise refit (:mod:`heatcurv.chordfit`), the
+orientation and its automatic policy (:mod:`heatcurv.orientation`,
+:mod:`heatcurv.enclosure`), and the reliability flags (:mod:`heatcurv.reliability`,
+:mod:`heatcurv.sheets`, :mod:`heatcurv.outliers`, :mod:`heatcurv.border`,
+:mod:`heatcurv.kernel_check`, :mod:`heatcurv.areas`).
+
+Each field carries a one-line reason (:func:`reasons`); the measurements behind the
+values are in docs/how_it_works.md (thresholds). Sizes that only set how work is split
+(blocks, samples, graph degrees) stay with the code that splits it, and so do the three
+per-pair guards of the compiled carry (:mod:`heatcurv._kernels.anchors`), which numba
+compiles into its cached machine code. Shares are fractions, noise levels are ``sigma``
+over the median spacing (``info["scale"].relative_noise``) unless a field says otherwise.
+
+A study of a threshold runs the stages with another value through
+:func:`dataclasses.replace`; the estimator's own options stay in :mod:`heatcurv.options`.
+
+>>> from heatcurv.tuning import TUNING, reasons
+>>> TUNING.strong_noise
+0.5
+>>> reasons()["strong_noise"]
+"noise above which the operator's balls are swamped and the anchors find their own normals"
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+__all__ = ["Tuning", "TUNING", "reasons"]
+
+
+def _knob(value, reason: str):
+    """A field of :class:`Tuning` with its default ``value`` and its one-line ``reason``."""
+    return field(default=value, metadata={"reason": reason})
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """The thresholds of the default estimator; :data:`TUNING` holds the values it runs with."""
+
+    # --- the noise gate and the kernel choice (heatcurv.scale) ---
+    #: Largest noise of a clean cloud, in spacings, beside the gate's residual ratio: strong noise saturates the
+    #: chord residual (``|kN| <= 1 / |z|``) so the ratio alone cannot tell; clean clouds stay below 3.5e-4.
+    clean_noise_limit: float = _knob(0.01, "noise past which no cloud is clean, whatever the chord/denoised ratio")
+    #: Upper end of the very-low-noise band (:attr:`heatcurv.scale.ScaleChoice.low_noise`): above the rounding of a
+    #: LAZ file's millimetres and synthetic noise up to 1e-4 of the diagonal, below 0.12 % noise and the LiDAR tile.
+    low_noise: float = _knob(0.02, "noise below which a widened kernel takes the very-low-noise path")
+    #: Lower end of that band: a cloud at rounding level (two planes at a fold: 1e-16) has no noise for dense
+    #: anchors to resolve and keeps the ordinary fit, whose sharp-feature mask stays narrower.
+    no_noise: float = _knob(1e-6, "noise below which a cloud is at rounding level, outside the low-noise band")
+    #: Doublings beyond Lepski's choice the very-low-noise path widens the kernel: the quartic refit has less bias
+    #: than the plain denoised fit the rule compares; two doublings are too wide above 1e-5 of the diagonal.
+    low_noise_levels: int = _knob(1, "doublings the very-low-noise refit widens the kernel beyond Lepski's choice")
+    #: Candidates whose residual counts in the noise estimate, while each doubling raises the median residual by
+    #: less than :attr:`noise_growth` (bias grows as ``R^2``, a factor 2 a doubling).
+    noise_levels: int = _knob(4, "candidate widths whose residuals measure the noise")
+    noise_growth: float = _knob(1.5, "rise of the residual per doubling below which it is still noise, not bias")
+    #: A LiDAR tile's tree crowns (4 % of its points) were otherwise fitted as a noisier surface and passed as
+    #: reliable; a low-poly bone's coarser facets (10-25 %) took a kernel too wide for its normals.
+    min_region: float = _knob(0.25, "smallest share of the centres a noise region of its own must hold")
+    tau_local: float = _knob(3.0, "standard deviations of a local bias before it narrows a region's kernel")
+    #: A tiled run's halo must hold the widest candidate ball: twice the widest any of our noisy clouds chose.
+    widest_kernel: int = _knob(15360, "widest candidate kernel (neighbours) on any cloud")
+
+    # --- the fit plan and the anchors (heatcurv.plan, heatcurv.anchors) ---
+    #: Between the noisiest clouds that orient fine on the operator's ``2 h`` balls (0.04-0.3) and a torus that
+    #: did not (0.69: 21 % of its normals inward).
+    strong_noise: float = _knob(0.5, "noise above which the operator's balls are swamped and the anchors find "
+                                     "their own normals")
+    #: Anchor spacing about ``R sqrt(pi / 16) = 0.44 R``.
+    anchors_per_ball: int = _knob(16, "anchors per fitted ball of the anchored fit")
+    #: Spacing about ``0.36 R``: dense enough for the regression of their tensors, within 4x the k-NN query.
+    low_noise_anchors_per_ball: int = _knob(24, "anchors per fitted ball under very low noise")
+    #: The refit's 15 unknowns are too many for 60 or 120 neighbours (torus at 1e-5, 60 neighbours: mean 1.80 %
+    #: with the refit against 0.55 % without).
+    low_noise_min_neighbours: int = _knob(240, "narrowest kernel the low-noise refit is fitted at")
+    #: A 60-neighbour kernel's pair work is small, and small clouds keep their own fits.
+    every_point: int = _knob(4, "kernels of at most this many times anchors_per_ball neighbours fit every point")
+    #: The exact surface of a noisy model carries its noise non-linearly: the exact carry wins at moderate noise
+    #: (sigma / R 0.004-0.011) and loses at strong noise (0.021-0.054).
+    exact_carry_sigma: float = _knob(0.015, "anchor residual (ball radii) from which the carry is first-order")
+    regression_degree: int = _knob(3, "degree of the regression of the anchors' tensors: cubic beat quadratic")
+    #: ``lambda^2 = sigma / low_noise_sigma`` (both in ball radii) in the low-noise refit's pair weights.
+    low_noise_sigma: float = _knob(6e-4, "residual scale of the low-noise refit's near-pair weights")
+    #: Noisier centres keep the plain denoised height fit.
+    low_noise_limit: float = _knob(4.0, "refit residual, in low_noise_sigma, up to which the refit is kept")
+    #: Strong noise skips the refit: its residual would be the noise's.
+    low_noise_tried: float = _knob(10.0, "height-fit residual, in refit limits, up to which the refit is tried")
+
+    # --- orientation (heatcurv.orientation, heatcurv.enclosure) ---
+    #: 72.5 degrees from the reference direction: a normal closer to perpendicular takes its neighbours' side.
+    anchor_cosine: float = _knob(0.3, "|n . r| from which a normal's side is read off its reference direction")
+    #: A wall takes about its half-height over the graph's edge length: a few to ten rounds on our LiDAR tiles.
+    local_hops: int = _knob(32, "rounds of the local propagation of up and viewpoint; later points are ambiguous")
+    conflict_in_plane: float = _knob(0.5, "|n . e| / |e| of a neighbour compared for a conflict (30 degrees)")
+    conflict_aligned: float = _knob(0.7, "|n_i . n_j| of a neighbour compared for a conflict (45 degrees)")
+    conflict_share: float = _knob(0.3, "share of compared neighbours facing the other way that flags a point")
+    #: 2000-point samples: the LiDAR tile 92-93 %, a face range map from +z 66 %, the tile turned 7-9 %, spheres 30 %.
+    auto_share: float = _knob(0.5, "share of near-vertical sample normals from which orient='auto' may say up")
+    auto_vertical_cosine: float = _knob(math.sqrt(0.5), "|n_z| of a near-vertical normal (45 degrees)")
+    #: Terrain and a face range map upright 0.0-0.2 %; a tilted face 1.1 %; closed surfaces 24-50 %.
+    auto_down_share: float = _knob(0.005, "largest share of flat sample n_z facing down that still says up")
+    auto_flatness: float = _knob(0.15, "lambda_0 / lambda_1 of a flat sample point; tree crowns are not flat")
+    #: A thin closed object lying flat is two sheets one over the other, which the sample's tree orients alike.
+    auto_layered_share: float = _knob(0.1, "largest share of flat sample points with a sheet over them that says up")
+    auto_layer_height: float = _knob(0.5, "least height of such a second sheet, in sample spacings")
+    auto_layer_noise: float = _knob(3.0, "least height of such a second sheet, in units of the cloud's noise")
+    #: Plates under about two spacings thick 42-77 %; noisy saddles, the LiDAR tile and a face range map 0-5 %.
+    auto_split_share: float = _knob(0.25, "largest share of layered sample balls that still says up")
+    auto_split_neighbours: int = _knob(30, "sample points in the balls auto_split_share reads (16 are too few)")
+    #: The switch between outward and the flat-patch convention is where a cloud and its half can differ:
+    #: a turned LiDAR tile votes 0.12, its random half 0.07.
+    weak_vote: float = _knob(0.03, "outward vote below which a component is too flat to tell inside from outside")
+    tiny_patch: int = _knob(2, "pieces of fewer points join a neighbouring winding-number patch")
+    level_tolerance: float = _knob(0.4, "distance of a winding level from its target that contradicts a side")
+    sure_cost: float = _knob(0.7, "largest spanning-tree cost of an edge inside a winding-number patch")
+    flip_margin: float = _knob(0.1, "energy per unit weight a patch's flip away from the tree must gain")
+    spread_share: float = _knob(0.2, "share of disagreeing sources in a disc that flags its source too")
+    against_share: float = _knob(0.5, "share of a near point's sources that disagree before it is flagged too")
+    #: An open sheet curved like a bowl has levels near 0 and 1/2.
+    closed_share: float = _knob(0.3, "share of the area with clean winding levels from which a cloud is closed")
+    closed_tolerance: float = _knob(0.25, "distance of a clean winding level from 0 or 1")
+    #: Closed models a few points across their legs 0.12-0.26; open scans and turned tiles 0.06-0.19.
+    undecided_share: float = _knob(0.1, "clean-level share from which, below closed_share, a cloud is undecided")
+    outside_share: float = _knob(0.5, "share of the area with outside levels near 0 that makes such a cloud "
+                                      "undecided rather than open")
+
+    # --- reliability flags (heatcurv.reliability, sheets, outliers, border, kernel_check, areas) ---
+    planarity_min: float = _knob(0.05, "PCA planarity of a ball below which it is no surface patch")
+    #: Smooth surfaces, noisy or not, stay within a few times the median; edges and tree crowns reach 10-450.
+    misfit_factor: float = _knob(10.0, "chord residual over the cloud's median that is not one smooth surface")
+    misfit_floor: float = _knob(1e-3, "floor of the median residual (spacings) misfits are measured against")
+    #: Fewer than about 12 points around an osculating circle: the balls wrap around the surface.
+    resolution_limit: float = _knob(0.5, "median spacing in radii of curvature above which a cloud is unresolved")
+    #: Tubes 2.5-3 spacings across 0.66-0.79; a tube 4 spacings across 0.32; CGAL's closed models at most 0.46.
+    round_ball: float = _knob(0.65, "lambda_0 / lambda_1 of a ball that holds a tube, not a disc")
+    precision_tolerance: float = _knob(0.01, "share of its curvature scale that rounding may move a reliable value")
+    precision_coverage: float = _knob(5.0, "standard deviations of the rounding's error held against that tolerance")
+    #: Bends the surface by 1.5 % of the ball's radius across it; below every clean accuracy cloud's curvature.
+    flat_curvature: float = _knob(0.03, "floor of a point's curvature scale, in inverse fit radii")
+    #: The inner third of the operator's 60-neighbour ball, where the fit's tapered weights are.
+    sheet_neighbours: int = _knob(20, "nearest neighbours searched for the other side of a thin part")
+    sheet_height: float = _knob(0.5, "least height over the tangent plane (spacings) of the other side")
+    sheet_aligned: float = _knob(0.5, "-n_p . n_q above which two normals face away (within 60 degrees)")
+    #: One sheet with normal noise stays above 2.3 in 9 of 10 balls of 60; plates 0.7-1.9 spacings thick 1.4-1.8.
+    layer_kurtosis: float = _knob(2.0, "largest kurtosis of the quadric residuals of a ball split in two layers")
+    layer_residual: float = _knob(0.15, "least quadric residual (spacings) of a layered ball; below it is rounding")
+    layer_vote: float = _knob(0.5, "share of a point's sheet_neighbours that must be layered balls")
+    sparse_factor: float = _knob(16.0, "density ratio between a point's scale and its ball's that makes it sparse")
+    isolation_factor: float = _knob(3.0, "d_6 over its ball's median d_6 that isolates a point")
+    ball_ratio_max: float = _knob(2.0, "ball radius over the neighbours' median that isolates a point")
+    own_share: float = _knob(0.5, "least share of a ball in the point's own component; most of it strays")
+    #: With 60 neighbours the interior offset has a standard deviation of about 0.065 R per axis: 1 false alarm in
+    #: 1700 interior points; a point on a straight border has 0.42 R.
+    border_offset: float = _knob(0.25, "centroid offset (ball radii) above which a point is on a border")
+    #: The chord fit interpolates (2.4 effective neighbours: 0.13 % off), the tensor fit averages (5.4: 8 % off).
+    chord_support: tuple = _knob((2.0, 3.0), "median effective neighbours of the chord fit below which it is an "
+                                             "error, and a warning")
+    tensor_support: tuple = _knob((5.0, 6.5), "median effective neighbours of the paper's tensor fit below which "
+                                              "it is an error, and a warning")
+    untapered_edge_weight: float = _knob(1e-3, "largest weight at a ball's edge (over the centre's) the paper's "
+                                               "untapered quadratures take without a warning")
+    tapered_edge_weight: float = _knob(math.exp(-1.0), "largest weight at a ball's edge (over the centre's) the "
+                                                       "tapered chord fit takes without a warning")
+    filled_share: float = _knob(0.9, "share of the points whose ball a radius an error suggests must fill")
+    ball_area_factor_max: float = _knob(1.5, "largest correction of a ball's area for its curvature")
+
+
+#: The thresholds the estimator runs with.
+TUNING = Tuning()
+
+
+def reasons() -> dict[str, str]:
+    """The one-line reason of every field of :class:`Tuning`, by field name."""
+    return {f.name: f.metadata["reason"] for f in fields(Tuning)}

@@ -1,0 +1,76 @@
+"""The thresholds of the default estimator live in one frozen object, each with a one-line reason."""
+
+import ast
+import dataclasses
+from pathlib import Path
+
+import pytest
+
+import heatcurv
+from heatcurv import tuning
+from heatcurv.surfaces import Torus
+from heatcurv.tuning import TUNING, Tuning, reasons
+
+SRC = Path(heatcurv.__file__).parent
+
+#: The stages that pick a fit path or flag a point.
+DECISION_MODULES = (
+    "scale", "plan", "anchors", "chordfit", "estimator", "orientation", "enclosure", "reliability", "sheets",
+    "outliers", "border", "kernel_check", "areas",
+)
+#: Float literals these stages may still compare against, by source line: geometry and numerics, no choice of path
+#: or flag (a quadrature's range, a solver's tolerance, where a winding-number query sits and where its disc ends).
+GEOMETRY = {
+    ("enclosure", "QUERY_OFFSET = ..."),
+    ("enclosure", "ACROSS = ..."),
+    ("areas", "keep = x[order] > -0.95"),
+    ("areas", "converged = residual <= max(rtol, 1e-12) * 10"),
+    ("enclosure", 'in_plane = (height <= np.maximum(0.5 * dist, scatter[:, None])) & (np.einsum("ijk,ik->ij", '
+                  'nrm[idx], nrm) >= 0.5)'),
+}
+
+
+def test_every_threshold_has_a_one_line_reason():
+    said = reasons()
+    assert set(said) == {f.name for f in dataclasses.fields(Tuning)} and len(said) >= 60
+    for name, reason in said.items():
+        assert reason and "\n" not in reason and len(reason) <= 120, name
+
+
+def test_the_thresholds_are_frozen_and_a_study_replaces_them():
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        TUNING.strong_noise = 1.0
+    study = dataclasses.replace(TUNING, tiny_patch=1)
+    assert study.tiny_patch == 1 and TUNING.tiny_patch == 2 and study.strong_noise == TUNING.strong_noise
+
+
+def _float_literals(node):
+    return [c.value for c in ast.walk(node)
+            if isinstance(c, ast.Constant) and isinstance(c.value, float) and c.value not in (0.0, 1.0)]
+
+
+@pytest.mark.parametrize("module", DECISION_MODULES)
+def test_no_stage_compares_against_a_number_of_its_own(module):
+    """A comparison with a fractional literal in a decision stage is a threshold outside :data:`TUNING`."""
+    source = (SRC / f"{module}.py").read_text()
+    lines = source.splitlines()
+    found = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Compare) and _float_literals(node):
+            found.add((module, lines[node.lineno - 1].strip()))
+        # a module constant holding a fractional number (NAME = 0.3) is a threshold of its own too
+        if isinstance(node, ast.Assign) and node.col_offset == 0 and _float_literals(node.value):
+            names = [t.id for t in node.targets if isinstance(t, ast.Name)]
+            found |= {(module, f"{name} = ...") for name in names}
+    assert found <= GEOMETRY, sorted(found - GEOMETRY)
+
+
+def test_the_estimator_reads_the_tuning_it_is_given(monkeypatch):
+    """The stages read :data:`TUNING` when they run: a study's value changes what the estimator does."""
+    points = Torus().sample(3000, "random", seed=3).points
+    base = heatcurv.estimate(points)
+    for module in ("heatcurv.reliability", "heatcurv.estimator"):
+        monkeypatch.setattr(f"{module}.TUNING", dataclasses.replace(TUNING, resolution_limit=1e-3))
+    coarse = heatcurv.estimate(points)
+    assert base.reliable.mean() > 0.9 and not coarse.reliable.any()
+    assert tuning.TUNING.resolution_limit == 0.5
