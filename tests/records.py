@@ -27,6 +27,7 @@ the tests still run. Records of tests that did not run are kept.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
 import os
@@ -141,7 +142,11 @@ class Records:
         if not self.measured:
             return
         made = _provenance()
-        table = json.loads(self.path.read_text()) if self.path.exists() else {}
-        for key, errors in self.measured.items():
-            table[key] = {"@": made, **errors}
-        self.path.write_text(json.dumps(dict(sorted(table.items())), indent=1) + "\n")
+        # the test workers (pytest-xdist) each merge their own records: one at a time
+        with open(self.path, "a") as held:
+            fcntl.flock(held, fcntl.LOCK_EX)
+            text = self.path.read_text()
+            table = json.loads(text) if text else {}
+            for key, errors in self.measured.items():
+                table[key] = {"@": made, **errors}
+            self.path.write_text(json.dumps(dict(sorted(table.items())), indent=1) + "\n")

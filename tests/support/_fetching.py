@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import os
@@ -97,6 +98,21 @@ def fetch_into(target: Path, *, what: str, cache_name: str, is_complete, downloa
     """
     if is_complete(target):
         return target
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        lock = open(target.parent / f".{target.name}.lock", "a")
+    except OSError as exc:
+        raise ScanDataUnavailable(f"cannot create the cache directory {target}: {exc}") from exc
+    with lock:
+        # test processes (pytest-xdist workers) that start together on a fresh machine fetch one at a time
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if is_complete(target):
+            return target
+        return _fetch(target, what, cache_name, download, sha256, extract, record, nested, is_complete)
+
+
+def _fetch(target, what, cache_name, download, sha256, extract, record, nested, is_complete) -> Path:
+    """:func:`fetch_into` itself, under its lock."""
     if _occupied(target, nested):
         raise ScanDataUnavailable(f"{target} exists but is not a complete {cache_name} cache; remove it to fetch again")
     try:
