@@ -100,15 +100,18 @@ def fetch_into(target: Path, *, what: str, cache_name: str, is_complete, downloa
         return target
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        lock = open(target.parent / f".{target.name}.lock", "a")
+        held = os.open(target.parent, os.O_RDONLY)
     except OSError as exc:
         raise ScanDataUnavailable(f"cannot create the cache directory {target}: {exc}") from exc
-    with lock:
-        # test processes (pytest-xdist workers) that start together on a fresh machine fetch one at a time
-        fcntl.flock(lock, fcntl.LOCK_EX)
+    try:
+        # test processes (pytest-xdist workers) that start together on a fresh machine fetch one at a time:
+        # a lock on the cache's parent directory, which leaves no file behind
+        fcntl.flock(held, fcntl.LOCK_EX)
         if is_complete(target):
             return target
         return _fetch(target, what, cache_name, download, sha256, extract, record, nested, is_complete)
+    finally:
+        os.close(held)
 
 
 def _fetch(target, what, cache_name, download, sha256, extract, record, nested, is_complete) -> Path:

@@ -77,9 +77,9 @@ _WHEEL_SHA256 = "c3c1b01f101334b14469ace3b004382cd313b80a128f551a1da77e3053f09c3
 _MEMBER_PREFIX = f"pymeshlab-{PYMESHLAB_VERSION}.data/purelib/pymeshlab/tests/sample_meshes/"
 _PIP_TIMEOUT = 300.0
 
-# The CGAL cache, its fetch's temporary directories and its lock file may live inside the pymeshlab
+# The CGAL cache and its fetch's temporary directories may live inside the pymeshlab
 # cache (both under $HEATCURV_TEST_DATA): the pymeshlab fetch leaves them alone.
-_NESTED = re.compile(rf"\.?{re.escape(_CGAL_DIRNAME)}(\.fetch-.*|\.lock)?")
+_NESTED = re.compile(rf"\.?{re.escape(_CGAL_DIRNAME)}(\.fetch-.*)?")
 
 
 # --------------------------------------------------------------------------- fetching

@@ -78,3 +78,33 @@ def test_a_failing_download_says_what_failed(tmp_path):
     with pytest.raises(ScanDataUnavailable, match="fetching the test meshes into .* failed: network unreachable"):
         _fetch(tmp_path / "cache", download=download)
     assert list(tmp_path.iterdir()) == []
+
+
+def _slow_fetch(target, log):
+    """One test process's fetch (:func:`test_processes_fetching_together_download_once`)."""
+    import time
+
+    def download(directory):
+        with open(log, "a") as out:
+            out.write("download\n")
+        time.sleep(0.5)  # long enough for the other process to arrive while this one holds the lock
+        return _archive(directory)
+
+    fetch_into(target, what="test meshes", cache_name="test mesh", is_complete=_complete, download=download,
+               sha256=SHA, extract=_extract, record={"package": "demo"})
+
+
+def test_processes_fetching_together_download_once(tmp_path):
+    """Test workers that start together on a fresh machine: one downloads, the other finds the cache."""
+    import multiprocessing
+
+    target, log = tmp_path / "cache", tmp_path / "log.txt"
+    context = multiprocessing.get_context("spawn")
+    workers = [context.Process(target=_slow_fetch, args=(target, log)) for _ in range(2)]
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join(60)
+    assert [worker.exitcode for worker in workers] == [0, 0]
+    assert log.read_text() == "download\n" and _complete(target)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cache", "log.txt"]
