@@ -77,12 +77,14 @@ def test_components_labelled_as_scipy(n, k, islands):
 
 @pytest.mark.parametrize("share", [0.0, 0.01, 0.3, 1.0])
 def test_pairs_between_kept_vertices_as_numpy_selects_them(share):
-    indptr, indices, _ = random_graph(3000, 10, seed=4, islands=20)
+    indptr, indices, cost = random_graph(3000, 10, seed=4, islands=20)
     excluded = np.random.default_rng(5).random(3000) < share
     rows = np.repeat(np.arange(3000), np.diff(indptr))
     expected = np.flatnonzero(~excluded[rows] & ~excluded[indices])
-    new_indptr, kept = pairs_between_kept(indptr, indices, excluded)
-    np.testing.assert_array_equal(kept, expected)
+    new_indptr, kept, lengths = pairs_between_kept(indptr, indices, cost, excluded)
+    np.testing.assert_array_equal(kept, indices[expected])
+    np.testing.assert_array_equal(lengths, cost[expected])
+    assert kept.dtype == indices.dtype and lengths.dtype == np.float64
     np.testing.assert_array_equal(np.diff(new_indptr), np.bincount(rows[expected], minlength=3000))
     assert new_indptr[0] == 0 and np.all(np.diff(new_indptr)[excluded] == 0)
 

@@ -213,10 +213,10 @@ class Neighbourhood:
         """
         if not excluded.any():
             return self
-        indptr, keep = pairs_between_kept(self.indptr, self.indices, excluded)
+        indptr, indices, distances = pairs_between_kept(self.indptr, self.indices, self.distances, excluded)
         return Neighbourhood(
-            indptr=indptr.astype(self.indptr.dtype, copy=False), indices=self.indices[keep],
-            distances=self.distances[keep], radius=self.radius, augmented=self.augmented, by_distance=self.by_distance,
+            indptr=indptr.astype(self.indptr.dtype, copy=False), indices=indices, distances=distances,
+            radius=self.radius, augmented=self.augmented, by_distance=self.by_distance,
         )
 
     def _sorted_by_distance(self) -> bool:

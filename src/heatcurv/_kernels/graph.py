@@ -19,7 +19,7 @@ size grow across the other edges, in one pass over them.
 forest by a depth-first walk.
 
 :func:`pairs_between_kept` drops the entries that touch excluded vertices (the
-outliers cut out of the orientation graph) in one pass.
+outliers cut out of the orientation graph) and gathers the rest in one pass.
 
 :func:`connected_components` (the outliers' mutual-neighbour graph) joins the
 edges' ends in a union-find and numbers the components as SciPy's
@@ -238,13 +238,13 @@ def _merged(n, i, j, joined, mergeable, min_size, labels):
         labels[v] = first[root]
 
 
-def pairs_between_kept(indptr, indices, excluded) -> tuple[np.ndarray, np.ndarray]:
-    """The entries of a CSR graph whose two ends are both kept, as new row pointers and entry positions.
+def pairs_between_kept(indptr, indices, distances, excluded) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The entries of a CSR graph whose two ends are both kept, as a new CSR graph.
 
     Parameters
     ----------
-    indptr, indices : ndarray
-        CSR graph of ``n = len(indptr) - 1`` vertices.
+    indptr, indices, distances : ndarray
+        CSR graph of ``n = len(indptr) - 1`` vertices and its entries' lengths.
     excluded : ndarray, shape (n,), bool
         Vertices whose rows and whose appearances in other rows are dropped.
 
@@ -252,26 +252,33 @@ def pairs_between_kept(indptr, indices, excluded) -> tuple[np.ndarray, np.ndarra
     -------
     indptr : ndarray, shape (n + 1,), int64
         Row pointers of the kept entries (excluded rows empty).
-    kept : ndarray, shape (m,), int64
-        Positions of the kept entries in ``indices``, in order.
+    indices : ndarray, shape (m,)
+        The kept entries, in order, in the dtype of ``indices``.
+    distances : ndarray, shape (m,), float64
+        Their lengths.
     """
     indptr = as_pointers(indptr)
     n = indptr.shape[0] - 1
     excluded = np.ascontiguousarray(excluded, dtype=np.bool_)
+    source = as_indices(indices, n)
     new_indptr = np.zeros(n + 1, dtype=np.int64)
-    kept = np.empty(indptr[-1], dtype=np.int64)
-    m = _kept_pairs(n, indptr, as_indices(indices, n), excluded, new_indptr, kept)
-    return new_indptr, kept[:m]
+    kept = np.empty(indptr[-1], dtype=source.dtype)
+    lengths = np.empty(indptr[-1], dtype=np.float64)
+    m = _kept_pairs(n, indptr, source, as_floats(distances), excluded, new_indptr, kept, lengths)
+    # views: the dropped entries' tails stay allocated, cheaper than a copy's fresh pages
+    return new_indptr, kept[:m].astype(np.asarray(indices).dtype, copy=False), lengths[:m]
 
 
 @njit(cache=True, nogil=True)
-def _kept_pairs(n, indptr, indices, excluded, new_indptr, kept):
+def _kept_pairs(n, indptr, indices, distances, excluded, new_indptr, kept, lengths):
     m = 0
     for i in range(n):
         if not excluded[i]:
             for p in range(indptr[i], indptr[i + 1]):
-                if not excluded[indices[p]]:
-                    kept[m] = p
+                j = indices[p]
+                if not excluded[j]:
+                    kept[m] = j
+                    lengths[m] = distances[p]
                     m += 1
         new_indptr[i + 1] = m
     return m
