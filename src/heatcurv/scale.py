@@ -725,8 +725,6 @@ def decide_scale(
     """
     q = at.shape[0]
     ladder = _ladder(base_k, max_k, n_cloud)
-    sizes_all = level_sizes(ladder, q, pairs_per_level)
-    k_all = np.array([c.k for c in ladder])
 
     # the noise gate: residuals of the chord and of the denoised fit at base_k
     chord = fits(Scale(base_k, False), q)
@@ -740,89 +738,12 @@ def decide_scale(
             scale=Scale(k_use, not clean), sigma=sigma, relative_noise=sigma / h0, candidates=ladder[:1], sd=[0.0],
             mean_abs=mean_abs,
         )
-    # the local noise: the denoised residual's median over each centre's window; a narrow fit absorbs
-    # part of strong noise (at sigma about 2 spacings the 60-neighbour residual was half the true
-    # sigma), so the noise is the largest of the narrow candidates' (up to TUNING.noise_levels doublings:
-    # wider ones' residuals hold their bias, which on thin parts would widen the kernel further)
-    noise = _window_medians(base.sigma, _windows(at, at, window, workers), q)
-    tiny = np.finfo(float).tiny
-    means = [base.mean]
-    factors = [base.factor]
-    sizes = [q]
-    sds = []
-    residuals = [float(np.median(base.sigma))]
-    growing = [True]  # the residual still grows like noise being uncovered, not like bias
-
-    def evaluate(j):
-        size = sizes_all[j]
-        fit = fits(ladder[j], size)
-        means.append(fit.mean)
-        factors.append(fit.factor)
-        sizes.append(size)
-        residual = float(np.median(fit.sigma))
-        if j <= TUNING.noise_levels and growing[0] and residual < TUNING.noise_growth * residuals[-1]:
-            mine = at[:size]
-            own_windows = _windows(mine, mine, max(MIN_WINDOW, window * size // q), workers)
-            own = _window_medians(fit.sigma, own_windows, size)
-            noise[:size] = np.maximum(noise[:size], own)
-            sds.clear()  # the standard deviations follow the noise
-        else:
-            growing[0] = False
-        residuals.append(residual)
-        while len(sds) < len(means):
-            i = len(sds)
-            sds.append(noise[: sizes[i]] * factors[i])
-
+    ladder_fits = _LadderFits(fits, ladder, level_sizes(ladder, q, pairs_per_level), at, base, window, workers)
     if len(ladder) > 1:
-        evaluate(1)
-    for i in range(len(sds), len(means)):
-        sds.append(noise[: sizes[i]] * factors[i])
-
-    def changes(j):
-        """Per centre of candidate j, the change from each narrower one in that one's standard deviations."""
-        size = sizes[j]
-        return [np.abs(means[j] - means[i][:size]) / np.maximum(sds[i][:size], tiny) for i in range(j)]
-
-    # 1) regions of one noise level: centres binned by their local noise, one bin per factor of
-    #    about 2.4 (optimal widths balance a bias growing as R^2 against a standard deviation
-    #    falling as sigma / R^3, so k ~ R^2 ~ sigma^(2/5): a bin is one doubling of k)
-    reference = float(np.median(noise))
-    noise_bin = np.round(0.4 * np.log2(np.maximum(noise, tiny) / max(reference, tiny))).astype(np.int64)
-    # a region of its own noise must be a sizeable part of the cloud: a few per cent of "noisier"
-    # centres are vegetation, edges or stray parts, which the fit must not widen for (their
-    # residual is what flags them), so small bins join the largest
-    labels, counts = np.unique(noise_bin, return_counts=True)
-    small = labels[counts < TUNING.min_region * q]
-    noise_bin[np.isin(noise_bin, small)] = labels[np.argmax(counts)]
-    # 2) Lepski's rule in each bin: the widest candidate whose median change (over the bin's
-    #    centres) from every narrower one is within tau of that one's standard deviation
-    chosen = np.zeros(q, dtype=np.int64)
-    open_bins = set(np.unique(noise_bin).tolist())
-    for j in range(1, len(ladder)):
-        if j >= len(means):
-            evaluate(j)
-        size = sizes[j]
-        for b in sorted(open_bins):
-            members = noise_bin[:size] == b
-            if members.sum() < MIN_WINDOW:  # too few centres left at this width: stop widening
-                open_bins.discard(b)
-                continue
-            if all(np.median(c[members]) <= tau for c in changes(j)):
-                chosen[noise_bin == b] = j
-            else:
-                open_bins.discard(b)
-        if not open_bins:
-            break
-    # 3) a local guard: no region goes past a candidate whose change from a narrower one is clearly
-    #    bias there (median over the region's window above TUNING.tau_local standard deviations)
-    guarded = np.full(q, len(means) - 1)
-    for j in range(1, len(means)):
-        windows = _windows(at[: sizes[j]], at, max(MIN_WINDOW, window * sizes[j] // q), workers)
-        biased = np.zeros(q, dtype=bool)
-        for change in changes(j):
-            biased |= _window_medians(change, windows, q) > TUNING.tau_local
-        guarded = np.where(biased & (guarded >= j), j - 1, guarded)
-    chosen = np.minimum(chosen, guarded)
+        ladder_fits.evaluate(1)
+    ladder_fits.complete_sds()
+    noise_bin = _noise_regions(ladder_fits.noise)
+    chosen = np.minimum(_lepski(ladder_fits, noise_bin, tau), _local_guard(ladder_fits, window, workers))
     # very low noise, where the rule widened the median centre's kernel: the low-noise refit's kernel is wider
     # (TUNING.low_noise_levels). Where the rule kept the narrowest (scans: the bunny, the face, relative_noise
     # 0.019, chose 60; widened to 240 the bunny's area moved 2 %, the face's 28 %) the bias is at the
@@ -832,8 +753,10 @@ def decide_scale(
         chosen = np.where(chosen > 0, np.minimum(chosen + TUNING.low_noise_levels, len(ladder) - 1), chosen)
         # the wider candidates are fitted too, so that a tiled run's survey measures their balls (its
         # halo) as it does the chosen ones'
-        for j in range(len(means), int(chosen.max()) + 1):
-            evaluate(j)
+        for j in range(len(ladder_fits.means), int(chosen.max()) + 1):
+            ladder_fits.evaluate(j)
+    means, sds = ladder_fits.means, ladder_fits.sds
+    k_all = np.array([c.k for c in ladder])
     evaluated = ladder[: len(means)]
     sd = [float(np.sqrt(np.mean(x**2))) for x in sds]
     k_centre = k_all[chosen]
@@ -848,3 +771,114 @@ def decide_scale(
         k_centre=k_centre,
         low_noise=bool(low_noise),
     )
+
+
+class _LadderFits:
+    """The candidates' fits at their centres, the local noise they measure and their standard deviations.
+
+    ``noise`` is the denoised residual's median over each centre's window; a narrow fit absorbs part of
+    strong noise (at ``sigma`` about 2 spacings the 60-neighbour residual was half the true ``sigma``), so
+    the noise is the largest of the narrow candidates' (up to ``TUNING.noise_levels`` doublings: wider
+    ones' residuals hold their bias, which on thin parts would widen the kernel further).
+    """
+
+    def __init__(self, fits, ladder: list, sizes: list, at: np.ndarray, base, window: int, workers: int):
+        self.fits, self.ladder, self.level_sizes, self.at = fits, ladder, sizes, at
+        self.window, self.workers = window, workers
+        q = at.shape[0]
+        self.noise = _window_medians(base.sigma, _windows(at, at, window, workers), q)
+        self.means, self.factors, self.sizes = [base.mean], [base.factor], [q]
+        self.sds: list = []
+        self.residuals = [float(np.median(base.sigma))]
+        self.growing = True  # the residual still grows like noise being uncovered, not like bias
+
+    def evaluate(self, j: int) -> None:
+        """Fit candidate ``j`` at its centres; while its residual grows like noise, raise ``noise`` to it."""
+        size = self.level_sizes[j]
+        fit = self.fits(self.ladder[j], size)
+        self.means.append(fit.mean)
+        self.factors.append(fit.factor)
+        self.sizes.append(size)
+        residual = float(np.median(fit.sigma))
+        if j <= TUNING.noise_levels and self.growing and residual < TUNING.noise_growth * self.residuals[-1]:
+            mine = self.at[:size]
+            q = self.at.shape[0]
+            own_windows = _windows(mine, mine, max(MIN_WINDOW, self.window * size // q), self.workers)
+            own = _window_medians(fit.sigma, own_windows, size)
+            self.noise[:size] = np.maximum(self.noise[:size], own)
+            self.sds.clear()  # the standard deviations follow the noise
+        else:
+            self.growing = False
+        self.residuals.append(residual)
+        self.complete_sds()
+
+    def complete_sds(self) -> None:
+        """Each evaluated candidate's standard deviation at its centres: the noise times its factor."""
+        while len(self.sds) < len(self.means):
+            i = len(self.sds)
+            self.sds.append(self.noise[: self.sizes[i]] * self.factors[i])
+
+    def changes(self, j: int) -> list:
+        """Per centre of candidate ``j``, the change from each narrower one in that one's standard deviations."""
+        size, tiny = self.sizes[j], np.finfo(float).tiny
+        return [np.abs(self.means[j] - self.means[i][:size]) / np.maximum(self.sds[i][:size], tiny)
+                for i in range(j)]
+
+
+def _noise_regions(noise: np.ndarray) -> np.ndarray:
+    """Step 1: the centres binned by their local ``noise``, one bin per doubling of the best ``k``, shape (q,).
+
+    Optimal widths balance a bias growing as ``R^2`` against a standard deviation falling as ``sigma / R^3``,
+    so ``k ~ R^2 ~ sigma^(2/5)``: a bin is a factor of about 2.4 in noise. A region of its own noise must be a
+    sizeable part of the cloud (``TUNING.min_region``): a few per cent of "noisier" centres are vegetation,
+    edges or stray parts, which the fit must not widen for (their residual is what flags them), so small
+    bins join the largest.
+    """
+    tiny = np.finfo(float).tiny
+    reference = float(np.median(noise))
+    noise_bin = np.round(0.4 * np.log2(np.maximum(noise, tiny) / max(reference, tiny))).astype(np.int64)
+    labels, counts = np.unique(noise_bin, return_counts=True)
+    small = labels[counts < TUNING.min_region * noise.shape[0]]
+    noise_bin[np.isin(noise_bin, small)] = labels[np.argmax(counts)]
+    return noise_bin
+
+
+def _lepski(ladder_fits: _LadderFits, noise_bin: np.ndarray, tau: float) -> np.ndarray:
+    """Step 2, Lepski's rule in each noise region: per centre, the index of the widest candidate whose median
+    change (over the region's centres) from every narrower one is within ``tau`` of that one's standard
+    deviation; shape (q,)."""
+    chosen = np.zeros(noise_bin.shape[0], dtype=np.int64)
+    open_bins = set(np.unique(noise_bin).tolist())
+    for j in range(1, len(ladder_fits.ladder)):
+        if j >= len(ladder_fits.means):
+            ladder_fits.evaluate(j)
+        size = ladder_fits.sizes[j]
+        for b in sorted(open_bins):
+            members = noise_bin[:size] == b
+            if members.sum() < MIN_WINDOW:  # too few centres left at this width: stop widening
+                open_bins.discard(b)
+                continue
+            if all(np.median(c[members]) <= tau for c in ladder_fits.changes(j)):
+                chosen[noise_bin == b] = j
+            else:
+                open_bins.discard(b)
+        if not open_bins:
+            break
+    return chosen
+
+
+def _local_guard(ladder_fits: _LadderFits, window: int, workers: int) -> np.ndarray:
+    """Step 3: per centre, the index of the widest evaluated candidate whose change from no narrower one is
+    clearly bias there (its median over the centre's window above ``TUNING.tau_local`` standard deviations);
+    shape (q,)."""
+    at = ladder_fits.at
+    q = at.shape[0]
+    guarded = np.full(q, len(ladder_fits.means) - 1)
+    for j in range(1, len(ladder_fits.means)):
+        size = ladder_fits.sizes[j]
+        windows = _windows(at[:size], at, max(MIN_WINDOW, window * size // q), workers)
+        biased = np.zeros(q, dtype=bool)
+        for change in ladder_fits.changes(j):
+            biased |= _window_medians(change, windows, q) > TUNING.tau_local
+        guarded = np.where(biased & (guarded >= j), j - 1, guarded)
+    return guarded
