@@ -428,19 +428,75 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
             mean_variance_factor=fit.mean_variance_factor, support=anchors.radius,
             nearest=np.argsort(anchors.index),
         )
-    at = points[anchors.index]
-    m = at.shape[0]
-    carried = min(carried, m)
-    queried = min(max(carried, REGRESSED_ANCHORS if degree > 0 else 0), m)
-    a_normals = fit.normals
     if reference is None:
         reference = normals
-    e1, e2 = tangent_frames(a_normals)
+    summed, tensor, values, support, total, nearest = _carried_sums(points, anchors, reference, carried, degree,
+                                                                     workers)
+    length = np.linalg.norm(summed, axis=1)
+    reached = (total > 0) & (length > 0) & np.all(np.isfinite(tensor), axis=1)
+    # no usable anchor near the point at all (every nearby fit ill-posed): the nearest anchor's normal,
+    # zero curvature, and not well posed (so never reliable); never a NaN
+    lost = ~(length > 0) | ~np.all(np.isfinite(summed), axis=1) | ~np.all(np.isfinite(tensor), axis=1)
+    if reference is not None:  # no anchor on the point's side: its own normal, not the other side's
+        lost |= total == 0
+    if lost.any():
+        summed[lost] = fit.normals[nearest[lost]] if reference is None else reference[lost]
+        tensor[lost] = 0.0
+        length[lost] = 1.0
+    keep = normals is not None
+    if not keep:
+        normals = summed / np.where(length > 0, length, 1.0)[:, None]
+    pc = _principal_in_tangent_plane(tensor, normals, reached)
+    # an anchor keeps its own fit (where every point is an anchor, nothing is carried)
+    own = anchors.index
+    if not keep:
+        normals[own] = fit.normals
+    for name in PrincipalCurvatures.__dataclass_fields__:
+        getattr(pc, name)[own] = getattr(fit.principal, name)
+    values[own] = _anchor_scalars(anchors)
+    support[own] = anchors.radius
+    return CarriedFit(
+        normals=normals, principal=pc, sigma=values[:, 0], offset=values[:, 1], radius=values[:, 2],
+        density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support, nearest=nearest,
+    )
+
+
+def _anchor_scalars(anchors: AnchorFits) -> np.ndarray:
+    """The per-anchor values carried beside the fits, shape (m, 5): the residual ``sigma`` (carried as the
+    most-weighted anchor's), centroid offset, ball radius, density area and mean-variance factor."""
+    fit = anchors.fit
+    return np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area,
+                            fit.mean_variance_factor])
+
+
+def _carried_sums(points: np.ndarray, anchors: AnchorFits, reference: np.ndarray | None, carried: int,
+                  degree: int, workers: int) -> tuple:
+    """The compiled carry (:func:`heatcurv._kernels.anchors.carry_anchor_fits`) over the points, a block at a time.
+
+    Returns
+    -------
+    summed : ndarray, shape (n, 3)
+        The weighted sum of the carried normals (not normalised).
+    tensor : ndarray, shape (n, 6)
+        The carried curvature tensor (``xx, xy, xz, yy, yz, zz``).
+    values : ndarray, shape (n, 5)
+        The carried :func:`_anchor_scalars`; where no anchor's weight reached the point, the nearest anchor's.
+    support : ndarray, shape (n,)
+        Distance to the farthest anchor used plus its ball radius.
+    total : ndarray, shape (n,)
+        The weights' sum (0: no anchor reached the point).
+    nearest : ndarray, shape (n,), int64
+        The nearest anchor.
+    """
+    fit = anchors.fit
+    at = points[anchors.index]
+    m, n = at.shape[0], points.shape[0]
+    carried = min(carried, m)
+    queried = min(max(carried, REGRESSED_ANCHORS if degree > 0 else 0), m)
+    e1, e2 = tangent_frames(fit.normals)
     usable = (fit.principal.well_posed & np.all(np.isfinite(fit.coefficients), axis=1)).astype(np.float64)
-    scalars = np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area,
-                               fit.mean_variance_factor])
+    scalars = _anchor_scalars(anchors)
     exact = (fit.sigma < TUNING.exact_carry_sigma * anchors.radius).astype(np.float64)
-    n = points.shape[0]
     tree = cKDTree(at)
     summed, tensor, values = np.empty((n, 3)), np.empty((n, 6)), np.empty((n, scalars.shape[1]))
     support, total, nearest_dist = np.empty(n), np.empty(n), np.empty(n)
@@ -453,51 +509,32 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
         dist, idx = dist.reshape(hi - lo, queried), idx.reshape(hi - lo, queried)
         indptr = np.arange(0, idx.size + 1, queried, dtype=np.int64)
         parts = kernels.carry_anchor_fits(
-            points[lo:hi], indptr, idx.reshape(-1), dist.reshape(-1), at, a_normals, e1, e2, fit.coefficients,
+            points[lo:hi], indptr, idx.reshape(-1), dist.reshape(-1), at, fit.normals, e1, e2, fit.coefficients,
             anchors.radius, usable, scalars, reference=None if reference is None else reference[lo:hi],
             n_mean=carried, degree=degree, exact=exact,
         )
         for out, part in zip((summed, tensor, values, support, total), parts):
             out[lo:hi] = part
         nearest[lo:hi], nearest_dist[lo:hi] = idx[:, 0], dist[:, 0]
-    length = np.linalg.norm(summed, axis=1)
-    reached = (total > 0) & (length > 0) & np.all(np.isfinite(tensor), axis=1)
-    # no usable anchor near the point at all (every nearby fit ill-posed): the nearest anchor's normal,
-    # zero curvature, and not well posed (so never reliable); never a NaN
-    lost = ~(length > 0) | ~np.all(np.isfinite(summed), axis=1) | ~np.all(np.isfinite(tensor), axis=1)
-    if reference is not None:  # no anchor on the point's side: its own normal, not the other side's
-        lost |= total == 0
-    if lost.any():
-        summed[lost] = a_normals[nearest[lost]] if reference is None else reference[lost]
-        tensor[lost] = 0.0
-        length[lost] = 1.0
     unset = ~np.all(np.isfinite(values), axis=1)
     if unset.any():
         values[unset] = scalars[nearest[unset]]
         support[unset] = nearest_dist[unset] + anchors.radius[nearest[unset]]
-    keep = normals is not None
-    if not keep:
-        normals = summed / np.where(length > 0, length, 1.0)[:, None]
-    # the tensor projected onto the tangent plane of the carried normal
+    return summed, tensor, values, support, total, nearest
+
+
+def _principal_in_tangent_plane(tensor: np.ndarray, normals: np.ndarray, reached: np.ndarray) -> PrincipalCurvatures:
+    """Principal curvatures of the carried ``tensor`` projected onto the tangent plane of ``normals``.
+
+    ``reached`` (shape (n,), bool) is ``well_posed``; rows not reached are projected onto ``z = 0``.
+    """
     u, v = tangent_frames(np.where(reached[:, None], normals, [[0.0, 0.0, 1.0]]))
     b11 = _quadratic_form(tensor, u, u)
     b12 = _quadratic_form(tensor, u, v)
     b22 = _quadratic_form(tensor, v, v)
     pc = tensor_to_principal(0.5 * (b11 + b22), 0.5 * (b11 - b22), b12, u, v, normals)
-    pc = PrincipalCurvatures(
+    return PrincipalCurvatures(
         k1=pc.k1, k2=pc.k2, d1=pc.d1, d2=pc.d2, mean=pc.mean, gaussian=pc.gaussian, well_posed=reached
-    )
-    # an anchor keeps its own fit (where every point is an anchor, nothing is carried)
-    own = anchors.index
-    if not keep:
-        normals[own] = fit.normals
-    for name in PrincipalCurvatures.__dataclass_fields__:
-        getattr(pc, name)[own] = getattr(fit.principal, name)
-    values[own] = scalars
-    support[own] = anchors.radius
-    return CarriedFit(
-        normals=normals, principal=pc, sigma=values[:, 0], offset=values[:, 1], radius=values[:, 2],
-        density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support, nearest=nearest,
     )
 
 
