@@ -363,36 +363,70 @@ def _output(path, points, fields, normals, colours, source, float_dtype=np.float
     normals keep the type they were stored with.
     """
     float_dtype = np.dtype(float_dtype)
-    points_array = np.asarray(points)
-    if (
-        points_array.dtype.kind not in "biuf"
-        or points_array.ndim != 2
-        or points_array.shape[1] != 3
-    ):
-        raise _write_error(
-            path, f"points must be numbers of shape (n, 3), got shape {points_array.shape}"
-        )
-    given_points_dtype = points_array.dtype
-    points_array = np.ascontiguousarray(points_array, dtype=np.float64)
+    points_array, given_points_dtype = _checked_points(path, points)
     n = points_array.shape[0]
-
     if source is not None:
         if not isinstance(source, PointCloud):
             raise _write_error(path, f"source must be a PointCloud, got {type(source).__name__}")
         if len(source) != n:
             raise _write_error(path, f"source has {len(source)} points, points has {n}")
-    colours_from_source = False
+    normals = _output_normals(path, normals, source, n, float_dtype)
+    colours, colours_from_source, colour_values = _output_colours(path, colours, source, n)
+    reserved = (
+        {"x", "y", "z"}
+        | (set(_NORMAL_NAMES) if normals is not None else set())
+        | (set(_COLOUR_NAMES) if colours is not None else set())
+    )
+    given_columns, given_arrays, uncast = _given_fields(path, fields, n, float_dtype, explicit, reserved)
+    columns = _source_columns(path, source, n, reserved, set(given_columns) | set(given_arrays))
+    arrays = dict(columns)
+    source_names = frozenset(columns)
+    columns.update(given_columns)
+    arrays.update(given_arrays)
+
+    # coordinates are never narrowed: float32 only where they were float32 and still are exactly
+    points_dtype = np.dtype(np.float64)
+    stored = source.meta.get("points_dtype") if source is not None else given_points_dtype
+    if stored is not None and np.dtype(stored) == np.float32:
+        if np.array_equal(points_array.astype(np.float32), points_array, equal_nan=True):
+            points_dtype = np.dtype(np.float32)
+    return _Output(
+        points_array, normals, colours, columns, arrays, source, colours_from_source,
+        points_dtype=points_dtype, colour_values=colour_values, source_names=source_names,
+        uncast=uncast,
+    )
+
+
+def _checked_points(path, points) -> tuple[np.ndarray, np.dtype]:
+    """The coordinates as a contiguous float64 array of shape (n, 3), and the dtype they were given in."""
+    points_array = np.asarray(points)
+    if points_array.dtype.kind not in "biuf" or points_array.ndim != 2 or points_array.shape[1] != 3:
+        raise _write_error(path, f"points must be numbers of shape (n, 3), got shape {points_array.shape}")
+    return np.ascontiguousarray(points_array, dtype=np.float64), points_array.dtype
+
+
+def _output_normals(path, normals, source, n: int, float_dtype: np.dtype) -> np.ndarray | None:
+    """The normals to write, shape (n, 3): the given ones in ``float_dtype``, else the source's in their stored type."""
     normals_dtype = float_dtype
     if normals is None and source is not None and source.normals is not None:
         normals = source.normals
         normals_dtype = np.dtype(source.meta.get("normals_dtype", np.float64))
+    if normals is None:
+        return None
+    return _as_rows(path, "normals", normals, n, width=3).astype(normals_dtype)
+
+
+def _output_colours(path, colours, source, n: int) -> tuple:
+    """The colours to write as uint8 rows (or None), whether they are the source's, and the source's own values.
+
+    The source's stored values (``colour_values``: 16-bit colours of a LAS file, say) are written back
+    instead of the 8-bit ones when the colours are the source's.
+    """
+    colours_from_source = False
     if colours is None and source is not None and source.colours is not None:
         colours, colours_from_source = source.colours, True
     elif colours is not None and source is not None and colours is source.colours:
         colours_from_source = True
-    if normals is not None:
-        normals = _as_rows(path, "normals", normals, n, width=3)
-        normals = normals.astype(normals_dtype)
     colour_values = None
     if colours_from_source:
         colour_values = source.meta.get("colour_values")
@@ -403,27 +437,24 @@ def _output(path, points, fields, normals, colours, source, float_dtype=np.float
         if colours.size and (not _is_integral(colours) or colours.min() < 0 or colours.max() > 255):
             raise _write_error(path, "colours must be integers 0-255")
         colours = colours.astype(np.uint8)
+    return colours, colours_from_source, colour_values
 
-    reserved = (
-        {"x", "y", "z"}
-        | (set(_NORMAL_NAMES) if normals is not None else set())
-        | (set(_COLOUR_NAMES) if colours is not None else set())
-    )
+
+def _given_fields(path, fields, n: int, float_dtype: np.dtype, explicit: bool, reserved: set) -> tuple:
+    """The caller's fields as written properties (vectors split into ``x``, ``y``, ``z``), checked.
+
+    Returns ``(columns, arrays, uncast)``: the properties by name, the arrays by field name, and the
+    original values of the properties whose type the write changes.
+    """
     if fields is not None and not isinstance(fields, Mapping):
-        raise _write_error(
-            path, f"fields must be a dict of name -> array, got {type(fields).__name__}"
-        )
+        raise _write_error(path, f"fields must be a dict of name -> array, got {type(fields).__name__}")
     given_columns, given_arrays, uncast = {}, {}, {}
     for name, values in (fields or {}).items():
         _check_name(path, name)
         original = _as_rows(path, f"field {name!r}", values, n)
         array = _computed_type(original, float_dtype, explicit, path, name)
         given_arrays[name] = array
-        expanded = (
-            {name: array}
-            if array.ndim == 1
-            else {name + axis: array[:, k] for k, axis in enumerate("xyz")}
-        )
+        expanded = {name: array} if array.ndim == 1 else {name + axis: array[:, k] for k, axis in enumerate("xyz")}
         if array.dtype != original.dtype:
             uncast.update(
                 {name: original}
@@ -440,37 +471,26 @@ def _output(path, points, fields, normals, colours, source, float_dtype=np.float
             if column in given_columns:
                 raise _write_error(path, f"field {name!r} gives the property {column!r} twice")
             given_columns[column] = column_values
+    return given_columns, given_arrays, uncast
 
-    columns, arrays = {}, {}
-    if source is not None:
-        for name, values in source.fields.items():
-            clean = _BAD_NAME.sub("_", str(name)).lstrip("/") or "field"
-            if (
-                clean.lower() in reserved
-                or clean in given_columns
-                or clean in given_arrays
-                or clean in columns
-            ):
-                continue  # replaced by the given values
-            array = _as_rows(path, f"source field {name!r}", values, n)
-            if array.ndim != 1:
-                continue
-            columns[clean] = arrays[clean] = array
-    source_names = frozenset(columns)
-    columns.update(given_columns)
-    arrays.update(given_arrays)
 
-    # coordinates are never narrowed: float32 only where they were float32 and still are exactly
-    points_dtype = np.dtype(np.float64)
-    stored = source.meta.get("points_dtype") if source is not None else given_points_dtype
-    if stored is not None and np.dtype(stored) == np.float32:
-        if np.array_equal(points_array.astype(np.float32), points_array, equal_nan=True):
-            points_dtype = np.dtype(np.float32)
-    return _Output(
-        points_array, normals, colours, columns, arrays, source, colours_from_source,
-        points_dtype=points_dtype, colour_values=colour_values, source_names=source_names,
-        uncast=uncast,
-    )
+def _source_columns(path, source, n: int, reserved: set, given: set) -> dict:
+    """The source's one-dimensional properties kept in the output, by cleaned name.
+
+    A property whose name is ``reserved`` (any case: coordinates, normals, colours) or ``given`` is left out.
+    """
+    columns = {}
+    if source is None:
+        return columns
+    for name, values in source.fields.items():
+        clean = _BAD_NAME.sub("_", str(name)).lstrip("/") or "field"
+        if clean.lower() in reserved or clean in given or clean in columns:
+            continue  # replaced by the given values
+        array = _as_rows(path, f"source field {name!r}", values, n)
+        if array.ndim != 1:
+            continue
+        columns[clean] = array
+    return columns
 
 
 def _ordered_columns(output: _Output) -> dict:
