@@ -585,128 +585,19 @@ def check_las_file(path) -> LasLayout:
         size = os.fstat(stream.fileno()).st_size
         reader = _Reader(stream, size)
         head = stream.read(min(size, 393))
-        if head[:4] != b"LASF":
-            raise LasStructureError(
-                f"not a LAS/LAZ file: it starts with {head[:4]!r}, not 'LASF'"
-            )
-        if size < 227:
-            raise LasStructureError(
-                f"truncated inside the header ({_plural(size, 'byte')}; a LAS header takes "
-                "at least 227)"
-            )
-        major, minor = head[24], head[25]
-        if major != 1 or minor not in _HEADER_SIZE:
-            raise LasStructureError(f"unsupported LAS version {major}.{minor} (laspy reads 1.0-1.5)")
-        header_size, offset, vlr_count, raw_format, record_length, legacy_count = (
-            struct.unpack_from("<HIIBHI", head, 94)
-        )
-        needed = _HEADER_SIZE[minor]
-        if header_size < needed:
-            raise LasStructureError(
-                f"the header size field says {header_size} bytes, less than the {needed} of "
-                f"a LAS 1.{minor} header"
-            )
-        if size < header_size:
-            raise LasStructureError(
-                f"truncated inside the header (it takes {header_size} bytes, the file has {size})"
-            )
-        if offset < header_size:
-            raise LasStructureError(
-                f"the point data would start at byte {offset}, inside the {header_size}-byte header"
-            )
-        if offset > size:
-            raise LasStructureError(
-                f"truncated before the point data: it would start at byte {offset}, "
-                f"the file has {_plural(size, 'byte')}"
-            )
-        scales = struct.unpack_from("<3d", head, 131)
-        offsets = struct.unpack_from("<3d", head, 155)
-        high_x, low_x, high_y, low_y, high_z, low_z = struct.unpack_from("<6d", head, 179)
-        box = ((low_x, high_x), (low_y, high_y), (low_z, high_z))
-        point_count = legacy_count
-        evlr_start = evlr_count = 0
-        if minor >= 4:
-            evlr_start, evlr_count, point_count = struct.unpack_from("<QIQ", head, 235)
-            if legacy_count not in (0, point_count):
-                raise LasStructureError(
-                    f"the legacy point count ({legacy_count}) and the 64-bit point count "
-                    f"({point_count}) of the LAS 1.{minor} header disagree"
-                )
-        laszip_data, extra_bytes_data, end_of_vlrs = _walk_vlrs(reader, header_size, offset, vlr_count)
-        hidden = _hidden_vlrs(reader, end_of_vlrs, offset)
-        if hidden:
-            names = ", ".join(f"{user_id!r} record {record_id}" for user_id, record_id in hidden[:3])
-            after = "them" if vlr_count else "the header"
-            raise LasStructureError(
-                f"the header counts {_plural(vlr_count, 'VLR')}, but the "
-                f"{_plural(offset - end_of_vlrs, 'byte')} after {after}, before the points, hold "
-                f"{_plural(len(hidden), 'more VLR')} ({names}): the VLR count is wrong"
-            )
-
-        compressed = bool(raw_format & 0x80) and not raw_format & 0x40  # as laspy decides
-        point_format = raw_format & 0x3F
-        if point_format >= len(_FORMAT_SIZE):
-            raise LasStructureError(
-                f"unknown point format {point_format} (LAS defines formats 0 to 10)"
-            )
-        if record_length < _FORMAT_SIZE[point_format]:
-            raise LasStructureError(
-                f"the point record length ({_plural(record_length, 'byte')}) is shorter than "
-                f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format}"
-            )
-        described = _described_extra_bytes(extra_bytes_data)
-        expected_length = _FORMAT_SIZE[point_format] + described
-        if record_length != expected_length:
-            if described:
-                what = (f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format} plus the "
-                        f"{described} its ExtraBytes VLR describes ({expected_length})")
-            else:
-                what = (f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format}, and no "
-                        "ExtraBytes VLR describes the rest")
-            raise LasStructureError(f"the point record length ({_plural(record_length, 'byte')}) is not {what}")
-        _check_numbers(scales, offsets, box)
-
-        end_of_points = size
-        if minor >= 4 and evlr_count > 0:
-            if evlr_start < offset:
-                raise LasStructureError(
-                    f"the extended VLRs would start at byte {evlr_start}, before the point "
-                    f"data (byte {offset})"
-                )
-            if evlr_start > size:
-                raise LasStructureError(
-                    f"truncated: the extended VLRs would start at byte {evlr_start}, "
-                    f"the file has {_plural(size, 'byte')}"
-                )
-            end_of_evlrs = _walk_evlrs(reader, evlr_start, evlr_count)
-            end_of_points = evlr_start
-        elif minor == 3:
-            # LAS 1.3 keeps one extended VLR, the waveform data packets, after the points; a start inside
-            # the points (the field was new in 1.3, some writers leave it unset) is not one
-            waveform = struct.unpack_from("<Q", head, 227)[0]
-            end_of_evlrs = size
-            points_end = offset + (0 if compressed else point_count * record_length)
-            if max(offset + 1, points_end) <= waveform < size:
-                end_of_evlrs = _walk_evlrs(reader, waveform, 1)
-                end_of_points = waveform
-        else:
-            end_of_evlrs = size
-        if end_of_evlrs < size:
-            raise LasStructureError(
-                f"the {_plural(size - end_of_evlrs, 'byte')} after the last extended VLR (from byte "
-                f"{end_of_evlrs} to the end of the file) are unexplained"
-            )
-
+        header = _parse_header(head, size)
+        laszip_data, extra_bytes_data, end_of_vlrs = _walk_vlrs(reader, header.size, header.offset, header.vlr_count)
+        _check_no_hidden_vlrs(reader, header, end_of_vlrs)
+        compressed = bool(header.raw_format & 0x80) and not header.raw_format & 0x40  # as laspy decides
+        point_format = header.raw_format & 0x3F
+        _check_record_length(point_format, header.record_length, extra_bytes_data)
+        _check_numbers(header.scales, header.offsets, header.box)
+        end_of_points = _end_of_points(reader, head, header, size, compressed)
+        point_count, record_length = header.point_count, header.record_length
         layout = dict(
-            version=(major, minor),
-            point_format=point_format,
-            record_length=record_length,
-            point_count=point_count,
-            compressed=compressed,
-            file_size=size,
-            scales=scales,
-            offsets=offsets,
-            box=box,
+            version=header.version, point_format=point_format, record_length=record_length,
+            point_count=point_count, compressed=compressed, file_size=size, scales=header.scales,
+            offsets=header.offsets, box=header.box,
         )
         if point_count == 0:
             return LasLayout(**layout)
@@ -714,27 +605,9 @@ def check_las_file(path) -> LasLayout:
         if compressed:
             laszip = _parse_laszip(laszip_data, record_length)
             _check_items(laszip, point_format)
-            sequential = _check_laz(
-                reader, offset, end_of_points, point_count, record_length, laszip
-            )
+            sequential = _check_laz(reader, header.offset, end_of_points, point_count, record_length, laszip)
         else:
-            room = (end_of_points - offset) // record_length
-            where = " before its extended VLRs" if end_of_points < size else ""
-            if point_count > room:
-                raise LasStructureError(
-                    f"truncated: the header announces {point_count} points of "
-                    f"{record_length} bytes, the file holds room for {room}{where}"
-                )
-            unexplained = end_of_points - offset - point_count * record_length
-            if unexplained:
-                hint = (f"room for {unexplained // record_length} more" if unexplained % record_length == 0
-                        else "not a whole number of records")
-                raise LasStructureError(
-                    f"the point data{where} holds {_plural(end_of_points - offset, 'byte')}, "
-                    f"{unexplained} more than the {point_count} points of {record_length} bytes the header "
-                    f"announces ({hint}): the point count, the record length or the offset to the points is "
-                    "wrong, or bytes were inserted"
-                )
+            _check_point_data_size(header, end_of_points, size)
         memory = _physical_memory()
         if memory is not None and point_count * record_length > memory:
             raise LasStructureError(
@@ -743,6 +616,154 @@ def check_las_file(path) -> LasLayout:
                 f"{_size(memory)} of memory of this machine"
             )
         return LasLayout(**layout, sequential=sequential)
+
+
+@dataclass(frozen=True)
+class _Header:
+    """The fields of a LAS header that :func:`check_las_file` checks the file against."""
+
+    version: tuple
+    size: int
+    offset: int
+    vlr_count: int
+    raw_format: int
+    record_length: int
+    point_count: int
+    evlr_start: int
+    evlr_count: int
+    scales: tuple
+    offsets: tuple
+    box: tuple
+
+
+def _parse_header(head: bytes, size: int) -> _Header:
+    """The header's fields, checked against each other and against the file's ``size``."""
+    if head[:4] != b"LASF":
+        raise LasStructureError(f"not a LAS/LAZ file: it starts with {head[:4]!r}, not 'LASF'")
+    if size < 227:
+        raise LasStructureError(
+            f"truncated inside the header ({_plural(size, 'byte')}; a LAS header takes at least 227)"
+        )
+    major, minor = head[24], head[25]
+    if major != 1 or minor not in _HEADER_SIZE:
+        raise LasStructureError(f"unsupported LAS version {major}.{minor} (laspy reads 1.0-1.5)")
+    header_size, offset, vlr_count, raw_format, record_length, legacy_count = struct.unpack_from("<HIIBHI", head, 94)
+    needed = _HEADER_SIZE[minor]
+    if header_size < needed:
+        raise LasStructureError(
+            f"the header size field says {header_size} bytes, less than the {needed} of a LAS 1.{minor} header"
+        )
+    if size < header_size:
+        raise LasStructureError(f"truncated inside the header (it takes {header_size} bytes, the file has {size})")
+    if offset < header_size:
+        raise LasStructureError(f"the point data would start at byte {offset}, inside the {header_size}-byte header")
+    if offset > size:
+        raise LasStructureError(
+            f"truncated before the point data: it would start at byte {offset}, the file has {_plural(size, 'byte')}"
+        )
+    high_x, low_x, high_y, low_y, high_z, low_z = struct.unpack_from("<6d", head, 179)
+    point_count, evlr_start, evlr_count = legacy_count, 0, 0
+    if minor >= 4:
+        evlr_start, evlr_count, point_count = struct.unpack_from("<QIQ", head, 235)
+        if legacy_count not in (0, point_count):
+            raise LasStructureError(
+                f"the legacy point count ({legacy_count}) and the 64-bit point count "
+                f"({point_count}) of the LAS 1.{minor} header disagree"
+            )
+    return _Header(
+        version=(major, minor), size=header_size, offset=offset, vlr_count=vlr_count, raw_format=raw_format,
+        record_length=record_length, point_count=point_count, evlr_start=evlr_start, evlr_count=evlr_count,
+        scales=struct.unpack_from("<3d", head, 131), offsets=struct.unpack_from("<3d", head, 155),
+        box=((low_x, high_x), (low_y, high_y), (low_z, high_z)),
+    )
+
+
+def _check_no_hidden_vlrs(reader: _Reader, header: _Header, end_of_vlrs: int) -> None:
+    """Refuse VLRs between the counted ones and the points: a wrong VLR count."""
+    hidden = _hidden_vlrs(reader, end_of_vlrs, header.offset)
+    if hidden:
+        names = ", ".join(f"{user_id!r} record {record_id}" for user_id, record_id in hidden[:3])
+        after = "them" if header.vlr_count else "the header"
+        raise LasStructureError(
+            f"the header counts {_plural(header.vlr_count, 'VLR')}, but the "
+            f"{_plural(header.offset - end_of_vlrs, 'byte')} after {after}, before the points, hold "
+            f"{_plural(len(hidden), 'more VLR')} ({names}): the VLR count is wrong"
+        )
+
+
+def _check_record_length(point_format: int, record_length: int, extra_bytes_data) -> None:
+    """The record length must be the point format's size plus the extra bytes its ExtraBytes VLR describes."""
+    if point_format >= len(_FORMAT_SIZE):
+        raise LasStructureError(f"unknown point format {point_format} (LAS defines formats 0 to 10)")
+    if record_length < _FORMAT_SIZE[point_format]:
+        raise LasStructureError(
+            f"the point record length ({_plural(record_length, 'byte')}) is shorter than "
+            f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format}"
+        )
+    described = _described_extra_bytes(extra_bytes_data)
+    expected_length = _FORMAT_SIZE[point_format] + described
+    if record_length != expected_length:
+        if described:
+            what = (f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format} plus the "
+                    f"{described} its ExtraBytes VLR describes ({expected_length})")
+        else:
+            what = (f"the {_FORMAT_SIZE[point_format]} bytes of point format {point_format}, and no "
+                    "ExtraBytes VLR describes the rest")
+        raise LasStructureError(f"the point record length ({_plural(record_length, 'byte')}) is not {what}")
+
+
+def _end_of_points(reader: _Reader, head: bytes, header: _Header, size: int, compressed: bool) -> int:
+    """Where the point data ends: at the extended VLRs (checked to fill the rest of the file), else at the end."""
+    minor, offset = header.version[1], header.offset
+    end_of_points = end_of_evlrs = size
+    if minor >= 4 and header.evlr_count > 0:
+        if header.evlr_start < offset:
+            raise LasStructureError(
+                f"the extended VLRs would start at byte {header.evlr_start}, before the point data (byte {offset})"
+            )
+        if header.evlr_start > size:
+            raise LasStructureError(
+                f"truncated: the extended VLRs would start at byte {header.evlr_start}, "
+                f"the file has {_plural(size, 'byte')}"
+            )
+        end_of_evlrs = _walk_evlrs(reader, header.evlr_start, header.evlr_count)
+        end_of_points = header.evlr_start
+    elif minor == 3:
+        # LAS 1.3 keeps one extended VLR, the waveform data packets, after the points; a start inside
+        # the points (the field was new in 1.3, some writers leave it unset) is not one
+        waveform = struct.unpack_from("<Q", head, 227)[0]
+        points_end = offset + (0 if compressed else header.point_count * header.record_length)
+        if max(offset + 1, points_end) <= waveform < size:
+            end_of_evlrs = _walk_evlrs(reader, waveform, 1)
+            end_of_points = waveform
+    if end_of_evlrs < size:
+        raise LasStructureError(
+            f"the {_plural(size - end_of_evlrs, 'byte')} after the last extended VLR (from byte "
+            f"{end_of_evlrs} to the end of the file) are unexplained"
+        )
+    return end_of_points
+
+
+def _check_point_data_size(header: _Header, end_of_points: int, size: int) -> None:
+    """Uncompressed points must fill the point data exactly: no record missing, no byte unexplained."""
+    offset, point_count, record_length = header.offset, header.point_count, header.record_length
+    room = (end_of_points - offset) // record_length
+    where = " before its extended VLRs" if end_of_points < size else ""
+    if point_count > room:
+        raise LasStructureError(
+            f"truncated: the header announces {point_count} points of "
+            f"{record_length} bytes, the file holds room for {room}{where}"
+        )
+    unexplained = end_of_points - offset - point_count * record_length
+    if unexplained:
+        hint = (f"room for {unexplained // record_length} more" if unexplained % record_length == 0
+                else "not a whole number of records")
+        raise LasStructureError(
+            f"the point data{where} holds {_plural(end_of_points - offset, 'byte')}, "
+            f"{unexplained} more than the {point_count} points of {record_length} bytes the header "
+            f"announces ({hint}): the point count, the record length or the offset to the points is "
+            "wrong, or bytes were inserted"
+        )
 
 
 def check_points_in_box(layout: LasLayout, points: np.ndarray, integers, first_record: int = 0) -> None:
