@@ -279,7 +279,57 @@ _OFF_FACE_COLOUR_SIZES = (0, 1, 3, 4)
 
 def _read_off(path: Path, fmt: str) -> PointCloud:
     text = _decode_text(path)
-    lines = _iter_lines(text)
+    keyword, match, counts_line, n_vertices, n_faces = _off_header(path, _iter_lines(text))
+    body = _OffBody(text, counts_line)
+    available = len(body.filled)
+    if n_vertices > available:
+        raise _read_error(
+            path,
+            f"truncated: the header announces {_count(n_vertices, 'vertex', 'vertices')}, the file has "
+            f"{available} line{'' if available == 1 else 's'} after line {counts_line}",
+        )
+    ncols = len(body.block(0, 1).split())
+    has_texture, has_colour, has_normal = (bool(match.group(k)) for k in (1, 2, 3))
+    n_colour = ncols - 3 - 3 * has_normal - 2 * has_texture
+    if (has_colour and n_colour not in (3, 4)) or (not has_colour and n_colour != 0):
+        raise _read_error(path, f"line {body.line_number(0)}: {ncols} values do not match a {keyword} vertex")
+    table = _off_vertices(path, body, n_vertices, ncols)
+    if n_faces > available - n_vertices:
+        left = available - n_vertices
+        raise _read_error(
+            path,
+            f"the header announces {n_faces} face{'' if n_faces == 1 else 's'}, the file has "
+            f"{_count(left, 'line', 'lines')} after its {_count(n_vertices, 'vertex', 'vertices')}",
+        )
+    if n_faces:
+        _check_off_faces(path, text, body.block(n_vertices, n_faces), n_vertices, n_faces,
+                         body.line_number(n_vertices))
+    if available > n_vertices + n_faces:
+        raise _read_error(
+            path,
+            f"line {body.line_number(n_vertices + n_faces)}: more lines than the header announces "
+            f"({_count(n_vertices, 'vertex', 'vertices')} and {_count(n_faces, 'face', 'faces')})",
+        )
+    names = ["x", "y", "z"] + (list(_NORMAL_NAMES) if has_normal else [])
+    columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
+    cloud = _cloud_from_columns(
+        columns, path, fmt, text_colours=False, meta={"faces": n_faces} if n_faces else None
+    )
+    if has_colour:
+        _add_off_colours(path, cloud, table[:, len(names) : len(names) + n_colour])
+    if has_texture:
+        cloud.fields["s"] = np.ascontiguousarray(table[:, ncols - 2])
+        cloud.fields["t"] = np.ascontiguousarray(table[:, ncols - 1])
+    return cloud
+
+
+def _off_header(path: Path, lines) -> tuple:
+    """``(keyword, match, counts_line, n_vertices, n_faces)`` of an OFF file's header.
+
+    ``match`` is the keyword's match of the variants (``ST``, ``C``, ``N``, ``4``, ``n`` groups);
+    ``counts_line`` the line number of the counts. The third count, of edges, is ignored: real files
+    often give 0 or a wrong number.
+    """
     keyword = None
     tokens = []
     counts_line = 0
@@ -307,42 +357,39 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
     n_vertices = _off_count(path, tokens, 0, "vertex", counts_line)
     if n_vertices == 0:
         raise _read_error(path, "the file holds no points")
-    n_faces = _off_count(path, tokens, 1, "face", counts_line)
-    # the third count, of edges, is ignored: real files often give 0 or a wrong number
+    return keyword, match, counts_line, n_vertices, _off_count(path, tokens, 1, "face", counts_line)
 
-    # every line after the counts that is not blank holds one vertex, then one face
-    body = text[_line_start(text, counts_line + 1) :]
-    if "#" in body or "//" in body:
-        body = _OFF_COMMENT.sub("", body)
-    body = body.encode()
-    raw = np.frombuffer(body, dtype=np.uint8)
-    line_ends = np.append(np.flatnonzero(raw == 10), len(raw))
-    line_starts = np.append(0, line_ends[:-1] + 1)
-    filled = np.flatnonzero(line_ends > line_starts)  # blank lines are empty (_decode_text), comments removed
-    del raw
-    available = len(filled)
-    if n_vertices > available:
-        raise _read_error(
-            path,
-            f"truncated: the header announces {_count(n_vertices, 'vertex', 'vertices')}, the file has "
-            f"{available} line{'' if available == 1 else 's'} after line {counts_line}",
-        )
 
-    def block(first: int, count: int) -> bytes:
+class _OffBody:
+    """The lines after an OFF file's counts, comments removed: every line not blank holds one vertex, then one face.
+
+    ``filled`` holds the indices of the lines that are not blank, among all the body's lines.
+    """
+
+    def __init__(self, text: str, counts_line: int):
+        self.counts_line = counts_line
+        body = text[_line_start(text, counts_line + 1) :]
+        if "#" in body or "//" in body:
+            body = _OFF_COMMENT.sub("", body)
+        self.body = body.encode()
+        raw = np.frombuffer(self.body, dtype=np.uint8)
+        self.line_ends = np.append(np.flatnonzero(raw == 10), len(raw))
+        self.line_starts = np.append(0, self.line_ends[:-1] + 1)
+        # blank lines are empty (_decode_text), comments removed
+        self.filled = np.flatnonzero(self.line_ends > self.line_starts)
+
+    def block(self, first: int, count: int) -> bytes:
         """The lines of the ``count`` vertices or faces from the ``first``-th (blank lines among them)."""
-        return body[line_starts[filled[first]] : line_ends[filled[first + count - 1]]]
+        return self.body[self.line_starts[self.filled[first]] : self.line_ends[self.filled[first + count - 1]]]
 
-    def line_number(index: int) -> int:
+    def line_number(self, index: int) -> int:
         """The line number in the file of the ``index``-th vertex or face."""
-        return counts_line + 1 + int(filled[index])
+        return self.counts_line + 1 + int(self.filled[index])
 
-    first_line = block(0, 1)
-    ncols = len(first_line.split())
-    has_texture, has_colour, has_normal = (bool(match.group(k)) for k in (1, 2, 3))
-    n_colour = ncols - 3 - 3 * has_normal - 2 * has_texture
-    if (has_colour and n_colour not in (3, 4)) or (not has_colour and n_colour != 0):
-        raise _read_error(path, f"line {line_number(0)}: {ncols} values do not match a {keyword} vertex")
-    vertices = block(0, n_vertices).decode()
+
+def _off_vertices(path: Path, body: _OffBody, n_vertices: int, ncols: int) -> np.ndarray:
+    """The vertex lines as a table, shape (n_vertices, ncols); an error names the first line that is not one."""
+    vertices = body.block(0, n_vertices).decode()
     try:
         table = np.loadtxt(_stdio.StringIO(vertices), dtype=np.float64, comments=None, ndmin=2)
         if table.shape != (n_vertices, ncols):
@@ -351,52 +398,27 @@ def _read_off(path: Path, fmt: str) -> PointCloud:
         bad = _first_bad_line(vertices, 0, ncols, None)
         if bad is None:
             raise _read_error(path, f"cannot parse the {n_vertices} vertices") from None
-        body_line = int(filled[0]) + bad[0] - 1
-        index = int(np.searchsorted(filled, body_line))
+        body_line = int(body.filled[0]) + bad[0] - 1
+        index = int(np.searchsorted(body.filled, body_line))
         raise _read_error(
             path,
-            f"line {counts_line + 1 + body_line}: {bad[1]} (vertex {index + 1} of the {n_vertices} "
+            f"line {body.counts_line + 1 + body_line}: {bad[1]} (vertex {index + 1} of the {n_vertices} "
             "the header announces)",
         ) from None
-    del vertices
-    if n_faces > available - n_vertices:
-        left = available - n_vertices
-        raise _read_error(
-            path,
-            f"the header announces {n_faces} face{'' if n_faces == 1 else 's'}, the file has "
-            f"{_count(left, 'line', 'lines')} after its {_count(n_vertices, 'vertex', 'vertices')}",
-        )
-    if n_faces:
-        _check_off_faces(path, text, block(n_vertices, n_faces), n_vertices, n_faces, line_number(n_vertices))
-    if available > n_vertices + n_faces:
-        raise _read_error(
-            path,
-            f"line {line_number(n_vertices + n_faces)}: more lines than the header announces "
-            f"({_count(n_vertices, 'vertex', 'vertices')} and {_count(n_faces, 'face', 'faces')})",
-        )
+    return table
 
-    names = ["x", "y", "z"] + (list(_NORMAL_NAMES) if has_normal else [])
-    columns = {name: np.ascontiguousarray(table[:, k]) for k, name in enumerate(names)}
-    cloud = _cloud_from_columns(
-        columns, path, fmt, text_colours=False, meta={"faces": n_faces} if n_faces else None
-    )
-    if has_colour:
-        start = len(names)
-        rgba = table[:, start : start + n_colour]
-        # Geomview colours are floats 0-1, MeshLab writes integers 0-255 (alpha included)
-        as_bytes = _is_integral(rgba) and rgba.max(initial=0) > 1
-        cloud.colours = _colours_to_uint8(rgba[:, :3], text=as_bytes)
-        if cloud.colours is None:
-            raise _read_error(path, "vertex colours are neither 0-255 integers nor 0-1 fractions")
-        if not np.array_equal(cloud.colours, rgba[:, :3]):
-            cloud.meta["colour_values"] = np.ascontiguousarray(rgba[:, :3])  # 0-1 fractions
-        if n_colour == 4:
-            cloud.fields["alpha"] = np.ascontiguousarray(rgba[:, 3])
-    if has_texture:
-        start = ncols - 2
-        cloud.fields["s"] = np.ascontiguousarray(table[:, start])
-        cloud.fields["t"] = np.ascontiguousarray(table[:, start + 1])
-    return cloud
+
+def _add_off_colours(path: Path, cloud: PointCloud, rgba: np.ndarray) -> None:
+    """Set ``cloud``'s colours from an OFF file's vertex colours ``rgba``, shape (n, 3) or (n, 4)."""
+    # Geomview colours are floats 0-1, MeshLab writes integers 0-255 (alpha included)
+    as_bytes = _is_integral(rgba) and rgba.max(initial=0) > 1
+    cloud.colours = _colours_to_uint8(rgba[:, :3], text=as_bytes)
+    if cloud.colours is None:
+        raise _read_error(path, "vertex colours are neither 0-255 integers nor 0-1 fractions")
+    if not np.array_equal(cloud.colours, rgba[:, :3]):
+        cloud.meta["colour_values"] = np.ascontiguousarray(rgba[:, :3])  # 0-1 fractions
+    if rgba.shape[1] == 4:
+        cloud.fields["alpha"] = np.ascontiguousarray(rgba[:, 3])
 
 
 def _uniform_faces_in_range(faces: bytes, n_vertices: int, n_faces: int) -> bool:
