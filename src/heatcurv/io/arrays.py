@@ -305,6 +305,45 @@ _NPZ_METADATA_ROWS = 4
 def _read_npz(path: Path, fmt: str) -> PointCloud:
     if _magic(path, 4) not in (b"PK\x03\x04", b"PK\x05\x06"):
         raise _read_error(path, "not a valid NPZ file (not a zip archive of NumPy arrays)")
+    arrays, pickled = _npz_arrays(path)
+    key = "points" if "points" in arrays else "xyz" if "xyz" in arrays else None
+    if key is None:
+        held = [name for name in ("points", "xyz") if name in pickled]
+        if held:
+            raise _read_error(path, f"'{held[0]}' holds Python objects (pickled), not numbers")
+        raise _read_error(
+            path, f"no 'points' or 'xyz' array (arrays: {', '.join(arrays) or 'none'})"
+        )
+    points = arrays.pop(key)
+    if points.dtype.kind not in "biuf" or points.ndim != 2 or points.shape[1] != 3:
+        raise _read_error(
+            path,
+            f"'{key}' has shape {points.shape} and dtype {points.dtype}; expected (n, 3) numbers",
+        )
+    n = points.shape[0]
+    if n == 0:
+        raise _read_error(path, "the file holds no points")
+    columns = {axis: _native(points[:, k]) for k, axis in enumerate("xyz")}
+    columns.update(_npz_normals_and_colours(path, arrays, n))
+    for name, values in arrays.items():
+        if values.dtype.kind not in "biuf" or values.ndim not in (1, 2) or values.shape[0] <= _NPZ_METADATA_ROWS < n:
+            continue  # not a per-point array (a scalar, text, an offset or a small transform): ignored
+        if values.shape[0] != n:
+            raise _read_error(
+                path, f"'{name}' has {values.shape[0]} rows but '{key}' has {n}: every per-point array of an "
+                "NPZ cloud must have one row per point (a truncated or mismatched member)"
+            )
+        if values.ndim == 1:
+            columns.setdefault(name, _native(values))
+        else:
+            suffixes = "xyz" if values.shape[1] == 3 else [f"_{k}" for k in range(values.shape[1])]
+            for k, suffix in enumerate(suffixes):
+                columns.setdefault(f"{name}{suffix}", _native(values[:, k]))
+    return _cloud_from_columns(columns, path, fmt, text_colours=False)
+
+
+def _npz_arrays(path: Path) -> tuple[dict, list]:
+    """The archive's numeric arrays by name, and the names of its pickled members; damage is a one-line error."""
     size = path.stat().st_size
     arrays, pickled = {}, []
     try:
@@ -337,24 +376,12 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
         else:
             raise  # a real I/O error
         raise _read_error(path, f"not a valid NPZ file ({problem})") from None
-    key = "points" if "points" in arrays else "xyz" if "xyz" in arrays else None
-    if key is None:
-        held = [name for name in ("points", "xyz") if name in pickled]
-        if held:
-            raise _read_error(path, f"'{held[0]}' holds Python objects (pickled), not numbers")
-        raise _read_error(
-            path, f"no 'points' or 'xyz' array (arrays: {', '.join(arrays) or 'none'})"
-        )
-    points = arrays.pop(key)
-    if points.dtype.kind not in "biuf" or points.ndim != 2 or points.shape[1] != 3:
-        raise _read_error(
-            path,
-            f"'{key}' has shape {points.shape} and dtype {points.dtype}; expected (n, 3) numbers",
-        )
-    n = points.shape[0]
-    if n == 0:
-        raise _read_error(path, "the file holds no points")
-    columns = {axis: _native(points[:, k]) for k, axis in enumerate("xyz")}
+    return arrays, pickled
+
+
+def _npz_normals_and_colours(path: Path, arrays: dict, n: int) -> dict:
+    """The columns of the ``normals`` and ``colors`` arrays (taken out of ``arrays``), checked against ``n`` points."""
+    columns = {}
     normals = arrays.pop("normals", None)  # archives of earlier heatcurv versions (now nx ny nz)
     if normals is not None:
         if normals.dtype.kind not in "biuf" or normals.shape != (n, 3):
@@ -372,21 +399,7 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
                 f"are not ({n}, 3) RGB values",
             )
         columns.update({name: _native(colours[:, k]) for k, name in enumerate(_COLOUR_NAMES)})
-    for name, values in arrays.items():
-        if values.dtype.kind not in "biuf" or values.ndim not in (1, 2) or values.shape[0] <= _NPZ_METADATA_ROWS < n:
-            continue  # not a per-point array (a scalar, text, an offset or a small transform): ignored
-        if values.shape[0] != n:
-            raise _read_error(
-                path, f"'{name}' has {values.shape[0]} rows but '{key}' has {n}: every per-point array of an "
-                "NPZ cloud must have one row per point (a truncated or mismatched member)"
-            )
-        if values.ndim == 1:
-            columns.setdefault(name, _native(values))
-        else:
-            suffixes = "xyz" if values.shape[1] == 3 else [f"_{k}" for k in range(values.shape[1])]
-            for k, suffix in enumerate(suffixes):
-                columns.setdefault(f"{name}{suffix}", _native(values[:, k]))
-    return _cloud_from_columns(columns, path, fmt, text_colours=False)
+    return columns
 
 
 def _write_npz(stream, output: _Output, path: Path) -> None:
