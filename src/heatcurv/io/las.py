@@ -57,49 +57,11 @@ def _laspy_problem(exc: BaseException, layout: LasLayout) -> str:
 
 
 def _read_las(path: Path, fmt: str) -> PointCloud:
-    import errno
-
-    import laspy
-
     try:
         layout = check_las_file(path)
     except LasStructureError as exc:
         raise _read_error(path, str(exc)) from None
-    try:
-        # a huge fixed chunk size: the parallel decoder would allocate a whole chunk
-        backend = laspy.LazBackend.Lazrs if layout.sequential else None
-        las = laspy.read(path, laz_backend=backend)
-        points = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)]).astype(
-            np.float64
-        )
-        dimension_names = list(las.point_format.dimension_names)
-        extra_names = set(las.point_format.extra_dimension_names)
-        columns = {}
-        for name in dimension_names:
-            if name in ("X", "Y", "Z", "red", "green", "blue"):
-                continue
-            values = np.array(las[name])
-            if values.ndim == 2:  # array extra bytes ("3f8"): one field per element
-                for k in range(values.shape[1]):
-                    columns[f"{name}_{k}"] = values[:, k].copy()
-            else:
-                columns[name] = values
-        rgb16 = None
-        if "red" in dimension_names:
-            rgb16 = np.column_stack(
-                [np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)]
-            ).astype(np.uint16)
-        header = las.header
-        integers = (las.X, las.Y, las.Z)
-    except OSError as exc:
-        if exc.errno not in (errno.EINVAL, errno.EOVERFLOW, None):
-            raise  # the disk or the permissions, not the file's content
-        raise _read_error(path, _laspy_problem(exc, layout)) from None
-    except (KeyboardInterrupt, SystemExit):
-        raise
-    except BaseException as exc:  # laspy / lazrs errors, pyo3 panics (not Exceptions)
-        raise _read_error(path, _laspy_problem(exc, layout)) from None
-
+    points, columns, extra_names, rgb16, header, integers = _decode_las(path, layout)
     if points.shape[0] < header.point_count:
         raise _read_error(
             path,
@@ -146,6 +108,53 @@ def _read_las(path: Path, fmt: str) -> PointCloud:
         format=fmt,
         meta=meta,
     )
+
+
+def _decode_las(path: Path, layout) -> tuple:
+    """laspy's decoding of a checked file: ``(points, columns, extra_names, rgb16, header, integers)``.
+
+    ``points`` are the scaled coordinates (float64, shape (n, 3)); ``columns`` every other dimension but the
+    colours (an array extra dimension split into one field per element); ``extra_names`` the extra
+    dimensions' names; ``rgb16`` the colours as stored (uint16, shape (n, 3)) or None; ``integers`` the
+    record integers ``X, Y, Z``. laspy's and the LAZ decoder's failures are a one-line error.
+    """
+    import errno
+
+    import laspy
+
+    try:
+        # a huge fixed chunk size: the parallel decoder would allocate a whole chunk
+        backend = laspy.LazBackend.Lazrs if layout.sequential else None
+        las = laspy.read(path, laz_backend=backend)
+        points = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)]).astype(
+            np.float64
+        )
+        dimension_names = list(las.point_format.dimension_names)
+        extra_names = set(las.point_format.extra_dimension_names)
+        columns = {}
+        for name in dimension_names:
+            if name in ("X", "Y", "Z", "red", "green", "blue"):
+                continue
+            values = np.array(las[name])
+            if values.ndim == 2:  # array extra bytes ("3f8"): one field per element
+                for k in range(values.shape[1]):
+                    columns[f"{name}_{k}"] = values[:, k].copy()
+            else:
+                columns[name] = values
+        rgb16 = None
+        if "red" in dimension_names:
+            rgb16 = np.column_stack(
+                [np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)]
+            ).astype(np.uint16)
+        return points, columns, extra_names, rgb16, las.header, (las.X, las.Y, las.Z)
+    except OSError as exc:
+        if exc.errno not in (errno.EINVAL, errno.EOVERFLOW, None):
+            raise  # the disk or the permissions, not the file's content
+        raise _read_error(path, _laspy_problem(exc, layout)) from None
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except BaseException as exc:  # laspy / lazrs errors, pyo3 panics (not Exceptions)
+        raise _read_error(path, _laspy_problem(exc, layout)) from None
 
 
 def _las_scales_offsets(points: np.ndarray):
