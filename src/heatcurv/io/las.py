@@ -243,22 +243,11 @@ def _extra_dimensions(laspy, extra: dict, output: _Output, source_header):
     return params, {name: column for name, column in values.items() if column is not None}
 
 
-def _write_las(stream, output: _Output, path: Path) -> None:
+def _output_header(laspy, output: _Output, source_header):
+    """The header to write: the source's (its extra dimensions dropped, a point format with colours if they
+    are added), or a LAS 1.4 header of point format 6 or 7 with scales and offsets fitted to the points."""
     import datetime
 
-    import laspy
-
-    points = output.points
-    finite = np.isfinite(points).all(axis=1)
-    if not finite.all():
-        rows = np.flatnonzero(~finite)
-        raise _write_error(
-            path,
-            "LAS cannot store NaN or infinite coordinates "
-            f"({rows.size} row(s), first row {rows[0]})",
-        )
-    n = points.shape[0]
-    source_header = output.source.meta.get("las_header") if output.source is not None else None
     if source_header is not None:
         header = source_header.copy()
         header.remove_extra_dims(list(header.point_format.extra_dimension_names))
@@ -274,9 +263,38 @@ def _write_las(stream, output: _Output, path: Path) -> None:
         header.creation_date = datetime.date.today()
     else:
         header = laspy.LasHeader(point_format=7 if output.colours is not None else 6, version="1.4")
-        header.scales, header.offsets = _las_scales_offsets(points)
+        header.scales, header.offsets = _las_scales_offsets(output.points)
     header.generating_software = "heatcurv"
+    return header
 
+
+def _colours16(output: _Output) -> np.ndarray:
+    """The colours as LAS stores them, uint16 of shape (n, 3): the source's 16-bit values where they are the
+    source's, else the 8-bit colours times 257."""
+    rgb16 = output.source.meta.get("las_rgb16") if output.colours_from_source else None
+    stored = output.colour_values
+    if rgb16 is None and stored is not None and stored.dtype == np.uint16:
+        rgb16 = stored  # 16-bit colours of a PLY source
+    if rgb16 is None:
+        rgb16 = output.colours.astype(np.uint16) * np.uint16(257)
+    return rgb16
+
+
+def _write_las(stream, output: _Output, path: Path) -> None:
+    import laspy
+
+    points = output.points
+    finite = np.isfinite(points).all(axis=1)
+    if not finite.all():
+        rows = np.flatnonzero(~finite)
+        raise _write_error(
+            path,
+            "LAS cannot store NaN or infinite coordinates "
+            f"({rows.size} row(s), first row {rows[0]})",
+        )
+    n = points.shape[0]
+    source_header = output.source.meta.get("las_header") if output.source is not None else None
+    header = _output_header(laspy, output, source_header)
     standard = set(header.point_format.dimension_names)
     extra = dict(output.columns)
     if output.normals is not None:
@@ -307,12 +325,7 @@ def _write_las(stream, output: _Output, path: Path) -> None:
         raise _write_error(path, f"laspy: {_one_line(exc)}") from None
 
     if output.colours is not None:
-        rgb16 = output.source.meta.get("las_rgb16") if output.colours_from_source else None
-        stored = output.colour_values
-        if rgb16 is None and stored is not None and stored.dtype == np.uint16:
-            rgb16 = stored  # 16-bit colours of a PLY source
-        if rgb16 is None:
-            rgb16 = output.colours.astype(np.uint16) * np.uint16(257)
+        rgb16 = _colours16(output)
         las.red, las.green, las.blue = rgb16[:, 0], rgb16[:, 1], rgb16[:, 2]
     for name, values in fill_standard.items():
         target = np.asarray(las[name]).dtype
