@@ -436,6 +436,59 @@ def _check_laz(
     reader: _Reader, offset: int, end: int, point_count: int, record_length: int, laszip: _LasZip
 ) -> bool:
     """Check the compressed points between ``offset`` and ``end``; whether to decode sequentially."""
+    table, end_of_table = _chunk_table_start(reader, offset, end)
+    compressed = table - (offset + 8)
+    limit = MAX_POINTS_PER_COMPRESSED_BYTE * compressed
+    if point_count > limit:
+        raise LasStructureError(
+            f"the header announces {point_count} points, far more than the "
+            f"{_plural(compressed, 'byte')} of compressed points can hold (LAZ stores at most "
+            f"about 700 points per byte; allowed: {limit})"
+        )
+    number_of_chunks = struct.unpack("<I", reader.read(table + 4, 4))[0]
+    _check_chunk_count(number_of_chunks, point_count, compressed, record_length, laszip.chunk_size)
+    entries = _read_chunk_table(reader, offset, laszip)
+    if len(entries) != number_of_chunks:
+        raise LasStructureError(
+            f"the chunk table lists {number_of_chunks} chunks but holds {len(entries)}"
+        )
+    total = sum(byte_count for _points, byte_count in entries)
+    if total != compressed:
+        raise LasStructureError(
+            f"the chunk table gives {_plural(total, 'byte')} of compressed points, "
+            f"the file holds {compressed} before the table"
+        )
+    if table < end_of_table:
+        spare = end_of_table - table - _chunk_table_length(reader.read(table, end_of_table - table), laszip, entries)
+        if spare > CHUNK_TABLE_SLACK:
+            where = "the extended VLRs" if end < reader.size else "the end of the file"
+            raise LasStructureError(
+                f"the {_plural(spare, 'byte')} between the chunk table and {where} are unexplained "
+                f"(a LAZ writer leaves at most {CHUNK_TABLE_SLACK})"
+            )
+    chunk_size = laszip.chunk_size
+    variable = chunk_size == _VARIABLE_CHUNKS
+    if variable:
+        counts = [points for points, _bytes in entries]
+        if sum(counts) != point_count:
+            raise LasStructureError(
+                f"the chunk table counts {sum(counts)} points, the header {point_count}"
+            )
+    else:
+        counts = [chunk_size] * (number_of_chunks - 1)
+        counts.append(point_count - chunk_size * (number_of_chunks - 1))
+    if laszip.compressor == 3 and all(
+        item_type in _LAYERS or item_type == _BYTE14 for item_type, _s, _v in laszip.items
+    ):
+        _check_layers(reader, offset + 8, entries, counts, record_length, laszip)
+    return not variable and chunk_size > point_count and (
+        chunk_size * record_length > _PARALLEL_LAST_CHUNK_BYTES
+    )
+
+
+def _chunk_table_start(reader: _Reader, offset: int, end: int) -> tuple[int, int]:
+    """Where the chunk table of the compressed points starts, and where its bytes end (``end``, or the table's
+    offset stored at the end of the file by a streaming writer)."""
     size = reader.size
     if offset + 8 > end:
         raise LasStructureError(
@@ -463,17 +516,12 @@ def _check_laz(
             f"the chunk table of the compressed points would start at byte {table}, outside "
             f"the point data (bytes {offset + 8} to {end})"
         )
-    compressed = table - (offset + 8)
-    limit = MAX_POINTS_PER_COMPRESSED_BYTE * compressed
-    if point_count > limit:
-        raise LasStructureError(
-            f"the header announces {point_count} points, far more than the "
-            f"{_plural(compressed, 'byte')} of compressed points can hold (LAZ stores at most "
-            f"about 700 points per byte; allowed: {limit})"
-        )
-    number_of_chunks = struct.unpack("<I", reader.read(table + 4, 4))[0]
-    chunk_size = laszip.chunk_size
-    variable = chunk_size == _VARIABLE_CHUNKS
+    return table, end_of_table
+
+
+def _check_chunk_count(number_of_chunks: int, point_count: int, compressed: int, record_length: int,
+                       chunk_size: int) -> None:
+    """The chunk table's count of chunks against the points and the compressed bytes."""
     if number_of_chunks == 0:
         raise LasStructureError(f"the chunk table lists no chunks for {point_count} points")
     # every chunk starts with one raw point; lazrs ends variable chunks with an empty one
@@ -484,7 +532,7 @@ def _check_laz(
             f"of compressed points hold at most {most} (each chunk starts with a "
             f"{record_length}-byte point)"
         )
-    if variable:
+    if chunk_size == _VARIABLE_CHUNKS:
         if number_of_chunks > point_count + 1:
             raise LasStructureError(
                 f"the chunk table lists {number_of_chunks} chunks for only {point_count} points"
@@ -496,41 +544,6 @@ def _check_laz(
                 f"the chunk table lists {number_of_chunks} chunks, {point_count} points in "
                 f"chunks of {chunk_size} need {needed}"
             )
-    entries = _read_chunk_table(reader, offset, laszip)
-    if len(entries) != number_of_chunks:
-        raise LasStructureError(
-            f"the chunk table lists {number_of_chunks} chunks but holds {len(entries)}"
-        )
-    total = sum(byte_count for _points, byte_count in entries)
-    if total != compressed:
-        raise LasStructureError(
-            f"the chunk table gives {_plural(total, 'byte')} of compressed points, "
-            f"the file holds {compressed} before the table"
-        )
-    if table < end_of_table:
-        spare = end_of_table - table - _chunk_table_length(reader.read(table, end_of_table - table), laszip, entries)
-        if spare > CHUNK_TABLE_SLACK:
-            where = "the extended VLRs" if end < size else "the end of the file"
-            raise LasStructureError(
-                f"the {_plural(spare, 'byte')} between the chunk table and {where} are unexplained "
-                f"(a LAZ writer leaves at most {CHUNK_TABLE_SLACK})"
-            )
-    if variable:
-        counts = [points for points, _bytes in entries]
-        if sum(counts) != point_count:
-            raise LasStructureError(
-                f"the chunk table counts {sum(counts)} points, the header {point_count}"
-            )
-    else:
-        counts = [chunk_size] * (number_of_chunks - 1)
-        counts.append(point_count - chunk_size * (number_of_chunks - 1))
-    if laszip.compressor == 3 and all(
-        item_type in _LAYERS or item_type == _BYTE14 for item_type, _s, _v in laszip.items
-    ):
-        _check_layers(reader, offset + 8, entries, counts, record_length, laszip)
-    return not variable and chunk_size > point_count and (
-        chunk_size * record_length > _PARALLEL_LAST_CHUNK_BYTES
-    )
 
 
 def _check_layers(reader, start, entries, counts, record_length, laszip) -> None:
