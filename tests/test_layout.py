@@ -103,6 +103,40 @@ def test_modules_are_short(path):
     assert len(path.read_text().splitlines()) <= MAX_LINES
 
 
+def _lines_of_code(source: list, node: ast.FunctionDef) -> int:
+    """Lines of a function's body that are neither blank, comments nor its docstring."""
+    body = node.body
+    docstring = isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) and isinstance(
+        body[0].value.value, str)
+    start = body[0].end_lineno + 1 if docstring else body[0].lineno
+    return sum(1 for line in source[start - 1 : node.end_lineno] if line.strip() and not line.strip().startswith("#"))
+
+
+def _functions():
+    """``(module, name, lines of code, arguments, compiled)`` of every function of the package."""
+    for path in FILES:
+        text = path.read_text()
+        source = text.splitlines()
+        for node in ast.walk(ast.parse(text, filename=str(path))):
+            if isinstance(node, ast.FunctionDef):
+                compiled = any("jit" in ast.unparse(d) for d in node.decorator_list)
+                yield _module_name(path), node.name, _lines_of_code(source, node), len(node.args.args), compiled
+
+
+def test_functions_are_short():
+    """At most three functions outside the compiled kernels run over 60 lines of code, none over 70."""
+    long = sorted((loc, f"{module}.{name}") for module, name, loc, _, compiled in _functions()
+                  if not compiled and loc > 60)
+    assert len(long) <= 3 and all(loc <= 70 for loc, _ in long), long
+
+
+def test_compiled_kernels_take_no_more_arguments_than_today():
+    """Compiled kernels over 14 arguments (their arrays not yet bundled): no new one, none longer."""
+    wide = sorted((args, f"{module}.{name}") for module, name, _, args, compiled in _functions()
+                  if compiled and args > 14)
+    assert len(wide) <= 10 and all(args <= 29 for args, _ in wide), wide
+
+
 def test_the_public_api_is_short_and_the_building_blocks_stay_in_their_modules():
     assert sorted(heatcurv.__all__) == [
         "CurvatureResult", "FeatureResult", "HeatcurvError", "HeatcurvWarning", "METHODS", "Options",
