@@ -62,8 +62,9 @@ from .sampling import key_thinning
 from .scale import Scale, fit_balls
 from .tuning import TUNING
 
-__all__ = ["CARRIED_ANCHORS", "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "AnchorFits",
-    "CarriedFit", "anchor_normals", "anchor_rows", "anchors_per_ball", "carry_degree", "carry_fits", "fit_anchors",
+__all__ = [
+    "CARRIED_ANCHORS", "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "AnchorFits", "CarriedFit", "anchor_normals",
+    "anchor_rows", "anchors_per_ball", "carry_degree", "carry_fits", "fit_anchors",
 ]
 
 #: Anchors each point's values are carried from (the farthest gets weight 0).

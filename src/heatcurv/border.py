@@ -22,7 +22,6 @@ from .tuning import TUNING
 __all__ = ["centroid_offset", "border_points"]
 
 
-
 def centroid_offset(
     points: np.ndarray,
     nbhd: Neighbourhood,

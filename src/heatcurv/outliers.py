@@ -49,9 +49,7 @@ from ._kernels import segment as kernels
 from .neighbourhood import Neighbourhood
 from .tuning import TUNING
 
-__all__ = ["Outliers", "find_outliers", "neighbour_medians",
-    "exceeds_neighbour_median",
-]
+__all__ = ["Outliers", "find_outliers", "neighbour_medians", "exceeds_neighbour_median"]
 
 #: Neighbours per point in the mutual-neighbour graph.
 LINK_NEIGHBOURS = 10

@@ -33,11 +33,10 @@ import numpy as np
 from .errors import HeatcurvError, HeatcurvWarning
 from .tuning import TUNING
 
-__all__ = ["PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding",
-    "imprecise",
-    "misfit_baselines", "misfits", "precision_step", "resolution", "rounding_uncertainty", "warn_too_coarse",
+__all__ = [
+    "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "imprecise", "misfit_baselines",
+    "misfits", "precision_step", "resolution", "rounding_uncertainty", "warn_too_coarse",
 ]
-
 
 
 @dataclass(frozen=True)

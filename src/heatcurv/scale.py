@@ -62,9 +62,9 @@ from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_
 from .sampling import draw_subset, shifted_keys
 from .tuning import TUNING
 
-__all__ = ["CentreFits", "CentreFitter", "Scale", "ScaleChoice", "ScaleReport",
-    "decide_scale", "fit_balls", "fit_blocks", "in_low_noise_band",
-    "fit_at_scale", "level_sizes", "select_scale", "select_form",
+__all__ = [
+    "CentreFits", "CentreFitter", "Scale", "ScaleChoice", "ScaleReport", "decide_scale", "fit_balls", "fit_blocks",
+    "in_low_noise_band", "fit_at_scale", "level_sizes", "select_scale", "select_form",
 ]
 
 
@@ -469,8 +469,6 @@ def _nested_centres(sub: np.ndarray, keys: np.ndarray | None, seed: int) -> np.n
     if keys is not None:  # by the shifted keys the subsample was drawn by: a tile's prefixes hold the cloud's
         return sub[np.argsort(shifted_keys(keys[sub], seed), kind="stable")]
     return sub[np.random.default_rng(seed + 1).permutation(sub.shape[0])]
-
-
 
 
 def _ladder(base_k: int, max_k: int | None, n: int) -> list:
