@@ -131,10 +131,10 @@ def test_functions_are_short():
 
 
 def test_compiled_kernels_take_no_more_arguments_than_today():
-    """Compiled kernels over 14 arguments (their arrays not yet bundled): no new one, none longer."""
+    """Compiled kernels over 14 arguments (the carry's three, their arrays not yet bundled): no new one, none longer."""
     wide = sorted((args, f"{module}.{name}") for module, name, _, args, compiled in _functions()
                   if compiled and args > 14)
-    assert len(wide) <= 10 and all(args <= 29 for args, _ in wide), wide
+    assert len(wide) <= 3 and all(args <= 29 for args, _ in wide), wide
 
 
 def test_the_public_api_is_short_and_the_building_blocks_stay_in_their_modules():

@@ -235,30 +235,23 @@ def assemble_normal_equations(
         unit height noise (``2 / D^2`` for chord curvatures, 1 for heights).
     """
     points, indptr = as_floats(points), as_pointers(indptr)
-    args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights)
-    args += as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2), bool(tilt), bool(cubic), int(kind)
+    geometry = (points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights),
+                as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2))
+    args = geometry, bool(tilt), bool(cubic), int(kind)
     core = _assemble_full_model if tilt and cubic else _assemble_normal_equations
     parallel_rows(core, indptr.shape[0] - 1, *args, as_floats(height_beta), G, rhs, yy, G2)
 
 
 @numba.njit(**ROW_CORE)
-def _assemble_normal_equations(
-    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta,
-    G, rhs, yy, G2
-):
-    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+def _assemble_normal_equations(row0, row1, geometry, tilt, cubic, kind, height_beta, G, rhs, yy, G2):
     _assemble_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, G, rhs, yy, G2)
 
 
 @numba.njit(**ROW_CORE)
-def _assemble_full_model(
-    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta,
-    G, rhs, yy, G2
-):
+def _assemble_full_model(row0, row1, geometry, tilt, cubic, kind, height_beta, G, rhs, yy, G2):
     # the full model (tilt and cubic terms, every fit the estimator runs): with the flags constants
     # the compiler drops their branches and fixes the columns' places (1.5x faster than the general
     # core, which compiles only when a fit without them runs)
-    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
     _assemble_rows(row0, row1, geometry, True, True, kind, height_beta, G, rhs, yy, G2)
 
 
@@ -345,29 +338,22 @@ def two_height_residuals(
     same numbers as two calls of :func:`weighted_height_residual` (the low-noise refit reads both).
     """
     points, indptr = as_floats(points), as_pointers(indptr)
-    args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights)
-    args += as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2), bool(tilt), bool(cubic)
+    geometry = (points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights),
+                as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2))
+    args = geometry, bool(tilt), bool(cubic)
     args += as_floats(plain), as_floats(quartic), sigma2_plain, sigma2_quartic
     core = _two_residuals_full_model if tilt and cubic else _two_height_residuals
     parallel_rows(core, indptr.shape[0] - 1, *args)
 
 
 @numba.njit(**ROW_CORE)
-def _two_height_residuals(
-    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, plain, quartic,
-    sigma2_plain, sigma2_quartic
-):
-    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+def _two_height_residuals(row0, row1, geometry, tilt, cubic, plain, quartic, sigma2_plain, sigma2_quartic):
     _two_residual_rows(row0, row1, geometry, tilt, cubic, plain, quartic, sigma2_plain, sigma2_quartic)
 
 
 @numba.njit(**ROW_CORE)
-def _two_residuals_full_model(
-    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, plain, quartic,
-    sigma2_plain, sigma2_quartic
-):
+def _two_residuals_full_model(row0, row1, geometry, tilt, cubic, plain, quartic, sigma2_plain, sigma2_quartic):
     # the full model's flags as constants (as _assemble_full_model)
-    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
     _two_residual_rows(row0, row1, geometry, True, True, plain, quartic, sigma2_plain, sigma2_quartic)
 
 
@@ -441,29 +427,22 @@ def weighted_height_residual(
     arguments as :func:`assemble_normal_equations`. Units of ``unit``.
     """
     points, indptr = as_floats(points), as_pointers(indptr)
-    args = points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights)
-    args += as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2), bool(tilt), bool(cubic), int(kind)
+    geometry = (points, as_floats(centres), indptr, as_indices(indices, points.shape[0]), as_floats(weights),
+                as_floats(unit), as_floats(normals), as_floats(e1), as_floats(e2))
+    args = geometry, bool(tilt), bool(cubic), int(kind)
     args += as_floats(height_beta), as_floats(beta), sigma2
     core = _residual_full_model if tilt and cubic else _weighted_height_residual
     parallel_rows(core, indptr.shape[0] - 1, *args)
 
 
 @numba.njit(**ROW_CORE)
-def _weighted_height_residual(
-    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, beta,
-    sigma2
-):
-    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
+def _weighted_height_residual(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, sigma2):
     _residual_rows(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, sigma2)
 
 
 @numba.njit(**ROW_CORE)
-def _residual_full_model(
-    row0, row1, points, centres, indptr, indices, weights, unit, normals, e1, e2, tilt, cubic, kind, height_beta, beta,
-    sigma2
-):
+def _residual_full_model(row0, row1, geometry, tilt, cubic, kind, height_beta, beta, sigma2):
     # the full model's flags as constants (as _assemble_full_model)
-    geometry = points, centres, indptr, indices, weights, unit, normals, e1, e2
     _residual_rows(row0, row1, geometry, True, True, kind, height_beta, beta, sigma2)
 
 
@@ -571,9 +550,7 @@ WELL_POSED_RCOND = 1e-10
 
 
 @numba.njit(**ROW_CORE)
-def _solve_normal_equations(
-    row0, row1, G, rhs, yy, ridge, jacobi, contrast, G2, with_variance, check, beta, rss, posed, variance
-):
+def _solve_normal_equations(row0, row1, G, rhs, yy, ridge, jacobi, contrast, G2, with_variance, check, outputs):
     """:func:`solve_compiled` for the points ``row0 <= i < row1``, by Cholesky.
 
     ``posed`` gets 1 (well posed), 0 (ill posed) or -1 (undecided: the caller
@@ -581,6 +558,7 @@ def _solve_normal_equations(
     ``kappa = lambda_max / lambda_min`` is bracketed without eigenvalues:
     ``kappa <= trace(G) trace(G^-1) <= p^2 kappa``.
     """
+    beta, rss, posed, variance = outputs
     p = rhs.shape[1]
     A = np.empty((p, p))  # (work arrays allocated once per range of rows, as in every core)
     L = np.empty((p, p))
@@ -655,7 +633,8 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True, 
     posed = np.empty(n, dtype=np.int8)
     c = np.zeros(p) if contrast is None else as_floats(contrast)
     g2 = as_floats(G2) if contrast is not None else np.empty((0, p, p))
-    args = G, rhs, yy, float(ridge), bool(jacobi), c, g2, contrast is not None, bool(check), beta, rss, posed, variance
+    outputs = beta, rss, posed, variance
+    args = G, rhs, yy, float(ridge), bool(jacobi), c, g2, contrast is not None, bool(check), outputs
     parallel_rows(_solve_normal_equations, n, *args)
     well_posed = posed == 1
     undecided = np.flatnonzero(posed < 0)
