@@ -128,13 +128,14 @@ def carry_anchor_fits(points, indptr, indices, distances, anchors, normals, e1, 
     out_s = np.empty((n, scalars.shape[1]))
     support = np.empty(n)
     total = np.empty(n)
+    pairs = as_pointers(indptr), as_indices(indices, anchors.shape[0]), as_floats(distances)
+    model = (as_floats(anchors), as_floats(normals), as_floats(e1), as_floats(e2), as_floats(coefficients),
+             as_floats(radius))
     args = (
-        as_floats(points), as_pointers(indptr), as_indices(indices, anchors.shape[0]), as_floats(distances),
-        as_floats(anchors), as_floats(normals), as_floats(e1), as_floats(e2), as_floats(coefficients),
-        as_floats(radius), as_floats(usable),
+        as_floats(points), pairs, model, as_floats(usable),
         np.ones(anchors.shape[0]) if exact is None else as_floats(exact), scalars, reference, check,
         int(np.diff(indptr).max(initial=0)) if n_mean is None else int(n_mean), int(degree),
-        out_n, out_t, out_s, support, total,
+        (out_n, out_t, out_s, support, total),
     )
     parallel_rows(_carry_anchor_fits, n, *args)
     return out_n, out_t, out_s, support, total
@@ -299,12 +300,13 @@ def _carry_first_order(i, a, points, anchors, normals, e1, e2, coefficients, rad
 
 
 @njit(**ROW_CORE)
-def _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess, frame_u,
-           frame_v, with_tensor=True):
+def _carry(i, a, points, model, exact, nrm, tensor, grad, hess, frame_u, frame_v, with_tensor=True):
     """Anchor ``a``'s model at point ``i``: exact (:func:`_carry_one`) unless ``exact[a]`` is 0; False if too steep.
 
+    ``model`` is the anchors' fits: positions, normals, frames ``e1``, ``e2``, coefficients and ball radii.
     Without ``with_tensor`` only the normal (the regression of :func:`_regress_own` gives the tensor).
     """
+    anchors, normals, e1, e2, coefficients, radius = model
     if exact[a] != 0.0:
         return _carry_one(i, a, points, anchors, normals, e1, e2, coefficients, radius, nrm, tensor, grad, hess,
                           with_tensor)
@@ -420,8 +422,7 @@ def _anchor_weight(i, p, indices, distances, d_max, radius, usable, normals, ref
 
 
 @njit(**ROW_CORE)
-def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2, coefficients, radius, usable,
-                 reference, check, degree, target, frame, out_t, support, G, rhs, chol, phi, tensor, sol, u, v, xs):
+def _regress_own(i, lo, hi, points, pairs, model, usable, reference, check, degree, target, out_t, support, scratch):
     """Point ``i``'s tensor as a weighted polynomial regression of its anchors' own tensors; False if ill-posed.
 
     Each anchor's own tensor is rotated into the plane normal to ``target`` (the point's carried normal)
@@ -429,8 +430,11 @@ def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2
     around the point, with polynomials of degree ``degree`` (2 where the anchors cannot carry it; False if
     not even that, or the anchors lie on one side of the point: :data:`REGRESSION_MAX_OFFSET`); the fit's value
     at the point is the tensor. Weights as the mean's, over all the row's anchors.
-    The last arrays are scratch space.
+    ``pairs`` are the rows' anchors and distances, ``model`` as :func:`_carry`; ``scratch`` holds work arrays.
     """
+    indices, distances = pairs
+    anchors, normals, e1, e2, coefficients, radius = model
+    frame, G, rhs, chol, phi, tensor, sol, u, v, xs = scratch
     # a tangent frame of the target normal
     if abs(target[0]) < 0.9:
         ux, uy, uz = 0.0, target[2], -target[1]
@@ -492,9 +496,11 @@ def _regress_own(i, lo, hi, points, indices, distances, anchors, normals, e1, e2
 
 
 @njit(**ROW_CORE)
-def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, normals, e1, e2, coefficients,
-                       radius, usable, exact, scalars, reference, check, n_mean, degree, out_n, out_t, out_s, support,
-                       total):
+def _carry_anchor_fits(row0, row1, points, pairs, model, usable, exact, scalars, reference, check, n_mean, degree,
+                       outputs):
+    indptr, indices, distances = pairs
+    anchors, normals, e1, e2, coefficients, radius = model
+    out_n, out_t, out_s, support, total = outputs
     nrm = np.empty(3)
     frame_u = np.empty(3)
     frame_v = np.empty(3)
@@ -537,8 +543,8 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
                 nearest = p
             d = distances[p]
             w = _anchor_weight(i, p, indices, distances, d_max, radius, usable, normals, reference, check)
-            if w <= 0.0 or not _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm,
-                                      tensor, grad, hess, frame_u, frame_v, with_tensor):
+            if w <= 0.0 or not _carry(i, a, points, model, exact, nrm, tensor, grad, hess, frame_u, frame_v,
+                                      with_tensor):
                 continue
             wsum += w
             for k in range(3):
@@ -563,16 +569,15 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
                     for k in range(3):
                         target[k] = out_n[i, k] / length
                     regressed = _regress_own(
-                        i, lo, hi_all, points, indices, distances, anchors, normals, e1, e2, coefficients, radius,
-                        usable, reference, check, degree, target, frame, out_t, support, G, rhs, chol, phi, own, sol,
-                        frame_u, frame_v, xs,
+                        i, lo, hi_all, points, (indices, distances), model, usable, reference, check, degree, target,
+                        out_t, support, (frame, G, rhs, chol, phi, own, sol, frame_u, frame_v, xs),
                     )
                 if not regressed:  # the weighted mean of the carried models' tensors, as without a regression
                     for p in range(lo, hi):
                         a = indices[p]
                         w = _anchor_weight(i, p, indices, distances, d_max, radius, usable, normals, reference, check)
-                        if w <= 0.0 or not _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact,
-                                                  nrm, tensor, grad, hess, frame_u, frame_v, True):
+                        if w <= 0.0 or not _carry(i, a, points, model, exact, nrm, tensor, grad, hess, frame_u,
+                                                  frame_v, True):
                             continue
                         for k in range(6):
                             out_t[i, k] += w * tensor[k]
@@ -582,8 +587,7 @@ def _carry_anchor_fits(row0, row1, points, indptr, indices, distances, anchors, 
         elif nearest >= 0:
             # no anchor's ball reaches the point: the nearest usable anchor alone (the caller flags it)
             a = indices[nearest]
-            if _carry(i, a, points, anchors, normals, e1, e2, coefficients, radius, exact, nrm, tensor, grad, hess,
-                      frame_u, frame_v, True):
+            if _carry(i, a, points, model, exact, nrm, tensor, grad, hess, frame_u, frame_v, True):
                 for k in range(3):
                     out_n[i, k] = nrm[k]
                 for k in range(6):
