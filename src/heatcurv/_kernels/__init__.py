@@ -45,7 +45,10 @@ kernels are written to compile fast (measured by ``benchmarks/first_run.py``):
   into its ``out`` argument instead;
 * the wrappers pass each argument in one type (float64 and int64 contiguous
   arrays, int32 neighbour indices where they fit, Python scalars), so each
-  kernel compiles once, whatever dtypes the caller used.
+  kernel compiles once, whatever dtypes the caller used;
+* arrays that travel together (a fit's pair geometry, the anchors' fits, a
+  core's outputs or scratch space) are one tuple argument, unpacked on entry:
+  no kernel takes more than 14 arguments.
 
 Together they cut a fresh install's first run to about a third, at the same
 run-time speed (docs/how_it_works.md, thresholds).
