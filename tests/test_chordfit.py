@@ -158,11 +158,16 @@ def test_blocks_with_and_without_quartic_terms_concatenate_with_zeros():
     np.testing.assert_array_equal(joined.coefficients[200:], wide)
 
 
-def test_a_float32_paraboloid_whose_anchors_mix_refitted_widths_is_estimated():
+def test_a_float32_paraboloid_whose_anchors_mix_refitted_widths_is_estimated(monkeypatch):
     # failed with "all the input array dimensions ... must match exactly" (9 against 14 coefficients):
-    # its kernel widths 60-240 put some anchors below the low-noise refit's narrowest kernel
-    import heatcurv
+    # its kernel widths 60-240 put some anchors below the low-noise refit's narrowest kernel. Its noise
+    # (float32 rounding far from the origin) is below the low-noise band today: the band is widened to take it.
+    import dataclasses
 
+    import heatcurv
+    from heatcurv.tuning import TUNING
+
+    monkeypatch.setattr("heatcurv.scale.TUNING", dataclasses.replace(TUNING, no_noise=1e-6))
     sample = surfaces.Paraboloid().sample(2000, "random", seed=35627).points
     far = (sample + 100.0 * np.linalg.norm(np.ptp(sample, axis=0))).astype(np.float32)
     res = heatcurv.estimate(far)

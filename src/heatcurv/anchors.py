@@ -25,7 +25,7 @@ fitted.
 A model fitted over a wide ball is less accurate away from its centre than at
 it. Under ordinary noise the fit's own variance hides that; under very low noise
 (``relative_noise`` from ``TUNING.no_noise`` to below
-``TUNING.low_noise``, e.g. coordinate rounding, where the kernel
+``TUNING.low_noise``, e.g. a LAZ file's millimetres, where the kernel
 choice widened the kernel: :attr:`heatcurv.scale.ScaleChoice.low_noise`) it
 would dominate (a torus at 1e-5 of its diagonal, 480
 neighbours: the nearest anchor's model is 0.12 % off in the mean curvature within
@@ -147,7 +147,7 @@ def anchors_per_ball(low_noise: bool) -> int:
     a model fitted over a wide ball is less accurate away from its centre: on a torus with noise 1e-5
     of the diagonal (480 neighbours, 20 000 points) the nearest anchor's model is off by 0.12 % in the
     mean curvature within 0.1 R of it and 0.5 % at 0.3-0.4 R. Under ordinary noise the fit's own
-    variance hides that; under very low noise (coordinate rounding) it would dominate, so the anchors
+    variance hides that; under very low noise (a LAZ file's millimetres) it would dominate, so the anchors
     are denser there (``TUNING.low_noise_anchors_per_ball``).
 
     Parameters

@@ -366,7 +366,7 @@ def _take_rows(geometry: tuple, rows: np.ndarray) -> tuple:
 def _denoised_refit(geometry, n_shape, unit, e1, e2, nrm, tilt, cubic) -> ChordFit:
     """The denoised fit under very low noise (``low_noise`` of :func:`chord_fit`), as the final :class:`ChordFit`.
 
-    Very low noise (such as coordinate rounding) takes the ``LOW_NOISE_HEIGHT``
+    Very low noise (such as a LAZ file's millimetres) takes the ``LOW_NOISE_HEIGHT``
     refit: quartic terms, the denominator from a height fit with quartic terms
     (``QUARTIC_HEIGHT``), and pair weights ``w lambda^4 / (D^4 + lambda^4)`` with
     ``lambda^2 = sigma / TUNING.low_noise_sigma`` (``sigma`` that height fit's residual,

@@ -35,7 +35,7 @@ grows with ``R^2``). :func:`select_scale` picks the width per cloud:
    window exceeds ``TUNING.tau_local`` standard deviations (clear local bias);
    each point takes the choice of its nearest centre;
 5. a cloud in the very-low-noise band (``relative_noise`` from ``TUNING.no_noise``
-   to below ``TUNING.low_noise``, e.g. coordinate rounding) is fitted with the
+   to below ``TUNING.low_noise``, e.g. a LAZ file's millimetres) is fitted with the
    denoised form's low-noise refit (:mod:`heatcurv.anchors`), whose bias is far
    below that of the plain fit the rule compares. Where the rule widened the
    kernel of the median centre, every widened centre's kernel is ``TUNING.low_noise_levels`` doubling wider.

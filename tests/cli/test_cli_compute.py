@@ -179,12 +179,12 @@ def test_a_noisy_cloud_writes_its_per_point_kernel_radius(tmp_path):
 
 
 def test_verbose_says_when_the_very_low_noise_path_ran(tmp_path):
-    # coordinate rounding's noise (1e-5 of the diagonal) takes the low-noise path: --verbose and the report say so
+    # noise of 1e-5 of the diagonal takes the low-noise path: --verbose and the report say so
     points = heatcurv.surfaces.Torus().sample(8000, "random", noise=1e-5, seed=3).points
     np.save(tmp_path / "rounded.npy", points)
     out = run("-v", "compute", tmp_path / "rounded.npy", "-o", tmp_path / "out.ply", "--fields", "mean")
     assert out.returncode == 0, out.stderr
-    assert "very low noise (such as coordinate rounding)" in out.stdout, out.stdout
+    assert "very low noise (such as millimetre rounding)" in out.stdout, out.stdout
     assert re.search(r"fit plan: denoised-\d+, at anchors \(24 per ball\), carried to every point by a degree-3 "
                      r"regression of their tensors; low-noise refit", out.stdout), out.stdout
     assert heatcurv.estimate(points).info["scale"].low_noise

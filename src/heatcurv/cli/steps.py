@@ -242,7 +242,7 @@ def _report_details(res, log: Log) -> None:
             log.detail(f"  fitted at {scale.anchors} anchors; support radius {scale.support_radius:.4g} (with the "
                        "cloud-wide choices fixed, no point farther changes a point's values)")
     if plan is not None and plan.refit:
-        log.detail("  very low noise (such as coordinate rounding): the kernel one doubling wider than chosen, "
+        log.detail("  very low noise (such as millimetre rounding): the kernel one doubling wider than chosen, "
                    "the anchors' quartic refit and the regression of their tensors")
     orientation = res.info.get("orientation")
     if orientation is not None and orientation.mode != "given":
