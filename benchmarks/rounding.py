@@ -15,6 +15,7 @@ relative errors of the mean curvature and ``k1`` over the reliable points.
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import sys
 import time
@@ -57,8 +58,10 @@ def main(argv=None) -> None:
                     f"{seconds / base:.2f} | {100 * mean_error:.2g} | {100 * k1_error:.2g} | {100 * ok.mean():.2f} |")
         print(rows[-1], flush=True)
     print()
-    print(f"Machine: {cpu_model()}, {memory_text()}; Python {platform.python_version()}, numpy {np.__version__}; "
-          f"heatcurv at commit {commit()}")
+    import numba
+
+    print(f"Machine: {cpu_model()}, {os.cpu_count()} cores{memory_text()}; Python {platform.python_version()}, "
+          f"numpy {np.__version__}, numba {numba.__version__}; heatcurv at commit {commit()}")
     print()
     print(f"Random torus (tube radius 1 around a circle of radius 2.37), {args.points:,} points, default options; "
           "errors: median over the reliable points, relative to the median exact value")
