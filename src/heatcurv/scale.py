@@ -851,12 +851,13 @@ def _lepski(ladder_fits: _LadderFits, noise_bin: np.ndarray, tau: float) -> np.n
         if j >= len(ladder_fits.means):
             ladder_fits.evaluate(j)
         size = ladder_fits.sizes[j]
+        changes = ladder_fits.changes(j)  # (once per candidate: the same for every region)
         for b in sorted(open_bins):
             members = noise_bin[:size] == b
             if members.sum() < MIN_WINDOW:  # too few centres left at this width: stop widening
                 open_bins.discard(b)
                 continue
-            if all(np.median(c[members]) <= tau for c in ladder_fits.changes(j)):
+            if all(np.median(c[members]) <= tau for c in changes):
                 chosen[noise_bin == b] = j
             else:
                 open_bins.discard(b)
