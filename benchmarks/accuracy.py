@@ -1108,7 +1108,7 @@ def parse_args(argv=None):
                    help="add K to every seed of the low-noise table (other clouds of the same surfaces)")
     p.add_argument("--without-low-noise-path", action="store_true",
                    help="ablation: the default estimator with its very-low-noise gate "
-                   "(heatcurv.scale.in_low_noise_band) answering no, to measure what the path wins")
+                   "(heatcurv.choice.scale.in_low_noise_band) answering no, to measure what the path wins")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return p.parse_args(argv)
 
@@ -1185,9 +1185,9 @@ def main_table(bench, args, estimators, surfaces, samplers, sizes, plot):
 def main(argv=None) -> int:
     args = parse_args(argv)
     if args.without_low_noise_path:
-        import heatcurv.scale
+        import heatcurv.choice.scale
 
-        heatcurv.scale.in_low_noise_band = lambda relative_noise: False  # the ablation: the gate never opens
+        heatcurv.choice.scale.in_low_noise_band = lambda relative_noise: False  # the ablation: the gate never opens
     wall = time.perf_counter()
     quick = args.quick
     chosen = args.tables or [t for t in TABLES if not (quick and t == "heldout")]

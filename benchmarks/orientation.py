@@ -35,7 +35,7 @@ Columns
 Methods
 
 ``heatcurv``  ``heatcurv.estimate(points)``, the default options (normals
-              oriented outward, :mod:`heatcurv.orientation`); its rows are in
+              oriented outward, :mod:`heatcurv.orient.orientation`); its rows are in
               input order, exact duplicate vertices share values.
 ``tiled``     ``heatcurv.compute_file`` of the same cloud (an NPY file) forced into
               at least 4 tiles (``tile_size = n // 4``, the serial scheduler):
@@ -238,8 +238,8 @@ def decision(report) -> str:
 
 def median_roundness(points: np.ndarray) -> float:
     """The median ball's PCA roundness (``lambda_0 / lambda_1`` of the 60 nearest, tapered, as the estimator's)."""
-    from heatcurv.neighbourhood import knn_neighbourhood
-    from heatcurv.normals import pca_normals
+    from heatcurv.geometry.neighbourhood import knn_neighbourhood
+    from heatcurv.geometry.normals import pca_normals
 
     _, _, roundness = pca_normals(points, knn_neighbourhood(points, 60), taper=True, roundness=True)
     return float(np.nanmedian(roundness))

@@ -104,9 +104,9 @@ import scipy
 
 import heatcurv
 from heatcurv import surfaces as S
-from heatcurv.mean_curvature import mean_curvature
-from heatcurv.normals import orient_normals, pca_normals
-from heatcurv.operator import HeatKernelOperator
+from heatcurv.fits.mean_curvature import mean_curvature
+from heatcurv.geometry.normals import orient_normals, pca_normals
+from heatcurv.operators.operator import HeatKernelOperator
 from heatcurv.options import resolve_options
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -241,7 +241,7 @@ def evaluate(name: str, n: int, method: str = "paper", **options) -> dict:
     try:
         res = heatcurv.estimate(smp.points, method=method, **options)
     except heatcurv.HeatcurvError:
-        # the tensor fit refuses this kernel (too few effective neighbours, heatcurv.kernel_check);
+        # the tensor fit refuses this kernel (too few effective neighbours, heatcurv.choice.kernel_check);
         # the paper's quadratures (areas, kappa_M) do not need it: compute them from the operator
         res = quadratures_only(smp.points, method, options)
     seconds = time.perf_counter() - tic
@@ -359,7 +359,7 @@ def mark(value: float, run: dict, digits: int = 3) -> str:
 
 
 REFUSED = ("cells marked +: heatcurv.estimate refuses this kernel (the paper's tensor fit would rest on fewer than "
-           "5 effective neighbours, heatcurv.kernel_check); the area and kappa_M are the same quadratures, "
+           "5 effective neighbours, heatcurv.choice.kernel_check); the area and kappa_M are the same quadratures, "
            "computed from the operator alone (benchmarks/paper_reproduction.py: quadratures_only).")
 
 NOT_CONVERGED = ("cells marked *: the area system H A = 1 did not converge (CG stopped at its iteration cap): "

@@ -6,7 +6,7 @@ points, moved 10^0 ... 10^4 of their size from the origin and stored as float32.
 
 * from the float64 points before rounding (the values the rounding is judged against),
 * from the float32 points with ``coordinate_precision=0`` (``reliable`` without the precision flag),
-* from the float32 points (the precision flag of :mod:`heatcurv.reliability`).
+* from the float32 points (the precision flag of :mod:`heatcurv.flags.reliability`).
 
 A point is **off** when its ``k1``, ``k2`` or mean curvature moved by more than
 ``TUNING.precision_tolerance`` of its curvature scale (the larger of ``|k1|``,
@@ -14,7 +14,7 @@ A point is **off** when its ``k1``, ``k2`` or mean curvature moved by more than
 without and with the flag, and the points the flag took out that were not off ("needlessly").
 "same fit" splits the clouds whose float32 estimate kept the float64 fit's form and anchor count
 from those where the rounding changed them: the kernel choice saw the rounding as noise, or a
-sampling key (:mod:`heatcurv.sampling`) crossed its threshold and the anchors changed.
+sampling key (:mod:`heatcurv.geometry.sampling`) crossed its threshold and the anchors changed.
 
     python benchmarks/precision.py            # 160 clouds, about 10 minutes on 2 cores
     python benchmarks/precision.py --quick    # the noise-free 2000-point clouds, about 3 minutes

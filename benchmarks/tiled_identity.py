@@ -15,7 +15,7 @@ The LiDAR tile (:func:`heatcurv.surfaces.lidar_tile`: ground, three
 buildings, five tree crowns, 60 m x 60 m) is the case a global orientation
 got wrong in tiles: walls and crowns took their side along the spanning tree
 of the whole cloud (99.95 % of 40 000 points in 8 tiles); ``"up"`` is now
-decided within each point's reach (:func:`heatcurv.orientation.local_sides`).
+decided within each point's reach (:func:`heatcurv.orient.orientation.local_sides`).
 
 Relative error as in :mod:`support.tiles` (directions up to sign;
 masks exactly).

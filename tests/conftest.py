@@ -5,7 +5,7 @@ from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.neighbourhood import knn_neighbourhood
+from heatcurv.geometry.neighbourhood import knn_neighbourhood
 from records import Records
 
 

@@ -1,4 +1,4 @@
-"""heatcurv.anchors: wide kernels fitted at anchors with their whole balls, carried to every point."""
+"""heatcurv.fits.anchors: wide kernels fitted at anchors with their whole balls, carried to every point."""
 
 import dataclasses
 
@@ -9,17 +9,17 @@ from scipy.spatial import cKDTree
 import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.anchors import carry_anchor_fits
-from heatcurv.anchors import (
+from heatcurv.choice.scale import Scale, fit_at_scale, in_low_noise_band
+from heatcurv.fits.anchors import (
     anchor_rows,
     anchors_per_ball,
     carry_degree,
     carry_fits,
     fit_anchors,
 )
-from heatcurv.areas import density_areas
-from heatcurv.neighbourhood import knn_neighbourhood
-from heatcurv.sampling import geometric_keys
-from heatcurv.scale import Scale, fit_at_scale, in_low_noise_band
+from heatcurv.geometry.neighbourhood import knn_neighbourhood
+from heatcurv.geometry.sampling import geometric_keys
+from heatcurv.operators.areas import density_areas
 from heatcurv.surfaces.accuracy import compare
 from heatcurv.tuning import TUNING
 
@@ -92,12 +92,12 @@ def test_carried_values_match_fits_at_every_point_on_a_graph(records):
 
 def test_support_radius_bounds_what_a_point_depends_on():
     # the halo a tiled run needs: with the cloud-wide choices fixed (the frame the sampling keys are computed
-    # in, the kernel widths: heatcurv.choices, as a tile gets them), moving every point farther than the support
+    # in, the kernel widths: heatcurv.choice.choices, as a tile gets them), moving every point farther than the support
     # radius from a point changes none of its values, bit for bit. Without them the moved points move the
     # centroid, so every sampling key and the anchors drawn with them (measured: the largest field moved
     # 1-11 % at five probes).
-    from heatcurv.choices import FrameStats
-    from heatcurv.survey import merge_surveys, survey_part
+    from heatcurv.choice.choices import FrameStats
+    from heatcurv.choice.survey import merge_surveys, survey_part
 
     points = surfaces.Torus().sample(12_000, "random", seed=4, noise=0.004).points
     res = heatcurv.estimate(points, scale=960)
@@ -371,7 +371,7 @@ def test_clean_clouds_keep_the_chord_fit(name, sampler, n, records, monkeypatch)
     # after it (an earlier form of it refitted in the gate and took the jittered paraboloid grid to
     # denoised-480, with 10x the chord fit's d1 error). Their measured noise (the grid: relative_noise 1.2e-5,
     # the torus 2.4e-5) is fine rounding's, below the band today: the band is widened to take them in.
-    monkeypatch.setattr("heatcurv.scale.TUNING", dataclasses.replace(TUNING, no_noise=1e-6))
+    monkeypatch.setattr("heatcurv.choice.scale.TUNING", dataclasses.replace(TUNING, no_noise=1e-6))
     sample = surfaces.get(name).sample(n, sampler, seed=1 if name == "torus" else 3)
     res = heatcurv.estimate(sample.points)
     scale = res.info["scale"]
@@ -435,7 +435,7 @@ def test_fine_rounding_takes_the_plain_denoised_fit(monkeypatch, records):
     def median_error(result):
         return float(np.median(np.abs(result.mean - sample.mean)[result.reliable]) / np.median(np.abs(sample.mean)))
 
-    monkeypatch.setattr("heatcurv.scale.TUNING", dataclasses.replace(TUNING, no_noise=1e-6))
+    monkeypatch.setattr("heatcurv.choice.scale.TUNING", dataclasses.replace(TUNING, no_noise=1e-6))
     path = heatcurv.estimate(rounded)
     assert path.info["plan"].refit
     assert median_error(res) < 0.5 * median_error(path)

@@ -1,4 +1,4 @@
-"""heatcurv.areas: point areas from H A = 1 (section 2.2), the density areas and the ball factor."""
+"""heatcurv.operators.areas: point areas from H A = 1 (section 2.2), the density areas and the ball factor."""
 
 import numpy as np
 import pytest
@@ -6,9 +6,9 @@ from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
-from heatcurv.areas import area_matrix, ball_area_factor, cut_ball_coverage, density_areas, point_areas
-from heatcurv.neighbourhood import ball_neighbourhood
-from heatcurv.operator import build_operator
+from heatcurv.geometry.neighbourhood import ball_neighbourhood
+from heatcurv.operators.areas import area_matrix, ball_area_factor, cut_ball_coverage, density_areas, point_areas
+from heatcurv.operators.operator import build_operator
 
 
 def test_plane_grid_areas_are_the_cell_area_up_to_the_theta_sum(plane_grid, records):

@@ -1,12 +1,12 @@
-"""heatcurv.border: the border flags of open surfaces from the tapered centroid offset."""
+"""heatcurv.flags.border: the border flags of open surfaces from the tapered centroid offset."""
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from heatcurv import surfaces
-from heatcurv.border import border_points, centroid_offset
-from heatcurv.kernel import ball_taper
-from heatcurv.neighbourhood import ball_neighbourhood
+from heatcurv.flags.border import border_points, centroid_offset
+from heatcurv.geometry.neighbourhood import ball_neighbourhood
+from heatcurv.operators.kernel import ball_taper
 from heatcurv.tuning import TUNING
 
 

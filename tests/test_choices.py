@@ -1,12 +1,12 @@
-"""heatcurv.choices: the whole cloud's frame, streamed in chunks or taken in memory, is one frame."""
+"""heatcurv.choice.choices: the whole cloud's frame, streamed in chunks or taken in memory, is one frame."""
 
 import numpy as np
 import pytest
 
 import heatcurv
-from heatcurv.choices import FrameStats, frame_of
+from heatcurv.choice.choices import FrameStats, frame_of
 from heatcurv.errors import HeatcurvError
-from heatcurv.validation import prepare_points
+from heatcurv.geometry.validation import prepare_points
 
 
 def test_streamed_frame_equals_the_in_memory_frame():

@@ -1,4 +1,4 @@
-"""heatcurv.chordfit: the per-row weighted least squares and the chord fit of the default method."""
+"""heatcurv.fits.chordfit: the per-row weighted least squares and the chord fit of the default method."""
 
 from dataclasses import replace
 
@@ -7,9 +7,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from heatcurv import surfaces
-from heatcurv.chordfit import ChordFit, chord_fit, refine_normals
-from heatcurv.kernel import tapered_heat_weights
-from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
+from heatcurv.fits.chordfit import ChordFit, chord_fit, refine_normals
+from heatcurv.geometry.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
+from heatcurv.operators.kernel import tapered_heat_weights
 from reference.lstsq import ridge_solve, segment_lstsq
 
 
@@ -167,7 +167,7 @@ def test_a_float32_paraboloid_whose_anchors_mix_refitted_widths_is_estimated(mon
     import heatcurv
     from heatcurv.tuning import TUNING
 
-    monkeypatch.setattr("heatcurv.scale.TUNING", dataclasses.replace(TUNING, no_noise=1e-6))
+    monkeypatch.setattr("heatcurv.choice.scale.TUNING", dataclasses.replace(TUNING, no_noise=1e-6))
     sample = surfaces.Paraboloid().sample(2000, "random", seed=35627).points
     far = (sample + 100.0 * np.linalg.norm(np.ptp(sample, axis=0))).astype(np.float32)
     res = heatcurv.estimate(far)

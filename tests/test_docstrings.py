@@ -7,13 +7,14 @@ import pytest
 import heatcurv.data
 import heatcurv.estimator
 import heatcurv.features
-import heatcurv.operator
+import heatcurv.operators.operator
 import heatcurv.render
 import heatcurv.shading
 import heatcurv.view
 
 MODULES = [
-    heatcurv.estimator, heatcurv.features, heatcurv.operator, heatcurv.render, heatcurv.shading, heatcurv.view,
+    heatcurv.estimator, heatcurv.features, heatcurv.operators.operator, heatcurv.render, heatcurv.shading,
+    heatcurv.view,
     heatcurv.data,
 ]
 

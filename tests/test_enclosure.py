@@ -1,4 +1,4 @@
-"""heatcurv.enclosure: the winding number turns parts of a closed cloud outward and flags what it contradicts."""
+"""heatcurv.orient.enclosure: the winding number turns parts of a closed cloud outward and flags what it contradicts."""
 
 import numpy as np
 import pytest
@@ -7,9 +7,9 @@ import scipy.sparse as sp
 import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.winding import winding_numbers
-from heatcurv.enclosure import Enclosure, enclose, patch_fields, patches
-from heatcurv.neighbourhood import knn_neighbourhood
-from heatcurv.orientation import _spanning_forest
+from heatcurv.geometry.neighbourhood import knn_neighbourhood
+from heatcurv.orient.enclosure import Enclosure, enclose, patch_fields, patches
+from heatcurv.orient.orientation import _spanning_forest
 from heatcurv.tuning import TUNING
 
 

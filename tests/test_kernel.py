@@ -1,12 +1,18 @@
-"""heatcurv.kernel: heat-kernel weights and their normalisations (eqs 2.8, 2.9), the flat-top taper."""
+"""heatcurv.operators.kernel: heat-kernel weights and their normalisations (eqs 2.8, 2.9), the flat-top taper."""
 
 import numpy as np
 import pytest
 
 from heatcurv import HeatcurvError
-from heatcurv.areas import _taper_moments
-from heatcurv.kernel import area_normalisation, ball_taper, flat_top, heat_kernel_weights, laplacian_normalisation
-from heatcurv.neighbourhood import ball_neighbourhood
+from heatcurv.geometry.neighbourhood import ball_neighbourhood
+from heatcurv.operators.areas import _taper_moments
+from heatcurv.operators.kernel import (
+    area_normalisation,
+    ball_taper,
+    flat_top,
+    heat_kernel_weights,
+    laplacian_normalisation,
+)
 
 
 def test_heat_kernel_weights_and_normalisations():

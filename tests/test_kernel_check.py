@@ -1,4 +1,4 @@
-"""heatcurv.kernel_check: kernels that leave nothing to fit are refused, doubtful ones warned about."""
+"""heatcurv.choice.kernel_check: kernels that leave nothing to fit are refused, doubtful ones warned about."""
 
 import warnings
 
@@ -8,12 +8,12 @@ from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import HeatcurvError, HeatcurvWarning, surfaces
+from heatcurv.choice.kernel_check import _ball_counts, _round_up, measure_support
 from heatcurv.data import bunny_path
+from heatcurv.geometry.neighbourhood import ball_neighbourhood, knn_neighbourhood
 from heatcurv.io import read_points
-from heatcurv.kernel import effective_neighbours
-from heatcurv.kernel_check import _ball_counts, _round_up, measure_support
-from heatcurv.neighbourhood import ball_neighbourhood, knn_neighbourhood
-from heatcurv.operator import build_operator
+from heatcurv.operators.kernel import effective_neighbours
+from heatcurv.operators.operator import build_operator
 from heatcurv.tuning import TUNING
 
 
@@ -151,7 +151,7 @@ def test_the_paper_fit_needs_min_neighbours_in_its_ball(bunny):
 
 
 def test_the_message_is_in_the_input_unit(bunny):
-    messages, _ = _ball_warnings(bunny * 1e-12, radius=1e-16)  # computed in another unit (heatcurv.validation)
+    messages, _ = _ball_warnings(bunny * 1e-12, radius=1e-16)  # computed in another unit (heatcurv.geometry.validation)
     assert len(messages) == 1
     assert "radius = 1e-16 leaves a median point's ball with 0 neighbours;" in messages[0]
     assert "median spacing is 2.8e-13: radius = 7e-13 gives 90 % of them" in messages[0]

@@ -45,9 +45,9 @@ ROW_CORES = {
 #: The chord fit's general cores, for fits without the tilt or the cubic terms: the estimator runs
 #: the full model's cores only, so these compile only when such a fit is asked for.
 OTHER_MODELS = {"_assemble_normal_equations", "_weighted_height_residual", "_two_height_residuals"}
-#: Run only by the low-noise refit, for clouds in the very-low-noise band (heatcurv.chordfit, low_noise=True).
+#: Run only by the low-noise refit, for clouds in the very-low-noise band (heatcurv.fits.chordfit, low_noise=True).
 LOW_NOISE = {"_two_residuals_full_model"}
-#: Run only for the points the outliers' counts leave undecided (heatcurv.outliers.exceeds_neighbour_median).
+#: Run only for the points the outliers' counts leave undecided (heatcurv.flags.outliers.exceeds_neighbour_median).
 SOMETIMES = {"_neighbour_medians"}
 
 

@@ -9,10 +9,10 @@ from scipy.spatial import cKDTree
 
 from heatcurv import surfaces
 from heatcurv._kernels.chordfit import solve_compiled
-from heatcurv.chordfit import chord_fit, refine_normals
-from heatcurv.kernel import ball_taper
-from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood
-from heatcurv.normals import tangent_frames
+from heatcurv.fits.chordfit import chord_fit, refine_normals
+from heatcurv.geometry.neighbourhood import Neighbourhood, ball_neighbourhood
+from heatcurv.geometry.normals import tangent_frames
+from heatcurv.operators.kernel import ball_taper
 from reference import chordfit as reference
 from reference.lstsq import solve_normal_equations
 
@@ -43,7 +43,7 @@ def cloud(sample, k=60, queries=None):
     return pts, nb, w
 
 
-#: The forms compared: chord, denoised, and the denoised form's low-noise refit (heatcurv.chordfit.chord_fit).
+#: The forms compared: chord, denoised, and the denoised form's low-noise refit (heatcurv.fits.chordfit.chord_fit).
 FORMS = [(False, False), (True, False), (True, True)]
 
 
@@ -76,7 +76,7 @@ def model_parts(coefficients, e1, e2, directions):
 def assert_same_model(ref, fit, rtol):
     """The two fits' models agree along common tangent directions, each in its own documented frame.
 
-    The compiled coefficients are given in ``heatcurv.normals.tangent_frames(fit.normals)``; comparing
+    The compiled coefficients are given in ``heatcurv.geometry.normals.tangent_frames(fit.normals)``; comparing
     the models' values rather than the coefficients keeps the check valid where the two normals, equal
     to rounding, pick different frames (a normal with two equal smallest components, e.g. (0, 0, 1)).
     """
@@ -285,5 +285,5 @@ def test_compiled_solve_matches_numpy_and_decides_well_posedness_exactly():
     np.testing.assert_allclose(cbeta[210:], beta[210:], rtol=1e-10)
     np.testing.assert_allclose(crss[210:], rss[210:], rtol=1e-11)
     np.testing.assert_allclose(cvar[210:], var[210:], rtol=1e-13)
-    # the numpy helper of heatcurv.chordfit solves the same equations (measured: identical)
+    # the numpy helper of heatcurv.fits.chordfit solves the same equations (measured: identical)
     np.testing.assert_allclose(solve_normal_equations(G, r, yy, contrast=c, G2=G2)[0][210:], beta[210:], rtol=1e-12)

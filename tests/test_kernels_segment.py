@@ -19,15 +19,15 @@ from scipy.spatial import cKDTree
 import heatcurv
 import heatcurv._kernels.segment as compiled
 from heatcurv import surfaces
-from heatcurv.areas import density_areas, taper_sums
-from heatcurv.border import centroid_offset
-from heatcurv.chordfit import chord_fit
-from heatcurv.kernel import TAPER_START, ball_taper, heat_kernel_weights, tapered_heat_weights
-from heatcurv.mean_curvature import mean_curvature_normal
-from heatcurv.neighbourhood import Neighbourhood, knn_neighbourhood
-from heatcurv.normals import orient_normals, pca_normals
-from heatcurv.outliers import find_outliers, neighbour_medians
-from heatcurv.sheets import second_sheet
+from heatcurv.fits.chordfit import chord_fit
+from heatcurv.fits.mean_curvature import mean_curvature_normal
+from heatcurv.flags.border import centroid_offset
+from heatcurv.flags.outliers import find_outliers, neighbour_medians
+from heatcurv.flags.sheets import second_sheet
+from heatcurv.geometry.neighbourhood import Neighbourhood, knn_neighbourhood
+from heatcurv.geometry.normals import orient_normals, pca_normals
+from heatcurv.operators.areas import density_areas, taper_sums
+from heatcurv.operators.kernel import TAPER_START, ball_taper, heat_kernel_weights, tapered_heat_weights
 from reference import chordfit as reference_chordfit
 from reference import segment as reference
 

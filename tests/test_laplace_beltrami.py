@@ -1,10 +1,10 @@
-"""heatcurv.laplace_beltrami: the Laplace-Beltrami matrix (eq 2.9) applied to the coordinates is K (eq 2.10)."""
+"""heatcurv.operators.laplace_beltrami: the matrix (eq 2.9) applied to the coordinates is K (eq 2.10)."""
 
 import numpy as np
 
-from heatcurv.laplace_beltrami import laplace_beltrami_matrix
-from heatcurv.mean_curvature import mean_curvature_normal
-from heatcurv.operator import build_operator
+from heatcurv.fits.mean_curvature import mean_curvature_normal
+from heatcurv.operators.laplace_beltrami import laplace_beltrami_matrix
+from heatcurv.operators.operator import build_operator
 
 
 def test_laplacian_of_coordinates_is_the_mean_curvature_normal(sphere_sample):

@@ -145,9 +145,10 @@ def test_the_public_api_is_short_and_the_building_blocks_stay_in_their_modules()
     ]
     assert all(hasattr(heatcurv, name) for name in heatcurv.__all__)
     # one way to get a Laplacian at the top; the others from their modules
-    for module, name in [("neighbourhood", "ball_neighbourhood"), ("operator", "build_operator"),
-                         ("point_laplacian", "point_cloud_laplacian"), ("laplace_beltrami", "laplace_beltrami_matrix"),
-                         ("normals", "pca_normals"), ("options", "resolve_options")]:
+    for module, name in [("geometry.neighbourhood", "ball_neighbourhood"), ("operators.operator", "build_operator"),
+                         ("operators.point_laplacian", "point_cloud_laplacian"),
+                         ("operators.laplace_beltrami", "laplace_beltrami_matrix"),
+                         ("geometry.normals", "pca_normals"), ("options", "resolve_options")]:
         assert not hasattr(heatcurv, name), name
         assert callable(getattr(importlib.import_module(f"heatcurv.{module}"), name))
 

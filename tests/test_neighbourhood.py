@@ -1,4 +1,4 @@
-"""heatcurv.neighbourhood: ball neighbourhoods in CSR form, their segment sums and row blocks."""
+"""heatcurv.geometry.neighbourhood: ball neighbourhoods in CSR form, their segment sums and row blocks."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ from scipy.spatial.distance import cdist
 
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
-from heatcurv.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
+from heatcurv.geometry.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
 
 
 def grid(m=21, step=0.1):
@@ -66,7 +66,7 @@ def test_ball_holds_the_expected_number_of_points_on_a_sphere():
 
 
 def test_fitting_in_blocks_changes_nothing(monkeypatch):
-    import heatcurv.neighbourhood as neighbourhood_module
+    import heatcurv.geometry.neighbourhood as neighbourhood_module
 
     sample = surfaces.Torus().sample(3000, "random", seed=6)
     whole = heatcurv.estimate(sample.points)

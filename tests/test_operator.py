@@ -5,9 +5,9 @@ import pytest
 
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
-from heatcurv.laplace_beltrami import laplace_beltrami_matrix
-from heatcurv.mean_curvature import mean_curvature_normal
-from heatcurv.operator import HeatKernelOperator, build_operator
+from heatcurv.fits.mean_curvature import mean_curvature_normal
+from heatcurv.operators.laplace_beltrami import laplace_beltrami_matrix
+from heatcurv.operators.operator import HeatKernelOperator, build_operator
 
 
 @pytest.fixture(scope="module")

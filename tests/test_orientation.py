@@ -1,4 +1,4 @@
-"""heatcurv.orientation: outward, up and towards a scanner; thin parts; what cannot be oriented is flagged."""
+"""heatcurv.orient.orientation: outward, up and towards a scanner; thin parts; what cannot be oriented is flagged."""
 
 import numpy as np
 import pytest
@@ -6,9 +6,9 @@ import pytest
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.errors import HeatcurvError
-from heatcurv.neighbourhood import knn_neighbourhood
-from heatcurv.normals import pca_normals
-from heatcurv.orientation import as_viewpoint, local_sides, orient
+from heatcurv.geometry.neighbourhood import knn_neighbourhood
+from heatcurv.geometry.normals import pca_normals
+from heatcurv.orient.orientation import as_viewpoint, local_sides, orient
 from heatcurv.tuning import TUNING
 
 

@@ -6,7 +6,7 @@ from scipy.spatial.transform import Rotation
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.orientation import auto_policy
+from heatcurv.orient.orientation import auto_policy
 from heatcurv.tuning import TUNING
 
 

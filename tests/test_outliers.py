@@ -1,12 +1,12 @@
-"""heatcurv.outliers: stray points and islands are flagged, get area 0, and leave the surface alone."""
+"""heatcurv.flags.outliers: stray points and islands are flagged, get area 0, and leave the surface alone."""
 
 import numpy as np
 import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.neighbourhood import Neighbourhood, knn_neighbourhood
-from heatcurv.outliers import exceeds_neighbour_median, find_outliers, neighbour_medians
+from heatcurv.flags.outliers import exceeds_neighbour_median, find_outliers, neighbour_medians
+from heatcurv.geometry.neighbourhood import Neighbourhood, knn_neighbourhood
 
 
 def _sphere_with_strays(seed=0):

@@ -11,9 +11,9 @@ import pytest
 
 import heatcurv
 from heatcurv import estimator, surfaces
+from heatcurv.choice.plan import FORMS, FitPlan, plan_fit
+from heatcurv.choice.scale import Scale, ScaleChoice
 from heatcurv.options import ScaleTuning, resolve_options
-from heatcurv.plan import FORMS, FitPlan, plan_fit
-from heatcurv.scale import Scale, ScaleChoice
 from heatcurv.tuning import TUNING
 
 SPIED = ("principal_fit", "chord_fit", "refine_normals", "anchor_rows", "anchor_normals", "fit_anchors", "carry_fits")

@@ -1,4 +1,4 @@
-"""The default point-cloud Laplacian (heatcurv.point_laplacian): invariants, spectra against exact values."""
+"""The default point-cloud Laplacian (heatcurv.operators.point_laplacian): invariants, spectra against exact values."""
 
 import numpy as np
 import pytest
@@ -96,7 +96,7 @@ def test_voronoi_cells_of_a_grid_are_exact():
     # clips agree, so corners are left out
     from scipy.spatial import cKDTree
 
-    from heatcurv.point_laplacian import BORDER_GAP, VORONOI_NEIGHBOURS, _voronoi_areas
+    from heatcurv.operators.point_laplacian import BORDER_GAP, VORONOI_NEIGHBOURS, _voronoi_areas
 
     a = 0.1
     g = np.arange(30) * a

@@ -12,7 +12,7 @@ import pytest
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.errors import HeatcurvError
-from heatcurv.reliability import coordinate_rounding, imprecise
+from heatcurv.flags.reliability import coordinate_rounding, imprecise
 from heatcurv.tuning import TUNING
 
 

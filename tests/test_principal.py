@@ -1,13 +1,13 @@
-"""heatcurv.principal: the curvature-tensor fit of section 3 (eq 3.1), constrained and free."""
+"""heatcurv.fits.principal: the curvature-tensor fit of section 3 (eq 3.1), constrained and free."""
 
 import numpy as np
 import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.mean_curvature import edge_normal_curvatures
-from heatcurv.neighbourhood import ball_neighbourhood
-from heatcurv.principal import PrincipalCurvatures, _disc_constrained_lsq, principal_fit
+from heatcurv.fits.mean_curvature import edge_normal_curvatures
+from heatcurv.fits.principal import PrincipalCurvatures, _disc_constrained_lsq, principal_fit
+from heatcurv.geometry.neighbourhood import ball_neighbourhood
 
 
 def synthetic_neighbourhood(k1, k2, angle, n_nb=40, seed=0):

@@ -52,7 +52,7 @@ def test_paper_method_stages():
 
 
 def test_fit_blocks_report_their_fraction(monkeypatch):
-    import heatcurv.neighbourhood as neighbourhood_module
+    import heatcurv.geometry.neighbourhood as neighbourhood_module
 
     monkeypatch.setattr(neighbourhood_module, "BLOCK_PAIRS", 20_000)  # 333 points x 60 pairs a block
     calls = []

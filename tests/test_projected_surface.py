@@ -13,7 +13,7 @@ of the surface are moved off it along the normal by 0.43 % of the bounding-box d
 one Newton step x <- x - F g / |g|^2, which stops early: the points stay about 4e-5 of the diagonal off the
 surface (a smooth, one-sided projection error). The exact values are those of the exactly projected points
 (Newton to convergence). Such a cloud is clean for the fit: its chord fit at 60 neighbours has about half the
-error of the denoised fit, which the noise gate (:func:`heatcurv.scale._is_clean`) must therefore not choose.
+error of the denoised fit, which the noise gate (:func:`heatcurv.choice.scale._is_clean`) must therefore not choose.
 """
 
 import numpy as np

@@ -69,7 +69,7 @@ def test_readme_demo_table_default_row_is_what_the_code_gives():
 def test_eq_2_6_measures_about_half_the_spacing_of_a_random_cloud():
     # docs/how_it_works.md: "eq 2.6 measures about half the spacing sqrt(area / n) of a random cloud" (0.50 at
     # 20 000 random points of the unit sphere, 0.96 on a Fibonacci sphere, whose points are evenly spaced)
-    from heatcurv.spacing import global_spacing
+    from heatcurv.geometry.spacing import global_spacing
 
     step = np.sqrt(4 * np.pi / 20000)
     random = global_spacing(heatcurv.surfaces.Sphere().sample(20000, "random", seed=1).points) / step

@@ -1,4 +1,4 @@
-"""heatcurv.reliability: the flags that compare a point with the whole cloud's medians."""
+"""heatcurv.flags.reliability: the flags that compare a point with the whole cloud's medians."""
 
 import warnings
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from heatcurv.errors import HeatcurvWarning
-from heatcurv.reliability import (
+from heatcurv.flags.reliability import (
     ReliabilityInputs,
     cloud_flags,
     misfit_baselines,

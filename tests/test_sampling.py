@@ -1,4 +1,4 @@
-"""Subsets drawn from geometry (heatcurv.sampling) and the invariance they buy.
+"""Subsets drawn from geometry (heatcurv.geometry.sampling) and the invariance they buy.
 
 Before the keys, the kernel check, the kernel choice and the coarse level of kernels
 wider than 240 neighbours drew their subsets at random over row numbers; a rotation
@@ -11,8 +11,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import heatcurv
-from heatcurv.neighbourhood import knn_neighbourhood
-from heatcurv.sampling import geometric_keys, key_sample
+from heatcurv.geometry.neighbourhood import knn_neighbourhood
+from heatcurv.geometry.sampling import geometric_keys, key_sample
 
 
 @pytest.fixture(scope="module")

@@ -1,14 +1,14 @@
-"""heatcurv.scale: the kernel-width choice between chord and denoised fits, per point."""
+"""heatcurv.choice.scale: the kernel-width choice between chord and denoised fits, per point."""
 
 import numpy as np
 import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.areas import density_areas
-from heatcurv.neighbourhood import knn_neighbourhood
-from heatcurv.operator import build_operator
-from heatcurv.scale import Scale, ScaleReport, fit_at_scale, fit_blocks, select_scale
+from heatcurv.choice.scale import Scale, ScaleReport, fit_at_scale, fit_blocks, select_scale
+from heatcurv.geometry.neighbourhood import knn_neighbourhood
+from heatcurv.operators.areas import density_areas
+from heatcurv.operators.operator import build_operator
 
 
 def test_select_scale_clean_and_noisy(records):

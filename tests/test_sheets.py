@@ -5,8 +5,8 @@ import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.neighbourhood import knn_neighbourhood
-from heatcurv.sheets import layered_balls, second_sheet
+from heatcurv.flags.sheets import layered_balls, second_sheet
+from heatcurv.geometry.neighbourhood import knn_neighbourhood
 
 
 def _two_sheets(gap, bottom_up, n=4000, seed=0):

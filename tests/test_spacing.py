@@ -1,11 +1,11 @@
-"""heatcurv.spacing: the spacing h, global (eq 2.6) and local (eq 2.7)."""
+"""heatcurv.geometry.spacing: the spacing h, global (eq 2.6) and local (eq 2.7)."""
 
 import numpy as np
 import pytest
 from scipy.spatial.distance import cdist
 
 from heatcurv import HeatcurvError
-from heatcurv.spacing import global_spacing, local_spacing, spacing
+from heatcurv.geometry.spacing import global_spacing, local_spacing, spacing
 
 
 def grid(m=21, step=0.1):

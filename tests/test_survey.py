@@ -1,4 +1,4 @@
-"""heatcurv.survey and estimate(choices=): a part of a cloud computes as the whole cloud would.
+"""heatcurv.choice.survey and estimate(choices=): a part of a cloud computes as the whole cloud would.
 
 A tiled run (heatcurv.tiles) surveys its tiles' sample centres, joins them into the cloud's
 kernel choice, and computes each tile with its halo under that choice. Here the tiles are cut
@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import heatcurv
-from heatcurv.choices import FrameStats
+from heatcurv.choice.choices import FrameStats
+from heatcurv.choice.survey import merge_surveys, survey_part, tile_options
 from heatcurv.errors import HeatcurvError
-from heatcurv.reliability import ReliabilityInputs, cloud_flags
-from heatcurv.survey import merge_surveys, survey_part, tile_options
+from heatcurv.flags.reliability import ReliabilityInputs, cloud_flags
 
 FIELDS = ("normals", "mean", "gaussian", "k1", "k2", "area", "fit_radius", "border", "outlier")
 
@@ -120,7 +120,7 @@ def test_a_clean_cloud_gets_one_width_from_the_survey():
     frame = stats.frame()
     tiles = _halves(points, 10.0)
     choices = merge_surveys([survey_part(points[r], c, frame) for r, c, _, _ in tiles], frame)
-    assert choices.scale.scale == heatcurv.scale.Scale(60, False)
+    assert choices.scale.scale == heatcurv.choice.scale.Scale(60, False)
     assert choices.scale.centres is None
 
 

@@ -15,8 +15,9 @@ SRC = Path(heatcurv.__file__).parent
 
 #: The stages that pick a fit path or flag a point.
 DECISION_MODULES = (
-    "scale", "plan", "anchors", "chordfit", "estimator", "orientation", "enclosure", "reliability", "sheets",
-    "outliers", "border", "kernel_check", "areas",
+    "choice/scale", "choice/plan", "fits/anchors", "fits/chordfit", "estimator", "orient/orientation",
+    "orient/enclosure", "flags/reliability", "flags/sheets", "flags/outliers", "flags/border", "choice/kernel_check",
+    "operators/areas",
 )
 #: Float literals these stages may still compare against, by source line: geometry and numerics, no choice of path
 #: or flag (a quadrature's range, a solver's tolerance, where a winding-number query sits and where its disc ends).
@@ -57,11 +58,11 @@ def test_no_stage_compares_against_a_number_of_its_own(module):
     found = set()
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Compare) and _float_literals(node):
-            found.add((module, lines[node.lineno - 1].strip()))
+            found.add((module.rpartition("/")[2], lines[node.lineno - 1].strip()))
         # a module constant holding a fractional number (NAME = 0.3) is a threshold of its own too
         if isinstance(node, ast.Assign) and node.col_offset == 0 and _float_literals(node.value):
             names = [t.id for t in node.targets if isinstance(t, ast.Name)]
-            found |= {(module, f"{name} = ...") for name in names}
+            found |= {(module.rpartition("/")[2], f"{name} = ...") for name in names}
     assert found <= GEOMETRY, sorted(found - GEOMETRY)
 
 
@@ -69,7 +70,7 @@ def test_the_estimator_reads_the_tuning_it_is_given(monkeypatch):
     """The stages read :data:`TUNING` when they run: a study's value changes what the estimator does."""
     points = Torus().sample(3000, "random", seed=3).points
     base = heatcurv.estimate(points)
-    for module in ("heatcurv.reliability", "heatcurv.estimator"):
+    for module in ("heatcurv.flags.reliability", "heatcurv.estimator"):
         monkeypatch.setattr(f"{module}.TUNING", dataclasses.replace(TUNING, resolution_limit=1e-3))
     coarse = heatcurv.estimate(points)
     assert base.reliable.mean() > 0.9 and not coarse.reliable.any()

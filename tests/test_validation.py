@@ -1,11 +1,11 @@
-"""heatcurv.validation: bad input raises HeatcurvError naming it; duplicates and far coordinates are handled."""
+"""heatcurv.geometry.validation: bad input raises HeatcurvError naming it; duplicates, far coordinates handled."""
 
 import numpy as np
 import pytest
 
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
-from heatcurv.validation import prepare_normals, prepare_points
+from heatcurv.geometry.validation import prepare_normals, prepare_points
 
 
 @pytest.fixture(scope="module")

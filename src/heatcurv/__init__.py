@@ -49,8 +49,8 @@ from . import surfaces
 from .errors import HeatcurvError, HeatcurvWarning
 from .estimator import estimate
 from .features import FeatureResult, sharp_features
+from .operators.point_laplacian import PointCloudLaplacian, laplacian
 from .options import METHODS, Options, ScaleTuning
-from .point_laplacian import PointCloudLaplacian, laplacian
 from .results import CurvatureResult
 
 __version__ = "0.1.0"
@@ -69,7 +69,7 @@ def compute_file(src, dst, **options):
 #: The public API: the estimator and its result, the Laplacian and its precomputed form, sharp features,
 #: out-of-core runs, the options and the errors; ``surfaces``, the analytic surfaces every example samples. Every
 #: building block is imported from its own module
-#: (``heatcurv.neighbourhood.ball_neighbourhood``, ``heatcurv.operator.build_operator`` ...).
+#: (``heatcurv.geometry.neighbourhood.ball_neighbourhood``, ``heatcurv.operators.operator.build_operator`` ...).
 __all__ = [
     "CurvatureResult",
     "FeatureResult",

@@ -2,7 +2,7 @@
 
 Both methods share the operator and the normals::
 
-    validate -> neighbours -> spacing -> areas            (heatcurv.operator)
+    validate -> neighbours -> spacing -> areas            (heatcurv.operators.operator)
     -> kernel_check                                       (enough neighbours under the fit's kernel)
     -> outliers                                           (stray points and islands: unreliable, area 0)
     -> normals -> orientation                             (PCA; given; outward, up or to a viewpoint)
@@ -12,14 +12,14 @@ then ``method="paper"`` (section 3)::
 
     -> mean (eq 2.11 / 2.12) -> principal (tensor fit, eq 3.1) -> border
 
-and ``method="default"`` (the chord fit, :mod:`heatcurv.chordfit`)::
+and ``method="default"`` (the chord fit, :mod:`heatcurv.fits.chordfit`)::
 
-    -> kernel_choice                                      (noise and kernel width, heatcurv.scale)
-    -> the fit plan                                       (heatcurv.plan: the one place that chooses)
+    -> kernel_choice                                      (noise and kernel width, heatcurv.choice.scale)
+    -> the fit plan                                       (heatcurv.choice.plan: the one place that chooses)
     -> at every point, per block of points:
          fit_neighbourhood -> fit_weights -> normal_refinement
          -> curvature_fit -> border -> area_correction
-       or at anchors (noise, or a kernel wider than k_fit; heatcurv.anchors):
+       or at anchors (noise, or a kernel wider than k_fit; heatcurv.fits.anchors):
          anchor_fit -> carry -> area_correction
 
 Each stage is timed under its own name (``result.info["timings"]``; the
@@ -34,27 +34,19 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from .anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
-from .areas import ball_area_factor, cut_ball_coverage, density_areas, fit_areas
 from .backend import threads
-from .border import border_points, centroid_offset
-from .choices import frame_of
-from .chordfit import ChordFit, chord_fit, refine_normals
-from .enclosure import warn_undecided
+from .choice.choices import frame_of
+from .choice.kernel_check import check_ball_counts, check_kernel
+from .choice.plan import FitPlan, plan_fit
+from .choice.scale import ScaleReport, centre_noise, select_form, select_scale
 from .errors import HeatcurvError
-from .kernel import tapered_heat_weights
-from .kernel_check import check_ball_counts, check_kernel
-from .mean_curvature import mean_curvature
-from .neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_per_block
-from .normals import pca_normals
-from .operator import HeatKernelOperator
-from .options import resolve_options
-from .orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient, row_reach
-from .outliers import Outliers, find_outliers
-from .plan import FitPlan, plan_fit
-from .principal import PrincipalCurvatures, principal_fit
-from .progress import StageClock
-from .reliability import (
+from .fits.anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
+from .fits.chordfit import ChordFit, chord_fit, refine_normals
+from .fits.mean_curvature import mean_curvature
+from .fits.principal import PrincipalCurvatures, principal_fit
+from .flags.border import border_points, centroid_offset
+from .flags.outliers import Outliers, find_outliers
+from .flags.reliability import (
     PrecisionReport,
     ReliabilityInputs,
     cloud_flags,
@@ -63,12 +55,20 @@ from .reliability import (
     precision_step,
     rounding_uncertainty,
 )
+from .flags.sheets import second_sheet
+from .geometry.neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_per_block
+from .geometry.normals import pca_normals
+from .geometry.sampling import geometric_keys, key_sample
+from .geometry.validation import prepare_normals
+from .operators.areas import ball_area_factor, cut_ball_coverage, density_areas, fit_areas
+from .operators.kernel import tapered_heat_weights
+from .operators.operator import HeatKernelOperator
+from .options import resolve_options
+from .orient.enclosure import warn_undecided
+from .orient.orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient, row_reach
+from .progress import StageClock
 from .results import CurvatureResult
-from .sampling import geometric_keys, key_sample
-from .scale import ScaleReport, centre_noise, select_form, select_scale
-from .sheets import second_sheet
 from .tuning import TUNING
-from .validation import prepare_normals
 
 __all__ = ["CurvatureResult", "estimate"]
 
@@ -121,12 +121,12 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     progress : callable, optional
         Called as ``progress(stage, fraction)`` as the stages run
         (:mod:`heatcurv.progress`); the command line's progress bars use it.
-    choices : heatcurv.choices.CloudChoices, optional
+    choices : heatcurv.choice.choices.CloudChoices, optional
         When ``points`` are a part of a larger cloud (a tile with its halo,
         :mod:`heatcurv.tiles`): the whole cloud's frame and kernel widths, so
         that the part's points get the values the whole cloud would give them.
         ``reliable`` then leaves out the two flags that compare a point with
-        medians over the whole cloud (:mod:`heatcurv.reliability`):
+        medians over the whole cloud (:mod:`heatcurv.flags.reliability`):
         ``info["reliability"]`` holds their inputs and ``info["reach"]`` how
         far each point's values reach (input units); oriented outward,
         ``info["winding"]`` what the winding number needs over the whole
@@ -140,10 +140,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         whose curvature that rounding can move by more than
         ``TUNING.precision_tolerance`` of its size are not
         reliable; ``info["precision"]`` (a
-        :class:`heatcurv.reliability.PrecisionReport`) counts them. Default:
+        :class:`heatcurv.flags.reliability.PrecisionReport`) counts them. Default:
         from the type of ``points``: float32 coordinates (and float64 ones
         float32 holds exactly) are rounded to float32's spacing, other
-        float64 coordinates are exact (:func:`heatcurv.reliability.coordinate_rounding`).
+        float64 coordinates are exact (:func:`heatcurv.flags.reliability.coordinate_rounding`).
     **options
         Any field of :class:`heatcurv.Options`, where each is documented once:
         ``alpha`` (ball radius ``r = alpha h``; paper 4, default 2), ``m``
@@ -159,7 +159,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         default, is ``"viewpoint"`` when a viewpoint is given, else ``"up"``
         (+z) for an open surface over the horizontal plane and
         ``"outward"`` for anything else; ``info["orientation"].reason``
-        says which; :mod:`heatcurv.orientation`),
+        says which; :mod:`heatcurv.orient.orientation`),
         ``area_solver``, ``taper``, ``min_neighbours`` (6) and ``workers``
         (threads; -1: all cores).
 
@@ -256,11 +256,13 @@ def _orientation_mode(orient_option: str, normals, viewpoint) -> str:
 
 def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices, normals: np.ndarray,
                  outlier: np.ndarray) -> AutoPolicy:
-    """``orient="auto"`` without a viewpoint: ``"up"`` or ``"outward"`` (:func:`heatcurv.orientation.auto_policy`).
+    """``orient="auto"`` without a viewpoint: ``"up"`` or ``"outward"``.
+
+    :func:`heatcurv.orient.orientation.auto_policy` decides.
 
     Decided on the scale choice's sample centres (the ``n_sub`` points of
     smallest keys) and the noise the choice measures there
-    (:func:`heatcurv.scale.centre_noise`: the same fit the choice makes
+    (:func:`heatcurv.choice.scale.centre_noise`: the same fit the choice makes
     next, on the unoriented ``normals``, shape (m, 3), with no weight on the
     ``outlier`` points, shape (m,), bool), or taken from ``choices`` (a tiled
     run's survey decided it on the same centres of the whole cloud, with the
@@ -276,7 +278,10 @@ def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices, normals: np.
 
 
 def _explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> OrientationReport:
-    """``report`` with its :attr:`~heatcurv.orientation.OrientationReport.reason` (auto "up": and its convention)."""
+    """``report`` with its reason (auto "up": and its convention).
+
+    The reason is :attr:`~heatcurv.orient.orientation.OrientationReport.reason`.
+    """
     if report.mode == "given":
         return replace(report, reason="the given normals, as they are")
     if report.mode == "viewpoint":
@@ -322,7 +327,7 @@ def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: n
     -------
     normals : ndarray, shape (m, 3)
     ball_shape : tuple of ndarray, shape (m,) each
-        The balls' PCA planarity and roundness (:func:`heatcurv.normals.pca_normals`; 1 and NaN
+        The balls' PCA planarity and roundness (:func:`heatcurv.geometry.normals.pca_normals`; 1 and NaN
         for given normals).
     orientation : Orientation
     policy : AutoPolicy or None
@@ -379,7 +384,7 @@ def _paper_fit_stages(op: HeatKernelOperator, plan: FitPlan, nrm: np.ndarray, K:
 
 def _kernel_choice(op: HeatKernelOperator, nrm: np.ndarray, weights_areas: np.ndarray, keys: np.ndarray,
                    n_cloud: int, chosen=None):
-    """Stage ``kernel_choice``: the noise and the chord fit's kernel widths (:mod:`heatcurv.scale`).
+    """Stage ``kernel_choice``: the noise and the chord fit's kernel widths (:mod:`heatcurv.choice.scale`).
 
     Parameters
     ----------
@@ -389,16 +394,16 @@ def _kernel_choice(op: HeatKernelOperator, nrm: np.ndarray, weights_areas: np.nd
     weights_areas : ndarray, shape (m,)
         The areas of the fit weights (0 for outliers).
     keys : ndarray, shape (m,)
-        Sampling keys of the choice's subsample (:func:`heatcurv.sampling.geometric_keys`).
+        Sampling keys of the choice's subsample (:func:`heatcurv.geometry.sampling.geometric_keys`).
     n_cloud : int
         Rows of the whole cloud.
-    chosen : heatcurv.scale.ScaleChoice, optional
-        The whole cloud's kernel widths (a tile's :class:`heatcurv.choices.CloudChoices`);
+    chosen : heatcurv.choice.scale.ScaleChoice, optional
+        The whole cloud's kernel widths (a tile's :class:`heatcurv.choice.choices.CloudChoices`);
         default: chosen here.
 
     Returns
     -------
-    heatcurv.scale.ScaleChoice
+    heatcurv.choice.scale.ScaleChoice
         With ``radius=``: the form alone (the operator's balls are the fit's).
     """
     opts, X = op.options, op.points
@@ -426,7 +431,7 @@ def _point_fit_stages(
     op : HeatKernelOperator
     plan : FitPlan
         Not anchored.
-    choice : heatcurv.scale.ScaleChoice
+    choice : heatcurv.choice.scale.ScaleChoice
         The kernel choice the plan was made from.
     nrm : ndarray, shape (m, 3)
         Oriented starting normals (kept when ``plan.keep_normals``).
@@ -434,7 +439,7 @@ def _point_fit_stages(
         The areas of the fit weights (0 for outliers: no weight in anyone's fit).
     clock : StageClock
     rounded : bool, optional
-        The coordinates are rounded (:func:`heatcurv.reliability.coordinate_rounding`): the
+        The coordinates are rounded (:func:`heatcurv.flags.reliability.coordinate_rounding`): the
         variance factor also counts the centre point's own height error (:func:`_centre_gain`).
 
     Returns
@@ -510,15 +515,15 @@ def _anchored_fit_stages(
     op: HeatKernelOperator, plan: FitPlan, choice, nrm: np.ndarray, fit_areas: np.ndarray, keys: np.ndarray,
     clock: StageClock, mode: str, towards, outlier: np.ndarray,
 ) -> _Fitted:
-    """The anchored fit: the wide kernel at anchors, carried to every point (:mod:`heatcurv.anchors`).
+    """The anchored fit: the wide kernel at anchors, carried to every point (:mod:`heatcurv.fits.anchors`).
 
     Stages ``anchor_fit``, ``carry`` and ``area_correction``, as ``plan`` says
     (anchors per ball, the anchors' own normals, the low-noise refit, the
     carry); ``choice`` is the kernel choice, ``fit_areas`` the areas weighting
     the fit (0 for outliers), ``keys`` the sampling keys the anchors are drawn
     by, ``mode`` and ``towards`` the orientation policy and its reference
-    (:func:`_reference`) for the anchors' own normals. With :attr:`~heatcurv.plan.FitPlan.anchor_normals`
-    the result's orientation is the anchors' (:func:`heatcurv.anchors.anchor_normals`).
+    (:func:`_reference`) for the anchors' own normals. With :attr:`~heatcurv.choice.plan.FitPlan.anchor_normals`
+    the result's orientation is the anchors' (:func:`heatcurv.fits.anchors.anchor_normals`).
     """
     opts, X = op.options, op.points
     n = X.shape[0]
@@ -585,10 +590,10 @@ def _corrected_areas(
     """Stage ``area_correction``: areas of points ``lo:hi`` on the fit's kernel, shape (hi - lo,).
 
     A kernel wider than the operator's counts its own, less noisy, density
-    (:func:`heatcurv.areas.density_areas`); either way the ball's curved area
-    is corrected by the fitted curvatures (:func:`heatcurv.areas.ball_area_factor`)
+    (:func:`heatcurv.operators.areas.density_areas`); either way the ball's curved area
+    is corrected by the fitted curvatures (:func:`heatcurv.operators.areas.ball_area_factor`)
     and a border point's by the share of its ball the surface covers
-    (:func:`heatcurv.areas.cut_ball_coverage`, from the centroid ``offset`` on the
+    (:func:`heatcurv.operators.areas.cut_ball_coverage`, from the centroid ``offset`` on the
     fit's ball, which is the density's ball when ``own_density`` or
     ``same_ball``). The paper's areas (``H A = 1``) are kept as they are.
     """
@@ -607,7 +612,7 @@ def _corrected_areas(
 
 def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, ball_shape, orientation: Orientation,
                         outliers: Outliers, areas: np.ndarray, coarse: np.ndarray | None = None) -> ReliabilityInputs:
-    """Each distinct point's contribution to ``reliable`` (:mod:`heatcurv.reliability`), shape (m,) each.
+    """Each distinct point's contribution to ``reliable`` (:mod:`heatcurv.flags.reliability`), shape (m,) each.
 
     ``coarse``: points whose coordinates are too coarse for their curvature (:func:`_precision`), or None.
     """
@@ -630,9 +635,12 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, ball_shape, ori
 
 
 def _precision(op: HeatKernelOperator, fitted: _Fitted, rounding) -> tuple:
-    """The points too coarse for their curvature (or None) and ``info["precision"]`` (:mod:`heatcurv.reliability`).
+    """The points too coarse for their curvature (or None) and ``info["precision"]``.
 
-    ``rounding``: :func:`heatcurv.reliability.coordinate_rounding` of the input (None: exact coordinates, no report).
+    The checks are :mod:`heatcurv.flags.reliability`'s.
+
+    ``rounding``: :func:`heatcurv.flags.reliability.coordinate_rounding` of the input (None: exact coordinates,
+    no report).
     """
     if rounding is None:
         return None, None
@@ -662,7 +670,7 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
     Outliers stand for no measured surface, and a point whose ball holds both sides of a thin
-    part (:func:`heatcurv.sheets.second_sheet`) for no one sheet: area 0, never reliable. The stages
+    part (:func:`heatcurv.flags.sheets.second_sheet`) for no one sheet: area 0, never reliable. The stages
     ran in the unit ``prepared.unit`` (a power of two, 1 for all but extreme
     extents): lengths are multiplied by it, curvatures divided, exactly. When
     the points are only a part of the cloud (``whole_cloud`` False), the flags

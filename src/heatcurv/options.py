@@ -10,7 +10,7 @@ From it come
   validates them (``heatcurv.estimate(**options)``, ``heatcurv.laplacian``);
 * the command line's estimator flags (:mod:`heatcurv.cli.options`).
 
-The tuning constants of the kernel choice (:mod:`heatcurv.scale`) are grouped in
+The tuning constants of the kernel choice (:mod:`heatcurv.choice.scale`) are grouped in
 :class:`ScaleTuning`, reachable as ``estimate(scale_tuning=ScaleTuning(...))``.
 
 Names use British spelling (``neighbours``); an unknown option, such as the
@@ -211,7 +211,7 @@ def _option(
 
 @dataclass(frozen=True)
 class ScaleTuning:
-    """Tuning constants of the automatic kernel choice (:func:`heatcurv.scale.select_scale`).
+    """Tuning constants of the automatic kernel choice (:func:`heatcurv.choice.scale.select_scale`).
 
     Attributes
     ----------
@@ -219,7 +219,7 @@ class ScaleTuning:
         Widest kernel (neighbours) of a clean cloud fitted at every point;
         wider kernels, and every kernel of a noisy cloud, are fitted at anchors
         with all the points of their balls and carried to every point
-        (:mod:`heatcurv.anchors`) (240).
+        (:mod:`heatcurv.fits.anchors`) (240).
     n_sub : int
         Points the candidate kernels are compared on (2000).
     tau : float
@@ -301,35 +301,35 @@ class Options:
         Points whose ball holds fewer than ``min_neighbours`` get their
         nearest ones (and are unreliable); a radius whose median ball holds
         fewer points than the fit needs warns and names one that holds enough
-        (:func:`heatcurv.kernel_check.check_ball_counts`). None: the ball holds ``neighbours``
+        (:func:`heatcurv.choice.kernel_check.check_ball_counts`). None: the ball holds ``neighbours``
         points (density spacing) and the fit's kernel is chosen from the noise.
     area_method : {"system", "density"}
         Areas from the paper's ``H A = 1`` (section 2.2) or from the
-        flat-top density estimate (:func:`heatcurv.areas.density_areas`).
+        flat-top density estimate (:func:`heatcurv.operators.areas.density_areas`).
     mean_formula : {"norm", "projection"}
         Mean curvature as ``1/2 |K|`` signed (eq 2.11) or ``1/2 K . n`` (eq 2.12),
         for the fits that take it from the quadrature.
     fit : {"constrained", "unconstrained", "chord"}
         Principal fit with the constraints of eq 3.1, free, or the chord fit
-        with tilt and cubic terms (:mod:`heatcurv.chordfit`).
+        with tilt and cubic terms (:mod:`heatcurv.fits.chordfit`).
     scale : "auto" or int
         Kernel of the chord fit: ``"auto"`` chooses it from the measured noise
-        (:mod:`heatcurv.scale`); an integer ``k`` fixes it to ``k`` neighbours.
+        (:mod:`heatcurv.choice.scale`); an integer ``k`` fixes it to ``k`` neighbours.
     scale_tuning : ScaleTuning
         Constants of the automatic kernel choice.
     orient : {"auto", "outward", "up", "viewpoint"}
-        Which side the estimated normals point to (:mod:`heatcurv.orientation`):
+        Which side the estimated normals point to (:mod:`heatcurv.orient.orientation`):
         away from the enclosed volume, towards +z, or towards the scanner
         (``estimate(viewpoint=...)``); ``"auto"`` is ``"viewpoint"`` when a
         viewpoint is given, else ``"up"`` for an open surface over the
         horizontal plane (terrain, roofs) and ``"outward"`` for anything else
-        (:func:`heatcurv.orientation.auto_policy`;
+        (:func:`heatcurv.orient.orientation.auto_policy`;
         ``info["orientation"].reason`` says which).
     area_solver : {"auto", "cg", "bicgstab", "direct"}
         Solver of ``H A = 1``.
     taper : bool
         Weight the PCA and the border test by a flat-top taper that falls to
-        0 at the ball's edge (:func:`heatcurv.kernel.ball_taper`), so results
+        0 at the ball's edge (:func:`heatcurv.operators.kernel.ball_taper`), so results
         are continuous in the points; False is the paper's plain PCA.
     min_neighbours : int
         Fewest neighbours a point may have; sparser points get their nearest ones.

@@ -1,6 +1,6 @@
 """The estimator's named stages: their order, their timing, and progress reports.
 
-:func:`heatcurv.estimate` and :func:`heatcurv.operator.build_operator` accept a
+:func:`heatcurv.estimate` and :func:`heatcurv.operators.operator.build_operator` accept a
 ``progress`` callable, called as ``progress(stage, fraction)``: with
 ``fraction = 0`` when a stage starts, ``1`` when it ends. The default
 estimator's fit streams over blocks of points (so its memory stays bounded):
@@ -23,13 +23,13 @@ __all__ = ["STAGES", "FIT_STAGES", "ANCHOR_STAGES", "PROGRESS_STAGES", "PROGRESS
 
 #: Every stage, in the order it runs, with what it computes.
 STAGES = {
-    # the shared heat-kernel operator (heatcurv.operator)
+    # the shared heat-kernel operator (heatcurv.operators.operator)
     "validate": "checks, centring, duplicate merging, k-d tree order",
     "neighbours": "ball neighbourhood of radius alpha h (density spacing: the k nearest)",
     "spacing": "spacing h (eq 2.6, 2.7, or the density radius d_k / alpha)",
     "areas": "per-point areas (H A = 1, section 2.2, or the density estimate)",
-    "kernel_check": "the fit's kernel has enough effective neighbours (heatcurv.kernel_check)",
-    "outliers": "stray points and islands that no surface explains (heatcurv.outliers)",
+    "kernel_check": "the fit's kernel has enough effective neighbours (heatcurv.choice.kernel_check)",
+    "outliers": "stray points and islands that no surface explains (heatcurv.flags.outliers)",
     # normals
     "normals": "PCA normals (or the caller's normals)",
     "orientation": "one consistent orientation (spanning tree) or towards the viewpoint",
@@ -38,12 +38,12 @@ STAGES = {
     "mean": "mean curvature from K and the normal (eq 2.11 / 2.12)",
     "principal": "tensor fit of the edge curvatures (section 3, eq 3.1)",
     # method "default": the kernel, then the fit block by block
-    "kernel_choice": "noise estimate and kernel width of the chord fit (heatcurv.scale)",
+    "kernel_choice": "noise estimate and kernel width of the chord fit (heatcurv.choice.scale)",
     "fit_neighbourhood": "the fit kernel's own neighbours (k nearest)",
     "fit_weights": "tapered heat-kernel weights of the fit (eq 2.8)",
     "normal_refinement": "a first chord fit whose tilt corrects the normals",
     "curvature_fit": "the chord fit at the refined normals: k1, k2, d1, d2, mean",
-    "anchor_fit": "noisy clouds: the fit at anchors, each with all the points of its wide ball (heatcurv.anchors)",
+    "anchor_fit": "noisy clouds: the fit at anchors, each with all the points of its wide ball (heatcurv.fits.anchors)",
     "carry": "noisy clouds: the anchors' fits carried to every point (normals, curvatures, border, areas)",
     # both
     "border": "border points of open surfaces (the offset of the ball's centroid)",

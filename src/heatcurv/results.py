@@ -33,7 +33,7 @@ class CurvatureResult:
     area : ndarray, shape (n,)
         Per-point area, length^2; the sum estimates the surface area. 0 for
         outliers and for points whose ball holds both sides of a thin part
-        (:func:`heatcurv.sheets.second_sheet`, ``info["second_sheet"]``).
+        (:func:`heatcurv.flags.sheets.second_sheet`, ``info["second_sheet"]``).
     reliable : ndarray, shape (n,), bool
         False where the values are not to be trusted: the point's ball held
         too few neighbours (nearest neighbours were used instead), its
@@ -50,31 +50,31 @@ class CurvatureResult:
         ``HeatcurvWarning`` says so).
     outlier : ndarray, shape (n,), bool
         Stray points and small islands that no surface at the kernel's scale
-        explains (:mod:`heatcurv.outliers`): area 0 (``area.sum()`` leaves
+        explains (:mod:`heatcurv.flags.outliers`): area 0 (``area.sum()`` leaves
         them out), never reliable, and no weight in their neighbours' fits.
     border : ndarray, shape (n,), bool
         Points whose fit's ball is cut by the border of an open surface
-        (:mod:`heatcurv.border`): their values come from one-sided
+        (:mod:`heatcurv.flags.border`): their values come from one-sided
         neighbourhoods. Noisy clouds are fitted with wider balls, so their
         border band is wider.
     spacing : ndarray, shape (n,)
         The spacing ``h`` of the heat kernel (``t = m h^2``; eq 2.6, 2.7, or
         ``d_k / alpha``) at each point: the kernel of the Laplace-Beltrami
         operator and of ``mean_curvature_normal``. The chord fit may use a
-        wider kernel; ``info["scale"]`` (a :class:`heatcurv.scale.ScaleReport`)
+        wider kernel; ``info["scale"]`` (a :class:`heatcurv.choice.scale.ScaleReport`)
         says which.
     neighbours : ndarray, shape (n,), int
         Points in each heat-kernel ball (the point itself excluded).
     fit_radius : ndarray, shape (n,)
         The radius of the ball the curvatures were fitted on at each point,
         length units: the per-point scale the kernel choice made
-        (:mod:`heatcurv.scale`; on noisy clouds the anchors' balls carried to
-        the point, :mod:`heatcurv.anchors`). The paper's method: the operator's
+        (:mod:`heatcurv.choice.scale`; on noisy clouds the anchors' balls carried to
+        the point, :mod:`heatcurv.fits.anchors`). The paper's method: the operator's
         ball. ``info["scale"].support_radius`` bounds how far any point's
-        values reach, with the cloud-wide choices fixed (:mod:`heatcurv.choices`).
+        values reach, with the cloud-wide choices fixed (:mod:`heatcurv.choice.choices`).
     mean_curvature_normal : ndarray, shape (n, 3)
         ``K = L x`` of eq 2.10, approximately ``2 mean * normals``, with ``L``
-        the heat-kernel operator of :class:`heatcurv.operator.HeatKernelOperator`
+        the heat-kernel operator of :class:`heatcurv.operators.operator.HeatKernelOperator`
         (eq 2.9 over the method's areas), *not* the default of
         :func:`heatcurv.laplacian` (:class:`heatcurv.PointCloudLaplacian`,
         whose ``mean_curvature_normal()`` gives its own; docs/laplacian.md
@@ -86,12 +86,12 @@ class CurvatureResult:
         median point's sampling spacing in radii of curvature; above
         ``TUNING.resolution_limit`` the cloud is too coarse
         and every point unreliable), ``orientation`` (a
-        :class:`heatcurv.orientation.OrientationReport`: the policy used and
+        :class:`heatcurv.orient.orientation.OrientationReport`: the policy used and
         how many points it could not orient), ``outliers`` (their number), ``area_solve``
         (solver, iterations, residual), ``timings`` (seconds per named stage,
-        :data:`heatcurv.progress.STAGES`), ``plan`` (a :class:`heatcurv.plan.FitPlan`:
+        :data:`heatcurv.progress.STAGES`), ``plan`` (a :class:`heatcurv.choice.plan.FitPlan`:
         the fit's form, kernel, anchors and carry, what ran), and for the chord fit
-        ``scale``, a :class:`heatcurv.scale.ScaleReport`: the kernel chosen (``k``
+        ``scale``, a :class:`heatcurv.choice.scale.ScaleReport`: the kernel chosen (``k``
         neighbours, ``fit`` label, ``radius``: 99th percentile of its ball
         radii), the noise estimate ``sigma`` (length units) and
         ``relative_noise`` (``sigma / h``).

@@ -2,12 +2,12 @@
 
 The estimator's stages compare their measurements against the fields of :data:`TUNING`
 and against no number of their own: the noise gate and the kernel choice
-(:mod:`heatcurv.scale`), the fit plan (:mod:`heatcurv.plan`), the anchors and their
-carry (:mod:`heatcurv.anchors`), the low-noise refit (:mod:`heatcurv.chordfit`), the
-orientation and its automatic policy (:mod:`heatcurv.orientation`,
-:mod:`heatcurv.enclosure`), and the reliability flags (:mod:`heatcurv.reliability`,
-:mod:`heatcurv.sheets`, :mod:`heatcurv.outliers`, :mod:`heatcurv.border`,
-:mod:`heatcurv.kernel_check`, :mod:`heatcurv.areas`).
+(:mod:`heatcurv.choice.scale`), the fit plan (:mod:`heatcurv.choice.plan`), the anchors and their
+carry (:mod:`heatcurv.fits.anchors`), the low-noise refit (:mod:`heatcurv.fits.chordfit`), the
+orientation and its automatic policy (:mod:`heatcurv.orient.orientation`,
+:mod:`heatcurv.orient.enclosure`), and the reliability flags (:mod:`heatcurv.flags.reliability`,
+:mod:`heatcurv.flags.sheets`, :mod:`heatcurv.flags.outliers`, :mod:`heatcurv.flags.border`,
+:mod:`heatcurv.choice.kernel_check`, :mod:`heatcurv.operators.areas`).
 
 Each field carries a one-line reason (:func:`reasons`); the measurements behind the
 values are in docs/how_it_works.md (thresholds). Sizes that only set how work is split
@@ -43,12 +43,13 @@ def _knob(value, reason: str):
 class Tuning:
     """The thresholds of the default estimator; :data:`TUNING` holds the values it runs with."""
 
-    # --- the noise gate and the kernel choice (heatcurv.scale) ---
+    # --- the noise gate and the kernel choice (heatcurv.choice.scale) ---
     #: Largest noise of a clean cloud, in spacings, beside the gate's residual ratio: strong noise saturates the
     #: chord residual (``|kN| <= 1 / |z|``) so the ratio alone cannot tell; clean clouds stay below 3.5e-4.
     clean_noise_limit: float = _knob(0.01, "noise past which no cloud is clean, whatever the chord/denoised ratio")
-    #: Upper end of the very-low-noise band (:attr:`heatcurv.scale.ScaleChoice.low_noise`): above the rounding of a
-    #: LAZ file's millimetres and synthetic noise up to 1e-4 of the diagonal, below 0.12 % noise and the LiDAR tile.
+    #: Upper end of the very-low-noise band (:attr:`heatcurv.choice.scale.ScaleChoice.low_noise`): above the
+    #: rounding of a LAZ file's millimetres and synthetic noise up to 1e-4 of the diagonal, below 0.12 % noise
+    #: and the LiDAR tile.
     low_noise: float = _knob(0.02, "noise below which a widened kernel takes the very-low-noise path")
     #: Lower end of that band. Below it the noise is the rounding of fine coordinates (float32, text with 5-6
     #: decimals: 1.5e-6 to 7e-5), which the plain denoised fit at Lepski's width fits 2-4x better than the
@@ -69,7 +70,7 @@ class Tuning:
     #: A tiled run's halo must hold the widest candidate ball: twice the widest any of our noisy clouds chose.
     widest_kernel: int = _knob(15360, "widest candidate kernel (neighbours) on any cloud")
 
-    # --- the fit plan and the anchors (heatcurv.plan, heatcurv.anchors) ---
+    # --- the fit plan and the anchors (heatcurv.choice.plan, heatcurv.fits.anchors) ---
     #: Between the noisiest clouds that orient fine on the operator's ``2 h`` balls (0.04-0.3) and a torus that
     #: did not (0.69: 21 % of its normals inward).
     strong_noise: float = _knob(0.5, "noise above which the operator's balls are swamped and the anchors find "
@@ -94,7 +95,7 @@ class Tuning:
     #: Strong noise skips the refit: its residual would be the noise's.
     low_noise_tried: float = _knob(10.0, "height-fit residual, in refit limits, up to which the refit is tried")
 
-    # --- orientation (heatcurv.orientation, heatcurv.enclosure) ---
+    # --- orientation (heatcurv.orient.orientation, heatcurv.orient.enclosure) ---
     #: 72.5 degrees from the reference direction: a normal closer to perpendicular takes its neighbours' side.
     anchor_cosine: float = _knob(0.3, "|n . r| from which a normal's side is read off its reference direction")
     #: A wall takes about its half-height over the graph's edge length: a few to ten rounds on our LiDAR tiles.
@@ -132,7 +133,7 @@ class Tuning:
     outside_share: float = _knob(0.5, "share of the area with outside levels near 0 that makes such a cloud "
                                       "undecided rather than open")
 
-    # --- reliability flags (heatcurv.reliability, sheets, outliers, border, kernel_check, areas) ---
+    # --- reliability flags (heatcurv.flags.reliability, sheets, outliers, border, kernel_check, areas) ---
     planarity_min: float = _knob(0.05, "PCA planarity of a ball below which it is no surface patch")
     #: Smooth surfaces, noisy or not, stay within a few times the median; edges and tree crowns reach 10-450.
     misfit_factor: float = _knob(10.0, "chord residual over the cloud's median that is not one smooth surface")

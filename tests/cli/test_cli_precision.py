@@ -1,4 +1,4 @@
-"""``heatcurv compute`` on a LAS file: its scale is the coordinates' precision (heatcurv.reliability)."""
+"""``heatcurv compute`` on a LAS file: its scale is the coordinates' precision (heatcurv.flags.reliability)."""
 
 import numpy as np
 import pytest

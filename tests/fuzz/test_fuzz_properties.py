@@ -23,7 +23,7 @@ these examples times ten or more:
   translation of 1e6 sizes rounds each coordinate by 2e-10 sizes, which the
   second derivatives amplify by about (size / spacing)**2). Nearly flat
   clouds take their side by a convention on the coordinates
-  (:mod:`heatcurv.orientation`), so a rotation may flip those points, and only
+  (:mod:`heatcurv.orient.orientation`), so a rotation may flip those points, and only
   those: their values are compared with the side turned back;
 - scale: ``1e-9`` (measured 5e-13);
 - order, duplicates, float32: ``1e-12`` (measured exactly 0).
@@ -154,7 +154,7 @@ def check_rigid_motion(worker, cloud, rotation, translation, tolerance):
     what = f"{cloud} rotated and moved by {np.linalg.norm(translation) / cloud.size:.3g} sizes"
     turned = np.asarray(before["normals"]) @ rotation.T
     # nearly flat clouds take their side by a convention on the coordinates (largest coordinate of the
-    # least-variance axis positive, heatcurv.orientation): a rotation may flip them, nothing else may
+    # least-variance axis positive, heatcurv.orient.orientation): a rotation may flip them, nothing else may
     aligned, flipped = unflipped(after, turned)
     assert flipped == 0 or before["by_convention"] + before["ambiguous"] >= flipped, (
         f"{what}: {flipped} normals flipped, only {before['by_convention']} oriented by convention")

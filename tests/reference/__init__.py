@@ -8,7 +8,7 @@ as a selectable backend lives here, for the tests only:
   function, with the same arguments and returns, so a test calls both on the
   same arrays (``tests/test_kernels_segment.py``);
 * :mod:`reference.chordfit` is the whole chord fit in numpy, with the
-  signature of :func:`heatcurv.chordfit.chord_fit`
+  signature of :func:`heatcurv.fits.chordfit.chord_fit`
   (``tests/test_kernels_chordfit.py``);
 * :mod:`reference.lstsq` is the per-point weighted least squares on padded
   numpy blocks that the compiled fit's Cholesky solve is checked against.

@@ -1,14 +1,14 @@
-"""An independent numpy reimplementation of :func:`heatcurv.chordfit.chord_fit`, from the maths.
+"""An independent numpy reimplementation of :func:`heatcurv.fits.chordfit.chord_fit`, from the maths.
 
 It shares no code with the fit it checks: the tangent frames, the model
 columns, the responses, the least squares, the principal curvatures and
 directions, the tilt-corrected normal, the residual sigma and the variance of
 the mean are all written here again, from the model the docstrings of
-:mod:`heatcurv.chordfit` and :mod:`heatcurv._kernels.chordfit` state (and the
+:mod:`heatcurv.fits.chordfit` and :mod:`heatcurv._kernels.chordfit` state (and the
 paper's eq 2.12, the chord curvature ``kN_ij = 2 (xi - xj) . n / |xi - xj|^2``).
-Only containers come from heatcurv (:class:`~heatcurv.chordfit.ChordFit`,
-:class:`~heatcurv.principal.PrincipalCurvatures`; the
-:class:`~heatcurv.neighbourhood.Neighbourhood` argument is read as plain CSR
+Only containers come from heatcurv (:class:`~heatcurv.fits.chordfit.ChordFit`,
+:class:`~heatcurv.fits.principal.PrincipalCurvatures`; the
+:class:`~heatcurv.geometry.neighbourhood.Neighbourhood` argument is read as plain CSR
 arrays), and the documented parameters of the method: ``MIN_DOF_FRACTION``
 (floor of the residual's degrees-of-freedom correction), ``WELL_POSED_RCOND``
 (the well-posedness threshold) and the low-noise refit's ``LOW_NOISE_MIN_LAMBDA`` from
@@ -41,8 +41,8 @@ from heatcurv._kernels.chordfit import (
     MIN_DOF_FRACTION,
     WELL_POSED_RCOND,
 )
-from heatcurv.chordfit import ChordFit
-from heatcurv.principal import PrincipalCurvatures
+from heatcurv.fits.chordfit import ChordFit
+from heatcurv.fits.principal import PrincipalCurvatures
 from heatcurv.tuning import TUNING
 
 __all__ = ["chord_fit", "refine_normals", "tangent_frames", "RIDGE"]
@@ -57,7 +57,7 @@ _BATCH_ENTRIES = 4_000_000
 def tangent_frames(normals):
     """``(e1, e2)``, orthonormal, ``e1 x e2 = n``: ``e1`` along ``axis x n`` with the axis least aligned with ``n``.
 
-    The construction :func:`heatcurv.normals.tangent_frames` documents, written
+    The construction :func:`heatcurv.geometry.normals.tangent_frames` documents, written
     again (the fit's coefficients are given in this frame).
     """
     n = np.asarray(normals, dtype=float)
@@ -244,7 +244,7 @@ def chord_fit(
     centres=None,
     low_noise=False,
 ):
-    """:func:`heatcurv.chordfit.chord_fit` from its definition: same parameters, same result to rounding."""
+    """:func:`heatcurv.fits.chordfit.chord_fit` from its definition: same parameters, same result to rounding."""
     points = np.asarray(points, dtype=float)
     centres = points if centres is None else np.asarray(centres, dtype=float)
     indptr = np.asarray(nbhd.indptr, dtype=np.int64)
@@ -317,7 +317,7 @@ def chord_fit(
 
 
 def refine_normals(points, nbhd, normals, weights, *, tilt=True, cubic=True, denoise=False, centres=None):
-    """:func:`heatcurv.chordfit.refine_normals`: one fit's tilt-corrected normals (the first of two passes).
+    """:func:`heatcurv.fits.chordfit.refine_normals`: one fit's tilt-corrected normals (the first of two passes).
 
     The chord fit's tilt, or with ``denoise`` the plain height fit's; the normals unchanged without ``tilt``.
     """

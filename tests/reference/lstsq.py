@@ -1,20 +1,20 @@
 """numpy weighted least squares per point, over CSR neighbour pairs: the reference of the chord fit's solve.
 
-The default estimator's fit (:func:`heatcurv.chordfit.chord_fit`) accumulates its
+The default estimator's fit (:func:`heatcurv.fits.chordfit.chord_fit`) accumulates its
 normal equations pair by pair in compiled code and solves them by Cholesky
 (:func:`heatcurv._kernels.chordfit.solve_compiled`). Here the same weighted least
 squares is written with numpy on padded per-point blocks and solved by LAPACK
 (``numpy.linalg.solve``), for the tests (``tests/test_chordfit.py``,
 ``tests/test_kernels_chordfit.py``) and the benchmarks that try fit variants. The
-blocks are sized by heatcurv's block-size policy (:func:`heatcurv.neighbourhood.rows_per_block`),
-and the :class:`~heatcurv.neighbourhood.Neighbourhood` container, the only things taken from heatcurv.
+blocks are sized by heatcurv's block-size policy (:func:`heatcurv.geometry.neighbourhood.rows_per_block`),
+and the :class:`~heatcurv.geometry.neighbourhood.Neighbourhood` container, the only things taken from heatcurv.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from heatcurv.neighbourhood import Neighbourhood, block_ranges, rows_per_block
+from heatcurv.geometry.neighbourhood import Neighbourhood, block_ranges, rows_per_block
 
 __all__ = ["ridge_solve", "segment_lstsq", "solve_normal_equations"]
 
@@ -148,7 +148,7 @@ def solve_normal_equations(
 ):
     """Solve accumulated weighted normal equations ``G beta = r`` for every point.
 
-    The second half of :func:`segment_lstsq`. (:func:`heatcurv.chordfit.chord_fit`
+    The second half of :func:`segment_lstsq`. (:func:`heatcurv.fits.chordfit.chord_fit`
     accumulates its sums without per-pair arrays and solves them by Cholesky,
     :func:`heatcurv._kernels.chordfit.solve_compiled`, which the tests check
     against this function.)

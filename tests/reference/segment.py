@@ -6,7 +6,7 @@ depend on the blocking). They differ from the kernels only in the order the
 floating-point terms are summed, and in the eigensolver (LAPACK's ``eigh``
 here, a 3 x 3 Jacobi iteration there). Each is written from the formula its
 kernel documents and imports nothing from heatcurv: the flat-top taper too is
-written again here from its definition (:func:`heatcurv.kernel.flat_top`: 1 up to
+written again here from its definition (:func:`heatcurv.operators.kernel.flat_top`: 1 up to
 ``start``, a raised cosine down to 0 at ``u = 1``, 0 beyond).
 """
 

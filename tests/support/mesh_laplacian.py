@@ -1,6 +1,6 @@
 """Reference spectra for the Laplacian's tests and benchmark: the cotangent Laplacian of a fine mesh.
 
-A point-cloud Laplacian (:mod:`heatcurv.point_laplacian`) is judged by its
+A point-cloud Laplacian (:mod:`heatcurv.operators.point_laplacian`) is judged by its
 eigenvalues. Where no closed form exists (the torus), the reference is the
 linear finite-element (cotangent) Laplacian with lumped (barycentric) mass on
 a fine triangulation of the surface's parameter grid, whose eigenvalues

@@ -137,7 +137,7 @@ def test_round_two_fits_the_gate_first_and_every_candidate_only_under_noise(tmp_
                         max_memory="4G")
     assert [name for name, _ in phases] == rounds + ["run_tile"]
     # the gate's round fits the chord and the ladder's first candidate; a noisy cloud's then fits them all
-    assert phases[1][1] == {heatcurv.survey.GATE_LEVELS} and (noise == 0.0 or phases[2][1] == {None})
+    assert phases[1][1] == {heatcurv.choice.survey.GATE_LEVELS} and (noise == 0.0 or phases[2][1] == {None})
     # bit for bit (measured), clean or noisy, the points whose side the whole cloud's winding number contradicts
     # (a noisy level here and there) flagged alike: every tile's share of the sources is the in-memory run's
     memory = heatcurv.estimate(points)

@@ -5,7 +5,7 @@ side from the nearest anchor along the spanning tree of the whole cloud, a
 path a tile could not see: on ``lidar_tile(12000, seed=0)`` in 6 tiles, 53
 points differed with ``orient="up"`` and 52 with a viewpoint (crown normals
 flipped, and every value fitted with them). The side is now decided within a
-few balls of each point (:func:`heatcurv.orientation.local_sides`), which the
+few balls of each point (:func:`heatcurv.orient.orientation.local_sides`), which the
 tiles' halo holds. Measured: the flags, counts, spacing and ball radii equal bit for bit,
 the other fields within 4.1e-15 relative (mean curvature; normals 5.7e-16): rounding, which
 the tests hold at 2e-14.

@@ -1,11 +1,13 @@
-"""Tiles under very low noise: the widened kernel and the anchors' regression (heatcurv.anchors.carry_degree) keep the
-tiled run exact."""
+"""Tiles under very low noise: the widened kernel and the anchors' regression keep the tiled run exact.
+
+The regression's degree is heatcurv.fits.anchors.carry_degree.
+"""
 
 import numpy as np
 from tiles_helpers import ALL_FIELDS, exact
 
 import heatcurv
-from heatcurv.scale import in_low_noise_band
+from heatcurv.choice.scale import in_low_noise_band
 from heatcurv.tiles import compute_file
 from support.tiles import tiled_agreement
 

@@ -1,7 +1,7 @@
 """Strays and layered balls in tiles: the flags that read the neighbours' flags equal the in-memory run.
 
-A point is a stray when most of its ball is (:mod:`heatcurv.outliers`, test 4), and a second sheet when
-most of its 20 nearest have balls split in two layers (:func:`heatcurv.sheets.second_sheet`): both read
+A point is a stray when most of its ball is (:mod:`heatcurv.flags.outliers`, test 4), and a second sheet when
+most of its 20 nearest have balls split in two layers (:func:`heatcurv.flags.sheets.second_sheet`): both read
 flags of neighbours, which the tiles' halo must hold with the points those flags depend on.
 """
 

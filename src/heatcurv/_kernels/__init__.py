@@ -10,9 +10,9 @@ a numba kernel, with no per-pair temporaries:
 ``chordfit``   the chord fit's normal equations, residuals and Cholesky solve
 ``graph``      minimum spanning forest (orientation) and connected components
                (outliers), serial
-``anchors``    carrying the anchors' fits to every point (:mod:`heatcurv.anchors`)
+``anchors``    carrying the anchors' fits to every point (:mod:`heatcurv.fits.anchors`)
 ``laplacian``  the default Laplacian's tangent-plane Voronoi cells and border
-               moments (:mod:`heatcurv.point_laplacian`)
+               moments (:mod:`heatcurv.operators.point_laplacian`)
 =============  ==============================================================
 
 The kernels take and return plain arrays and import nothing from the rest of
@@ -254,7 +254,9 @@ def as_pointers(indptr) -> np.ndarray:
 
 
 def as_indices(indices, n_points: int) -> np.ndarray:
-    """CSR neighbour indices as int32 when ``n_points`` fit (as :mod:`heatcurv.neighbourhood` makes them), else int64.
+    """CSR neighbour indices as int32 when ``n_points`` fit, else int64.
+
+    :mod:`heatcurv.geometry.neighbourhood` makes them so.
 
     One index type means one compilation of each kernel; callers that pass
     int64 indices of a small cloud pay a copy instead.

@@ -1,4 +1,4 @@
-"""Compiled carrying of anchor fits to the points around them (:mod:`heatcurv.anchors`).
+"""Compiled carrying of anchor fits to the points around them (:mod:`heatcurv.fits.anchors`).
 
 Each anchor ``a`` has a chord fit in its frame ``(e1, e2, n)`` with ball radius
 ``R``: tensor ``(A, B, D)``, tilt ``(t1, t2)``, cubic ``(g0, g1, g2, g3)`` and
@@ -27,7 +27,7 @@ values are the weighted means over its nearest anchors, with weights
 ``(1 - (d / d_max)^2)^2 (1 - (d / R)^2)^2`` (``d_max`` just beyond the row's farthest
 anchor): smooth as anchors enter or leave a point's list, zero outside an anchor's ball.
 
-With ``degree`` (very low noise, :func:`heatcurv.anchors.carry_degree`) the tensor is
+With ``degree`` (very low noise, :func:`heatcurv.fits.anchors.carry_degree`) the tensor is
 instead a weighted polynomial regression of the anchors' *own* tensors (their fits at
 their centres, rotated into the point's tangent plane by the smallest rotation of
 their normals), in the tangent coordinates of the anchors around the point, with the

@@ -1,4 +1,4 @@
-"""Compiled per-pair work of :func:`heatcurv.chordfit.chord_fit`.
+"""Compiled per-pair work of :func:`heatcurv.fits.chordfit.chord_fit`.
 
 One kernel per fit loops, in parallel over the centres (row cores on threads,
 as in :mod:`heatcurv._kernels.segment`), over each centre's CSR
@@ -16,7 +16,7 @@ reference, ``tests/reference/lstsq.py``; the well-posedness test
 brackets the condition number from the traces of ``G`` and ``G^-1`` and
 computes eigenvalues only where the bracket cannot decide).
 
-:func:`heatcurv.chordfit.chord_fit` runs the passes (frames, curvatures, the
+:func:`heatcurv.fits.chordfit.chord_fit` runs the passes (frames, curvatures, the
 tilt-corrected normal) around :func:`fit` and :func:`weighted_height_residual`.
 An independent numpy reimplementation of the whole fit is
 ``tests/reference/chordfit.py``; the tests compare the two to 1e-11.
@@ -58,7 +58,7 @@ HEIGHT = 1
 DENOISED_HEIGHT = 2
 #: heights ``z`` against ``[-D^2 / 2 * columns, -D^2 / 2 * quartic, 1]``, ``D^2 = r^2 + (zhat - z0)^2`` from a
 #: ``QUARTIC_HEIGHT`` fit, pairs weighted ``w lambda^4 / (D^4 + lambda^4)``: the low-noise refit
-#: (:func:`heatcurv.chordfit.chord_fit`);
+#: (:func:`heatcurv.fits.chordfit.chord_fit`);
 LOW_NOISE_HEIGHT = 3
 #: heights ``z`` against ``[-r^2 / 2 * columns, -r^2 / 2 * quartic, 1]`` (the height fit with quartic terms).
 QUARTIC_HEIGHT = 4
@@ -92,7 +92,7 @@ def _local_coordinates(points, centres, i, j, e1, e2, normals, inverse_unit):
 def _fill_shape_columns(x, y, tilt, cubic, cols):
     """One pair's kN model columns into ``cols``; returns ``r^2 = x^2 + y^2``.
 
-    The order :func:`heatcurv.chordfit.chord_fit`'s coefficients follow: tensor
+    The order :func:`heatcurv.fits.chordfit.chord_fit`'s coefficients follow: tensor
     ``c^2, 2 c s, s^2``, tilt ``c / r, s / r``, cubic ``r c^3, r c^2 s, r c s^2, r s^3``
     (``c, s = x / r, y / r``). Each column is a monomial over ``r^2``
     (``c^2 = x^2 / r^2``, ``c / r = x / r^2``, ``r c^3 = x^3 / r^2`` ...): one

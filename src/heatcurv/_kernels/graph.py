@@ -1,6 +1,6 @@
 """Compiled graph kernels: minimum spanning forest and connected components of a CSR neighbour graph.
 
-:func:`heatcurv.orientation.orient` propagates one side of the normals over a
+:func:`heatcurv.orient.orientation.orient` propagates one side of the normals over a
 minimum spanning forest of the neighbour graph. :func:`minimum_spanning_forest`
 finds it by Boruvka's algorithm: every round, each component takes its
 cheapest edge to another component, and the edges left inside a component
@@ -11,7 +11,7 @@ stably, i.e. equal costs in CSR order) returns, position for position.
 Measured on a million points (10 edges each): 3.9 s in SciPy, of which 2 s
 sorting the costs; Boruvka sorts nothing.
 
-:func:`merged_components` (the patches of :mod:`heatcurv.enclosure`) joins
+:func:`merged_components` (the patches of :mod:`heatcurv.orient.enclosure`) joins
 the components of some edges, then lets every component still smaller than a
 size grow across the other edges, in one pass over them.
 

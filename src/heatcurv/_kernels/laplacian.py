@@ -1,4 +1,4 @@
-"""Compiled kernels of the default point-cloud Laplacian (:mod:`heatcurv.point_laplacian`).
+"""Compiled kernels of the default point-cloud Laplacian (:mod:`heatcurv.operators.point_laplacian`).
 
 * :func:`knn_covariances`: the 3 x 3 covariance of each point's nearest
   neighbours (and itself), for the tangent plane of its Voronoi cell;

@@ -6,8 +6,8 @@ points ``row0 <= i < row1`` and over each point's neighbours
 allocated; the public function of the same name without the underscore
 allocates the output and runs the core on threads
 (:func:`heatcurv._kernels.parallel_rows`). These are the only implementations the
-stages run (:mod:`heatcurv.normals`, :mod:`heatcurv.kernel`,
-:mod:`heatcurv.areas`, :mod:`heatcurv.mean_curvature`, :mod:`heatcurv.border`
+stages run (:mod:`heatcurv.geometry.normals`, :mod:`heatcurv.operators.kernel`,
+:mod:`heatcurv.operators.areas`, :mod:`heatcurv.fits.mean_curvature`, :mod:`heatcurv.flags.border`
 call them directly); ``tests/reference/segment.py`` holds their numpy
 references, which the tests compare them with (to 1e-10 on sums).
 
@@ -44,7 +44,7 @@ __all__ = [
 
 @njit(inline="always", cache=True)
 def _flat_top(u, start):
-    # 1 up to `start`, raised cosine to 0 at u = 1 (heatcurv.kernel.flat_top)
+    # 1 up to `start`, raised cosine to 0 at u = 1 (heatcurv.operators.kernel.flat_top)
     if u >= 1.0:
         return 0.0
     if u <= start:
@@ -53,7 +53,7 @@ def _flat_top(u, start):
 
 
 def orientation_costs(points, normals, indptr, indices, distances, radius):
-    """Spanning-tree edge costs of the orientation (heatcurv.orientation.orient), shape (nnz,).
+    """Spanning-tree edge costs of the orientation (heatcurv.orient.orientation.orient), shape (nnz,).
 
     ``1 - |s_ij| + max(|n_i . e|, |n_j . e|) + 1e-3 |xi - xj| / R_i + 1e-12`` with
     ``e = (xj - xi) / |xj - xi|`` and ``s_ij = n_i . n_j - (n_i . e)(n_j . e)``, the
@@ -208,7 +208,7 @@ def _kappa_normal_sums(row0, row1, points, indptr, indices, distances, inv_4t, w
 
 
 def centroid_offsets(points, centres, indptr, indices, distances, radius, normals, start, use_taper):
-    """``|P_t (mean_j x_j - x_i)| / R_i`` per point (heatcurv.border.centroid_offset)."""
+    """``|P_t (mean_j x_j - x_i)| / R_i`` per point (heatcurv.flags.border.centroid_offset)."""
     points, indptr = as_floats(points), as_pointers(indptr)
     n = indptr.shape[0] - 1
     out = np.zeros(n)
@@ -400,7 +400,7 @@ def counts_below(values, factor, limits, indptr, indices):
     """Per row ``i``, how many of its neighbours ``j`` have ``factor * values[j] < limits[i]``, shape (n,), int64.
 
     With ``limits = values`` this decides ``values[i] > factor * median`` for
-    most rows without a median (:func:`heatcurv.outliers.exceeds_neighbour_median`):
+    most rows without a median (:func:`heatcurv.flags.outliers.exceeds_neighbour_median`):
     a branch-free count instead of a selection.
     """
     values, indptr = as_floats(values), as_pointers(indptr)
@@ -437,7 +437,7 @@ def _same_label_counts(row0, row1, labels, indptr, indices, out):
 
 
 def orientation_conflicts(points, normals, indptr, indices, distances, in_plane, aligned):
-    """Per row, the compared neighbours and those pointing the other way (heatcurv.orientation), shape (n, 2).
+    """Per row, the compared neighbours and those pointing the other way (heatcurv.orient.orientation), shape (n, 2).
 
     Neighbour ``j`` of ``i`` is compared when ``|n_i . (xj - xi)| <= in_plane |xj - xi|``
     and ``|n_i . n_j| >= aligned``; it points the other way when also ``n_i . n_j < 0``.
@@ -471,7 +471,7 @@ def _orientation_conflicts(row0, row1, points, normals, indptr, indices, distanc
 
 
 def opposite_sheet_counts(points, normals, indptr, indices, distances, reach, min_height, opposite):
-    """Per row ``i``, its neighbours on the other side of a thin part (heatcurv.sheets), shape (n,), int64.
+    """Per row ``i``, its neighbours on the other side of a thin part (heatcurv.flags.sheets), shape (n,), int64.
 
     Neighbour ``j`` within ``reach[i]`` of ``i`` counts when its height
     ``h = n_i . (xj - xi)`` exceeds both its distance from ``i``'s normal line

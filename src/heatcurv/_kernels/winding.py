@@ -9,8 +9,8 @@ its solid angle seen from ``q``, over ``4 pi``, is
 Summed over a closed, outward-oriented surface it is about 1 inside and 0
 outside. :func:`winding_numbers` sums it per label, so that one pass gives
 the field of every group of points (every patch of
-:mod:`heatcurv.enclosure`) at once: exact sums, ``O(queries x sources)``,
-which :mod:`heatcurv.enclosure` keeps bounded by its number of sources.
+:mod:`heatcurv.orient.enclosure`) at once: exact sums, ``O(queries x sources)``,
+which :mod:`heatcurv.orient.enclosure` keeps bounded by its number of sources.
 
 Arrays in, arrays out: this module imports nothing from heatcurv.
 """

@@ -3,12 +3,12 @@
 The driver (:mod:`.driver`) and the tasks (:mod:`.tasks`) call nothing else of
 the core. A tile computes as the whole cloud would
 because every choice that is not a point's own is made once
-(:mod:`heatcurv.choices`):
+(:mod:`heatcurv.choice.choices`):
 
 * the **frame** (centring origin, unit, centroid, rms radius: the sampling
   keys) from the streaming statistics (:func:`cloud_frame`);
 * the **kernel widths** from the sample centres each tile fits
-  (:func:`survey_tile`, :mod:`heatcurv.survey`), joined in key order and
+  (:func:`survey_tile`, :mod:`heatcurv.choice.survey`), joined in key order and
   decided once (:func:`merge_surveys`);
 * the **medians** of the reliability flags after every tile is done
   (:func:`finish_reliability`, from the per-point inputs each tile returns).
@@ -22,14 +22,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..choices import CloudFrame
+from ..choice.choices import CloudFrame
+from ..choice.plan import plan_fit
+from ..choice.survey import GATE_LEVELS, fit_centres, join_keys, key_part, merge_fits, survey_part, tile_options
+from ..choice.survey import merge_surveys as merge_centre_surveys
 from ..estimator import estimate
+from ..flags.reliability import ReliabilityInputs, cloud_flags
+from ..geometry.validation import bounding_box_frame
 from ..options import resolve_options
-from ..plan import plan_fit
-from ..reliability import ReliabilityInputs, cloud_flags
-from ..survey import GATE_LEVELS, fit_centres, join_keys, key_part, merge_fits, survey_part, tile_options
-from ..survey import merge_surveys as merge_centre_surveys
-from ..validation import bounding_box_frame
 from .context import SurveyContext
 
 __all__ = [
@@ -51,11 +51,11 @@ RESULT_FIELDS = {
     "k2": (1, np.float64), "d1": (3, np.float64), "d2": (3, np.float64), "area": (1, np.float64),
     "reliable": (1, np.bool_), "outlier": (1, np.bool_), "border": (1, np.bool_), "spacing": (1, np.float64),
     "neighbours": (1, np.int64), "fit_radius": (1, np.float64),
-    # the inputs of the two cloud-wide flags (heatcurv.reliability), joined after the last tile
+    # the inputs of the two cloud-wide flags (heatcurv.flags.reliability), joined after the last tile
     "misfit_residual": (1, np.float64), "fit_width": (1, np.int64), "resolution_rho": (1, np.float64),
     "counted": (1, np.bool_),
 }
-#: The fields of :data:`RESULT_FIELDS` that hold :class:`heatcurv.reliability.ReliabilityInputs`, in its order
+#: The fields of :data:`RESULT_FIELDS` that hold :class:`heatcurv.flags.reliability.ReliabilityInputs`, in its order
 #: (``reliable`` holds its ``local`` flags until :func:`finish_reliability`).
 RELIABILITY_FIELDS = ("reliable", "misfit_residual", "fit_width", "resolution_rho", "counted")
 
@@ -93,7 +93,7 @@ def survey_halo(core_points: np.ndarray, stats, options: dict, r0: float | None 
     sample of the core: ``r0``, :func:`_core_ball` unless given); the
     certificate widens it where that is not enough.
     """
-    from ..scale import _ladder
+    from ..choice.scale import _ladder
 
     opts = tile_options(_estimate_options(options))
     k0 = int(opts.neighbours)
@@ -113,11 +113,11 @@ def key_halo(core_points: np.ndarray, options: dict, r0: float | None = None) ->
 
 
 def key_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
-    """Round 1 of the survey on a tile (:func:`heatcurv.survey.key_part`).
+    """Round 1 of the survey on a tile (:func:`heatcurv.choice.survey.key_part`).
 
     Returns
     -------
-    survey : heatcurv.survey.KeySurvey
+    survey : heatcurv.choice.survey.KeySurvey
     reach : ndarray, shape (c,)
         Each core row's operator ball radius, input units (the certificate's).
     """
@@ -127,7 +127,7 @@ def key_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
 
 
 def plan_centres(surveys: list, stats, options: dict):
-    """The cloud's sample centres from every tile's keys (:func:`heatcurv.survey.join_keys`)."""
+    """The cloud's sample centres from every tile's keys (:func:`heatcurv.choice.survey.join_keys`)."""
     return join_keys(surveys, cloud_frame(stats), **_estimate_options(options))
 
 
@@ -154,13 +154,13 @@ CENTRE_MARGIN = 1.5
 
 
 def gate_levels(options: dict) -> int | None:
-    """The candidates round 2 fits first: the noise gate's (:data:`heatcurv.survey.GATE_LEVELS`) when the
+    """The candidates round 2 fits first: the noise gate's (:data:`heatcurv.choice.survey.GATE_LEVELS`) when the
     kernel is chosen (``scale="auto"``), else every one (a fixed ``scale`` needs its own width's fits)."""
     return GATE_LEVELS if tile_options(_estimate_options(options)).scale == "auto" else None
 
 
 def fit_tile_centres(points: np.ndarray, stats, options: dict, plan, places: np.ndarray, levels: int | None = None):
-    """Round 2 of the survey on a tile (:func:`heatcurv.survey.fit_centres`); its ``reach`` in input units."""
+    """Round 2 of the survey on a tile (:func:`heatcurv.choice.survey.fit_centres`); its ``reach`` in input units."""
     frame = cloud_frame(stats)
     part = fit_centres(points, frame, plan, places, levels, **_estimate_options(options))
     return part, part.reach * frame.unit, plan.positions[places] * frame.unit + frame.offset
@@ -174,7 +174,7 @@ def merge_rounds(parts: list, plan, stats, options: dict) -> SurveyContext:
 
 
 def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
-    """A tile's fits at its sample centres (:func:`heatcurv.survey.survey_part`).
+    """A tile's fits at its sample centres (:func:`heatcurv.choice.survey.survey_part`).
 
     Parameters
     ----------
@@ -189,7 +189,7 @@ def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
 
     Returns
     -------
-    heatcurv.survey.CentreSurvey
+    heatcurv.choice.survey.CentreSurvey
     """
     return survey_part(points, core, cloud_frame(stats), **_estimate_options(options))
 
@@ -206,7 +206,7 @@ def merge_surveys(surveys: list, stats, options: dict) -> SurveyContext:
     Returns
     -------
     SurveyContext
-        ``choices``: :class:`heatcurv.choices.CloudChoices`; ``halo``: twice the
+        ``choices``: :class:`heatcurv.choice.choices.CloudChoices`; ``halo``: twice the
         widest chosen ball plus the narrowest candidate's ball (the operator's),
         the largest the survey measured, input units: a first guess, which each
         tile's certificate checks point by point; ``support``: the widest chosen ball.
@@ -283,8 +283,8 @@ def finish_reliability(columns, medians=None) -> tuple[np.ndarray, float]:
         The :data:`RELIABILITY_FIELDS` arrays of some rows.
     medians : tuple, optional
         ``(baselines, resolution)`` over the whole cloud
-        (:func:`heatcurv.reliability.misfit_baselines`,
-        :func:`heatcurv.reliability.resolution`); default: from these rows.
+        (:func:`heatcurv.flags.reliability.misfit_baselines`,
+        :func:`heatcurv.flags.reliability.resolution`); default: from these rows.
 
     Returns
     -------
@@ -305,7 +305,7 @@ def describe(context: SurveyContext, options: dict) -> dict:
     """The choices of :func:`merge_surveys` as plain numbers (for the output file's parameters and the report).
 
     ``options``: the tiles' estimator keywords (:func:`.driver.estimator_options`); the kernel is
-    the label of the fit plan they and the survey's choice make (:func:`heatcurv.plan.plan_fit`).
+    the label of the fit plan they and the survey's choice make (:func:`heatcurv.choice.plan.plan_fit`).
     """
     choices = context.choices
     frame, scale = choices.frame, choices.scale
@@ -318,7 +318,7 @@ def describe(context: SurveyContext, options: dict) -> dict:
         "kernel": plan.label, "sigma": scale.sigma * frame.unit, "relative_noise": scale.relative_noise,
     }
     policy = getattr(choices, "orientation", None)
-    if policy is not None:  # what orient="auto" without a viewpoint chose (heatcurv.orientation.auto_policy)
+    if policy is not None:  # what orient="auto" without a viewpoint chose (heatcurv.orient.orientation.auto_policy)
         out["auto_orientation"] = policy.mode
     if scale.k_centre is not None:
         widths, counts = np.unique(scale.k_centre, return_counts=True)

@@ -1,7 +1,7 @@
 """What the survey gives every tile: :class:`SurveyContext`, and its scratch file ``context.json``.
 
 The context is a frozen dataclass of frozen dataclasses (the cloud's
-:class:`~heatcurv.choices.CloudChoices`: its frame, the kernel widths and
+:class:`~heatcurv.choice.choices.CloudChoices`: its frame, the kernel widths and
 their sample centres, the orientation policy) and two halo widths. It is
 written as JSON, not pickled: a resumed run reads back plain, typed values.
 Each dataclass is written as an object naming its type (only the types of
@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..choices import CloudChoices, CloudFrame
+from ..choice.choices import CloudChoices, CloudFrame
+from ..choice.scale import Scale, ScaleChoice
 from ..errors import HeatcurvError
-from ..orientation import AutoPolicy
-from ..scale import Scale, ScaleChoice
+from ..orient.orientation import AutoPolicy
 
 __all__ = ["SurveyContext", "TYPES", "write_context", "read_context", "to_plain", "from_plain"]
 
@@ -34,7 +34,7 @@ class SurveyContext:
 
     Attributes
     ----------
-    choices : heatcurv.choices.CloudChoices
+    choices : heatcurv.choice.choices.CloudChoices
         The frame, kernel widths and orientation policy every tile takes.
     halo : float
         A first halo for the tiles: twice the widest chosen ball plus the

@@ -9,7 +9,7 @@ timed in the report):
    in scratch; tiled again at smaller sizes while the survey's tiles do not fit
    the budget (:func:`.plan.fit_tiles`). The result is a frozen :class:`.plan.TilePlan`.
 2. ``survey`` (:func:`_survey`): one round (:func:`.tasks.run_survey`) for at most
-   :data:`ONE_ROUND_TILES` tiles, else two rounds (:mod:`heatcurv.survey`): :func:`.tasks.run_keys`
+   :data:`ONE_ROUND_TILES` tiles, else two rounds (:mod:`heatcurv.choice.survey`): :func:`.tasks.run_keys`
    on every tile (its core's sampling keys over a thin halo), joined into the
    cloud's sample centres; :func:`.tasks.run_centres` on the tiles holding
    some (the candidates' fits at those centres only, over the points within
@@ -71,8 +71,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..choice.survey import FitsNotSurveyed
 from ..errors import HeatcurvError
-from ..survey import FitsNotSurveyed
 from . import compute
 from .context import SurveyContext, read_context, write_context
 from .executors import SCHEDULERS, SerialExecutor, kill_workers, open_executor
@@ -557,7 +557,7 @@ def _survey(run: _Run, plan: TilePlan, timings: dict, bar) -> SurveyContext:
 
 
 def _survey_one_round(run: _Run, plan: TilePlan, phase: _Phase) -> SurveyContext:
-    """One round (:func:`heatcurv.survey.survey_part`): the cloud's centres fill so few tiles that round 2 would
+    """One round (:func:`heatcurv.choice.survey.survey_part`): the cloud's centres fill so few tiles that round 2 would
     compute as much as one round does, after round 1."""
     n_tiles = len(plan.tiling.counts)
     specs = {t: {"scratch": str(run.work), "tile": t, "stats": plan.stats, "options": phase.options,
@@ -568,7 +568,7 @@ def _survey_one_round(run: _Run, plan: TilePlan, phase: _Phase) -> SurveyContext
 
 
 def _survey_two_rounds(run: _Run, plan: TilePlan, phase: _Phase) -> SurveyContext:
-    """Two rounds (:mod:`heatcurv.survey`): every tile's keys over a thin halo, then the candidates' fits at the
+    """Two rounds (:mod:`heatcurv.choice.survey`): every tile's keys over a thin halo, then the candidates' fits at the
     cloud's sample centres only, over the points within their reach (the same fits, bit for bit); the survey's halo
     bounds both. The noise gate's candidates first: a clean cloud is decided by them, a noisy one fits them all."""
     n_tiles = len(plan.tiling.counts)
@@ -684,7 +684,7 @@ def _orient(run: _Run, plan: TilePlan, context: SurveyContext, timings: dict, ba
     winding number over every tile's sources; ``(flips, report)``, both None for other orientations."""
     if not compute.orients_outward(run.options, context.choices):
         return None, None
-    from ..enclosure import warn_undecided
+    from ..orient.enclosure import warn_undecided
     from .orient import seam_flips
     from .winding import flag_unsupported, winding_sides
 

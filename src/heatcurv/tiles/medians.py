@@ -1,7 +1,7 @@
 """Exact medians of columns too long to hold: two streaming passes over ``results.rec``.
 
 The reliability flags compare each point with medians over the whole cloud
-(:mod:`heatcurv.reliability`): the median residual of each kernel width and
+(:mod:`heatcurv.flags.reliability`): the median residual of each kernel width and
 the median resolution. ``np.median`` would need the whole column in memory
 (800 MB per 1e8 points); here a first pass counts the values of each group
 in bins of their float64 bit pattern (the top 16 bits: sign, exponent and 4
@@ -81,7 +81,7 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
 
     The medians (each kernel width's residual, the resolution) are taken over
     every computed, counted row (:func:`streaming_medians`), exactly as
-    :func:`heatcurv.reliability.cloud_flags` takes them in memory; then each
+    :func:`heatcurv.flags.reliability.cloud_flags` takes them in memory; then each
     chunk's ``reliable`` is rewritten in place.
 
     Returns
@@ -94,7 +94,7 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
     HeatcurvWarning
         When the cloud is too coarse for its curvature (every row unreliable).
     """
-    from ..reliability import misfits, warn_too_coarse
+    from ..flags.reliability import misfits, warn_too_coarse
     from ..tuning import TUNING
     from .output import read_results, write_records
 

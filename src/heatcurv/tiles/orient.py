@@ -2,7 +2,7 @@
 
 ``up`` and ``viewpoint`` decide every normal's side from its own reference
 direction, so tiles need nothing more. ``outward`` propagates one side over
-the whole surface (:mod:`heatcurv.orientation`), which a tile can do only
+the whole surface (:mod:`heatcurv.orient.orientation`), which a tile can do only
 over its own piece: each tile orients its pieces internally and the driver
 makes the pieces agree.
 
@@ -18,7 +18,7 @@ with parity in the union-find), and each connected object then gets the sign
 that makes its signed volume ``sum_i A_i (x_i - c) . n_i`` over core points
 positive (3 x the enclosed volume of a closed surface, whatever ``c``).
 The flips are applied in the final write pass
-(:func:`heatcurv.principal.PrincipalCurvatures.flipped`'s convention: the
+(:func:`heatcurv.fits.principal.PrincipalCurvatures.flipped`'s convention: the
 normal and mean curvature negated, ``k1' = -k2``, ``k2' = -k1``, ``d1`` and
 ``d2`` swapped, the Gaussian curvature unchanged).
 """

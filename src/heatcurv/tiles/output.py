@@ -193,8 +193,8 @@ def read_results(path, start: int, stop: int) -> np.ndarray:
 
 
 def _flipped(block: np.ndarray, flip: np.ndarray) -> np.ndarray:
-    """The records seen from the other side where ``flip``: heatcurv.principal.PrincipalCurvatures.flipped."""
-    from ..principal import PrincipalCurvatures
+    """The records seen from the other side where ``flip``: heatcurv.fits.principal.PrincipalCurvatures.flipped."""
+    from ..fits.principal import PrincipalCurvatures
 
     if not flip.any():
         return block

@@ -69,7 +69,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..choices import FrameStats
+from ..choice.choices import FrameStats
 from ..errors import HeatcurvError
 from .sources import CHUNK_POINTS, Source
 
@@ -113,7 +113,7 @@ class CloudStats:
         Their mean.
     rms_radius : float
         Root-mean-square distance of the finite points from ``centroid`` (with
-        the centroid: the sampling keys' frame, :class:`heatcurv.choices.CloudFrame`).
+        the centroid: the sampling keys' frame, :class:`heatcurv.choice.choices.CloudFrame`).
     distinct : int
         Distinct points (0 until :func:`distinct_frame` has counted them; then
         ``centroid`` and ``rms_radius`` are those of the distinct points, as in
@@ -205,7 +205,7 @@ def scan_stats(source: Source, skip_nonfinite: bool = False) -> CloudStats:
         On non-finite coordinates unless ``skip_nonfinite``, and on fewer than
         two finite points.
     """
-    # the moments as heatcurv.choices.FrameStats sums them (about the first row: UTM coordinates
+    # the moments as heatcurv.choice.choices.FrameStats sums them (about the first row: UTM coordinates
     # keep their precision), so the tiles' frame is the in-memory one to rounding
     frame = FrameStats()
     count, bad = 0, []
@@ -431,13 +431,13 @@ def distinct_frame(directory, tiling, stats: CloudStats) -> CloudStats:
     """``stats`` with the centroid, rms radius and count of the distinct points, tile by tile from the scratch.
 
     The sampling keys' frame counts exact duplicates once, as in memory
-    (:func:`heatcurv.choices.frame_of`); duplicates share a position, so they
+    (:func:`heatcurv.choice.choices.frame_of`); duplicates share a position, so they
     share a tile.
     """
     from dataclasses import replace
 
-    from ..choices import CloudFrame, FrameStats
-    from ..validation import bounding_box_frame
+    from ..choice.choices import CloudFrame, FrameStats
+    from ..geometry.validation import bounding_box_frame
 
     offset, unit = bounding_box_frame(np.asarray(stats.low), np.asarray(stats.high))
     frame = CloudFrame(offset, unit, stats.finite, np.zeros(3), 1.0)

@@ -209,7 +209,7 @@ def run_keys(spec: dict):
 
     Returns
     -------
-    heatcurv.survey.KeySurvey
+    heatcurv.choice.survey.KeySurvey
     """
     scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
     plan = load_plan(scratch)
@@ -238,13 +238,13 @@ def run_centres(spec: dict):
 
     Returns
     -------
-    list of heatcurv.survey.CentreFitsPart
+    list of heatcurv.choice.survey.CentreFitsPart
         The centres fitted at the first try, then those fitted again (a
         centre's fits do not depend on the others').
     """
     scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
     centres_plan, places = spec["plan"], np.asarray(spec["places"], dtype=np.int64)
-    levels = spec.get("levels")  # the noise gate's candidates only (heatcurv.survey.GATE_LEVELS), or all
+    levels = spec.get("levels")  # the noise gate's candidates only (heatcurv.choice.survey.GATE_LEVELS), or all
     tiling = Tiling.from_json(load_plan(scratch)["tiling"])
     frame = compute.cloud_frame(stats)
     centres = centres_plan.positions[places] * frame.unit + frame.offset

@@ -1,7 +1,7 @@
 """Inside and outside across tiles: the winding number's patch signs and flags over the whole cloud.
 
 In memory, a closed cloud's outward orientation is finished by the
-generalised winding number (:mod:`heatcurv.enclosure`): the spanning forest is
+generalised winding number (:mod:`heatcurv.orient.enclosure`): the spanning forest is
 cut into patches, each patch gets the side that makes the field about 1 inside
 and 0 outside, and the points whose side the field contradicts are flagged.
 Without it the two sides of a thin part (a leg, an ear) can both be oriented
@@ -9,17 +9,17 @@ by one wrong edge of the tree, and the part comes out inside out, flagged
 reliable.
 
 A tile cuts its own spanning forest into patches of the size the whole
-cloud's would have (:func:`heatcurv.enclosure.patches`, each also within one
+cloud's would have (:func:`heatcurv.orient.enclosure.patches`, each also within one
 seam piece of :mod:`.orient`) and keeps a sample of its core points as
 sources, with the normals and areas the winding number reads in memory (the
 spanning tree's PCA normals, the operator's areas): those whose coordinate
-rank (:func:`heatcurv.enclosure.source_keys`, the same for a point in any
+rank (:func:`heatcurv.orient.enclosure.source_keys`, the same for a point in any
 tile) is at most a threshold chosen for about
-:data:`heatcurv.enclosure.MAX_SOURCES` sources over the whole cloud
-(:func:`heatcurv.enclosure.sampled_sources`). The driver,
+:data:`heatcurv.orient.enclosure.MAX_SOURCES` sources over the whole cloud
+(:func:`heatcurv.orient.enclosure.sampled_sources`). The driver,
 once the seam flips are known, gathers every tile's sources, turns their
 normals by the seam flips, and solves the same energy for the sides of all
-patches of all tiles (:func:`heatcurv.enclosure.patch_sides`). A closed cloud's
+patches of all tiles (:func:`heatcurv.orient.enclosure.patch_sides`). A closed cloud's
 patch flips are then applied with the seam flips in the output pass, and a
 point is flagged (not ``reliable``) when it is a disagreeing source, or when
 more than half of the sources within its fit radius disagree, as in memory.
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..enclosure import patch_sides, sampled_sources
+from ..orient.enclosure import patch_sides, sampled_sources
 from .output import PATCH_SHIFT, SOURCE_KEYS, read_results, write_records
 
 __all__ = ["MAX_TILED_PATCHES", "WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
@@ -53,7 +53,7 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
 
     Parameters
     ----------
-    frame : heatcurv.choices.CloudFrame
+    frame : heatcurv.choice.choices.CloudFrame
         The whole cloud's frame.
     points : ndarray, shape (c, 3)
         The tile's core points, input coordinates.
@@ -116,12 +116,12 @@ class WindingSides:
     bad : ndarray, shape (m,), bool
         Sources whose side the field contradicts.
     closed : bool
-        Whether the cloud encloses a volume (:class:`heatcurv.enclosure.PatchSides`).
+        Whether the cloud encloses a volume (:class:`heatcurv.orient.enclosure.PatchSides`).
     agreement : float
     undecided : bool
-        Whether the field cannot tell (:class:`heatcurv.enclosure.PatchSides`): every point is flagged.
+        Whether the field cannot tell (:class:`heatcurv.orient.enclosure.PatchSides`): every point is flagged.
     outside_share : float
-        (:class:`heatcurv.enclosure.PatchSides`)
+        (:class:`heatcurv.orient.enclosure.PatchSides`)
     """
 
     column: str
@@ -196,7 +196,7 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
         ``results.rec``.
     source : heatcurv.tiles.sources.Source
         The input, read for the coordinates.
-    frame : heatcurv.choices.CloudFrame
+    frame : heatcurv.choice.choices.CloudFrame
         The whole cloud's frame.
     sides : WindingSides
 

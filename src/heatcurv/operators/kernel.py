@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._kernels import segment as kernels
-from .errors import HeatcurvError
-from .neighbourhood import Neighbourhood
+from .._kernels import segment as kernels
+from ..errors import HeatcurvError
+from ..geometry.neighbourhood import Neighbourhood
 
 __all__ = [
     "heat_kernel_weights",

@@ -1,9 +1,11 @@
-"""A tiled run's kernel choice, measured tile by tile: the cloud-wide part of :func:`heatcurv.scale.select_scale`.
+"""A tiled run's kernel choice, measured tile by tile.
 
-In memory, :func:`heatcurv.scale.select_scale` fits the candidate kernels at
+The cloud-wide part of :func:`heatcurv.choice.scale.select_scale`.
+
+In memory, :func:`heatcurv.choice.scale.select_scale` fits the candidate kernels at
 sample centres (the points with the smallest sampling keys, in key order,
 the wider candidates at a prefix of them) and then decides from those fits
-alone (:func:`heatcurv.scale.decide_scale`). A centre's fit depends only on the
+alone (:func:`heatcurv.choice.scale.decide_scale`). A centre's fit depends only on the
 points within its ball, so a tiled run can fit the centres where they lie:
 
 1. each tile fits every candidate at *its* core points of smallest keys
@@ -11,7 +13,7 @@ points within its ball, so a tiled run can fit the centres where they lie:
    are among the tile's first ``s``, so every fit the decision reads is made
    by some tile;
 2. the driver joins the tiles' fits in key order and runs the same decision
-   (:func:`merge_surveys`), which gives :class:`heatcurv.choices.CloudChoices`
+   (:func:`merge_surveys`), which gives :class:`heatcurv.choice.choices.CloudChoices`
    for every tile.
 
 A tiled run surveys in two rounds that make the same fits at exactly the
@@ -34,16 +36,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .areas import fit_areas
+from ..errors import HeatcurvError
+from ..flags.outliers import find_outliers
+from ..geometry.neighbourhood import Neighbourhood
+from ..geometry.normals import pca_normals
+from ..geometry.sampling import geometric_keys, shifted_keys
+from ..operators.areas import fit_areas
+from ..operators.operator import HeatKernelOperator
+from ..options import Options, resolve_options
+from ..orient.orientation import auto_policy
 from .choices import CloudChoices, CloudFrame
-from .errors import HeatcurvError
-from .neighbourhood import Neighbourhood
-from .normals import pca_normals
-from .operator import HeatKernelOperator
-from .options import Options, resolve_options
-from .orientation import auto_policy
-from .outliers import find_outliers
-from .sampling import geometric_keys, shifted_keys
 from .scale import CentreFits, CentreFitter, Scale, _ladder, decide_scale, level_sizes
 
 __all__ = [
@@ -101,7 +103,7 @@ class CentreSurvey:
         Their coordinates in the cloud's frame (stages' units).
     fits : dict
         ``{scale label: CentreFits}``, each at the first candidates
-        (:func:`heatcurv.scale.level_sizes`).
+        (:func:`heatcurv.choice.scale.level_sizes`).
     reach : ndarray, shape (c,)
         How far from each candidate its fits read points (the widest ball plus
         one operator ball for its neighbours' areas and normal), stages' units:
@@ -174,7 +176,7 @@ def _largest_ball(base: Neighbourhood) -> float:
 
 
 class SurveyedFits:
-    """The joined fits of every tile, with the interface of :class:`heatcurv.scale.CentreFitter`."""
+    """The joined fits of every tile, with the interface of :class:`heatcurv.choice.scale.CentreFitter`."""
 
     def __init__(self, surveys: list, q: int):
         keys = np.concatenate([s.keys for s in surveys])
@@ -222,8 +224,8 @@ def merge_surveys(surveys: list, frame: CloudFrame, **options) -> CloudChoices:
 
 
 def _decide(fits, positions: np.ndarray, frame: CloudFrame, opts) -> CloudChoices:
-    """:func:`heatcurv.scale.decide_scale` and :func:`heatcurv.orientation.auto_policy` once for the cloud, at its
-    sample centres (``positions``)."""
+    """:func:`heatcurv.choice.scale.decide_scale` and :func:`heatcurv.orient.orientation.auto_policy` once for the
+    cloud, at its sample centres (``positions``)."""
     tuning = opts.scale_tuning
     choice = decide_scale(
         fits, positions, frame.n_points, base_k=int(opts.neighbours), max_k=tuning.max_k, tau=tuning.tau,
@@ -244,11 +246,11 @@ def _decide(fits, positions: np.ndarray, frame: CloudFrame, opts) -> CloudChoice
 # 1. :func:`key_part`: the sampling key of each of a tile's core points (its ``neighbours`` nearest,
 #    over the core and a halo of one operator ball) and the tile's ``n_sub`` smallest;
 # 2. :func:`join_keys`: the cloud's first ``n_sub`` in key order (as :class:`SurveyedFits` joins them),
-#    and how many of them each candidate is fitted at (:func:`heatcurv.scale.level_sizes`);
+#    and how many of them each candidate is fitted at (:func:`heatcurv.choice.scale.level_sizes`);
 # 3. :func:`fit_centres`: a tile's fits at its centres of the cloud's first ``n_sub``, each over the
 #    points within its widest ball plus two operator balls (the areas of the ball's points and the
 #    outlier test's neighbour medians), never the whole tile;
-# 4. :func:`merge_fits`: the decision (:func:`heatcurv.scale.decide_scale`) on the joined fits.
+# 4. :func:`merge_fits`: the decision (:func:`heatcurv.choice.scale.decide_scale`) on the joined fits.
 #
 # Steps 3-4 run first with the noise gate's candidates only (:data:`GATE_LEVELS`): the decision reads
 # the wider ones only under noise, and asks for them by raising :class:`FitsNotSurveyed`.
@@ -303,8 +305,8 @@ def key_part(points, core, frame: CloudFrame, **options) -> tuple[KeySurvey, np.
     """
     from scipy.spatial import cKDTree
 
-    from .neighbourhood import knn_neighbourhood
-    from .operator import _prepare
+    from ..geometry.neighbourhood import knn_neighbourhood
+    from ..operators.operator import _prepare
 
     opts = tile_options(options)
     core = np.asarray(core, dtype=bool)
@@ -338,7 +340,7 @@ class CentrePlan:
         Their operator ball radii, stages' units.
     sizes : list of int
         Centres each candidate of the ladder is fitted at (the first ones):
-        :func:`heatcurv.scale.level_sizes`.
+        :func:`heatcurv.choice.scale.level_sizes`.
     ladder : list of Scale
     largest_ball : float
         The largest operator ball of any point of the cloud, stages' units.
@@ -384,7 +386,7 @@ def join_keys(surveys: list, frame: CloudFrame, **options) -> CentrePlan:
 
 
 #: Round 2 first fits the noise gate's candidates only (the chord and the ladder's first, at every
-#: centre): on a clean cloud they decide (:func:`heatcurv.scale.decide_scale` stops there, and
+#: centre): on a clean cloud they decide (:func:`heatcurv.choice.scale.decide_scale` stops there, and
 #: :func:`merge_fits` returns), so the wide candidates, most of a survey's work, are fitted only under
 #: noise (:class:`FitsNotSurveyed`, then a round of every candidate).
 GATE_LEVELS = 1

@@ -41,9 +41,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._kernels import segment as kernels
-from .neighbourhood import Neighbourhood
-from .tuning import TUNING
+from .._kernels import segment as kernels
+from ..geometry.neighbourhood import Neighbourhood
+from ..tuning import TUNING
 
 __all__ = [
     "layered_balls", "second_sheet",

@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import HeatcurvError, HeatcurvWarning
-from .tuning import TUNING
+from ..errors import HeatcurvError, HeatcurvWarning
+from ..tuning import TUNING
 
 __all__ = [
     "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "imprecise", "misfit_baselines",
@@ -251,7 +251,7 @@ def rounding_uncertainty(half_step: np.ndarray, normals: np.ndarray, mean_varian
     Each coordinate's rounding error is taken as uniform within ``+- half_step`` (variance ``half_step^2 / 3``),
     independent from point to point: along a point's normal its variance is ``sum(n_c^2 half_step_c^2) / 3``,
     and the fit turns a height-noise variance into a mean-curvature variance through its own variance
-    factor (:attr:`heatcurv.chordfit.ChordFit.mean_variance_factor`), which holds the fit's weights and how
+    factor (:attr:`heatcurv.fits.chordfit.ChordFit.mean_variance_factor`), which holds the fit's weights and how
     well its neighbours pin its coefficients down.
 
     Parameters

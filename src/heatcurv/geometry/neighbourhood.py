@@ -2,7 +2,7 @@
 
 The paper (section 2) sums every operator over the ball of radius
 ``r = alpha h`` (``3.5 <= alpha <= 4.5``). The operator's neighbourhood
-(:mod:`heatcurv.operator`) is computed once and shared by the areas, the
+(:mod:`heatcurv.operators.operator`) is computed once and shared by the areas, the
 Laplacian, the normals and their orientation, and the paper's principal fit;
 the default estimator's chord fit queries its own, noise-adapted one (the
 stage ``fit_neighbourhood``, block by block). Both are stored as CSR arrays:
@@ -19,8 +19,8 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ._kernels.graph import pairs_between_kept
-from .errors import HeatcurvError
+from .._kernels.graph import pairs_between_kept
+from ..errors import HeatcurvError
 
 __all__ = [
     "Neighbourhood", "ball_neighbourhood", "knn_neighbourhood", "BLOCK_PAIRS", "QUERY_PAIRS", "rows_per_block",
@@ -406,7 +406,7 @@ def knn_neighbourhood(
     The ball of radius ``R_i = d_k(i)`` (the distance to the ``k``-th nearest
     other point) holds exactly these ``k`` points, up to points tied at
     distance ``R_i``; every kernel of the default estimator is tapered to 0 at
-    the ball's edge (:func:`heatcurv.kernel.ball_taper`), so tied points carry
+    the ball's edge (:func:`heatcurv.operators.kernel.ball_taper`), so tied points carry
     no weight and the two neighbourhoods give the same results. One k-d tree
     query instead of a kNN query plus a ball query, and a fixed row length.
 

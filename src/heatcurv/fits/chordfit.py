@@ -1,6 +1,6 @@
 """The default estimator's curvature fit: edge chord curvatures with tilt and cubic terms.
 
-The paper's principal fit (section 3, :mod:`heatcurv.principal`) fits
+The paper's principal fit (section 3, :mod:`heatcurv.fits.principal`) fits
 Euler's formula ``kN(theta) = k1 cos^2 + k2 sin^2`` to the edge normal
 curvatures ``kN_ij = 2 (xi-xj).n / |xi-xj|^2`` (eq 2.12). ``kN_ij`` is the
 curvature of the circle through ``x_i`` and ``x_j`` tangent to the plane
@@ -35,7 +35,7 @@ noise of the centre point itself.
 
 Under very low noise (coordinate rounding: about 1e-5 to 1e-4 of the diagonal)
 that refit's own bias, the third-order model's, exceeds the noise's error. There
-(``low_noise``: the anchors' fits of a cloud in that band, :mod:`heatcurv.anchors`;
+(``low_noise``: the anchors' fits of a cloud in that band, :mod:`heatcurv.fits.anchors`;
 never the kernel choice's fits, so its noise gate and Lepski's rule are those of
 every other cloud) the denoised form refits with quartic terms ``r^2 c^4 .. r^2 s^4``, the
 denominator from a height fit with quartic terms, and pair weights
@@ -51,11 +51,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels import chordfit as kernels
-from .neighbourhood import Neighbourhood
-from .normals import tangent_frames
+from .._kernels import chordfit as kernels
+from ..geometry.neighbourhood import Neighbourhood
+from ..geometry.normals import tangent_frames
+from ..tuning import TUNING
 from .principal import PrincipalCurvatures, tensor_to_principal
-from .tuning import TUNING
 
 __all__ = ["ChordFit", "chord_fit", "refine_normals"]
 
@@ -81,7 +81,7 @@ class ChordFit:
         The last pass's model in the frame ``tangent_frames(normals)``, in units of
         each centre's ball radius: tensor ``a, b, d``, tilt ``t_1, t_2``, cubic
         ``g_0 .. g_3`` and (low-noise refit) quartic ``q_0 .. q_4`` (zeros for terms not
-        fitted); :mod:`heatcurv.anchors` evaluates it away from the centre.
+        fitted); :mod:`heatcurv.fits.anchors` evaluates it away from the centre.
     """
 
     principal: PrincipalCurvatures
@@ -233,11 +233,11 @@ def chord_fit(
         (for noisy clouds) instead of the chord curvatures.
     centres : ndarray, shape (m, 3), optional
         The points the fits are centred on (default ``points``): a subset,
-        such as the anchors of a wide kernel (:mod:`heatcurv.anchors`).
+        such as the anchors of a wide kernel (:mod:`heatcurv.fits.anchors`).
     low_noise : bool, optional
         With ``denoise``: the denoised form's low-noise refit where a centre's residual
         allows it (:func:`_denoised_refit`; the caller's choice for a cloud in the
-        very-low-noise band, :func:`heatcurv.anchors.carry_degree`). Without it the
+        very-low-noise band, :func:`heatcurv.fits.anchors.carry_degree`). Without it the
         denoised fit is the plain refit everywhere.
 
     Returns
@@ -433,6 +433,6 @@ def _denoised_refit(geometry, n_shape, unit, e1, e2, nrm, tilt, cubic) -> ChordF
         kernels.weighted_height_residual(*sub, kernels.DENOISED_HEIGHT, hb, fit_beta, part)
         sigma2[rows] = part
     pc, _ = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
-    # the quartic terms are part of the model the anchors carry (:mod:`heatcurv.anchors`)
+    # the quartic terms are part of the model the anchors carry (:mod:`heatcurv.fits.anchors`)
     coefficients = np.concatenate([_model_coefficients(beta, tilt, cubic), quartic], axis=1)
     return _chord_fit_result(pc, ok, nrm, sigma2, var_factor, unit, coefficients)

@@ -1,6 +1,6 @@
 """Kernel width of the default estimator: noise level and a bias-variance choice.
 
-The default fit (:mod:`heatcurv.chordfit`) runs at a kernel that holds a
+The default fit (:mod:`heatcurv.fits.chordfit`) runs at a kernel that holds a
 given number ``k`` of neighbours: the ball radius is ``R_i = d_k(i)``, the
 distance to the ``k``-th nearest neighbour, and the heat kernel of the paper
 (``t = h^2/4``, eq 2.8) has ``h_i = R_i / alpha``. On clean clouds the
@@ -36,7 +36,7 @@ grows with ``R^2``). :func:`select_scale` picks the width per cloud:
    each point takes the choice of its nearest centre;
 5. a cloud in the very-low-noise band (``relative_noise`` from ``TUNING.no_noise``
    to below ``TUNING.low_noise``, e.g. a LAZ file's millimetres) is fitted with the
-   denoised form's low-noise refit (:mod:`heatcurv.anchors`), whose bias is far
+   denoised form's low-noise refit (:mod:`heatcurv.fits.anchors`), whose bias is far
    below that of the plain fit the rule compares. Where the rule widened the
    kernel of the median centre, every widened centre's kernel is ``TUNING.low_noise_levels`` doubling wider.
 
@@ -55,12 +55,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .backend import SPLIT_ROWS, map_blocks
-from .chordfit import ChordFit, chord_fit
-from .kernel import tapered_heat_weights
-from .neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
-from .sampling import draw_subset, shifted_keys
-from .tuning import TUNING
+from ..backend import SPLIT_ROWS, map_blocks
+from ..fits.chordfit import ChordFit, chord_fit
+from ..geometry.neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
+from ..geometry.sampling import draw_subset, shifted_keys
+from ..operators.kernel import tapered_heat_weights
+from ..tuning import TUNING
 
 __all__ = [
     "CentreFits", "CentreFitter", "Scale", "ScaleChoice", "ScaleReport", "decide_scale", "fit_balls", "fit_blocks",
@@ -108,7 +108,7 @@ class ScaleChoice:
     low_noise : bool
         The very-low-noise path (:func:`decide_scale`, step 5 of the module): the kernel was
         widened for the denoised form's low-noise refit, which the anchors then fit
-        (:mod:`heatcurv.anchors`).
+        (:mod:`heatcurv.fits.anchors`).
     """
 
     scale: Scale
@@ -144,7 +144,7 @@ class ScaleReport:
     k : int
         Neighbours in the fit's kernel.
     fit : str
-        The fit plan's label (:attr:`heatcurv.plan.FitPlan.label`): ``"chord-<k>"`` (clean
+        The fit plan's label (:attr:`heatcurv.choice.plan.FitPlan.label`): ``"chord-<k>"`` (clean
         cloud), ``"denoised-<k>"``, or ``"<form>-r<radius>"`` with ``radius=``.
     radius : float
         99th percentile of the fit's ball radii, length units.
@@ -162,7 +162,7 @@ class ScaleReport:
         Root-mean-square standard deviation of each candidate's mean curvature.
     support_radius : float
         The largest support radius of any point, length units: with the cloud-wide
-        choices fixed (:mod:`heatcurv.choices`), no point farther than this changes a
+        choices fixed (:mod:`heatcurv.choice.choices`), no point farther than this changes a
         point's values (a tiled run's halo). The per-point fit's is its ball radius.
     anchors : int
         Points the wide kernel was fitted at (0: every point has its own fit).
@@ -201,7 +201,7 @@ class ScaleReport:
         cls, choice: ScaleChoice, label: str, radius: np.ndarray, alpha: float, *, fixed_radius: bool = False,
         support: np.ndarray | None = None, anchors: int = 0, k: np.ndarray | None = None,
     ) -> ScaleReport:
-        """The report of ``choice`` fitted as the plan ``label`` says (:attr:`heatcurv.plan.FitPlan.label`).
+        """The report of ``choice`` fitted as the plan ``label`` says (:attr:`heatcurv.choice.plan.FitPlan.label`).
 
         ``radius`` (shape (n,)) are the fit's ball radii, ``fixed_radius`` says they are the one
         radius of ``radius=`` (the only candidate), ``support`` (shape (n,)) each point's support
@@ -263,7 +263,7 @@ def fit_balls(
     nbhd : Neighbourhood, optional
         The centres' balls, already computed (else queried).
     low_noise : bool, optional
-        The denoised form's low-noise refit (:func:`heatcurv.chordfit.chord_fit`).
+        The denoised form's low-noise refit (:func:`heatcurv.fits.chordfit.chord_fit`).
 
     Returns
     -------
@@ -322,11 +322,11 @@ def fit_blocks(
     alpha : float, optional
         Ball radius in units of ``h`` (``R = d_k = alpha h``).
     passes : int, optional
-        Fits, each refining the normal (see :func:`heatcurv.chordfit.chord_fit`).
+        Fits, each refining the normal (see :func:`heatcurv.fits.chordfit.chord_fit`).
     workers : int, optional
         Threads for the k-d tree queries.
     block_pairs : int, optional
-        Neighbour pairs per block (default :data:`heatcurv.neighbourhood.BLOCK_PAIRS`).
+        Neighbour pairs per block (default :data:`heatcurv.geometry.neighbourhood.BLOCK_PAIRS`).
 
     Yields
     ------
@@ -541,7 +541,7 @@ def select_scale(
         curvature was off by 68 %; a 30 000-point patch with 0.6 % noise was
         best at 3840 neighbours, 10.1 % against 14.7 % at 1920, a 20 000-point
         sphere at 3840, 1.0 % against 2.4 %). Wide kernels cost no more per
-        point: they are fitted at anchors (:mod:`heatcurv.anchors`).
+        point: they are fitted at anchors (:mod:`heatcurv.fits.anchors`).
     alpha : float, optional
         Ball radius in units of ``h``.
     k_fit : int, optional
@@ -568,7 +568,7 @@ def select_scale(
     workers : int, optional
         Threads for the k-d tree queries.
     keys : ndarray, shape (n,), optional
-        Sampling keys of the subsample (:func:`heatcurv.sampling.geometric_keys`:
+        Sampling keys of the subsample (:func:`heatcurv.geometry.sampling.geometric_keys`:
         the choice does not depend on the row order); default seeded random
         samples of the rows.
     window : int, optional
@@ -576,7 +576,7 @@ def select_scale(
     pairs_per_level : int, optional
         Neighbour pairs one candidate is evaluated with (:data:`PAIRS_PER_LEVEL`).
     n_cloud : int, optional
-        Rows of the whole cloud (:class:`heatcurv.choices.CloudFrame`), which
+        Rows of the whole cloud (:class:`heatcurv.choice.choices.CloudFrame`), which
         set the widest candidate; default ``len(points)``.
 
     Returns
@@ -599,7 +599,7 @@ def centre_noise(points, tree, normals, areas, *, base_k: int = 60, alpha: float
     """The cloud's noise as the kernel choice measures it (``ScaleChoice.sigma``), without the choice.
 
     The median residual of the denoised fit at ``base_k`` over the same sample
-    centres :func:`select_scale` uses (:func:`heatcurv.orientation.auto_policy`
+    centres :func:`select_scale` uses (:func:`heatcurv.orient.orientation.auto_policy`
     needs it before the choice is made).
 
     Parameters
@@ -664,7 +664,7 @@ class CentreFitter:
         As :func:`fit_at_scale`.
 
     Calling it with ``(scale, size)`` fits ``scale`` at the first ``size``
-    centres (a :class:`CentreFits`); :mod:`heatcurv.survey` has the same
+    centres (a :class:`CentreFits`); :mod:`heatcurv.choice.survey` has the same
     interface for centres measured tile by tile.
     """
 
@@ -673,7 +673,7 @@ class CentreFitter:
         self.centres, self.alpha, self.workers = centres, alpha, workers
 
     def __call__(self, scale: Scale, size: int) -> CentreFits:
-        if size == 0:  # a tile none of whose centres is among this candidate's first (heatcurv.survey)
+        if size == 0:  # a tile none of whose centres is among this candidate's first (heatcurv.choice.survey)
             return CentreFits(*(np.zeros(0) for _ in range(4)))
         fit, h, _ = fit_at_scale(
             self.points, self.tree, self.normals[:size], self.areas, scale, centres=self.centres[:size],

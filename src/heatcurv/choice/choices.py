@@ -7,15 +7,15 @@ for the whole cloud and hand them to every tile, or its tiles would disagree
 at their seams:
 
 * the **frame**: the centring origin and length unit every coordinate is
-  computed in (:func:`heatcurv.validation.prepare_points`), and the centroid,
+  computed in (:func:`heatcurv.geometry.validation.prepare_points`), and the centroid,
   root-mean-square radius and size that make the sampling keys
-  (:func:`heatcurv.sampling.geometric_keys`) the same wherever a point is
+  (:func:`heatcurv.geometry.sampling.geometric_keys`) the same wherever a point is
   computed;
 * the **kernel widths**: the noise level and Lepski's choice, made at sample
-  centres over the whole cloud (:func:`heatcurv.scale.select_scale`; a tiled
-  run measures the centres tile by tile, :mod:`heatcurv.survey`);
+  centres over the whole cloud (:func:`heatcurv.choice.scale.select_scale`; a tiled
+  run measures the centres tile by tile, :mod:`heatcurv.choice.survey`);
 * the **orientation policy** of ``orient="auto"`` without a viewpoint
-  (:func:`heatcurv.orientation.auto_policy`: "up" for an open surface over
+  (:func:`heatcurv.orient.orientation.auto_policy`: "up" for an open surface over
   the horizontal plane, else "outward"), decided on the same sample centres;
 * the **medians** the reliability flags compare against (the misfit baselines
   and the resolution check, :mod:`heatcurv.estimator`), taken over every point
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import HeatcurvError
+from ..errors import HeatcurvError
 
 __all__ = ["CloudChoices", "CloudFrame", "FrameStats", "frame_of"]
 
@@ -46,7 +46,7 @@ class CloudFrame:
         Centring origin, input units: the centre of the cloud's bounding box.
     unit : float
         Length unit of the stages, input units (a power of two, 1 for all but
-        extreme extents: :func:`heatcurv.validation.prepare_points`).
+        extreme extents: :func:`heatcurv.geometry.validation.prepare_points`).
     n_points : int
         Rows of the cloud (duplicates included).
     centroid : ndarray, shape (3,)
@@ -75,7 +75,7 @@ def frame_of(prepared) -> CloudFrame:
 
     Parameters
     ----------
-    prepared : heatcurv.validation.PreparedPoints
+    prepared : heatcurv.geometry.validation.PreparedPoints
         The whole cloud, centred and merged.
 
     Returns
@@ -139,7 +139,7 @@ class FrameStats:
 
         Every duplicate of a row must be in the same chunk (a tile's core holds
         all the points at its positions). Duplicates are found in the stages'
-        coordinates ``frame.to_stage(chunk)``, as :func:`heatcurv.validation.prepare_points`
+        coordinates ``frame.to_stage(chunk)``, as :func:`heatcurv.geometry.validation.prepare_points`
         finds them.
         """
         chunk = np.asarray(chunk, dtype=np.float64)
@@ -150,7 +150,7 @@ class FrameStats:
 
     def frame(self) -> CloudFrame:
         """The frame of every row added so far."""
-        from .validation import bounding_box_frame
+        from ..geometry.validation import bounding_box_frame
 
         if self.n == 0:
             raise HeatcurvError("points is empty: a point cloud needs at least a few points")
@@ -168,10 +168,10 @@ class CloudChoices:
     Attributes
     ----------
     frame : CloudFrame
-    scale : heatcurv.scale.ScaleChoice or None
+    scale : heatcurv.choice.scale.ScaleChoice or None
         The kernel widths, with the sample centres they were chosen at
         (``centres``, ``k_centre``); None: chosen from the points at hand.
-    orientation : heatcurv.orientation.AutoPolicy or None
+    orientation : heatcurv.orient.orientation.AutoPolicy or None
         What ``orient="auto"`` without a viewpoint orients by; None: decided on the points at hand.
     """
 

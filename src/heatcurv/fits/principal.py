@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import HeatcurvError
-from .neighbourhood import Neighbourhood
-from .normals import tangent_frames
+from ..errors import HeatcurvError
+from ..geometry.neighbourhood import Neighbourhood
+from ..geometry.normals import tangent_frames
 
 __all__ = ["PrincipalCurvatures", "principal_fit", "tensor_to_principal"]
 

@@ -1,6 +1,6 @@
 """How the curvature is fitted: the one place that chooses the fit's form, kernel, anchors and carry.
 
-The kernel choice (:mod:`heatcurv.scale`) measures the noise and picks a
+The kernel choice (:mod:`heatcurv.choice.scale`) measures the noise and picks a
 kernel width per region; the options may fix the width (``scale=``), the
 ball (``radius=``) or ask for the paper's tensor fit. :func:`plan_fit` turns
 these into a :class:`FitPlan`; the estimator runs what the plan says, and
@@ -12,15 +12,15 @@ path                     when
 =======================  =======================================================================
 paper's tensor fit       ``fit="constrained"`` (eq 3.1, the paper's method) or ``"unconstrained"``:
                          over the operator's balls, at every point
-chord fit at each point  a clean cloud (the noise gate of :func:`heatcurv.scale.select_scale`) and
+chord fit at each point  a clean cloud (the noise gate of :func:`heatcurv.choice.scale.select_scale`) and
                          a kernel of at most ``k_fit`` neighbours
 one ball radius          ``radius=``: the chord or the denoised form (the noise gate) over that
                          ball, at every point
 anchored denoised fit    noise, or a kernel wider than ``k_fit``: the denoised form fitted at
-                         anchors (:mod:`heatcurv.anchors`) and carried to every point
+                         anchors (:mod:`heatcurv.fits.anchors`) and carried to every point
 with anchor normals      noise above ``TUNING.strong_noise`` spacings: the anchors find and orient
                          their own normals (the operator's balls are swamped)
-with very low noise      the very-low-noise band (:attr:`heatcurv.scale.ScaleChoice.low_noise`):
+with very low noise      the very-low-noise band (:attr:`heatcurv.choice.scale.ScaleChoice.low_noise`):
                          the quartic refit, denser anchors and the cubic regression of their tensors
 =======================  =======================================================================
 """
@@ -31,13 +31,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .anchors import anchors_per_ball, carry_degree
-from .tuning import TUNING
+from ..fits.anchors import anchors_per_ball, carry_degree
+from ..tuning import TUNING
 
 __all__ = ["FORMS", "FitPlan", "plan_fit"]
 
-#: The fit forms a plan names: the chord fit, its denoised form (:mod:`heatcurv.chordfit`) and the paper's
-#: tensor fit with or without its constraint (:mod:`heatcurv.principal`).
+#: The fit forms a plan names: the chord fit, its denoised form (:mod:`heatcurv.fits.chordfit`) and the paper's
+#: tensor fit with or without its constraint (:mod:`heatcurv.fits.principal`).
 FORMS = ("chord", "denoised", "paper-constrained", "paper-free")
 
 
@@ -60,7 +60,7 @@ class FitPlan:
         Fitted at anchors and carried to every point; otherwise fitted at every point.
     anchors_per_ball : int
         Anchors in each fitted ball (every point is one where the kernel is narrow;
-        :func:`heatcurv.anchors.anchor_rows`); 0 when not anchored.
+        :func:`heatcurv.fits.anchors.anchor_rows`); 0 when not anchored.
     anchor_normals : bool
         The anchors start from their own PCA normals, oriented over the anchors.
     refit : bool
@@ -126,8 +126,8 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     ----------
     options : heatcurv.options.Options
         Resolved options (``fit``, ``radius``, ``scale_tuning.k_fit``).
-    choice : heatcurv.scale.ScaleChoice, optional
-        The kernel choice (:func:`heatcurv.scale.select_scale`, :func:`heatcurv.scale.select_form`
+    choice : heatcurv.choice.scale.ScaleChoice, optional
+        The kernel choice (:func:`heatcurv.choice.scale.select_scale`, :func:`heatcurv.choice.scale.select_form`
         with ``radius=``, or a tiled run's survey); not used by the paper's fit.
     keep_normals : bool, optional
         The caller gave the normals.

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import HeatcurvError
+from ..errors import HeatcurvError
 
 __all__ = ["PreparedPoints", "bounding_box_frame", "prepare_points", "prepare_normals", "EXTENT_RANGE", "UNIT_BAND"]
 
@@ -167,7 +167,7 @@ def prepare_points(points, min_points: int = 7, frame=None) -> PreparedPoints:
     min_points : int, optional
         The fewest distinct points the pipeline can work with (one point and
         the neighbours its fit needs).
-    frame : heatcurv.choices.CloudFrame, optional
+    frame : heatcurv.choice.choices.CloudFrame, optional
         The whole cloud's frame, when ``points`` are a part of it (a tile): its
         origin and unit are used instead of this part's bounding box, so every
         part computes in the same coordinates.

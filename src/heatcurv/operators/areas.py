@@ -27,11 +27,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ._kernels import segment as kernels
-from .errors import HeatcurvError
+from .._kernels import segment as kernels
+from ..errors import HeatcurvError
+from ..geometry.neighbourhood import Neighbourhood
+from ..tuning import TUNING
 from .kernel import TAPER_START, area_normalisation, flat_top
-from .neighbourhood import Neighbourhood
-from .tuning import TUNING
 
 __all__ = [
     "fit_areas",
@@ -75,7 +75,7 @@ def area_matrix(nbhd: Neighbourhood, weights: np.ndarray, h: np.ndarray, m: floa
     nbhd : Neighbourhood
         Neighbour pairs (point itself excluded).
     weights : ndarray, shape (nnz,)
-        ``W_ij`` from :func:`heatcurv.kernel.heat_kernel_weights`.
+        ``W_ij`` from :func:`heatcurv.operators.kernel.heat_kernel_weights`.
     h : ndarray, shape (n,)
         Spacing per point.
     m : float, optional
@@ -238,7 +238,7 @@ def cut_ball_coverage(offset: np.ndarray, threshold: float) -> np.ndarray:
 
         f(a) = int_{x <= a} W dA / int W dA
 
-    of the flat-top kernel's mass ``W`` (:func:`heatcurv.kernel.flat_top`),
+    of the flat-top kernel's mass ``W`` (:func:`heatcurv.operators.kernel.flat_top`),
     and its neighbours' centroid lies ``c(a) = |int_{x <= a} W x dA| /
     int_{x <= a} W dA`` (in ball radii) off the centre: ``c = 0.37``,
     ``f = 1/2`` on the border itself. Inverting ``c(a)`` gives ``f`` from the
@@ -253,7 +253,7 @@ def cut_ball_coverage(offset: np.ndarray, threshold: float) -> np.ndarray:
     ----------
     offset : ndarray, shape (n,)
         Tangential centroid offset in ball radii
-        (:func:`heatcurv.border.centroid_offset`).
+        (:func:`heatcurv.flags.border.centroid_offset`).
     threshold : float
         Offset from which a ball counts as cut (``TUNING.border_offset``).
 

@@ -1,7 +1,7 @@
 """Wide kernels at flat cost: fit at anchors with every point of the ball, carry the fits to all points.
 
-Under noise the default fit (:mod:`heatcurv.chordfit`) needs kernels of hundreds
-to tens of thousands of neighbours (:mod:`heatcurv.scale`). Fitting every point
+Under noise the default fit (:mod:`heatcurv.fits.chordfit`) needs kernels of hundreds
+to tens of thousands of neighbours (:mod:`heatcurv.choice.scale`). Fitting every point
 with all of them costs ``k`` pairs per point; fitting against a thinned level of
 the cloud keeps the cost but throws away the averaging the wide kernel is for.
 
@@ -26,7 +26,7 @@ A model fitted over a wide ball is less accurate away from its centre than at
 it. Under ordinary noise the fit's own variance hides that; under very low noise
 (``relative_noise`` from ``TUNING.no_noise`` to below
 ``TUNING.low_noise``, e.g. a LAZ file's millimetres, where the kernel
-choice widened the kernel: :attr:`heatcurv.scale.ScaleChoice.low_noise`) it
+choice widened the kernel: :attr:`heatcurv.choice.scale.ScaleChoice.low_noise`) it
 would dominate (a torus at 1e-5 of its diagonal, 480
 neighbours: the nearest anchor's model is 0.12 % off in the mean curvature within
 0.1 R of it, 0.5 % at 0.3-0.4 R), so there the anchors are 1.5x denser
@@ -48,19 +48,19 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ._kernels import anchors as kernels
-from .areas import density_areas
-from .backend import map_blocks
-from .border import centroid_offset
+from .._kernels import anchors as kernels
+from ..backend import map_blocks
+from ..choice.scale import Scale, fit_balls
+from ..flags.border import centroid_offset
+from ..geometry.neighbourhood import block_ranges, knn_neighbourhood, rows_per_block
+from ..geometry.normals import tangent_frames
+from ..geometry.sampling import key_thinning
+from ..operators.areas import density_areas
+from ..operators.kernel import tapered_heat_weights
+from ..orient.orientation import Orientation, orient
+from ..tuning import TUNING
 from .chordfit import ChordFit
-from .kernel import tapered_heat_weights
-from .neighbourhood import block_ranges, knn_neighbourhood, rows_per_block
-from .normals import tangent_frames
-from .orientation import Orientation, orient
 from .principal import PrincipalCurvatures, tensor_to_principal
-from .sampling import key_thinning
-from .scale import Scale, fit_balls
-from .tuning import TUNING
 
 __all__ = [
     "CARRIED_ANCHORS", "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "AnchorFits", "CarriedFit", "anchor_normals",
@@ -95,9 +95,9 @@ class AnchorFits:
     radius : ndarray, shape (m,)
         Ball radii ``R_a``.
     offset : ndarray, shape (m,)
-        Tangential centroid offset of each ball in ball radii (:func:`heatcurv.border.centroid_offset`).
+        Tangential centroid offset of each ball in ball radii (:func:`heatcurv.flags.border.centroid_offset`).
     density_area : ndarray, shape (m,)
-        Area per point at the anchor, from its ball's count (:func:`heatcurv.areas.density_areas`).
+        Area per point at the anchor, from its ball's count (:func:`heatcurv.operators.areas.density_areas`).
     """
 
     index: np.ndarray
@@ -153,7 +153,7 @@ def anchors_per_ball(low_noise: bool) -> int:
     Parameters
     ----------
     low_noise : bool
-        The kernel choice's ``low_noise`` (:class:`heatcurv.scale.ScaleChoice`: the cloud is in the
+        The kernel choice's ``low_noise`` (:class:`heatcurv.choice.scale.ScaleChoice`: the cloud is in the
         very-low-noise band and its kernel wider than the narrowest).
 
     Returns
@@ -194,11 +194,11 @@ def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = 
     Parameters
     ----------
     keys : ndarray, shape (n,)
-        Sampling keys (:func:`heatcurv.sampling.geometric_keys`).
+        Sampling keys (:func:`heatcurv.geometry.sampling.geometric_keys`).
     k : ndarray of int, shape (n,)
         Each point's kernel width, in neighbours.
     seed : int, optional
-        Shifts the keys (:func:`heatcurv.sampling.key_thinning`).
+        Shifts the keys (:func:`heatcurv.geometry.sampling.key_thinning`).
     per_ball : int, optional
 
     Returns
@@ -232,7 +232,7 @@ def anchor_normals(
     with noise 6 spacings thick: 44 % of the normals inward). Each anchor's
     normal is then the heat-weighted PCA normal of its own ball (at most
     :data:`PCA_NEIGHBOURS` neighbours), and the orientation
-    (:func:`heatcurv.orientation.orient`) runs over the anchors.
+    (:func:`heatcurv.orient.orientation.orient`) runs over the anchors.
 
     Parameters
     ----------
@@ -246,7 +246,7 @@ def anchor_normals(
     areas : ndarray, shape (n,)
         Weights of the points in the covariances (0 for outliers).
     mode, towards : optional
-        The orientation policy, as :func:`heatcurv.orientation.orient`
+        The orientation policy, as :func:`heatcurv.orient.orientation.orient`
         (``towards``: shape (3,), or one position per point, shape (n, 3)).
     excluded : ndarray of bool, shape (n,), optional
         Points no anchor stands for (outliers).
@@ -330,7 +330,7 @@ def fit_anchors(
     denoise : bool
         The denoised height form of the fit.
     low_noise : bool, optional
-        With ``denoise``, its low-noise refit (:func:`carry_degree`, :func:`heatcurv.chordfit.chord_fit`)
+        With ``denoise``, its low-noise refit (:func:`carry_degree`, :func:`heatcurv.fits.chordfit.chord_fit`)
         at the anchors whose kernel holds at least ``TUNING.low_noise_min_neighbours`` neighbours.
     alpha : float, optional
         Ball radius in heat-kernel spacings (``h = R / alpha``, ``t = h^2 / 4``, eq 2.8).
@@ -341,7 +341,7 @@ def fit_anchors(
     workers : int, optional
         Threads of the k-d tree queries.
     block_pairs : int, optional
-        Pairs per block (default the policy's, :data:`heatcurv.neighbourhood.BLOCK_PAIRS`).
+        Pairs per block (default the policy's, :data:`heatcurv.geometry.neighbourhood.BLOCK_PAIRS`).
     progress : callable, optional
         ``progress(fraction)`` after each block.
 

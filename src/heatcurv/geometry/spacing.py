@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .errors import HeatcurvError
+from ..errors import HeatcurvError
 
 __all__ = ["global_spacing", "local_spacing", "density_spacing", "spacing"]
 

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._kernels import segment as kernels
-from .errors import HeatcurvError
-from .kernel import TAPER_START
-from .neighbourhood import Neighbourhood
-from .tuning import TUNING
+from .._kernels import segment as kernels
+from ..errors import HeatcurvError
+from ..geometry.neighbourhood import Neighbourhood
+from ..operators.kernel import TAPER_START
+from ..tuning import TUNING
 
 __all__ = ["centroid_offset", "border_points"]
 
@@ -44,7 +44,7 @@ def centroid_offset(
     weights : ndarray, shape (nnz,), optional
         Weight of each neighbour in the centroid (default 1).
     taper : bool, optional
-        Weight each neighbour by :func:`heatcurv.kernel.ball_taper` instead
+        Weight each neighbour by :func:`heatcurv.operators.kernel.ball_taper` instead
         (computed pair by pair, not stored). Not together with ``weights``.
     centres : ndarray, shape (m, 3), optional
         The balls' centres (default ``points``).

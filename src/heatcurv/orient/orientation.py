@@ -1,6 +1,6 @@
 """Orientation: give the unoriented PCA normals one side, the side a user expects.
 
-A PCA normal (:func:`heatcurv.normals.pca_normals`) is an axis; every curvature
+A PCA normal (:func:`heatcurv.geometry.normals.pca_normals`) is an axis; every curvature
 sign depends on which way along it the normal points. Three policies
 (``estimate(orient=...)``):
 
@@ -13,7 +13,7 @@ sign depends on which way along it the normal points. Three policies
     ball, one wrong tree edge turns the whole part inside out; so the tree is
     cut into patches whose sides the generalised winding number chooses
     together, and the points whose side it contradicts are flagged
-    (:mod:`heatcurv.enclosure`). A cloud whose winding number does not look
+    (:mod:`heatcurv.orient.enclosure`). A cloud whose winding number does not look
     like a closed surface's (an open sheet) keeps the tree's orientation.
 ``"up"``
     Terrain, buildings, aerial LiDAR: towards ``+z`` (the sky).
@@ -22,7 +22,7 @@ sign depends on which way along it the normal points. Three policies
 
 ``orient="auto"`` (the default) picks ``"viewpoint"`` when a viewpoint is
 given; otherwise :func:`auto_policy` looks at a sample of the cloud (the
-scale choice's sample centres, :func:`heatcurv.sampling.key_sample`, so
+scale choice's sample centres, :func:`heatcurv.geometry.sampling.key_sample`, so
 that a tiled run decides alike): an open surface spread over the horizontal
 plane (terrain, roofs, a range scan from above: most normals within 45
 degrees of vertical, and almost none facing down once the sample is
@@ -81,12 +81,12 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-from ._kernels import graph as graph_kernels
-from ._kernels import segment as kernels
+from .._kernels import graph as graph_kernels
+from .._kernels import segment as kernels
+from ..errors import HeatcurvError
+from ..geometry.neighbourhood import Neighbourhood, knn_neighbourhood
+from ..tuning import TUNING
 from .enclosure import enclose, patches, sampled_sources
-from .errors import HeatcurvError
-from .neighbourhood import Neighbourhood, knn_neighbourhood
-from .tuning import TUNING
 
 __all__ = [
     "ORIENT_MODES", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
@@ -124,7 +124,7 @@ class OrientationReport:
         Points with no consistent side (flagged unreliable).
     closed : bool or None
         ``"outward"``: whether the winding number found the cloud to enclose
-        a volume (:mod:`heatcurv.enclosure`); None for the other modes and
+        a volume (:mod:`heatcurv.orient.enclosure`); None for the other modes and
         for a tile's piece of a cloud.
     turned : int
         Points whose side the winding number turned over (closed clouds).
@@ -133,7 +133,7 @@ class OrientationReport:
         counted in ``ambiguous`` too).
     agreement : float or None
         ``"outward"`` on a whole cloud: the share of its area whose winding-number
-        levels agree with their sides (:class:`heatcurv.enclosure.PatchSides`);
+        levels agree with their sides (:class:`heatcurv.orient.enclosure.PatchSides`);
         None otherwise.
     outside_share : float or None
         With ``agreement``: the share of the area whose outside level is near 0
@@ -149,7 +149,7 @@ class OrientationReport:
     on_anchors : int
         0 when every point's normal was oriented over the points' graph; else
         the noise swamped the operator's balls and the normals were oriented
-        over this many anchors of the wide kernel (:mod:`heatcurv.anchors`), the
+        over this many anchors of the wide kernel (:mod:`heatcurv.fits.anchors`), the
         counts above then being anchors, except ``ambiguous``.
     """
 
@@ -196,10 +196,10 @@ class Orientation:
     patch : ndarray, shape (n,), int, optional
         ``"outward"`` on a part of a cloud (a tile): the pieces of the spanning
         forest whose sides the winding number chooses over the whole cloud
-        (:func:`heatcurv.enclosure.patches`; -1 for excluded points). None otherwise.
+        (:func:`heatcurv.orient.enclosure.patches`; -1 for excluded points). None otherwise.
     sources : ndarray, shape (n,), bool, optional
         With ``patch``: the part's share of the winding number's sources
-        (:func:`heatcurv.enclosure.sampled_sources`).
+        (:func:`heatcurv.orient.enclosure.sampled_sources`).
     weights : ndarray, shape (n,), optional
         With ``patch``: the sources' dipole strengths (the areas, 0 for excluded points).
     """
@@ -297,7 +297,7 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
         are sorted first, so that the same set decides alike): the scale
         choice's ``n_sub`` centres.
     noise : float, optional
-        The cloud's noise, length units (:func:`heatcurv.scale.centre_noise`,
+        The cloud's noise, length units (:func:`heatcurv.choice.scale.centre_noise`,
         the scale choice's ``sigma``).
 
     Returns
@@ -340,7 +340,7 @@ def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree, spacin
     """Share of the sample whose balls' residuals split in two layers (``TUNING.auto_split_share``).
 
     The ball is the point's ``TUNING.auto_split_neighbours`` nearest sample points, read as
-    :func:`heatcurv.sheets.layered_balls` reads a point's ball, with the median sample spacing as the spacing.
+    :func:`heatcurv.flags.sheets.layered_balls` reads a point's ball, with the median sample spacing as the spacing.
 
     Parameters
     ----------
@@ -434,11 +434,11 @@ def orient(
     graph_neighbours : int or None, optional
         Propagate over this many of each point's neighbours (None: all): the
         nearest half and the rest spread to the ball's edge
-        (:meth:`~heatcurv.neighbourhood.Neighbourhood.spread`), so the graph
+        (:meth:`~heatcurv.geometry.neighbourhood.Neighbourhood.spread`), so the graph
         stays connected on anisotropic scans and costs little (on a million
         points: 13 s with 60 neighbours, 1.9 s with 10).
     excluded : ndarray, shape (n,), bool, optional
-        Points cut out of the graph (outliers, :mod:`heatcurv.outliers`): no
+        Points cut out of the graph (outliers, :mod:`heatcurv.flags.outliers`): no
         orientation is propagated through them and they take no part in any
         vote (each is a component of its own, oriented by its own outward
         side). Without this, a far stray point's long edges, whose normal is
@@ -448,7 +448,7 @@ def orient(
         away).
     whole_cloud : bool, optional
         ``"outward"``: whether ``points`` is the whole cloud, whose inside the
-        winding number decides (:mod:`heatcurv.enclosure`). A tile's piece is
+        winding number decides (:mod:`heatcurv.orient.enclosure`). A tile's piece is
         not: its pieces' sides are made to agree by :mod:`heatcurv.tiles.orient`,
         and the winding number's patches (:attr:`Orientation.patch`) are cut
         here and signed over the whole cloud by :mod:`heatcurv.tiles.winding`.

@@ -12,7 +12,7 @@ curvature is computed, this stage measures the kernel on a random subsample of
 the operator's balls:
 
 * the **effective neighbours** of the fit's weights, ``(sum w)^2 / sum w^2``
-  (:func:`heatcurv.kernel.effective_neighbours`): a median below the fit's
+  (:func:`heatcurv.operators.kernel.effective_neighbours`): a median below the fit's
   floor (``TUNING.chord_support``, ``TUNING.tensor_support``) is an error that names the values that work
   for this cloud; a median just above it, a warning. The floors differ by
   fit: the chord fit interpolates (exact on clean data with any positive
@@ -46,12 +46,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import HeatcurvError, HeatcurvWarning
-from .kernel import effective_neighbours, heat_kernel_weights, tapered_heat_weights
-from .neighbourhood import Neighbourhood
-from .options import METHODS, RANGES, Options
-from .sampling import draw_subset
-from .tuning import TUNING
+from ..errors import HeatcurvError, HeatcurvWarning
+from ..geometry.neighbourhood import Neighbourhood
+from ..geometry.sampling import draw_subset
+from ..operators.kernel import effective_neighbours, heat_kernel_weights, tapered_heat_weights
+from ..options import METHODS, RANGES, Options
+from ..tuning import TUNING
 
 __all__ = [
     "KernelSupport", "measure_support", "check_kernel", "FIT_UNKNOWNS", "neighbours_needed",
@@ -61,7 +61,7 @@ __all__ = [
 #: Balls the measurement runs on.
 SAMPLE = 2000
 #: Unknowns of each fit: the chord fit's curvature tensor (3), normal tilt (2) and cubic terms (4);
-#: the paper's tensor fit, ``H``, ``p``, ``b`` (:mod:`heatcurv.principal`).
+#: the paper's tensor fit, ``H``, ``p``, ``b`` (:mod:`heatcurv.fits.principal`).
 FIT_UNKNOWNS = {"chord": 9, "tensor": 3}
 
 
@@ -91,7 +91,7 @@ class KernelSupport:
 def _fit_weights(sub: Neighbourhood, h: np.ndarray, options: Options, n_points: int) -> np.ndarray:
     """The fit's pair weights on the sampled balls (areas left out: they only reweight mildly)."""
     if options.fit == "chord":
-        # the chord fit: t = h^2 / 4 with h = R / alpha, tapered at the edge (heatcurv.kernel)
+        # the chord fit: t = h^2 / 4 with h = R / alpha, tapered at the edge (heatcurv.operators.kernel)
         return tapered_heat_weights(sub, sub.radius / options.alpha, np.ones(n_points))
     return heat_kernel_weights(sub, h, options.m)
 
@@ -99,7 +99,7 @@ def _fit_weights(sub: Neighbourhood, h: np.ndarray, options: Options, n_points: 
 def _sample(nbhd: Neighbourhood, h: np.ndarray, options: Options, seed: int = 0, keys: np.ndarray | None = None):
     """A subsample of the balls the fit will use (the narrowest, for the chord fit), drawn by ``keys``.
 
-    ``keys`` (:func:`heatcurv.sampling.geometric_keys`) make the sample independent of the row order;
+    ``keys`` (:func:`heatcurv.geometry.sampling.geometric_keys`) make the sample independent of the row order;
     without them a seeded random sample of the rows is drawn.
     """
     n = nbhd.n_points
@@ -210,7 +210,7 @@ def check_kernel(nbhd: Neighbourhood, h: np.ndarray, options: Options, keys: np.
         The operator's spacing.
     options : Options
     keys : ndarray, shape (n,), optional
-        Sampling keys (:func:`heatcurv.sampling.geometric_keys`); default a
+        Sampling keys (:func:`heatcurv.geometry.sampling.geometric_keys`); default a
         seeded random sample of the rows.
 
     Returns
@@ -302,7 +302,7 @@ def _fit_name(options: Options) -> str:
 def _ball_counts(nbhd: Neighbourhood, reach: np.ndarray) -> np.ndarray:
     """Neighbours within each point's own ball, shape (n,), also where the ball was augmented.
 
-    An augmented row (:func:`heatcurv.neighbourhood.ball_neighbourhood`) holds
+    An augmented row (:func:`heatcurv.geometry.neighbourhood.ball_neighbourhood`) holds
     its nearest neighbours, which include every point of its ball: its count
     is that of its distances within ``reach``.
     """
@@ -342,7 +342,7 @@ def check_ball_counts(points: np.ndarray, tree, nbhd: Neighbourhood, h: np.ndarr
         The operator's spacing: each ball's radius is ``alpha h``.
     options : Options
     keys : ndarray, shape (n,), optional
-        Sampling keys (:func:`heatcurv.sampling.geometric_keys`) of the
+        Sampling keys (:func:`heatcurv.geometry.sampling.geometric_keys`) of the
         points the suggestion is measured on; default a seeded random sample.
     unit : float, optional
         The input's length per unit of ``points`` (lengths in the message are in input units).

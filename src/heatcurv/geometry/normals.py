@@ -7,7 +7,7 @@ orientation, so the orientation must be consistent over the whole surface:
 1. ``pca_normals``: the eigenvector of the smallest eigenvalue of each
    neighbourhood's covariance matrix.
 2. ``orient_normals``: one consistent orientation, outward on closed
-   surfaces (:mod:`heatcurv.orientation`, which also orients up or towards
+   surfaces (:mod:`heatcurv.orient.orientation`, which also orients up or towards
    a scanner, and flags what it cannot orient).
 3. or ``orient_towards_viewpoint``: each normal faces a sensor position, point by point.
 """
@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._kernels import segment as kernels
-from .errors import HeatcurvError
-from .kernel import TAPER_START
+from .._kernels import segment as kernels
+from ..errors import HeatcurvError
+from ..operators.kernel import TAPER_START
+from ..orient.orientation import GRAPH_NEIGHBOURS, as_viewpoint, orient
 from .neighbourhood import Neighbourhood
-from .orientation import GRAPH_NEIGHBOURS, as_viewpoint, orient
 
 __all__ = [
     "pca_normals", "orient_normals", "orient_towards_viewpoint", "tangent_frames", "GRAPH_NEIGHBOURS", "as_viewpoint",
@@ -45,7 +45,7 @@ def pca_normals(
         Weight of each neighbour in the covariance (default 1: the paper's
         plain PCA).
     taper : bool, optional
-        Weight each neighbour by :func:`heatcurv.kernel.ball_taper` (without
+        Weight each neighbour by :func:`heatcurv.operators.kernel.ball_taper` (without
         storing it), which makes the normal a continuous function of the
         points. Not together with ``weights``.
     roundness : bool, optional
@@ -121,7 +121,7 @@ def orient_normals(
 ) -> np.ndarray:
     """Give unoriented normals one consistent orientation, outward on closed surfaces.
 
-    The ``"outward"`` policy of :func:`heatcurv.orientation.orient`, which
+    The ``"outward"`` policy of :func:`heatcurv.orient.orientation.orient`, which
     also reports the points it could not orient; see there for ``"up"`` and
     ``"viewpoint"``.
 
@@ -137,7 +137,7 @@ def orient_normals(
         Per-point areas for the outward vote (equal weights if omitted).
     graph_neighbours : int or None, optional
         Propagate over ``graph_neighbours`` of each point's neighbours only
-        (None: all); see :func:`heatcurv.orientation.orient`.
+        (None: all); see :func:`heatcurv.orient.orientation.orient`.
 
     Returns
     -------

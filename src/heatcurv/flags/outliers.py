@@ -44,10 +44,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels import graph as graph_kernels
-from ._kernels import segment as kernels
-from .neighbourhood import Neighbourhood
-from .tuning import TUNING
+from .._kernels import graph as graph_kernels
+from .._kernels import segment as kernels
+from ..geometry.neighbourhood import Neighbourhood
+from ..tuning import TUNING
 
 __all__ = ["Outliers", "find_outliers", "neighbour_medians", "exceeds_neighbour_median"]
 

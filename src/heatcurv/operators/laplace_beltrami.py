@@ -11,7 +11,7 @@ mean-curvature normal, ``L x = 2 kappa_M n`` (eq 2.10).
 With the global spacing, ``diag(A) L`` is symmetric (the weights are); ``L``
 itself is not, because the areas ``A_j`` multiply the columns.
 
-:func:`heatcurv.laplacian` (in :mod:`heatcurv.operator`) is the one-call front end.
+:func:`heatcurv.laplacian` (in :mod:`heatcurv.operators.operator`) is the one-call front end.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..geometry.neighbourhood import Neighbourhood
 from .kernel import laplacian_normalisation
-from .neighbourhood import Neighbourhood
 
 __all__ = ["laplace_beltrami_matrix"]
 
@@ -35,7 +35,7 @@ def laplace_beltrami_matrix(
     nbhd : Neighbourhood
         Neighbour pairs.
     weights : ndarray, shape (nnz,)
-        ``W_ij`` from :func:`heatcurv.kernel.heat_kernel_weights`.
+        ``W_ij`` from :func:`heatcurv.operators.kernel.heat_kernel_weights`.
     areas : ndarray, shape (n,)
         Per-point areas ``A_j``.
     h : ndarray, shape (n,)

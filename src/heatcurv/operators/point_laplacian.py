@@ -55,7 +55,7 @@ The stiffness ``S = diag(A) L = S1 + gamma S1 diag(1/A) S1`` with
 ``S1 = diag(W 1) - W`` (a graph Laplacian with positive weights) is
 symmetric positive semi-definite, ``L 1 = 0``, and the areas are the mass.
 
-Sign convention as in :mod:`heatcurv.laplace_beltrami`: ``L`` is the
+Sign convention as in :mod:`heatcurv.operators.laplace_beltrami`: ``L`` is the
 *positive* operator, ``L = -Delta``; on a sphere of radius ``R`` the
 spherical harmonics of degree ``l`` have eigenvalue ``l (l + 1) / R^2`` and
 ``L x = 2 kappa_M n`` (eq 2.10) with outward ``n`` and ``kappa_M = 1/R``.
@@ -80,12 +80,12 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
-from ._kernels import laplacian as lap_kernels
-from ._kernels import segment as segment_kernels
-from .errors import HeatcurvError
-from .neighbourhood import ball_neighbourhood
+from .._kernels import laplacian as lap_kernels
+from .._kernels import segment as segment_kernels
+from ..errors import HeatcurvError
+from ..geometry.neighbourhood import ball_neighbourhood
+from ..geometry.validation import prepare_points
 from .operator import build_operator
-from .validation import prepare_points
 
 __all__ = [
     "PointCloudLaplacian", "laplacian", "point_cloud_laplacian", "kernel_moments", "DEFAULT_NEIGHBOURS",
@@ -479,7 +479,7 @@ def laplacian(points, method: str = "default", **options):
     """The Laplace-Beltrami matrix and per-point areas of a point cloud.
 
     ``method="default"`` is the accurate operator of
-    :mod:`heatcurv.point_laplacian`: the heat kernel's energy over
+    :mod:`heatcurv.operators.point_laplacian`: the heat kernel's energy over
     tangent-plane Voronoi areas, calibrated point by point (along the border
     at a border) and corrected to second order, accurate on any sampling
     (10 000 random points on the unit sphere: eigenvalues of degrees 1-5
@@ -501,7 +501,7 @@ def laplacian(points, method: str = "default", **options):
         Which operator.
     **options
         ``"default"``: ``neighbours``, ``width``, ``order``, ``workers`` (see
-        :func:`heatcurv.point_laplacian.point_cloud_laplacian`).
+        :func:`heatcurv.operators.point_laplacian.point_cloud_laplacian`).
         ``"paper"``: ``alpha``, ``m``, ``spacing``, ``gamma``, ``area_method``,
         ``area_solver`` ... as in :func:`heatcurv.estimate`.
 

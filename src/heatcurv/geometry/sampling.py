@@ -2,7 +2,7 @@
 
 Some stages work on a subset of the points: the kernel check measures a
 sample of balls, the kernel choice fits a sample of centres, and wide kernels
-are fitted at anchors (:mod:`heatcurv.anchors`, :func:`key_thinning`). A
+are fitted at anchors (:mod:`heatcurv.fits.anchors`, :func:`key_thinning`). A
 subset drawn with a random generator over row numbers changes when the rows
 are permuted, and the k-d tree's leaf order (the stages' row order) changes
 with any rotation or translation: results then moved by up to 1.3 % (mean
@@ -13,7 +13,7 @@ motion, a uniform scaling and a permutation leave unchanged (up to rounding):
 its distance to the cloud's centroid and the size of its neighbourhood (the
 k-th and the nearest neighbour's distances, or the count in a fixed ball), the
 lengths relative to the cloud's root-mean-square radius (a quantity a tiled
-run knows before it reads any tile, :mod:`heatcurv.choices`). A subset of size ``s`` is the
+run knows before it reads any tile, :mod:`heatcurv.choice.choices`). A subset of size ``s`` is the
 ``s`` points with the smallest keys. Points with equal keys are symmetric
 images of each other (a lattice's rows, a surface of revolution's rings), so
 whichever of them a tie-break picks measures the same geometry.
@@ -46,7 +46,7 @@ def geometric_keys(points: np.ndarray, nbhd: Neighbourhood, frame=None) -> np.nd
     nbhd : Neighbourhood
         Each point's neighbours: the k nearest (rows sorted by distance), or
         a ball of one radius.
-    frame : heatcurv.choices.CloudFrame, optional
+    frame : heatcurv.choice.choices.CloudFrame, optional
         The whole cloud's frame (its centroid, root-mean-square radius and
         size) when ``points`` are a part of it: a point gets the same key in
         every part that holds it. Default: the frame of ``points`` itself.

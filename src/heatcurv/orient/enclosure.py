@@ -1,7 +1,7 @@
 """Inside and outside of a closed cloud: the side of every patch chosen by the winding number.
 
 A consistent orientation propagated along a neighbour graph (the spanning tree
-of :mod:`heatcurv.orientation`) is only locally right: where the two sides of
+of :mod:`heatcurv.orient.orientation`) is only locally right: where the two sides of
 a part are closer than the neighbourhood (a leg, an ear, a tail), one wrong
 edge turns a whole part inside out, and nothing local reveals it. The
 generalised winding number (:mod:`heatcurv._kernels.winding`) is global: for a
@@ -70,11 +70,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ._kernels.graph import merged_components
-from ._kernels.winding import clipped_dipole_terms, winding_numbers
-from .errors import HeatcurvWarning
-from .neighbourhood import Neighbourhood
-from .tuning import TUNING
+from .._kernels.graph import merged_components
+from .._kernels.winding import clipped_dipole_terms, winding_numbers
+from ..errors import HeatcurvWarning
+from ..geometry.neighbourhood import Neighbourhood
+from ..tuning import TUNING
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "MAX_SOURCES",

@@ -15,7 +15,7 @@ The object then answers the paper's operator questions without recomputing
 them: the heat-kernel weights ``W_ij`` (eq 2.8), the Laplace-Beltrami matrix
 (eq 2.9), ``L`` applied to a field, and the mean-curvature normal ``K = L x``
 (eq 2.10). :func:`heatcurv.estimate` and the paper path of :func:`heatcurv.laplacian`
-(in :mod:`heatcurv.point_laplacian`) start from it.
+(in :mod:`heatcurv.operators.point_laplacian`) start from it.
 """
 
 from __future__ import annotations
@@ -27,17 +27,17 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from ..backend import threads
+from ..errors import HeatcurvError, HeatcurvWarning
+from ..fits.mean_curvature import mean_curvature_normal
+from ..geometry.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
+from ..geometry.spacing import spacing as compute_spacing
+from ..geometry.validation import PreparedPoints, prepare_points
+from ..options import Options, check_options_for_cloud, resolve_options
+from ..progress import StageClock
 from .areas import AreaSolve, density_areas, point_areas
-from .backend import threads
-from .errors import HeatcurvError, HeatcurvWarning
 from .kernel import heat_kernel_weights
 from .laplace_beltrami import laplace_beltrami_matrix
-from .mean_curvature import mean_curvature_normal
-from .neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
-from .options import Options, check_options_for_cloud, resolve_options
-from .progress import StageClock
-from .spacing import spacing as compute_spacing
-from .validation import PreparedPoints, prepare_points
 
 __all__ = ["HeatKernelOperator", "build_operator"]
 
@@ -50,7 +50,7 @@ class HeatKernelOperator:
     are over the distinct, centred points in k-d tree leaf order
     (``prepared.to_input_order`` maps them back), in the length unit
     ``prepared.unit`` (1, the input's unit, unless the cloud spans less than
-    ``2**-40`` or more than ``2**40``: :data:`heatcurv.validation.UNIT_BAND`).
+    ``2**-40`` or more than ``2**40``: :data:`heatcurv.geometry.validation.UNIT_BAND`).
 
     Attributes
     ----------
@@ -95,7 +95,7 @@ class HeatKernelOperator:
             Resolved options; if omitted, ``resolve_options(**overrides)``.
         progress : callable, optional
             ``progress(stage, fraction)`` (:mod:`heatcurv.progress`).
-        frame : heatcurv.choices.CloudFrame, optional
+        frame : heatcurv.choice.choices.CloudFrame, optional
             The whole cloud's frame when ``points`` are a part of it (a tile).
         **overrides
             ``method`` and any :class:`~heatcurv.options.Options` field.
@@ -236,7 +236,7 @@ def build_operator(points, options: Options | None = None, progress=None, **over
     Examples
     --------
     >>> from heatcurv import surfaces
-    >>> from heatcurv.operator import build_operator
+    >>> from heatcurv.operators.operator import build_operator
     >>> pts = surfaces.Sphere().sample(1500, "fibonacci").points
     >>> build_operator(pts, method="paper").matrix().shape
     (1500, 1500)
