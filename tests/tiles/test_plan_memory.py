@@ -15,6 +15,7 @@ from heatcurv.tiles.plan import (
     read_rows,
     worker_memory,
 )
+from heatcurv.tiles.tasks import load_plan
 from support.tiles import tiled_agreement
 
 
@@ -63,21 +64,21 @@ def test_a_survey_halo_that_leaves_no_worker_is_an_error():
 
 def test_the_plan_holds_each_tiles_survey_halo_and_the_survey_runs_within_it(torus_file, tmp_path, monkeypatch):
     """compute_file decides the survey's halos before the survey, from each core, and budgets its workers with them."""
-    from heatcurv.tiles import compute, driver
+    from heatcurv.tiles import compute, driver, job, phase_survey
 
     phases = []
-    real_run = driver._run
+    real_run = job.submit
 
     def run(executor, workers, fn, specs, on_done, say, what, total):
         phases.append((fn.__name__, workers, {t: spec.get("halo") for t, spec in specs.items()}))
         return real_run(executor, workers, fn, specs, on_done, say, what, total)
 
-    monkeypatch.setattr(driver, "_run", run)
-    monkeypatch.setattr(driver, "ONE_ROUND_TILES", 2)  # the survey in two rounds (the default for 64+ tiles)
+    monkeypatch.setattr(job, "submit", run)
+    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 2)  # the survey in two rounds (the default for 64+ tiles)
     out = tmp_path / "torus.ply"
     report = driver.compute_file(torus_file[0], out, tile_size=1200, tile_workers=2, scheduler="threads",
                                  max_memory="4G", keep_scratch=True)
-    saved = driver.load_plan(report.scratch)
+    saved = load_plan(report.scratch)
     tiling, stats = Tiling.from_json(saved["tiling"]), CloudStats(**{
         k: tuple(v) if isinstance(v, list) else v for k, v in saved["stats"].items()})
     expected = []
@@ -209,16 +210,16 @@ def test_the_smallest_budget_and_the_default_for_a_small_cloud(monkeypatch):
 def test_a_budget_no_worker_process_fits_runs_in_the_drivers_process(torus_file, torus_memory, tmp_path, monkeypatch):
     """700 MiB was refused (no 400 MiB worker fits beside the driver's 600 MiB); now the survey and the tiles run in
     this process, one tile at a time, and every field is the in-memory run's bit for bit."""
-    from heatcurv.tiles import driver
+    from heatcurv.tiles import driver, job
 
     phases = []
-    real_run = driver._run
+    real_run = job.submit
 
     def run(executor, workers, fn, specs, on_done, say, what, total):
         phases.append((fn.__name__, workers))
         return real_run(executor, workers, fn, specs, on_done, say, what, total)
 
-    monkeypatch.setattr(driver, "_run", run)
+    monkeypatch.setattr(job, "submit", run)
     out = tmp_path / "torus.ply"
     report = driver.compute_file(torus_file[0], out, tile_size=1200, tile_workers=2, max_memory="700M",
                                  dtype="float64", fields=ALL_FIELDS)

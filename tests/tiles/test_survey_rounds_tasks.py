@@ -90,18 +90,18 @@ def _by_place(parts):
                          [(4000, 2, ["run_survey"]), (1200, 8, ["run_keys", "run_centres"])])
 def test_few_tiles_are_surveyed_in_one_round_many_in_two(torus_file, torus_memory, tmp_path, monkeypatch, tile_size,
                                                         tiles, rounds):
-    from heatcurv.tiles import driver
+    from heatcurv.tiles import driver, job, phase_survey
     from support.tiles import tiled_agreement
 
     phases = []
-    real_run = driver._run
+    real_run = job.submit
 
     def run(executor, workers, fn, *args):
         phases.append(fn.__name__)
         return real_run(executor, workers, fn, *args)
 
-    monkeypatch.setattr(driver, "_run", run)
-    monkeypatch.setattr(driver, "ONE_ROUND_TILES", 2)  # the default (63) would survey this small cloud in one round
+    monkeypatch.setattr(job, "submit", run)
+    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 2)  # the default (63): one round here
     out = tmp_path / "torus.ply"
     report = driver.compute_file(torus_file[0], out, tile_size=tile_size, tile_workers=2, scheduler="threads",
                                  dtype="float64", max_memory="4G")
@@ -115,7 +115,7 @@ def test_few_tiles_are_surveyed_in_one_round_many_in_two(torus_file, torus_memor
                                            (0.0012, ["run_keys", "run_centres", "run_centres"])])
 def test_round_two_fits_the_gate_first_and_every_candidate_only_under_noise(tmp_path, monkeypatch, noise, rounds):
     import heatcurv
-    from heatcurv.tiles import driver
+    from heatcurv.tiles import driver, job, phase_survey
     from support.tiles import tiled_agreement
 
     sample = heatcurv.surfaces.Torus().sample(6000, "random", seed=3)
@@ -124,14 +124,14 @@ def test_round_two_fits_the_gate_first_and_every_candidate_only_under_noise(tmp_
     src = tmp_path / "torus.npy"
     np.save(src, points)
     phases = []
-    real_run = driver._run
+    real_run = job.submit
 
     def run(executor, workers, fn, specs, *args):
         phases.append((fn.__name__, {spec.get("levels") for spec in specs.values()}))
         return real_run(executor, workers, fn, specs, *args)
 
-    monkeypatch.setattr(driver, "_run", run)
-    monkeypatch.setattr(driver, "ONE_ROUND_TILES", 2)
+    monkeypatch.setattr(job, "submit", run)
+    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 2)
     out = tmp_path / "torus.ply"
     driver.compute_file(src, out, tile_size=1200, tile_workers=2, scheduler="threads", dtype="float64",
                         max_memory="4G")

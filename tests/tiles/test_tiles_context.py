@@ -9,7 +9,7 @@ import pytest
 
 import heatcurv
 from heatcurv.errors import HeatcurvError
-from heatcurv.tiles import compute_file, driver
+from heatcurv.tiles import compute_file, phase_survey
 from heatcurv.tiles.context import SurveyContext, from_plain, read_context, to_plain, write_context
 
 
@@ -54,8 +54,8 @@ def test_the_context_is_written_as_json_and_read_back_to_the_bit(tmp_path, monke
         written.append((context, read_context(path), json.loads(open(path).read())))
         raise HeatcurvError("stop after the survey")
 
-    monkeypatch.setattr(driver, "write_context", write_and_read)
-    monkeypatch.setattr(driver, "ONE_ROUND_TILES", 63 if rounds == 1 else 2)
+    monkeypatch.setattr(phase_survey, "write_context", write_and_read)
+    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 63 if rounds == 1 else 2)
     with pytest.raises(HeatcurvError, match="stop after the survey"):
         compute_file(src, tmp_path / "noisy.ply", tile_size=1000, tile_workers=1, scheduler="serial",
                      max_memory="4G")

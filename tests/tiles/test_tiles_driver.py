@@ -202,7 +202,7 @@ def test_estimator_options_of_a_tiled_run():
 def test_stored_tiles_are_slimmed_in_batches(torus_file, torus_threads, tmp_path, monkeypatch):
     """results.rec is fsynced and the stored tiles' files slimmed once their core points reach SLIM_POINTS (and at
     the end of the tiles), not after every tile; the output is that of a run in one go."""
-    from heatcurv.tiles import driver, output
+    from heatcurv.tiles import output, phase_tiles
 
     batches = []
 
@@ -210,8 +210,8 @@ def test_stored_tiles_are_slimmed_in_batches(torus_file, torus_threads, tmp_path
         batches.append(len(files))
         output.slim_tiles(path, files)
 
-    monkeypatch.setattr(driver, "SLIM_POINTS", 1500)
-    monkeypatch.setattr(driver, "slim_tiles", recording)
+    monkeypatch.setattr(phase_tiles, "SLIM_POINTS", 1500)
+    monkeypatch.setattr(phase_tiles, "slim_tiles", recording)
     out = tmp_path / "batched.ply"
     compute_file(torus_file[0], out, tile_size=1200, scheduler="serial", dtype="float64", fields=ALL_FIELDS)
     assert sum(batches) == 8 and max(batches) >= 2 and len([b for b in batches if b]) >= 3

@@ -1,0 +1,47 @@
+"""The orientation phase of a tiled run (``outward``): the seams' flips, then a closed cloud's inside and outside.
+
+The pieces' sides are made to agree across the seams (:mod:`.orient`), then the
+winding number over every tile's sources decides a closed cloud's inside and
+outside and flags what it contradicts (:mod:`.winding`), as
+:mod:`heatcurv.orient.enclosure` does in memory.
+"""
+
+from __future__ import annotations
+
+import time
+
+from ..orient.enclosure import warn_undecided
+from . import compute
+from .context import SurveyContext
+from .job import Job
+from .orient import seam_flips
+from .plan import TilePlan
+from .tasks import tile_path
+from .winding import flag_unsupported, winding_sides
+
+__all__ = ["orient_cloud"]
+
+def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict, bar):
+    """The orientation phase (``outward`` only): the seams' flips, then a closed cloud's inside and outside by the
+    winding number over every tile's sources; ``(flips, report)``, both None for other orientations."""
+    if not compute.orients_outward(run.options, context.choices):
+        return None, None
+    bar.stage("orientation")
+    tic = time.perf_counter()
+    results_path = run.work / "results.rec"
+    tile_files = {t: tile_path(run.work, t) for t in range(len(plan.tiling.counts))}
+    keys, flip, orientation = seam_flips(tile_files, results_path)
+    flips = [("patch", keys, flip)]
+    # a closed cloud's inside and outside, by the winding number over every tile's sources
+    sides = winding_sides(tile_files, keys, flip)
+    orientation["closed"] = bool(sides is not None and sides.closed)
+    orientation["undecided"] = bool(sides is not None and sides.undecided)
+    if sides is not None:
+        orientation["agreement"], orientation["outside_share"] = sides.agreement, sides.outside_share
+    if sides is not None and sides.undecided:
+        warn_undecided(sides.agreement, sides.outside_share)
+    if sides is not None and (sides.closed or sides.undecided):
+        flips.append((sides.column, sides.keys, sides.flip))
+        orientation.update(flag_unsupported(results_path, run.source, context.choices.frame, sides))
+    timings["orientation"] = time.perf_counter() - tic
+    return flips, orientation

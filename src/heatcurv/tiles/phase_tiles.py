@@ -1,0 +1,128 @@
+"""The tiles phase of a tiled run: every tile computed with its halo, stored as it finishes; then the cloud's flags.
+
+:func:`.tasks.run_tile` runs on every tile not done yet, at most ``2 x slots``
+in flight; each finished tile is copied into the index-addressed
+``results.rec`` (:class:`TileStore`), and every :data:`SLIM_POINTS` core points
+``results.rec`` is fsynced and the stored tiles' files slimmed
+(:func:`.output.slim_tiles`). Once every tile is in, :func:`cloud_flags`
+compares each point with the whole cloud's medians.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from pathlib import Path
+
+from . import job
+from .context import SurveyContext
+from .job import Job
+from .medians import apply_cloud_flags
+from .output import create_results, is_stored, slim_tiles, store_tile
+from .plan import TilePlan
+from .progressbar import TileProgress
+from .tasks import run_tile, tile_path
+
+__all__ = ["TileStore", "cloud_flags", "compute_tiles", "SLIM_POINTS"]
+
+#: Core points of stored tiles after which :func:`.output.slim_tiles` fsyncs ``results.rec`` and slims their
+#: files (about 350 MB of rows): the scratch stays near one copy of the results, the loop rarely waits.
+SLIM_POINTS = 2_000_000
+
+
+class TileStore:
+    """Finished tiles into ``results.rec``, and the progress bar (:func:`compute_tiles`).
+
+    ``unslimmed``: tile file -> core points whose rows are in ``results.rec``,
+    not yet fsynced and slimmed (:func:`.output.slim_tiles`); ``results``:
+    what each tile computed here returned.
+    """
+
+    def __init__(self, run: Job):
+        self.run = run
+        self.path = run.work / "results.rec"
+        self.bar = TileProgress(run.progress, 1, 1)
+        self.unslimmed = {}
+        self.results = {}
+
+    def resume(self, plan: TilePlan) -> set:
+        """Create ``results.rec`` (kept if tiles are stored in it) and store the finished tiles; the tiles done."""
+        n_tiles = len(plan.tiling.counts)
+        work = self.run.work
+        done = {t for t in range(n_tiles) if os.path.exists(tile_path(work, t))}
+        stored = {t for t in done if is_stored(tile_path(work, t))}
+        if not create_results(self.path, plan.stats.count, keep=bool(stored)) and stored:
+            # their rows were in a results.rec that is gone: those tiles are computed again
+            for t in stored:
+                os.unlink(tile_path(work, t))
+            self.run.say(f"{len(stored)} finished tile(s) must be computed again: {self.path} is missing")
+            done -= stored
+        for t in sorted(done - stored):
+            self.unslimmed[tile_path(work, t)] = store_tile(self.path, tile_path(work, t), t)
+        if done:
+            self.run.say(f"resuming: {len(done)} of {n_tiles} tiles already computed in {work}")
+        self.bar.close()
+        self.bar = TileProgress(self.run.progress, plan.stats.finite, n_tiles)
+        self.bar.skip(sum(plan.tiling.counts[t] for t in done), len(done))
+        return done
+
+    def finished(self, tile: int, result: dict) -> None:
+        """A tile computed: its rows into ``results.rec``; every :data:`SLIM_POINTS` points, fsync and slim."""
+        path = tile_path(self.run.work, tile)
+        self.unslimmed[path] = store_tile(self.path, path, tile)
+        self.results[tile] = result
+        self.bar(result["points"])
+        if sum(self.unslimmed.values()) >= SLIM_POINTS:
+            self.slim()
+
+    def slim(self) -> None:
+        """Make the stored tiles' rows durable and slim their files."""
+        slim_tiles(self.path, list(self.unslimmed))
+        self.unslimmed.clear()
+
+    def abandon(self) -> None:
+        """After a failure: keep what a resume can use (stored rows made durable, finished tiles), say where."""
+        self.bar.close()
+        if self.unslimmed:  # the stored tiles' rows made durable, their files slimmed (a resume finds both)
+            try:
+                self.slim()
+            except Exception:
+                pass  # a file left whole is stored again on resume
+        left = _cleanup(self.run.work, keep_done=True)
+        if left:
+            self.run.say(left)
+
+
+def compute_tiles(run: Job, plan: TilePlan, context: SurveyContext, store: TileStore, timings: dict):
+    """The tiles phase: every tile not done yet, stored as it finishes; ``(scheduler name, workers, resumed)``."""
+    n_tiles = len(plan.tiling.counts)
+    phase = job.phase(run, plan, float(context.halo), "tiles")
+    done = store.resume(plan)
+    tic = time.perf_counter()
+    specs = {t: {"scratch": str(run.work), "tile": t, "context": context, "options": phase.options}
+             for t in range(n_tiles) if t not in done}
+    name = job.submit(phase.executor, phase.workers, run_tile, specs, store.finished, run.say, "tile", n_tiles)
+    store.slim()  # before the output takes its disk space
+    timings["tiles"] = time.perf_counter() - tic
+    return name, phase.workers, len(done)
+
+
+def cloud_flags(run: Job, plan: TilePlan, timings: dict) -> dict:
+    """The flags that compare each point with the whole cloud's medians, once every tile is in."""
+    tic = time.perf_counter()
+    medians = apply_cloud_flags(run.work / "results.rec", plan.stats.count)
+    timings["reliability"] = time.perf_counter() - tic
+    return medians
+
+
+def _cleanup(work: Path, keep_done: bool) -> str:
+    """Remove temporaries (and everything unless finished tiles are kept); say what is left."""
+    tiles = work / "tiles"
+    done = sorted(tiles.glob("tile_*.npz")) if tiles.exists() else []
+    for stray in (tiles.glob("*.tmp.npz") if tiles.exists() else []):
+        stray.unlink(missing_ok=True)
+    if keep_done and done:  # results.rec holds the rows of the tiles already stored
+        return f"{len(done)} finished tile(s) are kept in {work}: run the same command again to resume, or delete it"
+    shutil.rmtree(work, ignore_errors=True)
+    return ""
