@@ -5,10 +5,11 @@ Both methods share the operator and the normals::
     validate -> neighbours -> spacing -> areas            (heatcurv.operators.operator)
     -> kernel_check                                       (enough neighbours under the fit's kernel)
     -> outliers                                           (stray points and islands: unreliable, area 0)
-    -> normals -> orientation                             (PCA; given; outward, up or to a viewpoint)
+    -> normals -> orientation                             (heatcurv.orient.stages: PCA or given; outward, up,
+                                                           or to a viewpoint)
     -> mean_curvature_normal                              (K = L x, eq 2.10)
 
-then ``method="paper"`` (section 3)::
+then the fit stages of :mod:`heatcurv.fits.stages`, for ``method="paper"`` (section 3)::
 
     -> mean (eq 2.11 / 2.12) -> principal (tensor fit, eq 3.1) -> border
 
@@ -26,25 +27,28 @@ Each stage is timed under its own name (``result.info["timings"]``; the
 command line's ``--verbose``); :mod:`heatcurv.progress` lists them. The default
 method's fit runs block by block so that its own, wider neighbourhood exists
 only one block at a time; its stages report progress together as ``"fit"``.
+This module runs the stages in order and assembles the result (the reliability
+flags of :mod:`heatcurv.flags` combined, every field in input order).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from .backend import threads
 from .choice.choices import frame_of
 from .choice.kernel_check import check_ball_counts, check_kernel
-from .choice.plan import FitPlan, plan_fit
-from .choice.scale import ScaleReport, centre_noise, select_form, select_scale
-from .errors import HeatcurvError
-from .fits.anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
-from .fits.chordfit import ChordFit, chord_fit, refine_normals
-from .fits.mean_curvature import mean_curvature
-from .fits.principal import PrincipalCurvatures, principal_fit
-from .flags.border import border_points, centroid_offset
+from .choice.plan import plan_fit
+from .fits.stages import (
+    Fitted,
+    anchored_fit_stages,
+    facing_viewpoint,
+    kernel_choice,
+    paper_fit_stages,
+    point_fit_stages,
+)
 from .flags.outliers import Outliers, find_outliers
 from .flags.reliability import (
     PrecisionReport,
@@ -56,41 +60,18 @@ from .flags.reliability import (
     rounding_uncertainty,
 )
 from .flags.sheets import second_sheet
-from .geometry.neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_per_block
-from .geometry.normals import pca_normals
-from .geometry.sampling import geometric_keys, key_sample
-from .geometry.validation import prepare_normals
-from .operators.areas import ball_area_factor, cut_ball_coverage, density_areas, fit_areas
-from .operators.kernel import tapered_heat_weights
+from .geometry.sampling import geometric_keys
+from .operators.areas import fit_areas
 from .operators.operator import HeatKernelOperator
 from .options import resolve_options
 from .orient.enclosure import warn_undecided
-from .orient.orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient, row_reach
+from .orient.orientation import Orientation, as_viewpoint
+from .orient.stages import explained, normal_stages, orientation_mode, viewpoint_reference
 from .progress import StageClock
 from .results import CurvatureResult
 from .tuning import TUNING
 
 __all__ = ["CurvatureResult", "estimate"]
-
-
-
-@dataclass(frozen=True)
-class _Fitted:
-    """What the method-specific stages produce, over the distinct points (operator order)."""
-
-    normals: np.ndarray
-    mean: np.ndarray
-    principal: PrincipalCurvatures
-    areas: np.ndarray
-    border: np.ndarray
-    plan: FitPlan
-    scale: ScaleReport | None = None
-    residual: np.ndarray | None = None
-    radius: np.ndarray | None = None
-    orientation: Orientation | None = None
-    width: np.ndarray | None = None
-    support: np.ndarray | None = None
-    mean_variance_factor: np.ndarray | None = None
 
 
 def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, choices=None,
@@ -182,7 +163,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     True
     """
     opts = resolve_options(method, **options)
-    mode = _orientation_mode(opts.orient, normals, viewpoint)
+    mode = orientation_mode(opts.orient, normals, viewpoint)
     if viewpoint is not None:
         as_viewpoint(viewpoint, len(points) if hasattr(points, "__len__") else None)  # fail before the work
     precision_step(coordinate_precision)  # fail before the work
@@ -199,8 +180,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             check_ball_counts(op.points, op.tree, op.neighbourhood, op.h, opts, keys, op.prepared.unit)
         with clock.stage("outliers"):
             outliers = find_outliers(op.points, op.neighbourhood)
-        towards = _reference(op, mode, viewpoint)
-        nrm, ball_shape, orientation, policy = _normal_stages(op, normals, mode, towards, outliers.mask, clock,
+        towards = viewpoint_reference(op, mode, viewpoint)
+        nrm, ball_shape, orientation, policy = normal_stages(op, normals, mode, towards, outliers.mask, clock,
                                                              keys, choices)
         mode = orientation.report.mode
         with clock.stage("mean_curvature_normal"):
@@ -210,407 +191,29 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         choice = None
         if opts.fit == "chord":
             with clock.stage("kernel_choice"):
-                choice = _kernel_choice(op, nrm, weights_areas, keys, frame.n_points,
+                choice = kernel_choice(op, nrm, weights_areas, keys, frame.n_points,
                                         None if choices is None else choices.scale)
         plan = plan_fit(opts, choice, keep_normals=normals is not None)  # the one place that chooses the fit
         if plan.form.startswith("paper"):
-            fitted = _paper_fit_stages(op, plan, nrm, K, weights_areas, clock)
+            fitted = paper_fit_stages(op, plan, nrm, K, weights_areas, clock)
         elif plan.anchored:
-            fitted = _anchored_fit_stages(op, plan, choice, nrm, weights_areas, keys, clock, mode, towards,
+            fitted = anchored_fit_stages(op, plan, choice, nrm, weights_areas, keys, clock, mode, towards,
                                           outliers.mask)
             if fitted.orientation is not None:  # oriented again over the anchors (strong noise)
                 orientation = fitted.orientation
         else:
-            fitted = _point_fit_stages(op, plan, choice, nrm, weights_areas, clock, rounded=rounding is not None)
+            fitted = point_fit_stages(op, plan, choice, nrm, weights_areas, clock, rounded=rounding is not None)
         if mode == "viewpoint" and normals is None:
             # a scanner sees only surfaces facing it: the fit's refined normals must too
-            fitted = _facing_viewpoint(fitted, op.points, towards)
-    orientation = replace(orientation, report=_explained(orientation.report, policy, op.points.shape[0]))
+            fitted = facing_viewpoint(fitted, op.points, towards)
+    orientation = replace(orientation, report=explained(orientation.report, policy, op.points.shape[0]))
     if orientation.report.undecided:
         warn_undecided(orientation.report.agreement, orientation.report.outside_share, stacklevel=3)
     return _result(op, fitted, ball_shape, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
                    rounding=rounding)
 
 
-def _orientation_mode(orient_option: str, normals, viewpoint) -> str:
-    """The orientation policy of this call: ``"given"``, ``"outward"``, ``"up"``, ``"viewpoint"``, or ``"auto"``.
-
-    ``"auto"`` (no viewpoint, no normals) is decided on the cloud's sample by :func:`_auto_policy`.
-    """
-    if normals is not None:
-        if viewpoint is not None:
-            raise HeatcurvError("give either normals or a viewpoint, not both")
-        if orient_option != "auto":
-            raise HeatcurvError(f"orient={orient_option!r} orients estimated normals; the given normals are kept "
-                                "as they are (leave orient='auto')")
-        return "given"
-    if orient_option == "auto":
-        return "auto" if viewpoint is None else "viewpoint"
-    if orient_option == "viewpoint" and viewpoint is None:
-        raise HeatcurvError("orient='viewpoint' needs viewpoint=(x, y, z), the scanner's position")
-    if orient_option != "viewpoint" and viewpoint is not None:
-        raise HeatcurvError(f"a viewpoint orients the normals towards the scanner; it cannot be combined with "
-                            f"orient={orient_option!r}")
-    return orient_option
-
-
-def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices, normals: np.ndarray,
-                 outlier: np.ndarray) -> AutoPolicy:
-    """``orient="auto"`` without a viewpoint: ``"up"`` or ``"outward"``.
-
-    :func:`heatcurv.orient.orientation.auto_policy` decides.
-
-    Decided on the scale choice's sample centres (the ``n_sub`` points of
-    smallest keys) and the noise the choice measures there
-    (:func:`heatcurv.choice.scale.centre_noise`: the same fit the choice makes
-    next, on the unoriented ``normals``, shape (m, 3), with no weight on the
-    ``outlier`` points, shape (m,), bool), or taken from ``choices`` (a tiled
-    run's survey decided it on the same centres of the whole cloud, with the
-    choice's ``sigma``).
-    """
-    if choices is not None and getattr(choices, "orientation", None) is not None:
-        return choices.orientation
-    opts = op.options
-    tuning = opts.scale_tuning
-    noise = centre_noise(op.points, op.tree, normals, fit_areas(op.areas, outlier), base_k=int(opts.neighbours),
-                         alpha=opts.alpha, n_sub=tuning.n_sub, seed=tuning.seed, keys=keys, workers=opts.workers)
-    return auto_policy(op.points[key_sample(keys, tuning.n_sub, tuning.seed)], noise)
-
-
-def _explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> OrientationReport:
-    """``report`` with its reason (auto "up": and its convention).
-
-    The reason is :attr:`~heatcurv.orient.orientation.OrientationReport.reason`.
-    """
-    if report.mode == "given":
-        return replace(report, reason="the given normals, as they are")
-    if report.mode == "viewpoint":
-        return replace(report, reason="towards the viewpoint")
-    if report.mode == "up":
-        if policy is None:
-            return replace(report, reason="orient='up': towards +z")
-        # turning the cloud may change the choice
-        return replace(report, reason=policy.reason, by_convention=n, policy=policy)
-    if report.closed:
-        why = "encloses a volume: away from it (winding number)"
-    elif report.undecided:
-        why = ("may or may not enclose a volume: the winding number's sides, every point flagged "
-               "(too few points across its thin parts, or an open scene)")
-    elif report.closed is None:
-        why = "outward: each piece as the tree orients it (a part of a cloud)"
-    else:
-        why = "open: each component's outward vote, its convex side out"
-        if report.by_convention:
-            why += "; nearly flat components by the least-variance-axis convention"
-    return replace(report, reason=why if policy is None else f"{policy.reason}; {why}", policy=policy)
-
-
-def _reference(op: HeatKernelOperator, mode: str, viewpoint):
-    """What ``"viewpoint"`` orients towards, in the operator's (centred, distinct) frame; None otherwise."""
-    if mode != "viewpoint":
-        return None
-    prepared = op.prepared
-    v = as_viewpoint(viewpoint, prepared.n_input)
-    return ((v if v.ndim == 1 else v[prepared.first]) - prepared.offset) / prepared.unit
-
-
-def _normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np.ndarray, clock: StageClock,
-                   keys: np.ndarray, choices=None):
-    """Stages ``normals`` and ``orientation``: oriented unit normals, the balls' PCA shape and the orientation.
-
-    ``mode="auto"`` is decided first (:func:`_auto_policy`). Outliers get no
-    weight in the outward vote (one far point would drag the centroid). Given
-    ``choices`` (a part of a cloud), the winding number is not run here: the
-    orientation's patches are cut for :mod:`heatcurv.tiles.winding`.
-
-    Returns
-    -------
-    normals : ndarray, shape (m, 3)
-    ball_shape : tuple of ndarray, shape (m,) each
-        The balls' PCA planarity and roundness (:func:`heatcurv.geometry.normals.pca_normals`; 1 and NaN
-        for given normals).
-    orientation : Orientation
-    policy : AutoPolicy or None
-        What ``"auto"`` chose, None for the other modes.
-    """
-    X, nbhd, prepared = op.points, op.neighbourhood, op.prepared
-    if given is not None:
-        with clock.stage("normals"):
-            nrm = prepare_normals(given, prepared)
-        kept = Orientation(nrm, np.zeros(X.shape[0], dtype=bool), OrientationReport("given"))
-        return nrm, (np.ones(X.shape[0]), np.full(X.shape[0], np.nan)), kept, None
-    with clock.stage("normals"):
-        nrm, planarity, roundness = pca_normals(X, nbhd, taper=op.options.taper, roundness=True)
-    with clock.stage("orientation"):
-        policy = _auto_policy(op, keys, choices, nrm, outlier) if mode == "auto" else None
-        orientation = orient(X, nrm, nbhd, op.areas, mode=mode if policy is None else policy.mode, towards=towards,
-                             excluded=outlier, whole_cloud=choices is None,
-                             cloud_points=None if choices is None else choices.frame.n_points)
-    return orientation.normals, (planarity, roundness), orientation, policy
-
-
-def _facing_viewpoint(fitted: _Fitted, points: np.ndarray, towards: np.ndarray) -> _Fitted:
-    """``fitted`` with every normal facing ``towards`` (flipped with its curvatures where it did not)."""
-    away = np.einsum("ij,ij->i", fitted.normals, towards - points) < 0
-    if not away.any():
-        return fitted
-    normals = np.where(away[:, None], -fitted.normals, fitted.normals)
-    pc = fitted.principal.flipped(away)
-    return replace(fitted, normals=normals, mean=pc.mean, principal=pc)
-
-
-def _paper_fit_stages(op: HeatKernelOperator, plan: FitPlan, nrm: np.ndarray, K: np.ndarray, weights_areas: np.ndarray,
-                      clock: StageClock) -> _Fitted:
-    """Stages ``mean``, ``principal`` and ``border`` of the paper's tensor fit (section 3).
-
-    ``weights_areas``, shape (m,): the areas of the fit weights, 0 for outliers (no weight).
-    """
-    opts, X, nbhd = op.options, op.points, op.neighbourhood
-    with clock.stage("mean"):
-        mean = mean_curvature(K, nrm, opts.mean_formula)
-    with clock.stage("principal"):
-        # The paper's fit weights w_ij = W_ij |xi-xj|^2 A_j (section 3). Irregular
-        # samples can give negative A_j; a least-squares objective with negative
-        # weights has no minimum, so those neighbours get weight zero.
-        pair_w = op.weights * nbhd.distances**2 * weights_areas[nbhd.indices]
-        pc = principal_fit(X, nbhd, nrm, pair_w, mean=mean, constrained=plan.form == "paper-constrained")
-        if plan.form == "paper-free":
-            mean = pc.mean
-    with clock.stage("border"):
-        # border of open surfaces, on the neighbourhood the curvature was fitted on
-        border = border_points(X, nbhd, nrm, taper=opts.taper)
-    return _Fitted(nrm, mean, pc, op.areas, border, plan)
-
-
-def _kernel_choice(op: HeatKernelOperator, nrm: np.ndarray, weights_areas: np.ndarray, keys: np.ndarray,
-                   n_cloud: int, chosen=None):
-    """Stage ``kernel_choice``: the noise and the chord fit's kernel widths (:mod:`heatcurv.choice.scale`).
-
-    Parameters
-    ----------
-    op : HeatKernelOperator
-    nrm : ndarray, shape (m, 3)
-        Oriented starting normals.
-    weights_areas : ndarray, shape (m,)
-        The areas of the fit weights (0 for outliers).
-    keys : ndarray, shape (m,)
-        Sampling keys of the choice's subsample (:func:`heatcurv.geometry.sampling.geometric_keys`).
-    n_cloud : int
-        Rows of the whole cloud.
-    chosen : heatcurv.choice.scale.ScaleChoice, optional
-        The whole cloud's kernel widths (a tile's :class:`heatcurv.choice.choices.CloudChoices`);
-        default: chosen here.
-
-    Returns
-    -------
-    heatcurv.choice.scale.ScaleChoice
-        With ``radius=``: the form alone (the operator's balls are the fit's).
-    """
-    opts, X = op.options, op.points
-    tuning = opts.scale_tuning
-    if opts.radius is not None:
-        return select_form(X, op.neighbourhood, nrm, weights_areas, alpha=opts.alpha, n_sub=tuning.n_sub,
-                           clean_ratio=tuning.clean_ratio, seed=tuning.seed, keys=keys)
-    if chosen is not None:
-        return chosen.at_points(X, opts.workers)
-    return select_scale(
-        X, op.tree, nrm, weights_areas, base_k=int(opts.neighbours), alpha=opts.alpha,
-        fixed_k=None if opts.scale == "auto" else int(opts.scale), workers=opts.workers, keys=keys,
-        n_cloud=n_cloud, **asdict(tuning),
-    )
-
-
-def _point_fit_stages(
-    op: HeatKernelOperator, plan: FitPlan, choice, nrm: np.ndarray, weights_areas: np.ndarray, clock: StageClock,
-    rounded: bool = False,
-) -> _Fitted:
-    """The chord fit (or, with ``radius=``, its denoised form) at every point, block by block.
-
-    Parameters
-    ----------
-    op : HeatKernelOperator
-    plan : FitPlan
-        Not anchored.
-    choice : heatcurv.choice.scale.ScaleChoice
-        The kernel choice the plan was made from.
-    nrm : ndarray, shape (m, 3)
-        Oriented starting normals (kept when ``plan.keep_normals``).
-    weights_areas : ndarray, shape (m,)
-        The areas of the fit weights (0 for outliers: no weight in anyone's fit).
-    clock : StageClock
-    rounded : bool, optional
-        The coordinates are rounded (:func:`heatcurv.flags.reliability.coordinate_rounding`): the
-        variance factor also counts the centre point's own height error (:func:`_centre_gain`).
-
-    Returns
-    -------
-    _Fitted
-        Normals refined by the fit's tilt (unless kept), the fitted curvatures,
-        areas on the fit's kernel corrected by them, and border flags on the
-        fit's ball.
-    """
-    opts, X, base = op.options, op.points, op.neighbourhood
-    n = X.shape[0]
-    keep_normals = plan.keep_normals
-    fixed_radius = plan.radius is not None
-    # the operator's neighbourhood already is the kernel's when the density ball holds k points
-    reuse_base = fixed_radius or (opts.spacing == "density" and plan.k == int(opts.neighbours))
-    # a kernel wider than the operator's counts its own density for the areas
-    own_density = not fixed_radius and plan.k > opts.neighbours
-    k = min(plan.k, n - 1)
-    blocks = base.row_blocks(BLOCK_PAIRS) if fixed_radius else block_ranges(n, rows_per_block(k))
-
-    areas, border, radius, residual = np.empty(n), np.empty(n, dtype=bool), np.empty(n), np.empty(n)
-    centre = np.zeros(n)
-    fits = []
-    for lo, hi in blocks:
-        centres = X[lo:hi]
-        with clock.stage("fit_neighbourhood", report=False):
-            nbhd = base.rows_slice(lo, hi) if reuse_base else knn_neighbourhood(
-                X, k, tree=op.tree, queries=centres, workers=opts.workers
-            )
-        with clock.stage("fit_weights", report=False):
-            # heat kernel, t = h^2 / 4 (eq 2.8) with h = R / alpha, tapered to 0 at the ball's edge
-            weights = tapered_heat_weights(nbhd, nbhd.radius / opts.alpha, weights_areas)
-        start = nrm[lo:hi]
-        if not keep_normals:
-            with clock.stage("normal_refinement", report=False):
-                start = refine_normals(X, nbhd, start, weights, denoise=plan.denoise, centres=centres)
-        with clock.stage("curvature_fit", report=False):
-            fit = chord_fit(X, nbhd, start, weights, denoise=plan.denoise, centres=centres, passes=1)
-        with clock.stage("border", report=False):
-            offset = centroid_offset(X, nbhd, fit.normals, taper=opts.taper, centres=centres)
-            border[lo:hi] = offset > TUNING.border_offset
-        with clock.stage("area_correction", report=False):
-            areas[lo:hi] = _corrected_areas(op, lo, hi, nbhd, fit, own_density, offset, reuse_base)
-        radius[lo:hi] = nbhd.radius
-        residual[lo:hi] = fit.sigma
-        if rounded and not plan.denoise:
-            centre[lo:hi] = _centre_gain(nbhd, weights)
-        fits.append(fit)
-        clock.report("fit", hi / n)
-    fit = ChordFit.concatenate(fits)
-    pc = fit.principal
-    report = ScaleReport.from_choice(choice, plan.label, radius, opts.alpha, fixed_radius=fixed_radius, support=radius)
-    return _Fitted(fit.normals, pc.mean, pc, areas, border, plan, report, residual, radius, support=radius,
-                   mean_variance_factor=fit.mean_variance_factor + centre**2)
-
-
-def _centre_gain(nbhd, weights: np.ndarray) -> np.ndarray:
-    """How much the chord fit's mean curvature moves per unit height error of its centre point, shape (rows,).
-
-    The chord curvatures ``2 z_ij / |xi - xj|^2`` all share the centre's height
-    error ``e``; the fit's isotropic term takes their weighted mean, so the mean
-    curvature moves by about ``e * 2 sum_j w_ij / |xi - xj|^2 / sum_j w_ij``: the
-    nearest neighbours dominate it (the denoised form fits an offset for it instead).
-    """
-    rows = nbhd.rows
-    d2 = nbhd.distances**2
-    near = np.bincount(rows, np.divide(weights, d2, out=np.zeros_like(d2), where=d2 > 0), nbhd.n_points)
-    total = np.bincount(rows, weights, nbhd.n_points)
-    return np.divide(2.0 * near, total, out=np.zeros_like(total), where=total > 0)
-
-
-def _anchored_fit_stages(
-    op: HeatKernelOperator, plan: FitPlan, choice, nrm: np.ndarray, fit_areas: np.ndarray, keys: np.ndarray,
-    clock: StageClock, mode: str, towards, outlier: np.ndarray,
-) -> _Fitted:
-    """The anchored fit: the wide kernel at anchors, carried to every point (:mod:`heatcurv.fits.anchors`).
-
-    Stages ``anchor_fit``, ``carry`` and ``area_correction``, as ``plan`` says
-    (anchors per ball, the anchors' own normals, the low-noise refit, the
-    carry); ``choice`` is the kernel choice, ``fit_areas`` the areas weighting
-    the fit (0 for outliers), ``keys`` the sampling keys the anchors are drawn
-    by, ``mode`` and ``towards`` the orientation policy and its reference
-    (:func:`_reference`) for the anchors' own normals. With :attr:`~heatcurv.choice.plan.FitPlan.anchor_normals`
-    the result's orientation is the anchors' (:func:`heatcurv.fits.anchors.anchor_normals`).
-    """
-    opts, X = op.options, op.points
-    n = X.shape[0]
-    keep_normals = plan.keep_normals
-    k_point = choice.k_per_point if choice.k_per_point is not None else np.full(n, choice.scale.k)
-    with clock.stage("anchor_fit", report=False):
-        index = anchor_rows(keys, k_point, opts.scale_tuning.seed, plan.anchors_per_ball)
-    start, on_anchors, reoriented = nrm[index], None, None
-    if plan.anchor_normals:
-        with clock.stage("anchor_fit", report=False):
-            on_anchors = anchor_normals(
-                X, op.tree, index, k_point[index], fit_areas, mode=mode, towards=towards, excluded=outlier,
-                alpha=opts.alpha, workers=opts.workers,
-            )
-        start = on_anchors.normals
-    with clock.stage("anchor_fit", report=False):
-        anchors = fit_anchors(
-            X, op.tree, start, fit_areas, index, k_point[index], denoise=plan.denoise,
-            low_noise=plan.refit, alpha=opts.alpha, taper=opts.taper,
-            refine=not keep_normals, workers=opts.workers, progress=lambda f: clock.report("fit", 0.9 * f),
-        )
-    with clock.stage("carry", report=False):
-        # the points' own normals keep each point to anchors on its side of a thin part (not under
-        # strong noise, where they are what the anchors replace)
-        carried = carry_fits(
-            X, anchors, normals=nrm if keep_normals else None, reference=nrm if on_anchors is None else None,
-            degree=plan.carry_degree,
-            workers=opts.workers,
-        )
-        if on_anchors is not None:
-            # the points' side is their nearest anchor's; so is an ambiguous one
-            ambiguous = on_anchors.ambiguous[carried.nearest]
-            report = replace(on_anchors.report, ambiguous=int(ambiguous.sum()), on_anchors=int(index.shape[0]))
-            reach = None
-            if on_anchors.reach is not None:
-                # "up"/"viewpoint": a wall anchor's side was voted over the anchors' graph from anchors
-                # up to on_anchors.reach away, so a point's side reads that far beyond its nearest anchor
-                nearest = anchors.index[carried.nearest]
-                own = np.linalg.norm(X - X[nearest], axis=1) + on_anchors.reach[carried.nearest]
-                reach = row_reach(own, op.neighbourhood)
-            reoriented = Orientation(carried.normals, ambiguous, report, reach)
-    pc = carried.principal
-    with clock.stage("area_correction", report=False):
-        border = carried.offset > TUNING.border_offset
-        areas = op.areas
-        if opts.area_method == "density":
-            # the anchors' area per point (their wide balls count a less noisy density), the ball's
-            # curved area and a border point's cut share, as for the per-point fit
-            areas = (carried.density_area * ball_area_factor(carried.radius, pc.k1, pc.k2)
-                     * cut_ball_coverage(carried.offset, TUNING.border_offset))
-    clock.report("fit", 1.0)
-    report = ScaleReport.from_choice(choice, plan.label, carried.radius, opts.alpha, support=carried.support,
-                                     anchors=index.shape[0], k=k_point)
-    return _Fitted(
-        carried.normals, pc.mean, pc, areas, border, plan, report, carried.sigma, carried.radius, reoriented, k_point,
-        carried.support, carried.mean_variance_factor,
-    )
-
-
-def _corrected_areas(
-    op: HeatKernelOperator, lo: int, hi: int, nbhd, fit: ChordFit, own_density: bool, offset: np.ndarray,
-    same_ball: bool,
-) -> np.ndarray:
-    """Stage ``area_correction``: areas of points ``lo:hi`` on the fit's kernel, shape (hi - lo,).
-
-    A kernel wider than the operator's counts its own, less noisy, density
-    (:func:`heatcurv.operators.areas.density_areas`); either way the ball's curved area
-    is corrected by the fitted curvatures (:func:`heatcurv.operators.areas.ball_area_factor`)
-    and a border point's by the share of its ball the surface covers
-    (:func:`heatcurv.operators.areas.cut_ball_coverage`, from the centroid ``offset`` on the
-    fit's ball, which is the density's ball when ``own_density`` or
-    ``same_ball``). The paper's areas (``H A = 1``) are kept as they are.
-    """
-    if op.options.area_method != "density":
-        return op.areas[lo:hi]
-    if own_density:
-        own, area_radius = density_areas(nbhd), nbhd.radius
-    else:
-        own, area_radius = op.areas[lo:hi], op.neighbourhood.radius[lo:hi]
-        if not same_ball:  # the density was counted on the operator's ball: its own offset
-            base = op.neighbourhood.rows_slice(lo, hi)
-            offset = centroid_offset(op.points, base, fit.normals, taper=op.options.taper, centres=op.points[lo:hi])
-    coverage = cut_ball_coverage(offset, TUNING.border_offset)
-    return own * ball_area_factor(area_radius, fit.principal.k1, fit.principal.k2) * coverage
-
-
-def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, ball_shape, orientation: Orientation,
+def _reliability_inputs(op: HeatKernelOperator, fitted: Fitted, ball_shape, orientation: Orientation,
                         outliers: Outliers, areas: np.ndarray, coarse: np.ndarray | None = None) -> ReliabilityInputs:
     """Each distinct point's contribution to ``reliable`` (:mod:`heatcurv.flags.reliability`), shape (m,) each.
 
@@ -634,7 +237,7 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: _Fitted, ball_shape, ori
     return ReliabilityInputs(local, residual, width, rho, ~outliers.mask)
 
 
-def _precision(op: HeatKernelOperator, fitted: _Fitted, rounding) -> tuple:
+def _precision(op: HeatKernelOperator, fitted: Fitted, rounding) -> tuple:
     """The points too coarse for their curvature (or None) and ``info["precision"]``.
 
     The checks are :mod:`heatcurv.flags.reliability`'s.
@@ -665,7 +268,7 @@ def _precision(op: HeatKernelOperator, fitted: _Fitted, rounding) -> tuple:
                                    reason)
 
 
-def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation: Orientation, outliers: Outliers,
+def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: Orientation, outliers: Outliers,
             timings, whole_cloud: bool = True, rounding=None):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
@@ -740,3 +343,4 @@ def _result(op: HeatKernelOperator, fitted: _Fitted, ball_shape, K, orientation:
         info=info,
         fit_radius=back(nbhd.radius if fitted.radius is None else fitted.radius) * unit,
     )
+
