@@ -239,7 +239,7 @@ def decision(report) -> str:
 def median_roundness(points: np.ndarray) -> float:
     """The median ball's PCA roundness (``lambda_0 / lambda_1`` of the 60 nearest, tapered, as the estimator's)."""
     from heatcurv.geometry.neighbourhood import knn_neighbourhood
-    from heatcurv.geometry.normals import pca_normals
+    from heatcurv.orient.normals import pca_normals
 
     _, _, roundness = pca_normals(points, knn_neighbourhood(points, 60), taper=True, roundness=True)
     return float(np.nanmedian(roundness))

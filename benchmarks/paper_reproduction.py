@@ -104,10 +104,10 @@ import scipy
 
 import heatcurv
 from heatcurv import surfaces as S
-from heatcurv.fits.mean_curvature import mean_curvature
-from heatcurv.geometry.normals import orient_normals, pca_normals
+from heatcurv.operators.mean_curvature import mean_curvature
 from heatcurv.operators.operator import HeatKernelOperator
 from heatcurv.options import resolve_options
+from heatcurv.orient.normals import orient_normals, pca_normals
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from machine import commit  # noqa: E402  (benchmarks/machine.py)

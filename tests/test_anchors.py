@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.anchors import carry_anchor_fits
-from heatcurv.choice.scale import Scale, fit_at_scale, in_low_noise_band
+from heatcurv.choice.scale import in_low_noise_band
 from heatcurv.fits.anchors import (
     anchor_rows,
     anchors_per_ball,
@@ -17,6 +17,7 @@ from heatcurv.fits.anchors import (
     carry_fits,
     fit_anchors,
 )
+from heatcurv.fits.balls import Scale, fit_at_scale
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
 from heatcurv.geometry.sampling import geometric_keys
 from heatcurv.operators.areas import density_areas

@@ -11,8 +11,8 @@ from heatcurv import surfaces
 from heatcurv._kernels.chordfit import solve_compiled
 from heatcurv.fits.chordfit import chord_fit, refine_normals
 from heatcurv.geometry.neighbourhood import Neighbourhood, ball_neighbourhood
-from heatcurv.geometry.normals import tangent_frames
 from heatcurv.operators.kernel import ball_taper
+from heatcurv.orient.normals import tangent_frames
 from reference import chordfit as reference
 from reference.lstsq import solve_normal_equations
 
@@ -76,7 +76,7 @@ def model_parts(coefficients, e1, e2, directions):
 def assert_same_model(ref, fit, rtol):
     """The two fits' models agree along common tangent directions, each in its own documented frame.
 
-    The compiled coefficients are given in ``heatcurv.geometry.normals.tangent_frames(fit.normals)``; comparing
+    The compiled coefficients are given in ``heatcurv.orient.normals.tangent_frames(fit.normals)``; comparing
     the models' values rather than the coefficients keeps the check valid where the two normals, equal
     to rounding, pick different frames (a normal with two equal smallest components, e.g. (0, 0, 1)).
     """

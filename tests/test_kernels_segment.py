@@ -20,14 +20,14 @@ import heatcurv
 import heatcurv._kernels.segment as compiled
 from heatcurv import surfaces
 from heatcurv.fits.chordfit import chord_fit
-from heatcurv.fits.mean_curvature import mean_curvature_normal
 from heatcurv.flags.border import centroid_offset
 from heatcurv.flags.outliers import find_outliers, neighbour_medians
 from heatcurv.flags.sheets import second_sheet
 from heatcurv.geometry.neighbourhood import Neighbourhood, knn_neighbourhood
-from heatcurv.geometry.normals import orient_normals, pca_normals
 from heatcurv.operators.areas import density_areas, taper_sums
 from heatcurv.operators.kernel import TAPER_START, ball_taper, heat_kernel_weights, tapered_heat_weights
+from heatcurv.operators.mean_curvature import mean_curvature_normal
+from heatcurv.orient.normals import orient_normals, pca_normals
 from reference import chordfit as reference_chordfit
 from reference import segment as reference
 

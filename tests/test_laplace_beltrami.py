@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from heatcurv.fits.mean_curvature import mean_curvature_normal
 from heatcurv.operators.laplace_beltrami import laplace_beltrami_matrix
+from heatcurv.operators.mean_curvature import mean_curvature_normal
 from heatcurv.operators.operator import build_operator
 
 

@@ -92,6 +92,34 @@ def test_no_import_circles():
     assert real == []
 
 
+#: The core's subpackages by role, lowest first: each imports only the ones below it (and the basics).
+LAYERS = (("geometry",), ("operators",), ("flags", "orient"), ("fits",), ("choice",))
+#: What every layer may import: the contract, the threads, the compiled kernels.
+BASICS = ("errors", "tuning", "options", "progress", "backend", "_kernels")
+
+
+def _top(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def test_the_core_subpackages_are_layered_by_role():
+    level = {name: i for i, layer in enumerate(LAYERS) for name in layer}
+    assert all((PACKAGE / name / "__init__.py").exists() for name in level)
+    offenders = []
+    for module, deps in GRAPH.items():
+        own = _top(module)
+        if own not in level:
+            continue
+        for dep in deps:
+            other = _top(dep)
+            if other == own or other in BASICS:
+                continue
+            if other not in level or level[other] >= level[own]:
+                offenders.append(f"{module} -> {dep}")
+    assert offenders == []
+
+
 def test_compiled_kernels_never_import_their_callers():
     for name, deps in GRAPH.items():
         if name.startswith("heatcurv._kernels"):
@@ -148,7 +176,7 @@ def test_the_public_api_is_short_and_the_building_blocks_stay_in_their_modules()
     for module, name in [("geometry.neighbourhood", "ball_neighbourhood"), ("operators.operator", "build_operator"),
                          ("operators.point_laplacian", "point_cloud_laplacian"),
                          ("operators.laplace_beltrami", "laplace_beltrami_matrix"),
-                         ("geometry.normals", "pca_normals"), ("options", "resolve_options")]:
+                         ("orient.normals", "pca_normals"), ("options", "resolve_options")]:
         assert not hasattr(heatcurv, name), name
         assert callable(getattr(importlib.import_module(f"heatcurv.{module}"), name))
 

@@ -1,12 +1,12 @@
-"""heatcurv.fits.mean_curvature: chord normal curvatures of the edges, and kappa_M from K (eqs 2.11, 2.12)."""
+"""heatcurv.operators.mean_curvature: chord normal curvatures of the edges, and kappa_M from K (eqs 2.11, 2.12)."""
 
 import numpy as np
 import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.fits.mean_curvature import edge_normal_curvatures, mean_curvature
 from heatcurv.geometry.neighbourhood import ball_neighbourhood
+from heatcurv.operators.mean_curvature import edge_normal_curvatures, mean_curvature
 
 
 def test_edge_normal_curvatures_are_exact_on_a_sphere():

@@ -1,13 +1,13 @@
-"""heatcurv.geometry.normals: PCA normals, their orientation (outward, or towards a viewpoint) and tangent frames."""
+"""heatcurv.orient.normals: PCA normals, their orientation (outward, or towards a viewpoint) and tangent frames."""
 
 import numpy as np
 
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.geometry.neighbourhood import ball_neighbourhood
-from heatcurv.geometry.normals import orient_normals, orient_towards_viewpoint, pca_normals, tangent_frames
 from heatcurv.geometry.spacing import global_spacing
 from heatcurv.operators.operator import build_operator
+from heatcurv.orient.normals import orient_normals, orient_towards_viewpoint, pca_normals, tangent_frames
 from heatcurv.surfaces.accuracy import direction_error_deg
 
 

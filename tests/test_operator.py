@@ -5,8 +5,8 @@ import pytest
 
 import heatcurv
 from heatcurv import HeatcurvError, surfaces
-from heatcurv.fits.mean_curvature import mean_curvature_normal
 from heatcurv.operators.laplace_beltrami import laplace_beltrami_matrix
+from heatcurv.operators.mean_curvature import mean_curvature_normal
 from heatcurv.operators.operator import HeatKernelOperator, build_operator
 
 

@@ -7,7 +7,7 @@ import heatcurv
 from heatcurv import surfaces
 from heatcurv.errors import HeatcurvError
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
-from heatcurv.geometry.normals import pca_normals
+from heatcurv.orient.normals import pca_normals
 from heatcurv.orient.orientation import as_viewpoint, local_sides, orient
 from heatcurv.tuning import TUNING
 

@@ -1,6 +1,6 @@
 """The fit plan: one per path of the estimator, and each says what ran.
 
-Every test runs :func:`heatcurv.estimate` with the stage functions of :mod:`heatcurv.estimator` wrapped
+Every test runs :func:`heatcurv.estimate` with the stage functions of :mod:`heatcurv.fit_stages` wrapped
 by spies, and checks the plan in ``info["plan"]`` against the calls the estimator made: the fit form
 (chord or denoised; the paper's tensor fit with or without its constraint), at every point or at
 anchors, how many anchors per ball, the anchors' own normals, the low-noise refit and the carry.
@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 import heatcurv
-from heatcurv import estimator, surfaces
+from heatcurv import fit_stages, surfaces
 from heatcurv.choice.plan import FORMS, FitPlan, plan_fit
-from heatcurv.choice.scale import Scale, ScaleChoice
+from heatcurv.choice.scale import ScaleChoice
+from heatcurv.fits.balls import Scale
 from heatcurv.options import ScaleTuning, resolve_options
 from heatcurv.tuning import TUNING
 
@@ -24,13 +25,13 @@ def calls(monkeypatch):
     """The spied stage functions' calls, by name: lists of (args, kwargs)."""
     seen = {name: [] for name in SPIED}
     for name in SPIED:
-        original = getattr(estimator, name)
+        original = getattr(fit_stages, name)
 
         def spy(*args, _name=name, _original=original, **kwargs):
             seen[_name].append((args, kwargs))
             return _original(*args, **kwargs)
 
-        monkeypatch.setattr(estimator, name, spy)
+        monkeypatch.setattr(fit_stages, name, spy)
     return seen
 
 

@@ -5,9 +5,9 @@ import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.fits.mean_curvature import edge_normal_curvatures
 from heatcurv.fits.principal import PrincipalCurvatures, _disc_constrained_lsq, principal_fit
 from heatcurv.geometry.neighbourhood import ball_neighbourhood
+from heatcurv.operators.mean_curvature import edge_normal_curvatures
 
 
 def synthetic_neighbourhood(k1, k2, angle, n_nb=40, seed=0):

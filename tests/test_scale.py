@@ -5,7 +5,8 @@ import pytest
 
 import heatcurv
 from heatcurv import surfaces
-from heatcurv.choice.scale import Scale, ScaleReport, fit_at_scale, fit_blocks, select_scale
+from heatcurv.choice.scale import ScaleReport, select_scale
+from heatcurv.fits.balls import Scale, fit_at_scale, fit_blocks
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
 from heatcurv.operators.areas import density_areas
 from heatcurv.operators.operator import build_operator

@@ -120,7 +120,7 @@ def test_a_clean_cloud_gets_one_width_from_the_survey():
     frame = stats.frame()
     tiles = _halves(points, 10.0)
     choices = merge_surveys([survey_part(points[r], c, frame) for r, c, _, _ in tiles], frame)
-    assert choices.scale.scale == heatcurv.choice.scale.Scale(60, False)
+    assert choices.scale.scale == heatcurv.fits.balls.Scale(60, False)
     assert choices.scale.centres is None
 
 

@@ -94,7 +94,7 @@ def test_two_rounds_fit_the_same_numbers_and_choose_the_same_widths(noise):
     # the centres are the one-round survey's, in the same order, and every fit the decision reads is equal
     joined, surveyed = JoinedFits(parts, plan), SurveyedFits(one, plan.positions.shape[0])
     np.testing.assert_array_equal(joined.positions, surveyed.positions)
-    levels = [(heatcurv.choice.scale.Scale(60, False), plan.positions.shape[0])] + list(zip(plan.ladder, plan.sizes))
+    levels = [(heatcurv.fits.balls.Scale(60, False), plan.positions.shape[0])] + list(zip(plan.ladder, plan.sizes))
     for scale, size in levels:
         a, b = joined(scale, size), surveyed(scale, size)
         for f in ("mean", "factor", "sigma", "h"):
@@ -130,7 +130,7 @@ def test_the_noise_gates_round_decides_a_clean_cloud_and_defers_a_noisy_one(nois
                 merge_fits(gate, plan, frame)
         else:
             decided = merge_fits(gate, plan, frame)
-            assert decided.scale.scale == full.scale.scale == heatcurv.choice.scale.Scale(60, False)
+            assert decided.scale.scale == full.scale.scale == heatcurv.fits.balls.Scale(60, False)
             assert decided.scale.sigma == full.scale.sigma
             # the widest candidate here holds 1500 neighbours, a ball 5x the gate's; with the two operator
             # balls every reach adds, the gate's farthest read is this share (%) of the full round's

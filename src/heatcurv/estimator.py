@@ -5,11 +5,11 @@ Both methods share the operator and the normals::
     validate -> neighbours -> spacing -> areas            (heatcurv.operators.operator)
     -> kernel_check                                       (enough neighbours under the fit's kernel)
     -> outliers                                           (stray points and islands: unreliable, area 0)
-    -> normals -> orientation                             (heatcurv.orient.stages: PCA or given; outward, up,
+    -> normals -> orientation                             (heatcurv.normal_stages: PCA or given; outward, up,
                                                            or to a viewpoint)
     -> mean_curvature_normal                              (K = L x, eq 2.10)
 
-then the fit stages of :mod:`heatcurv.fits.stages`, for ``method="paper"`` (section 3)::
+then the fit stages of :mod:`heatcurv.fit_stages`, for ``method="paper"`` (section 3)::
 
     -> mean (eq 2.11 / 2.12) -> principal (tensor fit, eq 3.1) -> border
 
@@ -41,7 +41,7 @@ from .backend import threads
 from .choice.choices import frame_of
 from .choice.kernel_check import check_ball_counts, check_kernel
 from .choice.plan import plan_fit
-from .fits.stages import (
+from .fit_stages import (
     Fitted,
     anchored_fit_stages,
     facing_viewpoint,
@@ -61,12 +61,12 @@ from .flags.reliability import (
 )
 from .flags.sheets import second_sheet
 from .geometry.sampling import geometric_keys
+from .normal_stages import explained, normal_stages, orientation_mode, viewpoint_reference
 from .operators.areas import fit_areas
 from .operators.operator import HeatKernelOperator
 from .options import resolve_options
 from .orient.enclosure import warn_undecided
 from .orient.orientation import Orientation, as_viewpoint
-from .orient.stages import explained, normal_stages, orientation_mode, viewpoint_reference
 from .progress import StageClock
 from .results import CurvatureResult
 from .tuning import TUNING

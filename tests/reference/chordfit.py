@@ -57,7 +57,7 @@ _BATCH_ENTRIES = 4_000_000
 def tangent_frames(normals):
     """``(e1, e2)``, orthonormal, ``e1 x e2 = n``: ``e1`` along ``axis x n`` with the axis least aligned with ``n``.
 
-    The construction :func:`heatcurv.geometry.normals.tangent_frames` documents, written
+    The construction :func:`heatcurv.orient.normals.tangent_frames` documents, written
     again (the fit's coefficients are given in this frame).
     """
     n = np.asarray(normals, dtype=float)

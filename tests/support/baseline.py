@@ -5,7 +5,7 @@ This is the estimator most users know from PCL / CGAL-style pipelines
 
 1. the ``k`` nearest neighbours of every point (the point itself included);
 2. a PCA normal of that neighbourhood, given one consistent orientation with
-   :func:`heatcurv.geometry.normals.orient_normals` (the same rule heatcurv uses:
+   :func:`heatcurv.orient.normals.orient_normals` (the same rule heatcurv uses:
    outward on closed surfaces);
 3. a local frame ``(e1, e2, n)`` at the point (``e1 x e2 = n``) and the
    least-squares fit of the height function
@@ -43,8 +43,8 @@ from scipy.spatial import cKDTree
 
 from heatcurv.errors import HeatcurvError
 from heatcurv.geometry.neighbourhood import Neighbourhood
-from heatcurv.geometry.normals import orient_normals, tangent_frames
 from heatcurv.geometry.validation import prepare_normals, prepare_points
+from heatcurv.orient.normals import orient_normals, tangent_frames
 
 __all__ = ["QuadricOptions", "QuadricResult", "quadric_curvature"]
 

@@ -6,8 +6,8 @@ points ``row0 <= i < row1`` and over each point's neighbours
 allocated; the public function of the same name without the underscore
 allocates the output and runs the core on threads
 (:func:`heatcurv._kernels.parallel_rows`). These are the only implementations the
-stages run (:mod:`heatcurv.geometry.normals`, :mod:`heatcurv.operators.kernel`,
-:mod:`heatcurv.operators.areas`, :mod:`heatcurv.fits.mean_curvature`, :mod:`heatcurv.flags.border`
+stages run (:mod:`heatcurv.orient.normals`, :mod:`heatcurv.operators.kernel`,
+:mod:`heatcurv.operators.areas`, :mod:`heatcurv.operators.mean_curvature`, :mod:`heatcurv.flags.border`
 call them directly); ``tests/reference/segment.py`` holds their numpy
 references, which the tests compare them with (to 1e-10 on sums).
 

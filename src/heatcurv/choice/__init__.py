@@ -13,5 +13,6 @@
                   tile
 ================  ===========================================================
 
-Every threshold these modules compare against is a field of :data:`heatcurv.tuning.TUNING`.
+The top layer of the core's subpackages: it compares fits (:mod:`heatcurv.fits`) at several
+scales. Every threshold it compares against is a field of :data:`heatcurv.tuning.TUNING`.
 """

@@ -37,16 +37,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import HeatcurvError
+from ..fits.balls import Scale
 from ..flags.outliers import find_outliers
 from ..geometry.neighbourhood import Neighbourhood
-from ..geometry.normals import pca_normals
 from ..geometry.sampling import geometric_keys, shifted_keys
 from ..operators.areas import fit_areas
 from ..operators.operator import HeatKernelOperator
 from ..options import Options, resolve_options
+from ..orient.normals import pca_normals
 from ..orient.orientation import auto_policy
 from .choices import CloudChoices, CloudFrame
-from .scale import CentreFits, CentreFitter, Scale, _ladder, decide_scale, level_sizes
+from .scale import CentreFits, CentreFitter, _ladder, decide_scale, level_sizes
 
 __all__ = [
     "CentreSurvey", "check_tileable", "merge_surveys", "survey_part", "tile_options", "KeySurvey", "CentrePlan",

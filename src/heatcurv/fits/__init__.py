@@ -1,12 +1,13 @@
-"""Curvature fits: from an operator and oriented normals to mean and principal curvatures.
+"""Curvature fits: from oriented normals and a neighbourhood to principal curvatures and directions.
 
-==================  =========================================================
-``mean_curvature``  the mean-curvature normal and its sign (eqs 2.10-2.12)
-``principal``       the paper's curvature-tensor fit (section 3)
-``chordfit``        the default estimator's edge-chord fit, per point
-``anchors``         the same fit at anchors with wide kernels, carried to
-                    every point
-==================  =========================================================
+==============  =============================================================
+``principal``   the paper's curvature-tensor fit (section 3)
+``chordfit``    the default estimator's edge-chord fit, per point
+``balls``       the chord fit at one kernel width (:class:`~heatcurv.fits.balls.Scale`),
+                every centre with its whole ball, block by block
+``anchors``     the same fit at anchors with wide kernels, carried to every point
+==============  =============================================================
 
-Which of them runs, with which kernel, is decided in :mod:`heatcurv.choice`.
+Which of them runs, with which kernel, is decided in :mod:`heatcurv.choice`;
+:mod:`heatcurv.fit_stages` runs them as the estimator's stages.
 """

@@ -50,13 +50,13 @@ from scipy.spatial import cKDTree
 
 from .._kernels import anchors as kernels
 from ..backend import map_blocks
-from ..choice.scale import Scale, fit_balls
+from ..fits.balls import Scale, fit_balls
 from ..flags.border import centroid_offset
 from ..geometry.neighbourhood import block_ranges, knn_neighbourhood, rows_per_block
-from ..geometry.normals import tangent_frames
 from ..geometry.sampling import key_thinning
 from ..operators.areas import density_areas
 from ..operators.kernel import tapered_heat_weights
+from ..orient.normals import tangent_frames
 from ..orient.orientation import Orientation, orient
 from ..tuning import TUNING
 from .chordfit import ChordFit

@@ -53,7 +53,7 @@ import numpy as np
 
 from .._kernels import chordfit as kernels
 from ..geometry.neighbourhood import Neighbourhood
-from ..geometry.normals import tangent_frames
+from ..orient.normals import tangent_frames
 from ..tuning import TUNING
 from .principal import PrincipalCurvatures, tensor_to_principal
 

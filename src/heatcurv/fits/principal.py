@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import HeatcurvError
 from ..geometry.neighbourhood import Neighbourhood
-from ..geometry.normals import tangent_frames
+from ..orient.normals import tangent_frames
 
 __all__ = ["PrincipalCurvatures", "principal_fit", "tensor_to_principal"]
 

@@ -9,5 +9,5 @@
 ===============  ============================================================
 
 Each module returns boolean masks; :mod:`heatcurv.estimator` combines them into
-``CurvatureResult.reliable``.
+``CurvatureResult.reliable``. Imports :mod:`heatcurv.geometry` and :mod:`heatcurv.operators` only.
 """

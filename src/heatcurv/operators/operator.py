@@ -29,7 +29,6 @@ from scipy.spatial import cKDTree
 
 from ..backend import threads
 from ..errors import HeatcurvError, HeatcurvWarning
-from ..fits.mean_curvature import mean_curvature_normal
 from ..geometry.neighbourhood import Neighbourhood, ball_neighbourhood, knn_neighbourhood
 from ..geometry.spacing import spacing as compute_spacing
 from ..geometry.validation import PreparedPoints, prepare_points
@@ -38,6 +37,7 @@ from ..progress import StageClock
 from .areas import AreaSolve, density_areas, point_areas
 from .kernel import heat_kernel_weights
 from .laplace_beltrami import laplace_beltrami_matrix
+from .mean_curvature import mean_curvature_normal
 
 __all__ = ["HeatKernelOperator", "build_operator"]
 

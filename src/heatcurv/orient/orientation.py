@@ -1,6 +1,6 @@
 """Orientation: give the unoriented PCA normals one side, the side a user expects.
 
-A PCA normal (:func:`heatcurv.geometry.normals.pca_normals`) is an axis; every curvature
+A PCA normal (:func:`heatcurv.orient.normals.pca_normals`) is an axis; every curvature
 sign depends on which way along it the normal points. Three policies
 (``estimate(orient=...)``):
 

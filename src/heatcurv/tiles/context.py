@@ -21,8 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..choice.choices import CloudChoices, CloudFrame
-from ..choice.scale import Scale, ScaleChoice
+from ..choice.scale import ScaleChoice
 from ..errors import HeatcurvError
+from ..fits.balls import Scale
 from ..orient.orientation import AutoPolicy
 
 __all__ = ["SurveyContext", "TYPES", "write_context", "read_context", "to_plain", "from_plain"]

@@ -18,9 +18,9 @@ import numpy as np
 
 from .._kernels import segment as kernels
 from ..errors import HeatcurvError
+from ..geometry.neighbourhood import Neighbourhood
 from ..operators.kernel import TAPER_START
-from ..orient.orientation import GRAPH_NEIGHBOURS, as_viewpoint, orient
-from .neighbourhood import Neighbourhood
+from .orientation import GRAPH_NEIGHBOURS, as_viewpoint, orient
 
 __all__ = [
     "pca_normals", "orient_normals", "orient_towards_viewpoint", "tangent_frames", "GRAPH_NEIGHBOURS", "as_viewpoint",

@@ -25,7 +25,7 @@ import numpy as np
 from .._kernels import segment as kernels
 from ..errors import HeatcurvError
 from ..geometry.neighbourhood import Neighbourhood
-from ..operators.kernel import diffusion_time, laplacian_normalisation
+from .kernel import diffusion_time, laplacian_normalisation
 
 __all__ = ["mean_curvature_normal", "mean_curvature", "edge_normal_curvatures"]
 

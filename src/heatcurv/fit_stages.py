@@ -13,23 +13,23 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from ..choice.plan import FitPlan
-from ..choice.scale import ScaleReport, select_form, select_scale
-from ..flags.border import border_points, centroid_offset
-from ..geometry.neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_per_block
-from ..operators.areas import ball_area_factor, cut_ball_coverage, density_areas
-from ..operators.kernel import tapered_heat_weights
-from ..operators.operator import HeatKernelOperator
-from ..orient.orientation import (
+from .choice.plan import FitPlan
+from .choice.scale import ScaleReport, select_form, select_scale
+from .fits.anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
+from .fits.chordfit import ChordFit, chord_fit, refine_normals
+from .fits.principal import PrincipalCurvatures, principal_fit
+from .flags.border import border_points, centroid_offset
+from .geometry.neighbourhood import BLOCK_PAIRS, block_ranges, knn_neighbourhood, rows_per_block
+from .operators.areas import ball_area_factor, cut_ball_coverage, density_areas
+from .operators.kernel import tapered_heat_weights
+from .operators.mean_curvature import mean_curvature
+from .operators.operator import HeatKernelOperator
+from .orient.orientation import (
     Orientation,
     row_reach,
 )
-from ..progress import StageClock
-from ..tuning import TUNING
-from .anchors import anchor_normals, anchor_rows, carry_fits, fit_anchors
-from .chordfit import ChordFit, chord_fit, refine_normals
-from .mean_curvature import mean_curvature
-from .principal import PrincipalCurvatures, principal_fit
+from .progress import StageClock
+from .tuning import TUNING
 
 
 @dataclass(frozen=True)
@@ -224,7 +224,7 @@ def anchored_fit_stages(
     carry); ``choice`` is the kernel choice, ``fit_areas`` the areas weighting
     the fit (0 for outliers), ``keys`` the sampling keys the anchors are drawn
     by, ``mode`` and ``towards`` the orientation policy and its reference
-    (:func:`heatcurv.orient.stages.viewpoint_reference`) for the anchors' own normals. With
+    (:func:`heatcurv.normal_stages.viewpoint_reference`) for the anchors' own normals. With
     :attr:`~heatcurv.choice.plan.FitPlan.anchor_normals` the result's orientation is the anchors'
     (:func:`heatcurv.fits.anchors.anchor_normals`).
     """

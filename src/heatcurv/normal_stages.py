@@ -2,7 +2,7 @@
 
 :func:`orientation_mode` turns the ``orient`` option, given normals and a
 viewpoint into one policy; :func:`normal_stages` runs the stages ``normals``
-(PCA, or the given ones) and ``orientation`` (:mod:`.orientation`, ``"auto"``
+(PCA, or the given ones) and ``orientation`` (:mod:`heatcurv.orient.orientation`, ``"auto"``
 decided first on the scale choice's sample); :func:`explained` says in the
 report why the sides are what they are.
 """
@@ -13,15 +13,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..choice.scale import centre_noise
-from ..errors import HeatcurvError
-from ..geometry.normals import pca_normals
-from ..geometry.sampling import key_sample
-from ..geometry.validation import prepare_normals
-from ..operators.areas import fit_areas
-from ..operators.operator import HeatKernelOperator
-from ..progress import StageClock
-from .orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient
+from .choice.scale import centre_noise
+from .errors import HeatcurvError
+from .geometry.sampling import key_sample
+from .geometry.validation import prepare_normals
+from .operators.areas import fit_areas
+from .operators.operator import HeatKernelOperator
+from .orient.normals import pca_normals
+from .orient.orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient
+from .progress import StageClock
 
 
 def orientation_mode(orient_option: str, normals, viewpoint) -> str:
@@ -119,7 +119,7 @@ def normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np
     -------
     normals : ndarray, shape (m, 3)
     ball_shape : tuple of ndarray, shape (m,) each
-        The balls' PCA planarity and roundness (:func:`heatcurv.geometry.normals.pca_normals`; 1 and NaN
+        The balls' PCA planarity and roundness (:func:`heatcurv.orient.normals.pca_normals`; 1 and NaN
         for given normals).
     orientation : Orientation
     policy : AutoPolicy or None
