@@ -15,12 +15,18 @@ Why there is no backend to choose:
   as oracles: the tests run every kernel and its reference on the same inputs.
 
 What remains is :func:`threads`, which matches numba's thread count, the
-number of threads the kernels run on, to a call's ``workers``.
+number of threads the kernels run on, to a call's ``workers``, and
+:func:`map_blocks`, which runs small blocks side by side. Both use one pool of
+worker threads, the row pool of :func:`heatcurv._kernels.parallel_rows`: a
+kernel call of :data:`SPLIT_ROWS` rows or more is split over it, smaller
+blocks share it.
 """
 
 from __future__ import annotations
 
 from contextlib import contextmanager
+
+from ._kernels import SPLIT_ROWS
 
 __all__ = ["threads", "map_blocks", "SPLIT_ROWS"]
 
@@ -53,14 +59,8 @@ def threads(workers: int | None):
         numba.set_num_threads(previous)
 
 
-#: Blocks of fewer rows than this run side by side (:func:`map_blocks`): the compiled kernels split
-#: one call's rows over threads only from 1024 rows on (:data:`heatcurv._kernels.MIN_ROWS_PER_CHUNK`
-#: per thread), and a wide kernel's block of a million pairs holds a few hundred rows.
-SPLIT_ROWS = 1024
-
-
 def map_blocks(function, blocks: list, rows: int):
-    """``function(block)`` for every block, in order, on the kernels' threads when the blocks are small.
+    """``function(block)`` for every block, in order; the blocks side by side when each is too small to split.
 
     Parameters
     ----------
@@ -69,25 +69,21 @@ def map_blocks(function, blocks: list, rows: int):
     blocks : list
         The blocks' arguments.
     rows : int
-        Rows of the largest block: below :data:`SPLIT_ROWS` the blocks run side by side on
-        numba's thread count of the calling thread (:func:`threads`), else one after the other
-        (each already runs on every thread).
+        Rows of the largest block: below :data:`SPLIT_ROWS` no kernel call of a
+        block is split over threads (:func:`heatcurv._kernels.parallel_rows`), so
+        the blocks share the same threads instead
+        (:func:`heatcurv._kernels.parallel_items`); from it on they run one after
+        the other, each on every thread.
 
     Returns
     -------
     iterator
-        The results, in the order of ``blocks``. Every block is submitted at once:
-        keep what ``function`` returns small.
+        The results, in the order of ``blocks``. Side by side, every block is
+        computed before the first result is returned: keep what ``function``
+        returns small.
     """
-    import numba
+    from ._kernels import parallel_items
 
-    count = numba.get_num_threads() if rows < SPLIT_ROWS and len(blocks) > 1 else 1
-    if count <= 1:
+    if rows >= SPLIT_ROWS or len(blocks) < 2:
         return map(function, blocks)
-    from concurrent.futures import ThreadPoolExecutor
-
-    def run(pool_function, items):
-        with ThreadPoolExecutor(count) as pool:
-            yield from pool.map(pool_function, items)
-
-    return run(function, blocks)
+    return iter(parallel_items(function, blocks))

@@ -83,7 +83,9 @@ __all__ = [
     "as_floats",
     "as_indices",
     "as_pointers",
+    "parallel_items",
     "parallel_rows",
+    "SPLIT_ROWS",
 ]
 
 #: The logger the compile notice goes to (a child of ``heatcurv``).
@@ -137,6 +139,8 @@ ROW_CORE = dict(cache=True, nogil=True, error_model="numpy")
 MIN_ROWS_PER_CHUNK = 512
 #: Chunks per thread: threads that finish early take more, evening out rows of different cost.
 CHUNKS_PER_THREAD = 4
+#: Fewest rows :func:`parallel_rows` splits over threads (two chunks); a smaller call runs on its caller alone.
+SPLIT_ROWS = 2 * MIN_ROWS_PER_CHUNK
 
 
 def parallel_rows(core, n: int, *args) -> None:
@@ -170,6 +174,39 @@ def parallel_rows(core, n: int, *args) -> None:
         job.stop()  # after ctrl-C: the helpers take no further chunk
     if job.errors:
         raise job.errors[0]
+
+
+def parallel_items(function, items: list) -> list:
+    """``[function(item) for item in items]``, the items side by side on the threads of :func:`parallel_rows`.
+
+    For work whose every item is too small for :func:`parallel_rows` to split
+    (fewer than :data:`SPLIT_ROWS` rows): the items, not their rows, are
+    shared among the calling thread and up to ``numba.get_num_threads() - 1``
+    of the same helper threads, so one pool owns every worker thread of
+    heatcurv. ``function`` should spend its time in ``nogil`` kernels. The
+    first exception is raised here once the items already started have
+    finished.
+    """
+    results = [None] * len(items)
+
+    def core(first, stop):
+        for i in range(first, stop):
+            results[i] = function(items[i])
+
+    threads = min(numba.get_num_threads(), len(items))
+    if threads <= 1:
+        core(0, len(items))
+        return results
+    job = _Job(core, (), list(range(len(items) + 1)))
+    _helpers.ask(job, threads - 1)
+    try:
+        job.run()
+        job.wait()
+    finally:
+        job.stop()
+    if job.errors:
+        raise job.errors[0]
+    return results
 
 
 class _Job:
