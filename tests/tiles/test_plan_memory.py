@@ -70,7 +70,7 @@ def test_the_plan_holds_each_tiles_survey_halo_and_the_survey_runs_within_it(tor
     real_run = job.submit
 
     def run(executor, workers, fn, specs, on_done, say, what, total):
-        phases.append((fn.__name__, workers, {t: spec.get("halo") for t, spec in specs.items()}))
+        phases.append((fn.__name__, workers, {t: getattr(spec, "halo", None) for t, spec in specs.items()}))
         return real_run(executor, workers, fn, specs, on_done, say, what, total)
 
     monkeypatch.setattr(job, "submit", run)

@@ -27,8 +27,7 @@ def scratch(torus_file, tmp_path_factory):
     keys = []
     for t in range(len(tiling.counts)):
         core, _ = read_rows(work, int(tiling.offsets[t]), int(tiling.offsets[t + 1]))
-        spec = {"scratch": str(work), "tile": t, "stats": stats, "options": OPTIONS,
-                "halo": compute.key_halo(core, OPTIONS)}
+        spec = tasks.KeysTask(str(work), t, OPTIONS, stats, compute.key_halo(core, OPTIONS))
         keys.append(tasks.run_keys(spec))
     return work, stats, tiling, keys
 
@@ -43,7 +42,7 @@ def test_keys_widen_a_halo_too_thin_and_give_the_same_candidates(scratch, monkey
         return real(points, core, *args)
 
     monkeypatch.setattr(compute, "key_tile", counted)
-    spec = {"scratch": str(work), "tile": 3, "stats": stats, "options": OPTIONS, "halo": 1e-6}
+    spec = tasks.KeysTask(str(work), 3, OPTIONS, stats, halo=1e-6)
     thin = tasks.run_keys(spec)  # a halo of nothing: the certificate widens it
     assert len(calls) == 2 and calls[0] == 0 and calls[1] > 0
     np.testing.assert_array_equal(thin.keys, keys[3].keys)
@@ -55,7 +54,7 @@ def test_centres_widen_a_guess_too_small_and_fit_the_same_numbers(scratch, monke
     plan = compute.plan_centres(keys, stats, OPTIONS)
     tile = int(np.bincount(plan.tile).argmax())
     places = plan.of_tile(tile)
-    spec = {"scratch": str(work), "tile": tile, "stats": stats, "options": OPTIONS, "plan": plan, "places": places}
+    spec = tasks.CentresTask(str(work), tile, OPTIONS, stats, plan, places)
     right = tasks.run_centres(spec)
     guesses = []
     real = compute.centre_reach
@@ -127,7 +126,7 @@ def test_round_two_fits_the_gate_first_and_every_candidate_only_under_noise(tmp_
     real_run = job.submit
 
     def run(executor, workers, fn, specs, *args):
-        phases.append((fn.__name__, {spec.get("levels") for spec in specs.values()}))
+        phases.append((fn.__name__, {getattr(spec, "levels", None) for spec in specs.values()}))
         return real_run(executor, workers, fn, specs, *args)
 
     monkeypatch.setattr(job, "submit", run)

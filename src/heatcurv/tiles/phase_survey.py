@@ -19,7 +19,7 @@ from . import compute, job
 from .context import SurveyContext, read_context, write_context
 from .job import Job, Phase
 from .plan import TilePlan
-from .tasks import run_centres, run_keys, run_survey
+from .tasks import CentresTask, KeysTask, SurveyTask, run_centres, run_keys, run_survey
 
 __all__ = ["survey", "ONE_ROUND_TILES"]
 
@@ -51,8 +51,7 @@ def _one_round(run: Job, plan: TilePlan, phase: Phase) -> SurveyContext:
     """One round (:func:`heatcurv.choice.survey.survey_part`): the cloud's centres fill so few tiles that round 2 would
     compute as much as one round does, after round 1."""
     n_tiles = len(plan.tiling.counts)
-    specs = {t: {"scratch": str(run.work), "tile": t, "stats": plan.stats, "options": phase.options,
-                 "halo": plan.survey_halos[t]} for t in range(n_tiles)}
+    specs = {t: SurveyTask(str(run.work), t, phase.options, plan.stats, plan.survey_halos[t]) for t in range(n_tiles)}
     surveys = {}
     job.submit(phase.executor, phase.workers, run_survey, specs, surveys.__setitem__, run.say, "survey of tile",
                n_tiles)
@@ -64,8 +63,7 @@ def _two_rounds(run: Job, plan: TilePlan, phase: Phase) -> SurveyContext:
     cloud's sample centres only, over the points within their reach (the same fits, bit for bit); the survey's halo
     bounds both. The noise gate's candidates first: a clean cloud is decided by them, a noisy one fits them all."""
     n_tiles = len(plan.tiling.counts)
-    specs = {t: {"scratch": str(run.work), "tile": t, "stats": plan.stats, "options": phase.options,
-                 "halo": plan.key_halos[t]} for t in range(n_tiles)}
+    specs = {t: KeysTask(str(run.work), t, phase.options, plan.stats, plan.key_halos[t]) for t in range(n_tiles)}
     keys = {}
     job.submit(phase.executor, phase.workers, run_keys, specs, keys.__setitem__, run.say, "keys of tile", n_tiles)
     centres = compute.plan_centres([keys[t] for t in range(n_tiles)], plan.stats, run.options)
@@ -78,9 +76,9 @@ def _two_rounds(run: Job, plan: TilePlan, phase: Phase) -> SurveyContext:
 def _fit_centres(run: Job, plan: TilePlan, phase: Phase, centres, levels) -> SurveyContext:
     """Round 2 of the survey: the candidates' fits (the first ``levels``, None: all) at the centres of every tile."""
     n_tiles = len(plan.tiling.counts)
-    specs = {t: {"scratch": str(run.work), "tile": t, "stats": plan.stats, "options": phase.options,
-                 "plan": centres, "places": centres.of_tile(t), "levels": levels} for t in range(n_tiles)}
-    specs = {t: spec for t, spec in specs.items() if spec["places"].size}
+    specs = {t: CentresTask(str(run.work), t, phase.options, plan.stats, centres, centres.of_tile(t), levels)
+             for t in range(n_tiles)}
+    specs = {t: spec for t, spec in specs.items() if spec.places.size}
     parts = {}
     job.submit(phase.executor, phase.workers, run_centres, specs, parts.__setitem__, run.say, "survey of tile", n_tiles)
     return compute.merge_rounds([p for t in sorted(parts) for p in parts[t]], centres, plan.stats, run.options)

@@ -22,7 +22,7 @@ from .medians import apply_cloud_flags
 from .output import create_results, is_stored, slim_tiles, store_tile
 from .plan import TilePlan
 from .progressbar import TileProgress
-from .tasks import run_tile, tile_path
+from .tasks import TileTask, run_tile, tile_path
 
 __all__ = ["TileStore", "cloud_flags", "compute_tiles", "SLIM_POINTS"]
 
@@ -100,8 +100,7 @@ def compute_tiles(run: Job, plan: TilePlan, context: SurveyContext, store: TileS
     phase = job.phase(run, plan, float(context.halo), "tiles")
     done = store.resume(plan)
     tic = time.perf_counter()
-    specs = {t: {"scratch": str(run.work), "tile": t, "context": context, "options": phase.options}
-             for t in range(n_tiles) if t not in done}
+    specs = {t: TileTask(str(run.work), t, phase.options, context) for t in range(n_tiles) if t not in done}
     name = job.submit(phase.executor, phase.workers, run_tile, specs, store.finished, run.say, "tile", n_tiles)
     store.slim()  # before the output takes its disk space
     timings["tiles"] = time.perf_counter() - tic

@@ -1,7 +1,8 @@
 """The tasks a tiled run submits: module-level functions of a small spec, importable by any worker.
 
-A spec is a dict of plain values (the scratch directory, a tile number, the
-global context, the estimator options): the task reads its points from the
+A spec is a frozen :class:`Task` (the scratch directory, a tile number, the
+estimator options, and what its kind of task needs: the cloud's statistics, a
+halo, the survey's context): the task reads its points from the
 scratch files itself (the cluster contract: every worker sees the same file
 system), computes through :mod:`.compute`, checks the certificate and writes
 its core rows to ``tiles/tile_NNNNN.npz`` atomically (a temporary file moved
@@ -23,15 +24,24 @@ import json
 import os
 import resource
 import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import HeatcurvError
 from . import compute
-from .plan import Tiling, read_rows
+from .context import SurveyContext
+from .plan import CloudStats, Tiling, read_rows
 from .winding import tile_sources
 
-__all__ = ["run_survey", "run_keys", "run_centres", "run_tile", "tile_points", "certificate", "tile_path", "WIDENINGS"]
+if TYPE_CHECKING:
+    from ..choice.survey import CentrePlan
+
+__all__ = [
+    "Task", "SurveyTask", "KeysTask", "CentresTask", "TileTask", "run_survey", "run_keys", "run_centres", "run_tile",
+    "tile_points", "certificate", "tile_path", "WIDENINGS",
+]
 
 #: Times a tile may widen its halo before the run fails.
 WIDENINGS = 3
@@ -39,6 +49,51 @@ WIDENINGS = 3
 #: ``interrupt:T`` raises KeyboardInterrupt there (Ctrl-C in a serial run), ``kill:T:FILE`` ends the
 #: worker process at tile T once (FILE records that it did).
 FAULT_VARIABLE = "HEATCURV_TILES_FAULT"
+
+
+@dataclass(frozen=True)
+class Task:
+    """What every task gets: where the scratch files are (every worker sees the same file system), its tile, the
+    estimator keywords (:func:`heatcurv.tiles.driver.estimator_options`, ``workers`` set for the phase)."""
+
+    scratch: str
+    tile: int
+    options: dict
+
+
+@dataclass(frozen=True)
+class SurveyTask(Task):
+    """:func:`run_survey`: the cloud's statistics and the survey halo (None: :func:`.compute.survey_halo`)."""
+
+    stats: CloudStats
+    halo: float | None = None
+
+
+@dataclass(frozen=True)
+class KeysTask(Task):
+    """:func:`run_keys`: the cloud's statistics and the keys' halo (about one operator ball)."""
+
+    stats: CloudStats
+    halo: float
+
+
+@dataclass(frozen=True)
+class CentresTask(Task):
+    """:func:`run_centres`: the cloud's sample centres, the tile's among them (``places``, indices into
+    ``plan``), and the candidates to fit (``levels``: the noise gate's first ones, None: all)."""
+
+    stats: CloudStats
+    plan: CentrePlan
+    places: np.ndarray
+    levels: int | None = None
+
+
+@dataclass(frozen=True)
+class TileTask(Task):
+    """:func:`run_tile`: the survey's context (its halo, unless ``halo`` is given)."""
+
+    context: SurveyContext
+    halo: float | None = None
 
 
 def tile_path(scratch, tile: int) -> str:
@@ -175,22 +230,22 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
         halo = need * compute.HALO_MARGIN
 
 
-def run_survey(spec: dict):
+def run_survey(spec: SurveyTask):
     """Survey one tile: fit the candidate kernels at its sample centres (:func:`.compute.survey_tile`).
 
     The tile's core and a halo as wide as the widest candidate's ball
-    (``spec["halo"]``, the plan's; else :func:`.compute.survey_halo`); the
+    (``spec.halo``, the plan's; else :func:`.compute.survey_halo`); the
     certificate checks every centre's reach and widens the halo as
     :func:`run_tile` does.
     """
-    scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
+    scratch, tile, stats, options = spec.scratch, spec.tile, spec.stats, spec.options
     plan = load_plan(scratch)
     tiling = Tiling.from_json(plan["tiling"])
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     offsets = tiling.offsets
     core_points, _ = read_rows(scratch, int(offsets[tile]), int(offsets[tile + 1]))
     # the driver's (the plan budgets the survey's workers with it); the same function of the same core
-    halo = float(spec["halo"]) if "halo" in spec else compute.survey_halo(core_points, stats, options)
+    halo = float(spec.halo) if spec.halo is not None else compute.survey_halo(core_points, stats, options)
 
     def survey(points, core):
         part = compute.survey_tile(points, core, stats, options)
@@ -200,10 +255,10 @@ def run_survey(spec: dict):
     return _certified(scratch, tiling, tile, halo, cloud, survey, f"survey of tile {tile}", LARGER_TILES)[0]
 
 
-def run_keys(spec: dict):
+def run_keys(spec: KeysTask):
     """Round 1 of the survey on one tile: its core's sampling keys and candidate centres (:func:`.compute.key_tile`).
 
-    The tile's core and a halo of about one operator ball (``spec["halo"]``);
+    The tile's core and a halo of about one operator ball (``spec.halo``);
     the certificate checks every core point's ball (its key reads no farther)
     and widens the halo as :func:`run_tile` does.
 
@@ -211,11 +266,11 @@ def run_keys(spec: dict):
     -------
     heatcurv.choice.survey.KeySurvey
     """
-    scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
+    scratch, tile, stats, options = spec.scratch, spec.tile, spec.stats, spec.options
     plan = load_plan(scratch)
     tiling = Tiling.from_json(plan["tiling"])
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
-    halo = float(spec["halo"])
+    halo = float(spec.halo)
 
     def keys(points, core):
         part, reach = compute.key_tile(points, core, stats, options)
@@ -224,7 +279,7 @@ def run_keys(spec: dict):
     return _certified(scratch, tiling, tile, halo, cloud, keys, f"keys of tile {tile}", LARGER_TILES)[0]
 
 
-def run_centres(spec: dict):
+def run_centres(spec: CentresTask):
     """Round 2 of the survey on one tile: the candidates' fits at its centres of the cloud's sample.
 
     Reads the tile with a halo holding every centre's guessed reach
@@ -242,9 +297,9 @@ def run_centres(spec: dict):
         The centres fitted at the first try, then those fitted again (a
         centre's fits do not depend on the others').
     """
-    scratch, tile, stats, options = spec["scratch"], spec["tile"], spec["stats"], spec["options"]
-    centres_plan, places = spec["plan"], np.asarray(spec["places"], dtype=np.int64)
-    levels = spec.get("levels")  # the noise gate's candidates only (heatcurv.choice.survey.GATE_LEVELS), or all
+    scratch, tile, stats, options = spec.scratch, spec.tile, spec.stats, spec.options
+    centres_plan, places = spec.plan, np.asarray(spec.places, dtype=np.int64)
+    levels = spec.levels  # the noise gate's candidates only (heatcurv.choice.survey.GATE_LEVELS), or all
     tiling = Tiling.from_json(load_plan(scratch)["tiling"])
     frame = compute.cloud_frame(stats)
     centres = centres_plan.positions[places] * frame.unit + frame.offset
@@ -287,7 +342,7 @@ def _within(points: np.ndarray, centres: np.ndarray, radius: np.ndarray, workers
     return out
 
 
-def run_tile(spec: dict) -> dict:
+def run_tile(spec: TileTask) -> dict:
     """Compute one tile, check its certificate (widening the halo if needed) and write its result file.
 
     Returns
@@ -298,13 +353,13 @@ def run_tile(spec: dict) -> dict:
         ``seconds``, ``peak`` (the worker process's peak memory, bytes).
     """
     tic = time.perf_counter()
-    scratch, tile, context, options = spec["scratch"], spec["tile"], spec["context"], spec["options"]
+    scratch, tile, context, options = spec.scratch, spec.tile, spec.context, spec.options
     _fault(tile)
     plan = load_plan(scratch)
     tiling = Tiling.from_json(plan["tiling"])
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     centroid = np.asarray(plan["stats"]["centroid"])
-    halo = float(spec.get("halo", context.halo))
+    halo = float(context.halo if spec.halo is None else spec.halo)
 
     def tile_values(points, core):
         out = compute.compute_tile(points, core, context, options)
