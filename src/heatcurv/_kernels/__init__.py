@@ -165,15 +165,7 @@ def parallel_rows(core, n: int, *args) -> None:
     if threads <= 1 or chunks <= 1:
         core(0, n, *args)
         return
-    job = _Job(core, args, [n * c // chunks for c in range(chunks + 1)])
-    _helpers.ask(job, min(threads, chunks) - 1)
-    try:
-        job.run()
-        job.wait()
-    finally:
-        job.stop()  # after ctrl-C: the helpers take no further chunk
-    if job.errors:
-        raise job.errors[0]
+    _run_with_helpers(_Job(core, args, [n * c // chunks for c in range(chunks + 1)]), min(threads, chunks) - 1)
 
 
 def parallel_items(function, items: list) -> list:
@@ -197,16 +189,20 @@ def parallel_items(function, items: list) -> list:
     if threads <= 1:
         core(0, len(items))
         return results
-    job = _Job(core, (), list(range(len(items) + 1)))
-    _helpers.ask(job, threads - 1)
+    _run_with_helpers(_Job(core, (), list(range(len(items) + 1))), threads - 1)
+    return results
+
+
+def _run_with_helpers(job, helpers: int) -> None:
+    """Run ``job``'s chunks on this thread and ``helpers`` helper threads; raise its first error once they stop."""
+    _helpers.ask(job, helpers)
     try:
         job.run()
         job.wait()
     finally:
-        job.stop()
+        job.stop()  # after ctrl-C: the helpers take no further chunk
     if job.errors:
         raise job.errors[0]
-    return results
 
 
 class _Job:
