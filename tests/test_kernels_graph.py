@@ -5,6 +5,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from heatcurv._kernels import graph as graph_kernels
 from heatcurv._kernels.graph import connected_components, forest_parity, minimum_spanning_forest, pairs_between_kept
 
 
@@ -112,3 +113,15 @@ def test_forest_parity_is_the_flips_on_the_path_from_the_root():
             expected[v] = expected[u] ^ (agreement < 0)
     np.testing.assert_array_equal(parity, expected)
     assert parity.any() and not parity[roots].any()
+
+
+@pytest.mark.parametrize("ties", [False, True])
+@pytest.mark.parametrize("per_block", [1, 7, 1000])
+def test_the_forest_is_the_same_whatever_the_scan_is_cut_into(monkeypatch, per_block, ties):
+    # blocks of the edges scanned side by side, their choices merged: the same entries as one block and as SciPy's
+    indptr, indices, cost = random_graph(3000, 6, seed=11, ties=ties, islands=25)
+    one_block = minimum_spanning_forest(indptr, indices, cost)
+    monkeypatch.setattr(graph_kernels, "MIN_EDGES_PER_BLOCK", per_block)
+    monkeypatch.setattr(graph_kernels, "get_num_threads", lambda: 4)  # four blocks on any machine
+    got = minimum_spanning_forest(indptr, indices, cost)
+    assert np.array_equal(got, one_block) and np.array_equal(got, scipy_forest(indptr, indices, cost))

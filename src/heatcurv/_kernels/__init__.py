@@ -8,8 +8,8 @@ a numba kernel, with no per-pair temporaries:
                taper sums, tapered heat weights, mean-curvature-normal sums,
                centroid offsets (border flags)
 ``chordfit``   the chord fit's normal equations, residuals and Cholesky solve
-``graph``      minimum spanning forest (orientation) and connected components
-               (outliers), serial
+``graph``      minimum spanning forest (orientation; its scan on the threads)
+               and connected components (outliers, serial)
 ``anchors``    carrying the anchors' fits to every point (:mod:`heatcurv.fits.anchors`)
 ``laplacian``  the default Laplacian's tangent-plane Voronoi cells and border
                moments (:mod:`heatcurv.operators.point_laplacian`)

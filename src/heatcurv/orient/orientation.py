@@ -685,9 +685,8 @@ def _spanning_forest(points: np.ndarray, normals: np.ndarray, graph: Neighbourho
     needs no symmetrising; of a mutual pair's two costs the cheaper counts.
     The forest is found by a compiled Boruvka
     (:func:`heatcurv._kernels.graph.minimum_spanning_forest`): the same
-    entries as ``csgraph.minimum_spanning_tree``, whose sort of the costs took
-    most of its 3.9 s on a million points (Boruvka: 0.9 s). Costs are strictly
-    positive.
+    entries as ``csgraph.minimum_spanning_tree``, without its sort of the
+    costs. Costs are strictly positive.
     """
     n = points.shape[0]
     cost = kernels.orientation_costs(points, normals, graph.indptr, graph.indices, graph.distances, graph.radius)
