@@ -6,7 +6,13 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from heatcurv._kernels import graph as graph_kernels
-from heatcurv._kernels.graph import connected_components, forest_parity, minimum_spanning_forest, pairs_between_kept
+from heatcurv._kernels.graph import (
+    connected_components,
+    forest_parity,
+    minimum_spanning_forest,
+    pairs_between_kept,
+    undirected_edges,
+)
 
 
 def scipy_forest(indptr, indices, cost):
@@ -125,3 +131,19 @@ def test_the_forest_is_the_same_whatever_the_scan_is_cut_into(monkeypatch, per_b
     monkeypatch.setattr(graph_kernels, "get_num_threads", lambda: 4)  # four blocks on any machine
     got = minimum_spanning_forest(indptr, indices, cost)
     assert np.array_equal(got, one_block) and np.array_equal(got, scipy_forest(indptr, indices, cost))
+
+
+def test_undirected_edges_once_each_without_excluded_vertices():
+    indptr, indices, cost = random_graph(2000, 5, seed=9, islands=10)
+    n = 2000
+    sym = sp.csr_matrix((cost, indices, indptr), shape=(n, n))
+    sym = (sym + sym.T).tocsr()
+    rng = np.random.default_rng(3)
+    points, excluded = rng.normal(size=(n, 3)), rng.random(n) < 0.05
+    i, j, entry, length = undirected_edges(sym.indptr, sym.indices, excluded, points)
+    rows = np.repeat(np.arange(n), np.diff(sym.indptr))
+    want = np.flatnonzero((rows < sym.indices) & ~excluded[rows] & ~excluded[sym.indices])
+    np.testing.assert_array_equal(entry, want)
+    np.testing.assert_array_equal(i, rows[want])
+    np.testing.assert_array_equal(j, sym.indices[want])
+    np.testing.assert_allclose(length, np.linalg.norm(points[j] - points[i], axis=1), rtol=1e-15)

@@ -70,7 +70,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from .._kernels.graph import merged_components
+from .._kernels.graph import merged_components, undirected_edges
 from .._kernels.winding import clipped_dipole_terms, winding_numbers
 from ..errors import HeatcurvWarning
 from ..geometry.neighbourhood import Neighbourhood
@@ -301,11 +301,8 @@ def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray,
     Excluded points get -1.
     """
     n = points.shape[0]
-    i = np.repeat(np.arange(n, dtype=np.int64), np.diff(forest.indptr))
-    j = forest.indices.astype(np.int64)
-    keep = (i < j) & ~(excluded[i] | excluded[j])  # each undirected edge once
-    i, j, cost = i[keep], j[keep], forest.data[keep]
-    length = np.linalg.norm(points[j] - points[i], axis=1)
+    i, j, entry, length = undirected_edges(forest.indptr, forest.indices, excluded, points)
+    cost = forest.data[entry]
     sure = cost <= TUNING.sure_cost
     target = max(PATCH_POINTS, (n - excluded.sum() if cloud_points is None else cloud_points) / MAX_PATCHES)
     side = np.sqrt(target) * (np.median(length) if length.size else 1.0)
