@@ -8,9 +8,14 @@ Prints markdown tables (docs/laplacian.md carries them):
 2. pointwise residuals: ``|L Y - lam Y| / |lam Y|`` for spherical harmonics and
    ``|L x - 2 H n| / |2 H n|`` (the mean-curvature normal, eq 2.10, heatcurv's
    positive convention), including ``heatcurv.estimate(points).mean_curvature_normal``;
-3. time and peak memory (each run in a fresh child process) at 10k, 100k, 1M points.
+3. time and peak memory (each run in a fresh child process) at 10k, 100k, 1M points;
+4. eigenpairs at peer speed: build + k smallest eigenpairs on random sphere points (20k: 50, 100k: 100),
+   heatcurv's ``PointCloudLaplacian.eigenpairs`` against robust-laplacian with scipy's ``eigsh`` called
+   as its documentation shows (shift-invert, scipy's own SuperLU factorisation) and with the
+   factorisation heatcurv uses (:func:`heatcurv.operators.point_laplacian.spd_factor`), each in a fresh
+   process, errors against the exact ``l (l + 1)``.
 
-Run:  python benchmarks/laplacian.py  [--quick] [--sizes 10000,100000,1000000]
+Run:  python benchmarks/laplacian.py  [--quick] [--sizes 10000,100000,1000000] [--eigen 20000:50,100000:100]
 Needs the ``peers`` extra (robust-laplacian) and psutil.
 """
 
@@ -29,6 +34,7 @@ import scipy.sparse.linalg as spla
 
 import heatcurv
 from heatcurv import surfaces
+from heatcurv.operators.point_laplacian import spd_factor
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))  # tests/support
 from support.mesh_laplacian import torus_reference_eigenvalues  # noqa: E402
@@ -42,11 +48,17 @@ def robust(points):
     return L.tocsr(), np.asarray(M.diagonal()).ravel()
 
 
-def smallest(stiffness, area, k):
-    """The k smallest eigenvalues of stiffness v = lam diag(area) v (symmetric, area > 0)."""
+def smallest(stiffness, area, k, plain=False):
+    """The k smallest eigenvalues of stiffness v = lam diag(area) v (symmetric, area > 0).
+
+    Shift-invert Lanczos about a small negative shift; the shifted matrix is factorised as heatcurv does
+    (``spd_factor``), or with ``plain`` by scipy's ``eigsh`` itself, as a user calls it.
+    """
     M = sp.diags(area).tocsc()
     sigma = -1e-3 * float(np.median(stiffness.diagonal() / area))
-    lu = spla.splu((stiffness - sigma * M).tocsc(), permc_spec="MMD_AT_PLUS_A")
+    if plain:
+        return np.sort(spla.eigsh(stiffness.tocsc(), k=k, M=M, sigma=sigma, which="LM", return_eigenvectors=False))
+    lu = spd_factor(stiffness - sigma * M)
     op = spla.LinearOperator(stiffness.shape, matvec=lu.solve, dtype=np.float64)
     return np.sort(spla.eigsh(stiffness, k=k, M=M, sigma=sigma, OPinv=op, which="LM", return_eigenvectors=False))
 
@@ -186,6 +198,57 @@ def one_timing(method, n, eig):
     print(json.dumps({"build": build, "total": total, "peak_gb": peak_rss() / 1e9, "base_gb": base / 1e9}))
 
 
+#: the eigenpair timing's methods: (label, what it runs)
+EIGEN_METHODS = {
+    "heatcurv": "PointCloudLaplacian(points).eigenpairs(k)",
+    "robust-plain": "robust_laplacian.point_cloud_laplacian + scipy eigsh(L, k, M, sigma) (scipy's own factorisation)",
+    "robust-spd": "robust_laplacian.point_cloud_laplacian + eigsh with heatcurv's spd_factor",
+}
+
+
+def sphere_eigenvalues(k: int) -> np.ndarray:
+    """The k smallest eigenvalues of the unit sphere, l (l + 1) with multiplicity 2 l + 1."""
+    degrees = np.repeat(np.arange(int(np.sqrt(k)) + 2), 2 * np.arange(int(np.sqrt(k)) + 2) + 1)
+    return (degrees * (degrees + 1.0))[:k]
+
+
+def one_eigen_timing(method, n, k):
+    """Run in a child: build and solve k eigenpairs of one method on n random unit-sphere points; print JSON."""
+    pts = surfaces.Sphere().sample(n, "random", seed=0).points
+    start = time.perf_counter()
+    if method == "heatcurv":
+        lap = heatcurv.PointCloudLaplacian(pts)
+        build = time.perf_counter() - start
+        values = lap.eigenpairs(k)[0]
+    else:
+        S, A = robust(pts)
+        build = time.perf_counter() - start
+        values = smallest(S, A, k, plain=method == "robust-plain")
+    total = time.perf_counter() - start
+    exact = sphere_eigenvalues(k)
+    error = float(np.mean(np.abs(values[1:] - exact[1:]) / exact[1:]))
+    print(json.dumps({"build": build, "total": total, "error": error, "peak_gb": peak_rss() / 1e9}))
+
+
+def eigen_table(cases):
+    print("## Eigenpairs: build + the k smallest (random unit-sphere points, fresh process each)\n")
+    for method, what in EIGEN_METHODS.items():
+        print(f"- `{method}`: {what}")
+    print("\n| n | k | method | build s | eigenpairs s | total s | mean error % | peak RSS GB |")
+    print("|---|---|---|---|---|---|---|---|")
+    for n, k in cases:
+        for method in EIGEN_METHODS:
+            cmd = [sys.executable, __file__, "--one-eigen", method, str(n), str(k)]
+            try:
+                out = subprocess.run(cmd, capture_output=True, text=True, timeout=1800, check=True).stdout
+                r = json.loads(out.strip().splitlines()[-1])
+                print(f"| {n} | {k} | {method} | {r['build']:.1f} | {r['total'] - r['build']:.1f} | {r['total']:.1f} | "
+                      f"{100 * r['error']:.2f} | {r['peak_gb']:.2f} |", flush=True)
+            except Exception as exc:  # report, go on
+                print(f"| {n} | {k} | {method} | failed ({type(exc).__name__}) | | | | |", flush=True)
+    print()
+
+
 def peak_rss() -> float:
     """Peak resident set size of this process, bytes.
 
@@ -253,7 +316,9 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller clouds")
     parser.add_argument("--sizes", default="10000,100000,1000000")
-    parser.add_argument("--only", default="spectra,residuals,timing")
+    parser.add_argument("--only", default="spectra,residuals,timing,eigen")
+    parser.add_argument("--eigen", default="20000:50,100000:100", help="n:k cases of the eigenpair timing")
+    parser.add_argument("--one-eigen", nargs=3, help=argparse.SUPPRESS)
     parser.add_argument("--clouds", default="", help="comma-separated words: only the spectra of clouds named so")
     parser.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     parser.add_argument("--pictures", metavar="FOLDER", help="only draw the bunny pictures into FOLDER")
@@ -263,6 +328,9 @@ def main():
         return
     if args.one:
         one_timing(args.one[0], int(args.one[1]), args.one[2] == "1")
+        return
+    if args.one_eigen:
+        one_eigen_timing(args.one_eigen[0], int(args.one_eigen[1]), int(args.one_eigen[2]))
         return
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from machine import commit, cpu_model, memory_text  # benchmarks/machine.py
@@ -276,6 +344,8 @@ def main():
         residual_table(args.quick)
     if "timing" in args.only:
         timing_table([int(s) for s in args.sizes.split(",")])
+    if "eigen" in args.only:
+        eigen_table([tuple(int(x) for x in case.split(":")) for case in args.eigen.split(",") if case])
     print(f"Whole run: {time.perf_counter() - start:.0f} s, load average {os.getloadavg()[0]:.1f} at the end")
 
 

@@ -227,3 +227,19 @@ def test_duplicates_and_bad_queries_are_heatcurv_errors(random_sphere):
         lap.heat(pts[:, 0], -1.0)
     with pytest.raises(HeatcurvError, match="shape"):
         lap.heat(pts[:10, 0], 1.0)
+
+
+def test_spd_factor_solves_the_shifted_stiffness_as_a_pivoting_factorisation_does(random_sphere):
+    # no row pivoting for a positive definite matrix: the same solution as SuperLU's default, to rounding
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from heatcurv.operators.point_laplacian import spd_factor
+
+    pts, lap = random_sphere
+    shifted = lap.first_order + 0.05 * sp.diags(lap.area)
+    rhs = np.column_stack([pts[:, 2], np.random.default_rng(0).normal(size=len(pts))])
+    got = spd_factor(shifted).solve(rhs)
+    want = spla.splu(shifted.tocsc()).solve(rhs)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12 * np.abs(want).max())
+    np.testing.assert_allclose(shifted @ got, rhs, atol=1e-9 * np.abs(rhs).max())
