@@ -243,3 +243,31 @@ def test_spd_factor_solves_the_shifted_stiffness_as_a_pivoting_factorisation_doe
     want = spla.splu(shifted.tocsc()).solve(rhs)
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12 * np.abs(want).max())
     np.testing.assert_allclose(shifted @ got, rhs, atol=1e-9 * np.abs(rhs).max())
+
+
+@pytest.mark.parametrize("steps_per_gamma", [0.5, 3.9, 4.0, 40.0])
+def test_heat_steps_from_first_order_factors_equal_the_assembled_backward_euler(random_sphere, steps_per_gamma):
+    # (A + tau S) factors into (A + a S1) A^-1 (A + b S1): real a, b from tau = 4 gamma on, complex below
+    import scipy.sparse.linalg as spla
+
+    pts, lap = random_sphere
+    tau = steps_per_gamma * lap.gamma
+    start = np.column_stack([pts[:, 2] ** 2, np.exp(pts[:, 0])])
+    got = lap.heat(start, time=2 * tau, steps=2)
+    direct = spla.splu((lap.mass + tau * lap.stiffness).tocsc())
+    want = start
+    for _ in range(2):
+        want = direct.solve(lap.area[:, None] * want)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    assert got.dtype == np.float64
+
+
+def test_heat_of_the_first_order_operator_is_one_factorisation(random_sphere):
+    import scipy.sparse.linalg as spla
+
+    pts, _ = random_sphere
+    lap = PointCloudLaplacian(pts, order=1)
+    assert lap.gamma == 0.0
+    got = lap.heat(pts[:, 1], time=0.01)
+    want = spla.splu((lap.mass + 0.01 * lap.first_order).tocsc()).solve(lap.area * pts[:, 1])
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)

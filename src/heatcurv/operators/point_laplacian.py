@@ -439,7 +439,11 @@ class PointCloudLaplacian:
         Backward Euler, ``(diag(A) + tau S) u_{k+1} = diag(A) u_k`` with
         ``tau = time / steps``; the factorisation is cached per ``tau``.
         Unconditionally stable, and it keeps ``sum_i A_i u_i`` (the total
-        heat) exactly.
+        heat) exactly. The matrix is never assembled: with
+        ``S = S1 + gamma S1 diag(1/A) S1`` it is the product
+        ``(diag(A) + a S1) diag(1/A) (diag(A) + b S1)``, ``a + b = tau``,
+        ``a b = tau gamma``, so each step solves with the sparse first-order
+        stiffness (:meth:`_backward_euler`).
 
         Parameters
         ----------
@@ -467,16 +471,51 @@ class PointCloudLaplacian:
             raise HeatcurvError(f"steps must be a positive integer, got {steps!r}")
         tau = time / steps
         if tau not in self._heat:
-            self._heat = {tau: spd_factor(self.mass + tau * self.stiffness)}
-        lu = self._heat[tau]
+            self._heat = {tau: self._backward_euler(tau)}
+        solve = self._heat[tau]
         weight = self.area if u.ndim == 1 else self.area[:, None]
         for _ in range(int(steps)):
-            u = lu.solve(weight * u)
+            u = solve(weight * u)
         return u
+
+    def _backward_euler(self, tau: float):
+        """A solver of ``(diag(A) + tau S) u = r``, ``r`` of shape ``(n,)`` or ``(n, c)``, from factors of ``S1``.
+
+        ``diag(A) + tau (S1 + gamma S1 diag(1/A) S1) = (diag(A) + a S1) diag(1/A) (diag(A) + b S1)``
+        with ``a, b = (tau -+ sqrt(tau^2 - 4 tau gamma)) / 2``. For ``tau >= 4 gamma`` both are
+        positive: two solves with positive definite matrices in turn. For a shorter step they are
+        complex conjugates, and the partial fractions
+        ``1 / ((1 + a mu) (1 + b mu)) = Im(a / (1 + a mu)) / Im(a)`` (``mu`` an eigenvalue of ``L1``) give
+        ``u = Im(a (diag(A) + a S1)^-1 r) / Im(a)``: one complex factorisation.
+        """
+        mass, S1, gamma = self.mass, self.first_order, self.gamma
+        if gamma == 0.0:
+            return spd_factor(mass + tau * S1).solve
+        discriminant = tau * tau - 4.0 * tau * gamma
+        if discriminant >= 0.0:
+            root = np.sqrt(discriminant)
+            first, second = spd_factor(mass + 0.5 * (tau - root) * S1), spd_factor(mass + 0.5 * (tau + root) * S1)
+
+            def solve(r):
+                return second.solve((self.area if r.ndim == 1 else self.area[:, None]) * first.solve(r))
+
+            return solve
+        a = complex(0.5 * tau, 0.5 * np.sqrt(-discriminant))
+        # complex symmetric with a positive definite real part: no pivoting needed either
+        lu = spd_factor(mass.astype(complex) + a * S1)
+
+        def solve(r):
+            return (a * lu.solve(r.astype(complex))).imag / a.imag
+
+        return solve
 
 
 def spd_factor(matrix: sp.spmatrix):
     """A sparse LU factorisation of a symmetric positive definite matrix, ``lu.solve(b)`` solving ``matrix x = b``.
+
+    Also used for complex symmetric matrices whose real part is positive
+    definite (the short heat steps of :class:`PointCloudLaplacian`), which
+    need no pivoting either.
 
     SuperLU with the minimum-degree ordering of ``A + A^T`` and no row
     pivoting (``diag_pivot_thresh=0``, symmetric mode): a positive definite
