@@ -196,6 +196,34 @@ def test_heat_diffusion_of_a_harmonic_and_conservation(random_sphere, records):
     assert spread.min() > -1e-9 and spread.max() < spike.max()
 
 
+def sphere_heat_series(cos_angle, decay, degrees=120):
+    """``sum_l (2l + 1) / (4 pi) decay(l (l + 1)) P_l(cos_angle)``: heat from a unit point source on the unit sphere."""
+    from numpy.polynomial import legendre
+
+    degree = np.arange(degrees + 1)
+    return legendre.legval(cos_angle, (2 * degree + 1) / (4 * np.pi) * decay(degree * (degree + 1.0)))
+
+
+def test_heat_from_a_point_against_the_exact_heat_kernel_of_the_sphere(random_sphere, records):
+    # a unit of heat at one point, t = 0.1 in 100 steps; the exact kernel sum_l (2l+1)/(4 pi) e^(-l(l+1) t) P_l,
+    # and the same series with backward Euler's decay (1 + tau l(l+1))^-steps: the operator's error alone
+    pts, lap = random_sphere
+    spike = np.zeros(len(pts))
+    spike[0] = 1.0 / lap.area[0]
+    time, steps = 0.1, 100
+    u = lap.heat(spike, time, steps)
+    cos_angle = np.clip(pts @ pts[0], -1.0, 1.0)
+    euler = sphere_heat_series(cos_angle, lambda lam: (1.0 + time / steps * lam) ** -steps)
+    exact = sphere_heat_series(cos_angle, lambda lam: np.exp(-lam * time))
+
+    def relative(a, b):  # area-weighted L2, %
+        return 100 * np.sqrt(np.sum(lap.area * (a - b) ** 2) / np.sum(lap.area * b**2))
+
+    records.check("point_laplacian/sphere-random-4000-heat-kernel-t0.1", euler=relative(u, euler),
+                  exact=relative(u, exact))
+    assert np.sum(lap.area * u) == pytest.approx(1.0, rel=1e-12)
+
+
 @pytest.mark.parametrize(
     "points, options, message",
     [
