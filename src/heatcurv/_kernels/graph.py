@@ -10,7 +10,7 @@ strict total order, so the forest is unique: the one SciPy's
 ``csgraph.minimum_spanning_tree`` (Kruskal's algorithm over the costs sorted
 stably, i.e. equal costs in CSR order) returns, position for position.
 Measured on a million points (10 edges each): 3.9 s in SciPy, of which 2 s
-sorting the costs; Boruvka sorts nothing (0.6 s on one thread, 0.4 s on two).
+sorting the costs; Boruvka sorts nothing.
 
 :func:`merged_components` (the patches of :mod:`heatcurv.orient.enclosure`) joins
 the components of some edges, then lets every component still smaller than a
