@@ -13,10 +13,15 @@ Prints markdown tables (docs/laplacian.md carries them):
    heatcurv's ``PointCloudLaplacian.eigenpairs`` against robust-laplacian with scipy's ``eigsh`` called
    as its documentation shows (shift-invert, scipy's own SuperLU factorisation) and with the
    factorisation heatcurv uses (:func:`heatcurv.operators.point_laplacian.spd_factor`), each in a fresh
-   process, errors against the exact ``l (l + 1)``.
+   process, errors against the exact ``l (l + 1)``;
+5. geodesic distance from one point on random unit-sphere points: potpourri3d's
+   ``PointCloudHeatSolver`` (the heat method on a point cloud), precomputation and time per source,
+   mean relative error against the great-circle distance; heatcurv offers no geodesic distance yet
+   (docs/laplacian.md), and its row says so.
 
 Run:  python benchmarks/laplacian.py  [--quick] [--sizes 10000,100000,1000000] [--eigen 20000:50,100000:100]
-Needs the ``peers`` extra (robust-laplacian) and psutil.
+      [--geodesic 20000,100000]
+Needs the ``peers`` extra (robust-laplacian, potpourri3d) and psutil.
 """
 
 from __future__ import annotations
@@ -249,6 +254,50 @@ def eigen_table(cases):
     print()
 
 
+#: Sources of the geodesic table: the first one's time includes the solver's factorisations.
+GEODESIC_SOURCES = (0, 1, 2)
+
+
+def one_geodesic_timing(n):
+    """Run in a child: potpourri3d's heat-method distance on n random unit-sphere points; print JSON."""
+    import potpourri3d
+
+    pts = surfaces.Sphere().sample(n, "random", seed=0).points
+    start = time.perf_counter()
+    solver = potpourri3d.PointCloudHeatSolver(pts)
+    precompute = time.perf_counter() - start
+    seconds, errors = [], []
+    for source in GEODESIC_SOURCES:
+        start = time.perf_counter()
+        distance = solver.compute_distance(source)
+        seconds.append(time.perf_counter() - start)
+        exact = np.arccos(np.clip(pts @ pts[source], -1.0, 1.0))  # great-circle distance on the unit sphere
+        others = np.arange(n) != source
+        errors.append(float(np.mean(np.abs(distance[others] - exact[others]) / exact[others])))
+    print(json.dumps({"precompute": precompute, "first": seconds[0], "each": float(np.mean(seconds[1:])),
+                      "error": float(np.mean(errors)), "peak_gb": peak_rss() / 1e9}))
+
+
+def geodesic_table(sizes):
+    print("## Geodesic distance from one point (random unit-sphere points, fresh process each)\n")
+    print(f"Mean over sources {', '.join(map(str, GEODESIC_SOURCES))} of the mean relative error against the "
+          "great-circle distance (every point but the source); `first source s` includes the factorisations, "
+          "`each further source s` is the mean of the others.\n")
+    print("| n | method | precompute s | first source s | each further source s | mean error % | peak RSS GB |")
+    print("|---|---|---|---|---|---|---|")
+    for n in sizes:
+        print(f"| {n} | heatcurv | not offered | | | | |")
+        cmd = [sys.executable, __file__, "--one-geodesic", str(n)]
+        try:
+            out = subprocess.run(cmd, capture_output=True, text=True, timeout=1800, check=True).stdout
+            r = json.loads(out.strip().splitlines()[-1])
+            print(f"| {n} | potpourri3d | {r['precompute']:.2f} | {r['first']:.2f} | {r['each']:.3f} | "
+                  f"{100 * r['error']:.2f} | {r['peak_gb']:.2f} |", flush=True)
+        except Exception as exc:  # report, go on
+            print(f"| {n} | potpourri3d | failed ({type(exc).__name__}) | | | | |", flush=True)
+    print()
+
+
 def peak_rss() -> float:
     """Peak resident set size of this process, bytes.
 
@@ -316,9 +365,11 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller clouds")
     parser.add_argument("--sizes", default="10000,100000,1000000")
-    parser.add_argument("--only", default="spectra,residuals,timing,eigen")
+    parser.add_argument("--only", default="spectra,residuals,timing,eigen,geodesic")
     parser.add_argument("--eigen", default="20000:50,100000:100", help="n:k cases of the eigenpair timing")
     parser.add_argument("--one-eigen", nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument("--geodesic", default="20000,100000", help="cloud sizes of the geodesic table")
+    parser.add_argument("--one-geodesic", help=argparse.SUPPRESS)
     parser.add_argument("--clouds", default="", help="comma-separated words: only the spectra of clouds named so")
     parser.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     parser.add_argument("--pictures", metavar="FOLDER", help="only draw the bunny pictures into FOLDER")
@@ -331,6 +382,9 @@ def main():
         return
     if args.one_eigen:
         one_eigen_timing(args.one_eigen[0], int(args.one_eigen[1]), int(args.one_eigen[2]))
+        return
+    if args.one_geodesic:
+        one_geodesic_timing(int(args.one_geodesic))
         return
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from machine import commit, cpu_model, memory_text  # benchmarks/machine.py
@@ -346,6 +400,8 @@ def main():
         timing_table([int(s) for s in args.sizes.split(",")])
     if "eigen" in args.only:
         eigen_table([tuple(int(x) for x in case.split(":")) for case in args.eigen.split(",") if case])
+    if "geodesic" in args.only:
+        geodesic_table([int(s) for s in args.geodesic.split(",") if s])
     print(f"Whole run: {time.perf_counter() - start:.0f} s, load average {os.getloadavg()[0]:.1f} at the end")
 
 
