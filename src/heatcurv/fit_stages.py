@@ -49,6 +49,8 @@ class Fitted:
     width: np.ndarray | None = None
     support: np.ndarray | None = None
     mean_variance_factor: np.ndarray | None = None
+    noise: np.ndarray | None = None
+    noise_factors: np.ndarray | None = None
 
 
 def facing_viewpoint(fitted: Fitted, points: np.ndarray, towards: np.ndarray) -> Fitted:
@@ -58,7 +60,10 @@ def facing_viewpoint(fitted: Fitted, points: np.ndarray, towards: np.ndarray) ->
         return fitted
     normals = np.where(away[:, None], -fitted.normals, fitted.normals)
     pc = fitted.principal.flipped(away)
-    return replace(fitted, normals=normals, mean=pc.mean, principal=pc)
+    factors = fitted.noise_factors
+    if factors is not None:  # k1 and k2 trade places where the side turns
+        factors = np.where(away[:, None], factors[:, [0, 2, 1, 3, 4]], factors)
+    return replace(fitted, normals=normals, mean=pc.mean, principal=pc, noise_factors=factors)
 
 
 def paper_fit_stages(op: HeatKernelOperator, plan: FitPlan, nrm: np.ndarray, K: np.ndarray, weights_areas: np.ndarray,
@@ -195,7 +200,8 @@ def point_fit_stages(
     pc = fit.principal
     report = ScaleReport.from_choice(choice, plan.label, radius, opts.alpha, fixed_radius=fixed_radius, support=radius)
     return Fitted(fit.normals, pc.mean, pc, areas, border, plan, report, residual, radius, support=radius,
-                   mean_variance_factor=fit.mean_variance_factor + centre**2)
+                   mean_variance_factor=fit.mean_variance_factor + centre**2, noise=fit.noise,
+                   noise_factors=fit.noise_factors)
 
 
 def _centre_gain(nbhd, weights: np.ndarray) -> np.ndarray:
@@ -282,7 +288,7 @@ def anchored_fit_stages(
                                      anchors=index.shape[0], k=k_point)
     return Fitted(
         carried.normals, pc.mean, pc, areas, border, plan, report, carried.sigma, carried.radius, reoriented, k_point,
-        carried.support, carried.mean_variance_factor,
+        carried.support, carried.mean_variance_factor, carried.noise, carried.noise_factors,
     )
 
 

@@ -130,16 +130,18 @@ def _weighted_lstsq(indptr, design, response, weights, jacobi=False, contrast=No
     well_posed : ndarray, shape (n,), bool
         Only with ``contrast``: ``s_min^2 > WELL_POSED_RCOND s_max^2`` of ``W^(1/2) X`` (the
         eigenvalues of ``X^T W X``).
-    variance : ndarray, shape (n,)
-        Only with ``contrast`` ``c``: ``Var(c . beta)`` per unit noise variance when the response
-        of pair ``j`` has noise ``noise_j`` (default 1) times the unit, ``sum_j (dc.beta / dy_j)^2
-        noise_j^2``; NaN for a centre without weighted pairs (no fit: its variance is undefined).
+    variance : ndarray, shape (n, c, c)
+        Only with ``contrast``, rows ``c_k`` of shape (c, p): ``Cov(c_k . beta, c_l . beta)`` per unit
+        noise variance when the response of pair ``j`` has noise ``noise_j`` (default 1) times the
+        unit, ``sum_j (dc_k.beta / dy_j) (dc_l.beta / dy_j) noise_j^2``; NaN for a centre without
+        weighted pairs (no fit: its covariance is undefined).
     """
     n, p = len(indptr) - 1, design.shape[1]
     counts = np.diff(indptr)
     beta = np.zeros((n, p))
     well_posed = np.zeros(n, dtype=bool)
-    variance = np.zeros(n)
+    n_contrasts = 0 if contrast is None else np.atleast_2d(contrast).shape[0]
+    variance = np.zeros((n, n_contrasts, n_contrasts))
     root_w = np.sqrt(weights)
     # batches of centres with similar numbers of pairs, each padded with zero rows to its longest
     # (and to at least p + 1 rows: R is then (p + 1) x (p + 1))
@@ -176,12 +178,15 @@ def _weighted_lstsq(indptr, design, response, weights, jacobi=False, contrast=No
             well_posed[batch] = plain[:, -1] ** 2 > WELL_POSED_RCOND * np.maximum(plain[:, 0] ** 2, 1e-300)
             # dc.beta / dy_j = w_j X_j . g, g = (X^T W X + ridge)^-1 c (the regularised normal matrix)
             with np.errstate(over="ignore", invalid="ignore"):  # (a centre without pairs: NaN below)
-                cs = np.asarray(contrast, dtype=float)[None, :] / scale
-                g = np.einsum("mkp,mk->mp", Vt, np.einsum("mkp,mp->mk", Vt, cs) / (s * s + RIDGE)) / scale
-            sensitivity = weights[pairs] * np.einsum("jp,jp->j", design[pairs], g[local])
+                cs = np.atleast_2d(np.asarray(contrast, dtype=float))[None, :, :] / scale[:, None, :]
+                inner = np.einsum("mkp,mcp->mck", Vt, cs) / (s * s + RIDGE)[:, None, :]
+                g = np.einsum("mkp,mck->mcp", Vt, inner) / scale[:, None, :]
+            sensitivity = weights[pairs, None] * np.einsum("jp,jcp->jc", design[pairs], g[local])
             if noise is not None:
-                sensitivity = sensitivity * noise[pairs]
-            variance[batch] = np.bincount(local, weights=sensitivity**2, minlength=hi - lo)
+                sensitivity = sensitivity * noise[pairs, None]
+            block = np.zeros((hi - lo, n_contrasts, n_contrasts))
+            np.add.at(block, local, sensitivity[:, :, None] * sensitivity[:, None, :])
+            variance[batch] = block
         lo = hi
     if contrast is None:
         return beta
@@ -253,8 +258,8 @@ def chord_fit(
     unit = np.asarray(nbhd.radius, dtype=float)  # the fit's length unit: each centre's ball radius
     n = len(unit)
     n_shape = 3 + 2 * bool(tilt) + 4 * bool(cubic)
-    mean_contrast = np.zeros(n_shape + 6)
-    mean_contrast[[0, 2]] = 0.5  # H = (a + d) / 2
+    # a, b, d and (tilt) t_1, t_2: their covariance under noise
+    contrasts = np.eye(5 if tilt else 3, n_shape + 6)
     normal = np.asarray(normals, dtype=float)
     for number in range(max(1, passes)):
         final = number == max(1, passes) - 1
@@ -275,7 +280,7 @@ def chord_fit(
                 normal = _tilted_normal(beta, e1, e2, normal) if tilt else normal
                 continue
             beta, ok, var = _weighted_lstsq(
-                indptr, cols, kN, weights, contrast=mean_contrast[:n_shape], noise=sensitivity
+                indptr, cols, kN, weights, contrast=contrasts[:, :n_shape], noise=sensitivity
             )
             # the kN residual as a height: times D^2 / 2
             residual = (kN - np.sum(cols * beta[_pair_rows(indptr)], axis=1)) * dist2 / 2
@@ -293,14 +298,17 @@ def chord_fit(
             dz = -0.5 * r2 * np.sum(cols * jet[rows, :n_shape], axis=1)
             D2 = r2 + dz * dz
             design = np.hstack([-0.5 * D2[:, None] * cols, ones])
-            beta, ok, var = _weighted_lstsq(indptr, design, z, weights, contrast=mean_contrast[: n_shape + 1])
+            beta, ok, var = _weighted_lstsq(indptr, design, z, weights, contrast=contrasts[:, : n_shape + 1])
             sigma2 = _residual_variance(indptr, weights, z - np.sum(design * beta[rows], axis=1), n_shape + 1)
+            noise2 = sigma2.copy()
             if low_noise:
-                low, low_fit = _low_noise_refit(indptr, weights, cols, _quartic_columns(x, y), r2, z, jet_sigma2)
+                low, low_fit, low_noise2 = _low_noise_refit(indptr, weights, cols, _quartic_columns(x, y), r2, z,
+                                                            jet_sigma2, len(contrasts))
                 low_beta, low_ok, low_var = low_fit
                 beta[low, :n_shape], beta[low, n_shape] = low_beta[low, :n_shape], low_beta[low, -1]
                 quartic[low] = low_beta[low, n_shape:-1]
                 ok[low], var[low], sigma2[low] = low_ok[low], low_var[low], jet_sigma2[low]
+                noise2[low] = low_noise2[low]
         k1, k2, d1, d2, mean, gaussian = _principal(beta, unit, e1, e2, normal)
     coefficients = np.zeros((n, 9))
     coefficients[:, :3] = beta[:, :3]
@@ -311,9 +319,36 @@ def chord_fit(
     if denoise and low_noise:
         coefficients = np.hstack([coefficients, quartic])
     principal = PrincipalCurvatures(k1=k1, k2=k2, d1=d1, d2=d2, mean=mean, gaussian=gaussian, well_posed=ok)
-    # back to the cloud's units: sigma scales with the radius; Var(H) = sigma^2 factor / R^4
-    return ChordFit(principal=principal, normals=normal, sigma=np.sqrt(sigma2) * unit,
-                    mean_variance_factor=var / unit**4, coefficients=coefficients)
+    # back to the cloud's units: sigma scales with the radius
+    noise = np.sqrt(sigma2 if not denoise else noise2) * unit
+    return ChordFit(principal=principal, normals=normal, sigma=np.sqrt(sigma2) * unit, noise=noise,
+                    noise_factors=_noise_factors(var, beta, unit), coefficients=coefficients)
+
+
+def _noise_factors(cov, beta, unit):
+    """Noise variances of mean, k1, k2, K and the normal's angle per unit height-noise variance, shape (n, 5).
+
+    The delta method on the shape operator ``B = [[a, b], [b, d]]``: each field ``f(a, b, d)``
+    has variance ``grad f^T Cov grad f``, with the gradients of the mean ``(1/2, 0, 1/2)``, of an
+    eigenvalue ``(v_x^2, 2 v_x v_y, v_y^2)`` (``v`` its unit eigenvector) and of ``a d - b^2``;
+    the normal turns by the tilt ``g = -t / 2``. Coefficients are in units of the ball radius
+    ``unit``: a height noise ``e`` is ``e / unit`` there and a curvature ``a / unit``.
+    """
+    n = len(unit)
+    B = np.empty((n, 2, 2))
+    B[:, 0, 0], B[:, 0, 1], B[:, 1, 0], B[:, 1, 1] = beta[:, 0], beta[:, 1], beta[:, 1], beta[:, 2]
+    _, vectors = np.linalg.eigh(B)
+    grads = [np.tile([0.5, 0.0, 0.5], (n, 1))]
+    for column in (1, 0):  # k1: the larger eigenvalue
+        v = vectors[:, :, column]
+        grads.append(np.stack([v[:, 0] ** 2, 2 * v[:, 0] * v[:, 1], v[:, 1] ** 2], axis=1))
+    grads.append(np.stack([beta[:, 2], -2 * beta[:, 1], beta[:, 0]], axis=1) / unit[:, None])
+    out = np.zeros((n, 5))
+    for column, g in enumerate(grads):
+        out[:, column] = np.einsum("ni,nij,nj->n", g, cov[:, :3, :3], g) / unit**4
+    if cov.shape[1] == 5:
+        out[:, 4] = (cov[:, 3, 3] + cov[:, 4, 4]) / 4 / unit**2
+    return out
 
 
 def refine_normals(points, nbhd, normals, weights, *, tilt=True, cubic=True, denoise=False, centres=None):
@@ -340,7 +375,7 @@ def refine_normals(points, nbhd, normals, weights, *, tilt=True, cubic=True, den
     return _tilted_normal(beta, e1, e2, normal)
 
 
-def _low_noise_refit(indptr, weights, cols, quartic, r2, z, jet_sigma2):
+def _low_noise_refit(indptr, weights, cols, quartic, r2, z, jet_sigma2, n_contrasts):
     """The low-noise refit of the denoised form, where it is used.
 
     Tried where the height fit's residual is below ``tried limit sigma0`` and kept where the residual of the height
@@ -350,8 +385,9 @@ def _low_noise_refit(indptr, weights, cols, quartic, r2, z, jet_sigma2):
     quartic height fit, pairs weighted ``w lambda^4 / (D^4 + lambda^4)``, ``lambda^4 = (sigma / sigma0)^2``
     (at least ``LOW_NOISE_MIN_LAMBDA^4``); both fits with the ridge relative to each diagonal entry.
 
-    Returns ``low`` (bool per centre) and ``(beta, well_posed, variance)`` of the refit, ``beta``
-    the shape columns, the quartic ones and the offset.
+    Returns ``low`` (bool per centre), ``(beta, well_posed, variance)`` of the refit, ``beta``
+    the shape columns, the quartic ones and the offset, and the quartic height fit's residual
+    variance (the noise at a low-noise centre).
     """
     rows = _pair_rows(indptr)
     ones = np.ones((len(z), 1))
@@ -364,10 +400,9 @@ def _low_noise_refit(indptr, weights, cols, quartic, r2, z, jet_sigma2):
     dz = -0.5 * r2 * np.sum(shape * height[rows, :-1], axis=1)
     D2 = r2 + dz * dz
     lam4 = np.maximum(own / TUNING.low_noise_sigma**2, LOW_NOISE_MIN_LAMBDA**4)[rows]
-    contrast = np.zeros(shape.shape[1] + 1)
-    contrast[[0, 2]] = 0.5
+    contrast = np.eye(n_contrasts, shape.shape[1] + 1)  # a, b, d (and t_1, t_2)
     fit = _weighted_lstsq(
         indptr, np.hstack([-0.5 * D2[:, None] * shape, ones]), z, weights * lam4 / (D2 * D2 + lam4),
         jacobi=True, contrast=contrast,
     )
-    return low, fit
+    return low, fit, own

@@ -5,7 +5,7 @@ as in :mod:`heatcurv._kernels.segment`), over each centre's CSR
 neighbours and accumulates the normal equations directly,
 
     G_i = sum_j w_ij X_ij X_ij^T,   r_i = sum_j w_ij y_ij X_ij,   (y^T W y)_i,
-    G2_i = sum_j w_ij^2 S_ij^2 X_ij X_ij^T   (for the variance of the mean),
+    G2_i = sum_j w_ij^2 S_ij^2 X_ij X_ij^T   (for the coefficients' covariance under noise),
 
 recomputing everything a pair needs from the points, the centre's frame and
 the fitted coefficients; nothing proportional to the number of pairs is
@@ -560,10 +560,12 @@ def _solve_normal_equations(row0, row1, G, rhs, yy, ridge, jacobi, contrast, G2,
     """
     beta, rss, posed, variance = outputs
     p = rhs.shape[1]
+    n_contrasts = contrast.shape[0]
     A = np.empty((p, p))  # (work arrays allocated once per range of rows, as in every core)
     L = np.empty((p, p))
     work = np.empty(p)
     x = np.empty(p)
+    U = np.empty((n_contrasts, p))
     for i in range(row0, row1):
         trace = 0.0
         for a in range(p):
@@ -589,14 +591,23 @@ def _solve_normal_equations(row0, row1, G, rhs, yy, ridge, jacobi, contrast, G2,
             fitted_sq += x[a] * t
         rss[i] = max(yy[i] - 2.0 * cross + fitted_sq, 0.0)
         if with_variance:
-            _cholesky_solve(L, contrast, x)
-            v = 0.0
-            for a in range(p):
-                t = 0.0
-                for b in range(p):
-                    t += G2[i, a, b] * x[b]
-                v += x[a] * t
-            variance[i] = v
+            # u_c = G^-1 c for each contrast c, then Cov = U G2 U^T
+            for c in range(n_contrasts):
+                _cholesky_solve(L, contrast[c], x)
+                for a in range(p):
+                    U[c, a] = x[a]
+            for c in range(n_contrasts):
+                for a in range(p):
+                    t = 0.0
+                    for b in range(p):
+                        t += G2[i, a, b] * U[c, b]
+                    work[a] = t
+                for e in range(c + 1):
+                    v = 0.0
+                    for a in range(p):
+                        v += U[e, a] * work[a]
+                    variance[i, c, e] = v
+                    variance[i, e, c] = v
         if not check:  # a pass before the last: only its coefficients are used
             posed[i] = 1
             continue
@@ -620,6 +631,9 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True, 
     """Every point's weighted normal equations ``G beta = rhs`` solved by Cholesky, compiled.
 
     Same ridge and returns as the numpy ``solve_normal_equations`` of ``tests/reference/lstsq.py``.
+    ``contrast``, shape (p,) or (c, p): with ``G2``, the variance factor ``c^T G^-1 G2 G^-1 c`` of
+    one contrast (``variance`` of shape (n,)), or the covariance factors ``C G^-1 G2 G^-1 C^T`` of
+    several (shape (n, c, c)), with ``G^-1`` the regularised inverse.
 
     The ridge solve by Cholesky instead of LU agrees to rounding; ``well_posed``
     is exact (eigenvalues are computed for the points the bracket leaves
@@ -629,9 +643,10 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True, 
     """
     G, rhs, yy = as_floats(G), as_floats(rhs), as_floats(yy)
     n, p = rhs.shape
-    beta, rss, variance = np.empty((n, p)), np.empty(n), np.empty(n if contrast is not None else 0)
+    c = np.zeros((1, p)) if contrast is None else np.atleast_2d(as_floats(contrast))
+    beta, rss = np.empty((n, p)), np.empty(n)
+    variance = np.empty((n if contrast is not None else 0, c.shape[0], c.shape[0]))
     posed = np.empty(n, dtype=np.int8)
-    c = np.zeros(p) if contrast is None else as_floats(contrast)
     g2 = as_floats(G2) if contrast is not None else np.empty((0, p, p))
     outputs = beta, rss, posed, variance
     args = G, rhs, yy, float(ridge), bool(jacobi), c, g2, contrast is not None, bool(check), outputs
@@ -643,7 +658,7 @@ def solve_compiled(G, rhs, yy, ridge=1e-10, contrast=None, G2=None, check=True, 
         well_posed[undecided] = evals[:, 0] > WELL_POSED_RCOND * np.maximum(evals[:, -1], 1e-300)
     if contrast is None:
         return beta, rss, well_posed
-    return beta, rss, well_posed, variance
+    return beta, rss, well_posed, variance[:, 0, 0] if np.ndim(contrast) == 1 else variance
 
 
 def normal_equations(kind, p, geometry, height_beta=None):
@@ -677,10 +692,11 @@ def fit(kind, p, geometry, height_beta=None, contrast=None):
     height_beta : ndarray, shape (n, p), optional
         The plain height fit (``DENOISED_HEIGHT`` and ``LOW_NOISE_HEIGHT``; see
         :func:`assemble_normal_equations`).
-    contrast : ndarray, shape (p,), optional
+    contrast : ndarray, shape (p,) or (c, p), optional
         Given for the final fit (the last pass's, whose diagnostics are
-        reported): it is solved by :func:`solve_compiled` with this contrast
-        and returns ``beta, rss, well_posed, variance``. Without it the fit
+        reported): it is solved by :func:`solve_compiled` with these contrasts
+        and returns ``beta, rss, well_posed, variance`` (the covariance factors of
+        several contrasts: shape (n, c, c)). Without it the fit
         only passes its coefficients on, skips ``G2`` and the
         well-posedness test, and returns ``beta`` alone.
     """

@@ -118,11 +118,14 @@ class CarriedFit:
         Unit normals.
     principal : PrincipalCurvatures
         ``well_posed`` is False where no usable anchor reached the point.
-    sigma, offset, radius, density_area, mean_variance_factor : ndarray, shape (n,)
+    sigma, offset, radius, density_area : ndarray, shape (n,)
         The anchors' residual (the most-weighted anchor's: averaged, a tree
         crown's residuals were diluted by the ground's around it), centroid
-        offset, ball radius, area per point and variance factor (weighted as
-        the curvatures).
+        offset, ball radius and area per point (weighted as the curvatures).
+    noise : ndarray, shape (n,)
+        The anchors' noise estimate (:attr:`heatcurv.fits.chordfit.ChordFit.noise`), weighted as the curvatures.
+    noise_factors : ndarray, shape (n, 5)
+        The anchors' :attr:`heatcurv.fits.chordfit.ChordFit.noise_factors`, weighted as the curvatures.
     support : ndarray, shape (n,)
         Support radius: no point farther than this from a point changes its values.
     nearest : ndarray of int, shape (n,)
@@ -135,9 +138,15 @@ class CarriedFit:
     offset: np.ndarray
     radius: np.ndarray
     density_area: np.ndarray
-    mean_variance_factor: np.ndarray
+    noise: np.ndarray
+    noise_factors: np.ndarray
     support: np.ndarray
     nearest: np.ndarray
+
+    @property
+    def mean_variance_factor(self) -> np.ndarray:
+        """``Var(kappa_M) / sigma^2``, shape (n,): the first column of :attr:`noise_factors`."""
+        return self.noise_factors[:, 0]
 
 
 def anchors_per_ball(low_noise: bool) -> int:
@@ -426,7 +435,7 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
         return CarriedFit(
             normals=fit.normals if normals is None else normals, principal=fit.principal, sigma=fit.sigma,
             offset=anchors.offset, radius=anchors.radius, density_area=anchors.density_area,
-            mean_variance_factor=fit.mean_variance_factor, support=anchors.radius,
+            noise=fit.noise, noise_factors=fit.noise_factors, support=anchors.radius,
             nearest=np.argsort(anchors.index),
         )
     if reference is None:
@@ -458,16 +467,17 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     support[own] = anchors.radius
     return CarriedFit(
         normals=normals, principal=pc, sigma=values[:, 0], offset=values[:, 1], radius=values[:, 2],
-        density_area=values[:, 3], mean_variance_factor=values[:, 4], support=support, nearest=nearest,
+        density_area=values[:, 3], noise=values[:, 4], noise_factors=values[:, 5:], support=support,
+        nearest=nearest,
     )
 
 
 def _anchor_scalars(anchors: AnchorFits) -> np.ndarray:
-    """The per-anchor values carried beside the fits, shape (m, 5): the residual ``sigma`` (carried as the
-    most-weighted anchor's), centroid offset, ball radius, density area and mean-variance factor."""
+    """The per-anchor values carried beside the fits, shape (m, 10): the residual ``sigma`` (carried as the
+    most-weighted anchor's), centroid offset, ball radius, density area, noise and the five noise factors."""
     fit = anchors.fit
-    return np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area,
-                            fit.mean_variance_factor])
+    return np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area, fit.noise,
+                            fit.noise_factors])
 
 
 def _carried_sums(points: np.ndarray, anchors: AnchorFits, reference: np.ndarray | None, carried: int,
@@ -480,7 +490,7 @@ def _carried_sums(points: np.ndarray, anchors: AnchorFits, reference: np.ndarray
         The weighted sum of the carried normals (not normalised).
     tensor : ndarray, shape (n, 6)
         The carried curvature tensor (``xx, xy, xz, yy, yz, zz``).
-    values : ndarray, shape (n, 5)
+    values : ndarray, shape (n, 10)
         The carried :func:`_anchor_scalars`; where no anchor's weight reached the point, the nearest anchor's.
     support : ndarray, shape (n,)
         Distance to the farthest anchor used plus its ball radius.

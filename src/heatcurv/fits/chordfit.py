@@ -57,7 +57,7 @@ from ..orient.normals import tangent_frames
 from ..tuning import TUNING
 from .principal import PrincipalCurvatures, tensor_to_principal
 
-__all__ = ["ChordFit", "chord_fit", "refine_normals"]
+__all__ = ["NOISE_FIELDS", "ChordFit", "chord_fit", "noise_factors", "refine_normals"]
 
 @dataclass(frozen=True)
 class ChordFit:
@@ -73,10 +73,17 @@ class ChordFit:
     sigma : ndarray, shape (n,)
         Root-mean-square height residual of the fit (weighted), length units:
         near zero on clean data, the noise level on noisy data.
-    mean_variance_factor : ndarray, shape (n,)
-        Variance of the fitted mean curvature per unit height-noise variance:
-        ``Var(kappa_M) = sigma^2 * factor`` for independent height noise of
-        standard deviation ``sigma``.
+    noise : ndarray, shape (n,)
+        The height noise's standard deviation as the fit estimates it, length
+        units: ``sigma``, except at a centre of the low-noise refit, where the
+        residual of the height fit with quartic terms (``sigma`` there is the
+        plain height fit's, which holds the quartic shape the refit models).
+    noise_factors : ndarray, shape (n, 5)
+        Variances of the fitted ``mean``, ``k1``, ``k2``, ``gaussian`` and of the
+        normal's angle (radians) per unit height-noise variance, columns in the order of
+        :data:`NOISE_FIELDS`: ``Var(kappa_M) = sigma^2 * noise_factors[:, 0]`` for
+        independent height noise of standard deviation ``sigma`` (the sandwich
+        covariance of the weighted fit, :func:`noise_factors`).
     coefficients : ndarray, shape (n, 9) or, for the low-noise refit, (n, 14)
         The last pass's model in the frame ``tangent_frames(normals)``, in units of
         each centre's ball radius: tensor ``a, b, d``, tilt ``t_1, t_2``, cubic
@@ -87,8 +94,14 @@ class ChordFit:
     principal: PrincipalCurvatures
     normals: np.ndarray
     sigma: np.ndarray
-    mean_variance_factor: np.ndarray
+    noise: np.ndarray
+    noise_factors: np.ndarray
     coefficients: np.ndarray | None = None
+
+    @property
+    def mean_variance_factor(self) -> np.ndarray:
+        """``Var(kappa_M) / sigma^2``, shape (n,): the first column of :attr:`noise_factors`."""
+        return self.noise_factors[:, 0]
 
     def take(self, rows: np.ndarray) -> ChordFit:
         """The fit at the centres ``rows`` (indices, or a mask), in their order."""
@@ -96,7 +109,8 @@ class ChordFit:
         fields = PrincipalCurvatures.__dataclass_fields__
         return ChordFit(
             principal=PrincipalCurvatures(**{name: getattr(pc, name)[rows] for name in fields}),
-            normals=self.normals[rows], sigma=self.sigma[rows], mean_variance_factor=self.mean_variance_factor[rows],
+            normals=self.normals[rows], sigma=self.sigma[rows], noise=self.noise[rows],
+            noise_factors=self.noise_factors[rows],
             coefficients=None if self.coefficients is None else self.coefficients[rows],
         )
 
@@ -121,16 +135,73 @@ class ChordFit:
             principal=pc,
             normals=cat(lambda p: p.normals),
             sigma=cat(lambda p: p.sigma),
-            mean_variance_factor=cat(lambda p: p.mean_variance_factor),
+            noise=cat(lambda p: p.noise),
+            noise_factors=cat(lambda p: p.noise_factors),
             coefficients=coefficients,
         )
 
 
-def _mean_contrast(p: int) -> np.ndarray:
-    """``c`` with ``c . beta = H = (a + d) / 2``: the mean curvature in the fit's units."""
-    contrast = np.zeros(p)
-    contrast[[0, 2]] = 0.5
-    return contrast
+#: The fields whose noise variance :attr:`ChordFit.noise_factors` holds, in its column order.
+NOISE_FIELDS = ("mean", "k1", "k2", "gaussian", "normal")
+
+
+def _noise_contrasts(p: int, tilt: bool) -> np.ndarray:
+    """Unit contrasts picking ``a, b, d`` and (``tilt``) ``t_1, t_2`` of ``p`` coefficients, shape (3 or 5, p)."""
+    return np.eye(5 if tilt else 3, p)
+
+
+def noise_factors(covariance: np.ndarray, tensor: np.ndarray, d1: np.ndarray, d2: np.ndarray, e1: np.ndarray,
+                  e2: np.ndarray, unit: np.ndarray) -> np.ndarray:
+    """Noise variances of the mean, principal and Gaussian curvatures and of the normal, shape (n, 5).
+
+    First-order propagation of the coefficients' covariance (the sandwich
+    ``G^-1 G2 G^-1`` of the weighted fit): an eigenvalue of ``B = [[a, b], [b, d]]``
+    with unit eigenvector ``(c, s)`` in the frame moves by ``c^2 da + 2 c s db + s^2 dd``,
+    ``K = a d - b^2`` by ``d da - 2 b db + a dd``, and the normal turns by the tangent
+    plane's tilt ``g = -t / 2`` (:func:`_refined_normal`), whose squared angle has
+    expectation ``Var(g_1) + Var(g_2)``.
+
+    Parameters
+    ----------
+    covariance : ndarray, shape (n, 3, 3) or (n, 5, 5)
+        ``Cov(a, b, d[, t_1, t_2])`` per unit noise variance, in the fit's units (each
+        centre's ball radius; :func:`heatcurv._kernels.chordfit.solve_compiled`).
+    tensor : ndarray, shape (n, 3)
+        The fitted ``a, b, d``, cloud units (1 / length).
+    d1, d2 : ndarray, shape (n, 3)
+        The fitted principal directions.
+    e1, e2 : ndarray, shape (n, 3)
+        The frame of the fit.
+    unit : ndarray, shape (n,)
+        Each centre's ball radius.
+
+    Returns
+    -------
+    ndarray, shape (n, 5)
+        Columns :data:`NOISE_FIELDS`, per unit height-noise variance in cloud units
+        (curvatures ``1 / length^4``, Gaussian ``1 / length^6``, normal ``1 / length^2``,
+        its angle in radians); the normal's column is 0 without tilt terms.
+    """
+    block = covariance[:, :3, :3]
+
+    def along(g):  # g^T Cov g, gradients g of shape (n, 3)
+        return np.einsum("ni,nij,nj->n", g, block, g)
+
+    n = covariance.shape[0]
+    out = np.zeros((n, 5))
+    out[:, 0] = along(np.broadcast_to([0.5, 0.0, 0.5], (n, 3)))
+    for column, direction in ((1, d1), (2, d2)):
+        c, s = np.einsum("ij,ij->i", direction, e1), np.einsum("ij,ij->i", direction, e2)
+        out[:, column] = along(np.stack([c * c, 2 * c * s, s * s], axis=1))
+    a, b, d = tensor[:, 0], tensor[:, 1], tensor[:, 2]
+    out[:, 3] = along(np.stack([d, -2 * b, a], axis=1))
+    # the coefficients' unit is the ball radius: a curvature's variance per unit height noise in
+    # cloud units is the fit's over unit^4 (height noise / unit, coefficient / unit), K's over unit^4 too
+    # (its gradient is already in cloud units), the tilt's over unit^2
+    out[:, :4] /= unit[:, None] ** 4
+    if covariance.shape[1] == 5:
+        out[:, 4] = (covariance[:, 3, 3] + covariance[:, 4, 4]) / (4.0 * unit**2)
+    return out
 
 
 def _principal_and_refined_normal(beta, unit, e1, e2, normals, tilt: bool):
@@ -182,16 +253,23 @@ def _model_coefficients(beta: np.ndarray, tilt: bool, cubic: bool) -> np.ndarray
     return coefficients
 
 
-def _chord_fit_result(pc, well_posed, used, sigma2, var_factor, unit, coefficients) -> ChordFit:
-    """Assemble the :class:`ChordFit` of the last pass, back in the cloud's units."""
+def _chord_fit_result(pc, well_posed, used, sigma2, covariance, beta, e1, e2, unit, coefficients,
+                      noise2=None) -> ChordFit:
+    """Assemble the :class:`ChordFit` of the last pass, back in the cloud's units.
+
+    ``covariance``: the coefficients' covariance factors of :func:`noise_factors`; ``beta`` the
+    coefficients (fit units); ``noise2`` the noise variance where it is not ``sigma2`` (fit units).
+    """
     principal = PrincipalCurvatures(
         k1=pc.k1, k2=pc.k2, d1=pc.d1, d2=pc.d2, mean=pc.mean, gaussian=pc.gaussian, well_posed=well_posed
     )
+    factors = noise_factors(covariance, beta[:, :3] / unit[:, None], pc.d1, pc.d2, e1, e2, unit)
     # report the normal the last fit was done in, so that d1 x d2 = n holds exactly; the
     # last tilt correction is below the measured normal error (0.001 deg on clean clouds)
-    # back to the cloud's units: sigma scales with the radius, Var(kappa_M) = sigma^2 factor / R^4
+    # back to the cloud's units: sigma scales with the radius
     return ChordFit(
-        principal=principal, normals=used, sigma=np.sqrt(sigma2) * unit, mean_variance_factor=var_factor / unit**4,
+        principal=principal, normals=used, sigma=np.sqrt(sigma2) * unit,
+        noise=np.sqrt(sigma2 if noise2 is None else noise2) * unit, noise_factors=factors,
         coefficients=coefficients,
     )
 
@@ -320,7 +398,7 @@ def _fit_pass(base: tuple, nrm: np.ndarray, tilt: bool, cubic: bool, denoise: bo
     e1, e2 = tangent_frames(nrm)
     geometry = (*base, nrm, e1, e2, tilt, cubic)
     if not denoise:
-        contrast = _mean_contrast(n_shape) if final else None
+        contrast = _noise_contrasts(n_shape, tilt) if final else None
         fitted = kernels.fit(kernels.CHORD, n_shape, geometry, contrast=contrast)
     elif final and low_noise:
         return _denoised_refit(geometry, n_shape, unit, e1, e2, nrm, tilt, cubic)
@@ -332,13 +410,13 @@ def _fit_pass(base: tuple, nrm: np.ndarray, tilt: bool, cubic: bool, denoise: bo
             # spheres, ellipsoids, tori, patches and saddles gave the same errors to 0.01 points)
             return _refined_normal(height_beta[:, :n_shape], e1, e2, nrm, tilt)
         # 2) refit with the denoised chord denominator r^2 + (zhat - z0)^2 of its heights
-        contrast = _mean_contrast(n_shape + 1)
+        contrast = _noise_contrasts(n_shape + 1, tilt)
         fitted = kernels.fit(
             kernels.DENOISED_HEIGHT, n_shape + 1, geometry, height_beta=height_beta, contrast=contrast
         )
     if not final:
         return _refined_normal(fitted[:, :n_shape], e1, e2, nrm, tilt)
-    beta, _, ok, var_factor = fitted
+    beta, _, ok, covariance = fitted
     sigma2 = np.empty(nrm.shape[0])
     if denoise:
         kernels.weighted_height_residual(*geometry, kernels.DENOISED_HEIGHT, height_beta, beta, sigma2)
@@ -346,7 +424,8 @@ def _fit_pass(base: tuple, nrm: np.ndarray, tilt: bool, cubic: bool, denoise: bo
         kernels.weighted_height_residual(*geometry, kernels.CHORD, np.empty((0, n_shape)), beta, sigma2)
     pc, _ = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
     # the normal this fit was done in, so that d1 x d2 = n holds exactly
-    return _chord_fit_result(pc, ok, nrm, sigma2, var_factor, unit, _model_coefficients(beta, tilt, cubic))
+    return _chord_fit_result(pc, ok, nrm, sigma2, covariance, beta, e1, e2, unit,
+                             _model_coefficients(beta, tilt, cubic))
 
 
 def _take_rows(geometry: tuple, rows: np.ndarray) -> tuple:
@@ -401,7 +480,7 @@ def _denoised_refit(geometry, n_shape, unit, e1, e2, nrm, tilt, cubic) -> ChordF
     beta = np.zeros((n, p))
     quartic = np.zeros((n, kernels.QUARTIC_COLUMNS))
     ok = np.zeros(n, dtype=bool)
-    var_factor = np.empty(n)
+    covariance = np.empty((n, 5 if tilt else 3, 5 if tilt else 3))
     sigma2 = jet_sigma2.copy()
     low = np.zeros(n, dtype=bool)
     # 2) the low-noise refit where both residuals allow it
@@ -414,25 +493,27 @@ def _denoised_refit(geometry, n_shape, unit, e1, e2, nrm, tilt, cubic) -> ChordF
         lam4 = np.maximum(own[rows] / TUNING.low_noise_sigma**2, kernels.LOW_NOISE_MIN_LAMBDA**4)
         hb = np.concatenate([quartic_beta[rows], lam4[:, None]], 1)
         fit_beta, _, fit_ok, fit_var = kernels.fit(
-            kernels.LOW_NOISE_HEIGHT, width, sub, height_beta=hb, contrast=_mean_contrast(width)
+            kernels.LOW_NOISE_HEIGHT, width, sub, height_beta=hb, contrast=_noise_contrasts(width, tilt)
         )
         beta[rows, :n_shape] = fit_beta[:, :n_shape]
         beta[rows, n_shape] = fit_beta[:, -1]
         quartic[rows] = fit_beta[:, n_shape : n_shape + kernels.QUARTIC_COLUMNS]
-        ok[rows], var_factor[rows] = fit_ok, fit_var
+        ok[rows], covariance[rows] = fit_ok, fit_var
     # 3) elsewhere the plain denoised refit, as without low_noise
     rows = np.flatnonzero(~low)
     if rows.size:
         sub = geometry if rows.size == n else _take_rows(geometry, rows)
         hb = np.ascontiguousarray(height_beta[rows])
         fit_beta, _, fit_ok, fit_var = kernels.fit(
-            kernels.DENOISED_HEIGHT, p, sub, height_beta=hb, contrast=_mean_contrast(p)
+            kernels.DENOISED_HEIGHT, p, sub, height_beta=hb, contrast=_noise_contrasts(p, tilt)
         )
-        beta[rows], ok[rows], var_factor[rows] = fit_beta, fit_ok, fit_var
+        beta[rows], ok[rows], covariance[rows] = fit_beta, fit_ok, fit_var
         part = np.empty(rows.size)
         kernels.weighted_height_residual(*sub, kernels.DENOISED_HEIGHT, hb, fit_beta, part)
         sigma2[rows] = part
     pc, _ = _principal_and_refined_normal(beta[:, :n_shape], unit, e1, e2, nrm, tilt)
     # the quartic terms are part of the model the anchors carry (:mod:`heatcurv.fits.anchors`)
     coefficients = np.concatenate([_model_coefficients(beta, tilt, cubic), quartic], axis=1)
-    return _chord_fit_result(pc, ok, nrm, sigma2, var_factor, unit, coefficients)
+    # the noise at a low-noise centre: the quartic height fit's residual
+    return _chord_fit_result(pc, ok, nrm, sigma2, covariance, beta, e1, e2, unit, coefficients,
+                             noise2=np.where(low, own, sigma2))
