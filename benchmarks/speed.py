@@ -91,6 +91,7 @@ COLUMNS = {
     "border": ("border",),
     "anchor_fit": ("anchor_fit",),
     "carry": ("carry",),
+    "standard_errors": ("standard_errors",),
 }
 STAGES = tuple(s for stages in COLUMNS.values() for s in stages)
 

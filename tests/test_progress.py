@@ -25,10 +25,11 @@ def test_default_method_times_every_stage_under_its_own_name():
     calls = []
     res = heatcurv.estimate(sample.points, progress=lambda stage, fraction: calls.append((stage, fraction)))
     started = [s for s, f in calls if f == 0.0]
-    assert started == OPERATOR + CHECK + NORMALS + ["kernel_choice"]
-    assert all(0.0 <= f <= 1.0 for _, f in calls) and calls[-1] == ("fit", 1.0)
+    assert started == OPERATOR + CHECK + NORMALS + ["kernel_choice", "standard_errors"]
+    assert all(0.0 <= f <= 1.0 for _, f in calls) and calls[-1] == ("standard_errors", 1.0)
+    assert ("fit", 1.0) in calls
     assert all(s in PROGRESS_STAGES["default"] for s, _ in calls)
-    assert list(res.info["timings"]) == OPERATOR + CHECK + NORMALS + ["kernel_choice", *FIT_STAGES]
+    assert list(res.info["timings"]) == OPERATOR + CHECK + NORMALS + ["kernel_choice", *FIT_STAGES, "standard_errors"]
     assert list(res.info["timings"]) == [s for s in STAGES if s in res.info["timings"]]  # the declared order
     assert all(t >= 0 for t in res.info["timings"].values())
     single = heatcurv.estimate(sample.points, workers=1)

@@ -49,6 +49,7 @@ from .fit_stages import (
     paper_fit_stages,
     point_fit_stages,
 )
+from .fits.uncertainty import StandardErrors, standard_errors
 from .flags.outliers import Outliers, find_outliers
 from .flags.reliability import (
     PrecisionReport,
@@ -206,11 +207,27 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         if mode == "viewpoint" and normals is None:
             # a scanner sees only surfaces facing it: the fit's refined normals must too
             fitted = facing_viewpoint(fitted, op.points, towards)
+        errors = None
+        if opts.se and choices is None and fitted.noise_factors is not None and plan.radius is None:
+            with clock.stage("standard_errors"):
+                errors = fit_standard_errors(op, fitted, weights_areas, keys)
     orientation = replace(orientation, report=explained(orientation.report, policy, op.points.shape[0]))
     if orientation.report.undecided:
         warn_undecided(orientation.report.agreement, orientation.report.outside_share, stacklevel=3)
     return _result(op, fitted, ball_shape, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
-                   rounding=rounding)
+                   rounding=rounding, errors=errors)
+
+
+def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: np.ndarray,
+                        keys: np.ndarray) -> StandardErrors:
+    """Stage ``standard_errors`` (:mod:`heatcurv.fits.uncertainty`) of the chord fit's values, operator order."""
+    n, opts, pc, plan = op.points.shape[0], op.options, fitted.principal, fitted.plan
+    k = np.full(n, plan.k) if fitted.width is None else np.asarray(fitted.width)
+    return standard_errors(
+        op.points, op.tree, weights_areas, fitted.normals, np.column_stack([pc.mean, pc.k1, pc.k2, pc.gaussian]), k,
+        keys, denoise=plan.denoise, noise=fitted.noise, noise_factors=fitted.noise_factors, low_noise=plan.refit,
+        alpha=opts.alpha, seed=opts.scale_tuning.seed, workers=opts.workers,
+    )
 
 
 def _reliability_inputs(op: HeatKernelOperator, fitted: Fitted, ball_shape, orientation: Orientation,
@@ -269,7 +286,7 @@ def _precision(op: HeatKernelOperator, fitted: Fitted, rounding) -> tuple:
 
 
 def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: Orientation, outliers: Outliers,
-            timings, whole_cloud: bool = True, rounding=None):
+            timings, whole_cloud: bool = True, rounding=None, errors: StandardErrors | None = None):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
     Outliers stand for no measured surface, and a point whose ball holds both sides of a thin
@@ -279,7 +296,8 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     the points are only a part of the cloud (``whole_cloud`` False), the flags
     that compare with the whole cloud's medians are left out of ``reliable``
     and their inputs returned in ``info["reliability"]`` (input order). ``rounding``: the input
-    coordinates' rounding (:func:`_precision`; ``info["precision"]``), None if they are exact.
+    coordinates' rounding (:func:`_precision`; ``info["precision"]``), None if they are exact. ``errors``:
+    the standard errors (:mod:`heatcurv.fits.uncertainty`), None where not computed.
     """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     unit = prepared.unit
@@ -342,5 +360,16 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
         options=op.options,
         info=info,
         fit_radius=back(nbhd.radius if fitted.radius is None else fitted.radius) * unit,
+        **_standard_error_fields(errors, back, unit),
     )
+
+
+def _standard_error_fields(errors: StandardErrors | None, back, unit: float) -> dict:
+    """The result's ``*_se`` fields from ``errors`` (operator order, stage units), or {} without them."""
+    if errors is None:
+        return {}
+    return {
+        "mean_se": back(errors.mean) / unit, "k1_se": back(errors.k1) / unit, "k2_se": back(errors.k2) / unit,
+        "gaussian_se": back(errors.gaussian) / unit**2, "normal_se": np.degrees(back(errors.normal)),
+    }
 

@@ -336,6 +336,10 @@ class Options:
     workers : int
         Threads for the k-d tree queries and the compiled kernels (-1: all
         cores; 1: one thread, e.g. when the caller parallelises over clouds).
+    se : bool
+        Standard errors of the chord fit's curvatures and normals
+        (``CurvatureResult.mean_se`` ..., :mod:`heatcurv.fits.uncertainty`); False
+        skips their extra fits at sample centres.
 
     Notes
     -----
@@ -445,6 +449,8 @@ class Options:
     workers: int = _option(
         -1, "threads for the k-d tree and the compiled kernels: -1 (all cores) or 1-1024", check=_workers, cli=False
     )
+    se: bool = _option(True, "standard errors of the curvatures and normals (the chord fit)", choices=(True, False),
+                       cli=False)
 
 
 #: The presets of ``method=``.

@@ -49,6 +49,7 @@ STAGES = {
     "border": "border points of open surfaces (the offset of the ball's centroid)",
     # method "default"
     "area_correction": "areas on the fit's kernel, corrected by the fitted curvatures and the border's cut",
+    "standard_errors": "standard errors: the fit's noise, and its bias from refits at twice the kernel",
 }
 
 #: The default method's stages that run once per block of points (clean clouds).
@@ -64,7 +65,7 @@ PROGRESS_STAGES = {
     ),
     "default": (
         "validate", "neighbours", "spacing", "areas", "kernel_check", "outliers", "normals", "orientation",
-        "mean_curvature_normal", "kernel_choice", "fit",
+        "mean_curvature_normal", "kernel_choice", "fit", "standard_errors",
     ),
 }
 
@@ -77,7 +78,7 @@ PROGRESS_WEIGHTS = {
     },
     "default": {
         "validate": 2, "neighbours": 20, "spacing": 0, "areas": 2, "kernel_check": 0, "outliers": 10, "normals": 6,
-        "orientation": 8, "mean_curvature_normal": 2, "kernel_choice": 2, "fit": 48,
+        "orientation": 8, "mean_curvature_normal": 2, "kernel_choice": 2, "fit": 45, "standard_errors": 3,
     },
 }
 

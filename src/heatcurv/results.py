@@ -72,6 +72,15 @@ class CurvatureResult:
         the point, :mod:`heatcurv.fits.anchors`). The paper's method: the operator's
         ball. ``info["scale"].support_radius`` bounds how far any point's
         values reach, with the cloud-wide choices fixed (:mod:`heatcurv.choice.choices`).
+    mean_se, k1_se, k2_se, gaussian_se : ndarray, shape (n,) or None
+        Standard errors of ``mean``, ``k1``, ``k2`` and ``gaussian``, in their
+        units: the root of the noise variance propagated through the fit and of
+        the discretisation bias estimated from a refit at twice the kernel
+        (:mod:`heatcurv.fits.uncertainty`; their calibration against exact
+        values: docs/accuracy.md). None for ``method="paper"``, with
+        ``radius=``, ``se=False`` or a part of a cloud (``choices=``).
+    normal_se : ndarray, shape (n,) or None
+        Standard error of the normal's direction, degrees (as the others).
     mean_curvature_normal : ndarray, shape (n, 3)
         ``K = L x`` of eq 2.10, approximately ``2 mean * normals``, with ``L``
         the heat-kernel operator of :class:`heatcurv.operators.operator.HeatKernelOperator`
@@ -114,6 +123,11 @@ class CurvatureResult:
     options: Options
     info: dict = field(default_factory=dict)
     fit_radius: np.ndarray | None = None
+    mean_se: np.ndarray | None = None
+    k1_se: np.ndarray | None = None
+    k2_se: np.ndarray | None = None
+    gaussian_se: np.ndarray | None = None
+    normal_se: np.ndarray | None = None
 
     FIELDS = ("normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area")
 

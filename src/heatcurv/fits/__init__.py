@@ -6,6 +6,7 @@
 ``balls``       the chord fit at one kernel width (:class:`~heatcurv.fits.balls.Scale`),
                 every centre with its whole ball, block by block
 ``anchors``     the same fit at anchors with wide kernels, carried to every point
+``uncertainty`` standard errors of the fitted values: noise and bias
 ==============  =============================================================
 
 Which of them runs, with which kernel, is decided in :mod:`heatcurv.choice`;

@@ -100,6 +100,7 @@ def fit_blocks(
     passes: int = 2,
     workers: int = -1,
     block_pairs: int | None = None,
+    low_noise: bool = False,
 ):
     """Run the chord fit at one kernel width, one block of centres at a time, each with its whole ball.
 
@@ -132,6 +133,8 @@ def fit_blocks(
         Threads for the k-d tree queries.
     block_pairs : int, optional
         Neighbour pairs per block (default :data:`heatcurv.geometry.neighbourhood.BLOCK_PAIRS`).
+    low_noise : bool, optional
+        As :func:`fit_balls`.
 
     Yields
     ------
@@ -151,7 +154,7 @@ def fit_blocks(
         lo, hi = bounds
         nbhd, fit = fit_balls(
             points, tree, cidx[lo:hi], normals[lo:hi], areas, scale, alpha=alpha, passes=passes, workers=workers,
-            nbhd=None if base is None else base.rows_slice(lo, hi),
+            nbhd=None if base is None else base.rows_slice(lo, hi), low_noise=low_noise,
         )
         return lo, hi, nbhd, fit
 

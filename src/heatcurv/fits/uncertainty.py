@@ -1,0 +1,220 @@
+"""Standard errors of the default estimator's curvatures and normals: noise and discretisation bias.
+
+A value's error has two parts, and each standard error here is the root of the sum of their
+squares (the mean square error it estimates):
+
+* **noise**: the fit is a weighted least-squares fit (:mod:`heatcurv.fits.chordfit`), so
+  independent height noise of standard deviation ``sigma`` reaches each fitted
+  coefficient through the sandwich covariance ``sigma^2 G^-1 G2 G^-1``;
+  :attr:`heatcurv.fits.chordfit.ChordFit.noise_factors` carries it to the mean, principal
+  and Gaussian curvatures and the normal, and ``sigma`` is the fit's own estimate of the
+  noise (:attr:`heatcurv.fits.chordfit.ChordFit.noise`, the residual of its model).
+  On a cloud the kernel choice calls clean (the chord fit) the residual is the
+  model's misfit, not noise, and this part is left out: the bias term below
+  measures that error instead.
+* **bias**: a kernel of ``k`` neighbours bends the fit away from the surface by an
+  amount growing as the ball's area, ``R^2 ~ k`` (:mod:`heatcurv.choice.scale`). At
+  sample centres the same fit is run at ``k`` and at ``2 k`` neighbours; the change
+  ``f_2k - f_k`` is then about the bias of ``f_k`` itself, plus noise of variance
+  ``Var(f_k) - Var(f_2k)`` (nested fits). Its square, averaged over the
+  :data:`WINDOW` centres nearest each point and less that noise variance, is the
+  point's squared bias: a regional estimate, as the bias field is smooth on the
+  scale of the ball.
+
+The standard errors are regional where the bias dominates: a value whose error is
+a smooth field (clean clouds, wide kernels) is within two standard errors more often
+than the 95 % of independent Gaussian errors (docs/accuracy.md, error bars).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..geometry.sampling import draw_subset
+from .balls import Scale, fit_blocks
+from .chordfit import NOISE_FIELDS, ChordFit
+
+__all__ = ["StandardErrors", "WINDOW", "standard_errors", "bias_centres"]
+
+#: Sample centres whose squared changes are averaged into each point's bias.
+WINDOW = 16
+#: Centres per ball of the fit's kernel (about ``n CENTRES_PER_BALL / k`` in all) ...
+CENTRES_PER_BALL = 16
+#: ... and their bounds: at least this many, at most one point in :data:`MAX_CENTRE_SHARE` of the cloud.
+MIN_CENTRES = 200
+MAX_CENTRE_SHARE = 16
+#: Floating-point floor of a curvature's standard error, relative to the point's largest ``|k1|, |k2|``:
+#: the chord fit solves normal equations whose condition number reaches 1e6-1e7, so even exact data
+#: (a sphere, where the fit is exact) leaves errors of 2e-10 - 6e-10 (median) in float64.
+ROUNDING = 1e-9
+
+
+@dataclass(frozen=True)
+class StandardErrors:
+    """One standard error per point and field, in the cloud's units (the stage's order of points).
+
+    Attributes
+    ----------
+    mean, k1, k2, gaussian : ndarray, shape (m,)
+        1 / length (``gaussian``: 1 / length^2).
+    normal : ndarray, shape (m,)
+        Radians.
+    """
+
+    mean: np.ndarray
+    k1: np.ndarray
+    k2: np.ndarray
+    gaussian: np.ndarray
+    normal: np.ndarray
+
+
+def bias_centres(n: int, k: np.ndarray, keys: np.ndarray, seed: int = 0) -> np.ndarray:
+    """The sample centres of the bias estimate: about :data:`CENTRES_PER_BALL` per ball, drawn by ``keys``.
+
+    Parameters
+    ----------
+    n : int
+        Points.
+    k : ndarray, shape (n,)
+        Each point's kernel (neighbours).
+    keys : ndarray, shape (n,)
+        Sampling keys (:func:`heatcurv.geometry.sampling.geometric_keys`).
+    seed : int, optional
+
+    Returns
+    -------
+    ndarray of int
+        Sorted point indices.
+    """
+    wanted = CENTRES_PER_BALL * n / max(float(np.median(k)), 1.0)
+    size = int(min(n, max(MIN_CENTRES, min(wanted, n / MAX_CENTRE_SHARE))))
+    return draw_subset(n, size, seed, keys)
+
+
+def _scale_changes(points, tree, normals, areas, centres, k, denoise: bool, low_noise: bool, alpha: float,
+                   workers: int):
+    """At ``centres`` of kernel ``k``: the change of each field from ``k`` to ``2 k`` neighbours, and its noise.
+
+    Returns ``change`` and ``noise``, shape (c, 5) each, columns :data:`NOISE_FIELDS`: ``f_2k - f_k``
+    (the normal's angle between the two fits) scaled to the bias of ``f_k`` (bias ~ k), and the
+    variance its noise adds, ``Var(f_k) - Var(f_2k)`` scaled alike; and the fit at ``k`` (a :class:`ChordFit`).
+    """
+    wide = int(min(2 * k, points.shape[0] - 1))
+    fits = [
+        ChordFit.concatenate([
+            fit for *_, fit in fit_blocks(points, tree, normals, areas, Scale(int(size), denoise), centres=centres,
+                                          alpha=alpha, workers=workers, low_noise=low_noise)
+        ])
+        for size in (k, wide)
+    ]
+    gain = k / max(wide - k, 1)
+    narrow, broad = fits
+    pc = broad.principal
+    change = _differences(np.column_stack([pc.mean, pc.k1, pc.k2, pc.gaussian]), broad.normals, narrow)
+    noise = _noise_variance(narrow) - _noise_variance(broad)
+    return gain * change, gain**2 * np.maximum(noise, 0.0), narrow
+
+
+def _eigenvalue_spread(variance: np.ndarray, split: np.ndarray) -> np.ndarray:
+    """The principal curvatures' mean square error beyond the first order, shape (m,).
+
+    ``k1, k2 = H +- rho`` with ``rho = |(B - H I)|``: noise of variance ``s^2`` in each of the two
+    components of ``B - H I`` makes ``E[rho_hat^2] = rho^2 + 2 s^2`` (a noisy umbilic point splits
+    its curvatures), so the error of ``rho_hat`` has mean square ``s^2`` far from an umbilic (the
+    first-order variance) and ``2 s^2`` at one. The extra ``s^2 * s^2 / (s^2 + rho^2)``, with
+    ``rho^2`` estimated as ``max(rho_hat^2 - 2 s^2, 0)`` and ``s^2`` as the principal curvatures'
+    mean first-order variance less the mean curvature's, bridges the two.
+    """
+    s2 = np.maximum(0.5 * (variance[:, 1] + variance[:, 2]) - variance[:, 0], 0.0)
+    rho2 = np.maximum((0.5 * split) ** 2 - 2.0 * s2, 0.0)
+    return np.divide(s2 * s2, s2 + rho2, out=np.zeros_like(s2), where=s2 + rho2 > 0)
+
+
+def _noise_variance(fit: ChordFit) -> np.ndarray:
+    """Each field's noise variance of a fit, ``noise^2 * noise_factors``, shape (c, 5)."""
+    return fit.noise[:, None] ** 2 * np.maximum(fit.noise_factors, 0.0)
+
+
+def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normals: np.ndarray, values: np.ndarray,
+                    k: np.ndarray, keys: np.ndarray, *, denoise: bool, noise: np.ndarray, noise_factors: np.ndarray,
+                    low_noise: bool = False, alpha: float = 2.0, seed: int = 0,
+                    workers: int = -1) -> StandardErrors:
+    """Stage ``standard_errors``: each point's standard errors (module docstring).
+
+    Parameters
+    ----------
+    points : ndarray, shape (m, 3)
+        Distinct, centred points (operator order).
+    tree : scipy.spatial.cKDTree
+        Over ``points``.
+    areas : ndarray, shape (m,)
+        The areas of the fit weights (0: no weight).
+    normals : ndarray, shape (m, 3)
+        The fitted, oriented normals.
+    values : ndarray, shape (m, 4)
+        The fitted ``mean``, ``k1``, ``k2`` and ``gaussian``.
+    k : ndarray of int, shape (m,)
+        Each point's kernel (neighbours).
+    keys : ndarray, shape (m,)
+        Sampling keys of the centres.
+    denoise : bool
+        The fit's form: denoised heights (noisy clouds) or chord curvatures (clean).
+    noise : ndarray, shape (m,)
+        The fit's noise estimate at each point (:attr:`heatcurv.fits.chordfit.ChordFit.noise`), length units.
+    noise_factors : ndarray, shape (m, 5)
+        :attr:`heatcurv.fits.chordfit.ChordFit.noise_factors` of each point's fit.
+    low_noise : bool, optional
+        With ``denoise``: the fit's low-noise refit (very low noise; :func:`heatcurv.fits.chordfit.chord_fit`),
+        whose bias the changes then measure.
+    alpha, seed, workers : optional
+        The fit's ball-to-kernel ratio, the centres' draw, threads.
+
+    Returns
+    -------
+    StandardErrors
+    """
+    n = points.shape[0]
+    centres = bias_centres(n, k, keys, seed)
+    change, change_noise, own = (np.zeros((centres.shape[0], 5)) for _ in range(3))
+    for size in np.unique(k[centres]):
+        rows = np.flatnonzero(k[centres] == size)
+        at = centres[rows]
+        change[rows], change_noise[rows], narrow = _scale_changes(points, tree, normals[at], areas, at, int(size),
+                                                                  denoise, low_noise, alpha, workers)
+        # the values given against the fit at k centred at the centre itself: the carry's own error
+        # (fits at anchors), or the last tilt the fit's normal leaves out (fits at every point)
+        own[rows] = _differences(values[at], normals[at], narrow)
+    window = min(WINDOW, centres.shape[0])
+    _, near = cKDTree(points[centres]).query(points, window, workers=workers)
+    near = near.reshape(n, window)
+    squared = np.mean(change[near] ** 2, axis=1)
+    if not denoise:  # a clean cloud's residual is misfit, not noise: the changes measure the whole error
+        return _with_rounding(squared + np.mean(own[near] ** 2, axis=1), values)
+    variance = noise[:, None] ** 2 * np.maximum(noise_factors, 0.0)
+    variance[:, 1:3] += _eigenvalue_spread(variance, values[:, 1] - values[:, 2])[:, None]
+    # the noise moves the point itself along the surface too (isotropic noise): the true normal at
+    # its measured position turns by sigma k along each principal direction
+    variance[:, 4] += noise**2 * (values[:, 1] ** 2 + values[:, 2] ** 2)
+    bias2 = np.maximum(squared - np.mean(change_noise[near], axis=1), 0.0)
+    return _with_rounding(variance + bias2 + np.mean(own[near] ** 2, axis=1), values)
+
+
+def _with_rounding(total: np.ndarray, values: np.ndarray) -> StandardErrors:
+    """The standard errors from the mean square errors ``total`` (shape (m, 5)), at least the float64 floor."""
+    scale = np.maximum(np.abs(values[:, 1]), np.abs(values[:, 2]))
+    floor = ROUNDING * np.stack([scale, scale, scale, scale * scale], axis=1)
+    root = np.sqrt(total)
+    root[:, :4] = np.maximum(root[:, :4], floor)
+    return StandardErrors(*(root[:, column] for column in range(5)))
+
+
+def _differences(values: np.ndarray, normals: np.ndarray, fit: ChordFit) -> np.ndarray:
+    """``values`` (shape (c, 4)) less the fit's mean, k1, k2 and K, and the angle between the normals, shape (c, 5)."""
+    out = np.empty((values.shape[0], 5))
+    for column, name in enumerate(NOISE_FIELDS[:4]):
+        out[:, column] = values[:, column] - getattr(fit.principal, name)
+    out[:, 4] = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", normals, fit.normals)), 0.0, 1.0))
+    return out
