@@ -353,3 +353,25 @@ def test_a_radius_below_the_spacing_says_so_and_names_one_that_works(tmp_path):
     out = run("compute", bunny_path(), "-o", tmp_path / "out.ply", "--radius", "0.7")
     assert out.returncode == 0 and stderr_lines(out) == [], out.stderr
     assert "1410 of 1839 points reliable" in out.stdout
+
+
+def test_compute_writes_the_standard_errors_on_request(workdir, sphere_ply, sphere_reference):
+    """``--fields errors``: five float32 columns, the library's values to float32's rounding."""
+    path = workdir / "sphere_errors.npz"
+    out = run("compute", sphere_ply, "-o", path, "--fields", "mean,errors")
+    assert out.returncode == 0, out.stderr
+    cloud = io.read_points(path)
+    names = ["mean_se", "gaussian_se", "k1_se", "k2_se", "normal_se"]
+    assert [name for name in cloud.fields if name != "intensity"] == ["mean"] + names
+    for name in names:
+        values = cloud.fields[name]
+        assert values.dtype == np.float32 and np.all(np.isfinite(values)) and np.all(values > 0), name
+        np.testing.assert_allclose(values, getattr(sphere_reference, name), rtol=2e-6, err_msg=name)
+
+
+def test_standard_errors_with_the_papers_method_are_refused_before_any_work(workdir, sphere_ply):
+    path = workdir / "paper_errors.ply"
+    out = run("compute", sphere_ply, "-o", path, "--fields", "k1_se", "--method", "paper")
+    assert out.returncode == 2
+    assert "k1_se: standard errors come with the default method's kernel choice, not with --method paper" in out.stderr
+    assert "read " not in out.stdout and not path.exists()

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import re
 
-__all__ = ["DEFAULT_FIELDS", "FEATURE_FIELDS", "EXTRA_FIELDS", "COMPUTED_FIELDS", "FIELD_GROUPS", "field_list"]
+__all__ = [
+    "DEFAULT_FIELDS", "FEATURE_FIELDS", "EXTRA_FIELDS", "ERROR_FIELDS", "COMPUTED_FIELDS", "FIELD_GROUPS", "field_list",
+]
 
 #: Scalar fields ``compute`` writes by default, in this order (normals as ``nx ny nz``).
 DEFAULT_FIELDS = (
@@ -16,8 +18,10 @@ DEFAULT_FIELDS = (
 FEATURE_FIELDS = ("feature", "feature_score")
 #: Further fields ``--fields`` can ask for.
 EXTRA_FIELDS = ("border", "outlier", "spacing", "neighbours", "fit_radius")
+#: Standard errors of the curvatures (their units) and of the normal (degrees), in memory only.
+ERROR_FIELDS = ("mean_se", "gaussian_se", "k1_se", "k2_se", "normal_se")
 #: Every field heatcurv computes, in the written order.
-COMPUTED_FIELDS = DEFAULT_FIELDS + FEATURE_FIELDS + EXTRA_FIELDS
+COMPUTED_FIELDS = DEFAULT_FIELDS + FEATURE_FIELDS + EXTRA_FIELDS + ERROR_FIELDS
 #: Shorthands of ``--fields``.
 FIELD_GROUPS = {
     "normals": ("nx", "ny", "nz"),
@@ -26,6 +30,7 @@ FIELD_GROUPS = {
     "curvatures": ("mean", "gaussian", "k1", "k2"),
     "default": DEFAULT_FIELDS,
     "features": FEATURE_FIELDS,
+    "errors": ERROR_FIELDS,
     "all": COMPUTED_FIELDS,
 }
 

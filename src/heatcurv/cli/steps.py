@@ -294,7 +294,12 @@ def computed_values(res, feat, name: str) -> np.ndarray:
         return res.normals[:, "xyz".index(name[1])]
     if name[:2] in ("d1", "d2"):
         return getattr(res, name[:2])[:, "xyz".index(name[2])]
-    return getattr(res, name)
+    values = getattr(res, name)
+    if values is None:  # the standard errors: the chord fit's, on a whole cloud
+        raise HeatcurvError(f"{name} is not computed with method={res.options.method!r}"
+                            + (" and --radius" if res.options.radius is not None else "")
+                            + "; standard errors come with the default method's kernel choice")
+    return values
 
 
 def result_fields(res, feat, wanted, rows, n: int) -> tuple[dict, np.ndarray | None]:

@@ -259,8 +259,8 @@ def _settle(src, dst, method, viewpoint, max_memory, tile_workers, scheduler, sc
     wanted = tuple(fields) if fields is not None else DEFAULT_FIELDS
     unknown = [n for n in wanted if n not in TILED_FIELDS]
     if unknown:
-        raise HeatcurvError(f"a tiled run cannot write the field(s) {', '.join(unknown)} (sharp features are "
-                            f"computed in memory only); choose from {', '.join(TILED_FIELDS)}")
+        raise HeatcurvError(f"a tiled run cannot write the field(s) {', '.join(unknown)} (sharp features and "
+                            f"standard errors are computed in memory only); choose from {', '.join(TILED_FIELDS)}")
     if dtype not in (None, "float32", "float64"):
         raise HeatcurvError(f"dtype must be float32 or float64, got {dtype!r}")
     if isinstance(scheduler, str) and scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
