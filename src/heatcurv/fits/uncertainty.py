@@ -1,29 +1,33 @@
-"""Standard errors of the default estimator's curvatures and normals: noise and discretisation bias.
+"""Standard errors of the default estimator's curvatures and normals: noise, bias and carry.
 
-A value's error has two parts, and each standard error here is the root of the sum of their
-squares (the mean square error it estimates):
+Each standard error is the root of the value's estimated mean square error, the sum of:
 
 * **noise**: the fit is a weighted least-squares fit (:mod:`heatcurv.fits.chordfit`), so
   independent height noise of standard deviation ``sigma`` reaches each fitted
   coefficient through the sandwich covariance ``sigma^2 G^-1 G2 G^-1``;
   :attr:`heatcurv.fits.chordfit.ChordFit.noise_factors` carries it to the mean, principal
   and Gaussian curvatures and the normal, and ``sigma`` is the fit's own estimate of the
-  noise (:attr:`heatcurv.fits.chordfit.ChordFit.noise`, the residual of its model).
-  On a cloud the kernel choice calls clean (the chord fit) the residual is the
-  model's misfit, not noise, and this part is left out: the bias term below
-  measures that error instead.
+  noise (:attr:`heatcurv.fits.chordfit.ChordFit.noise`). Beyond first order, a noisy
+  umbilic point's curvatures split (:func:`_eigenvalue_spread`), and the noise moves the
+  point along the surface, which turns the true normal at it by ``sigma k``. On a cloud
+  the kernel choice calls clean (the chord fit) the residual is the model's misfit, not
+  noise, and this part is left out: the two below measure that error instead.
 * **bias**: a kernel of ``k`` neighbours bends the fit away from the surface by an
   amount growing as the ball's area, ``R^2 ~ k`` (:mod:`heatcurv.choice.scale`). At
-  sample centres the same fit is run at ``k`` and at ``2 k`` neighbours; the change
-  ``f_2k - f_k`` is then about the bias of ``f_k`` itself, plus noise of variance
-  ``Var(f_k) - Var(f_2k)`` (nested fits). Its square, averaged over the
-  :data:`WINDOW` centres nearest each point and less that noise variance, is the
-  point's squared bias: a regional estimate, as the bias field is smooth on the
-  scale of the ball.
+  sample centres (:func:`bias_centres`) the same fit is run at ``k`` and at ``2 k``
+  neighbours; the change ``f_2k - f_k`` is then about the bias of ``f_k`` itself, plus
+  noise of variance ``Var(f_k) - Var(f_2k)`` (nested fits). Its square, averaged over
+  the :data:`WINDOW` centres nearest a centre and less that noise variance, is the
+  squared bias of the points nearest that centre: a regional estimate, as the bias
+  field is smooth on the scale of the ball.
+* **carry**: the values a point was given against the fit at ``k`` centred at the
+  centre itself, averaged the same way: the error of carrying the anchors' fits to the
+  points (:mod:`heatcurv.fits.anchors`), and on clean clouds the last tilt correction the
+  reported normal leaves out.
 
-The standard errors are regional where the bias dominates: a value whose error is
-a smooth field (clean clouds, wide kernels) is within two standard errors more often
-than the 95 % of independent Gaussian errors (docs/accuracy.md, error bars).
+The standard errors are regional where the bias dominates: a value whose error is a
+smooth field (clean clouds, wide kernels) is within two standard errors more often than
+the 95 % of independent Gaussian errors (docs/accuracy.md, error bars).
 """
 
 from __future__ import annotations
@@ -41,9 +45,10 @@ __all__ = ["StandardErrors", "WINDOW", "standard_errors", "bias_centres"]
 
 #: Sample centres whose squared changes are averaged into each point's bias.
 WINDOW = 16
-#: Centres per ball of the fit's kernel (about ``n CENTRES_PER_BALL / k`` in all) ...
-CENTRES_PER_BALL = 16
-#: ... and their bounds: at least this many, at most one point in :data:`MAX_CENTRE_SHARE` of the cloud.
+#: Pairs the refits at ``k`` and ``2 k`` may take, per point of the cloud: ``PAIRS_PER_POINT n / (3 k)``
+#: centres ...
+PAIRS_PER_POINT = 8
+#: ... at least this many, and at most one point in :data:`MAX_CENTRE_SHARE` of the cloud.
 MIN_CENTRES = 200
 MAX_CENTRE_SHARE = 16
 #: Floating-point floor of a curvature's standard error, relative to the point's largest ``|k1|, |k2|``:
@@ -72,7 +77,7 @@ class StandardErrors:
 
 
 def bias_centres(n: int, k: np.ndarray, keys: np.ndarray, seed: int = 0) -> np.ndarray:
-    """The sample centres of the bias estimate: about :data:`CENTRES_PER_BALL` per ball, drawn by ``keys``.
+    """The sample centres of the bias estimate, drawn by ``keys``: as many as :data:`PAIRS_PER_POINT` allows.
 
     Parameters
     ----------
@@ -89,7 +94,7 @@ def bias_centres(n: int, k: np.ndarray, keys: np.ndarray, seed: int = 0) -> np.n
     ndarray of int
         Sorted point indices.
     """
-    wanted = CENTRES_PER_BALL * n / max(float(np.median(k)), 1.0)
+    wanted = PAIRS_PER_POINT * n / (3.0 * max(float(np.median(k)), 1.0))
     size = int(min(n, max(MIN_CENTRES, min(wanted, n / MAX_CENTRE_SHARE))))
     return draw_subset(n, size, seed, keys)
 
@@ -187,19 +192,22 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
         # the values given against the fit at k centred at the centre itself: the carry's own error
         # (fits at anchors), or the last tilt the fit's normal leaves out (fits at every point)
         own[rows] = _differences(values[at], normals[at], narrow)
+    # each centre's window of its nearest centres; each point takes its nearest centre's
+    tree_c = cKDTree(points[centres])
     window = min(WINDOW, centres.shape[0])
-    _, near = cKDTree(points[centres]).query(points, window, workers=workers)
-    near = near.reshape(n, window)
+    near = tree_c.query(points[centres], window, workers=workers)[1].reshape(-1, window)
+    nearest = tree_c.query(points, 1, workers=workers)[1]
+    carry = np.mean(own[near] ** 2, axis=1)[nearest]
     squared = np.mean(change[near] ** 2, axis=1)
     if not denoise:  # a clean cloud's residual is misfit, not noise: the changes measure the whole error
-        return _with_rounding(squared + np.mean(own[near] ** 2, axis=1), values)
+        return _with_rounding(squared[nearest] + carry, values)
     variance = noise[:, None] ** 2 * np.maximum(noise_factors, 0.0)
     variance[:, 1:3] += _eigenvalue_spread(variance, values[:, 1] - values[:, 2])[:, None]
     # the noise moves the point itself along the surface too (isotropic noise): the true normal at
     # its measured position turns by sigma k along each principal direction
     variance[:, 4] += noise**2 * (values[:, 1] ** 2 + values[:, 2] ** 2)
-    bias2 = np.maximum(squared - np.mean(change_noise[near], axis=1), 0.0)
-    return _with_rounding(variance + bias2 + np.mean(own[near] ** 2, axis=1), values)
+    bias2 = np.maximum(squared - np.mean(change_noise[near], axis=1), 0.0)[nearest]
+    return _with_rounding(variance + bias2 + carry, values)
 
 
 def _with_rounding(total: np.ndarray, values: np.ndarray) -> StandardErrors:
