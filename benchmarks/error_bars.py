@@ -23,6 +23,7 @@ noise, held out), the share of points whose error is within ``z`` standard error
 ``z``, beside the share independent Gaussian errors would give.
 
 Run:  python benchmarks/error_bars.py [--markdown FILE] [--picture FILE] [--tables clean,noise,lownoise,heldout]
+      python benchmarks/error_bars.py --scans-picture docs/error_bars_scans.png   (where the bars are wide on scans)
 """
 
 from __future__ import annotations
@@ -165,12 +166,60 @@ def picture(pooled: dict, path: str) -> None:
     plt.close(fig)
 
 
+def real_picture(path: str) -> None:
+    """Where the bars are wide on scans: ``log10(mean_se)`` on pymeshlab's face range map, the simulated CAD part
+    and the simulated LiDAR tile (``docs/error_bars_scans.png``)."""
+    from heatcurv import surfaces as hs
+    from heatcurv.render import FieldStyle
+
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
+    from real_scans import render_panels
+    from support.scans import fetch_pymeshlab_samples, read_mesh
+
+    face = read_mesh(fetch_pymeshlab_samples() / "rangemaps" / "face000.ply").vertices
+    cad, lidar = hs.cad_part(20000).points, hs.lidar_tile(20000, seed=0).points
+    panels = []
+    for points, options, unit, view, title in (
+        (face, {}, "mm", {"view": (0, 0, 1), "up": (0, 1, 0)}, "face000 range map (85 849 points)"),
+        (cad, {}, "mm", {"view": (0.5, -1.0, 0.0), "up": (0, 0, 1), "elevation": 35.0}, "CAD part (20 000)"),
+        (lidar, {"orient": "up"}, "m", {"view": (0, -1, 0), "up": (0, 0, 1), "elevation": 40.0, "vertical": "z"},
+         "LiDAR tile (20 000)"),
+    ):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = heatcurv.estimate(points, **options)
+        with np.errstate(divide="ignore"):
+            shown = np.where(np.isfinite(res.mean_se), np.log10(res.mean_se), np.nan)  # outliers: grey
+        style = FieldStyle("log10 of the mean curvature's standard error", f"log10(1/{unit})", "sequential")
+        panels.append((points, {"values": shown, "field": style, "normals": res.normals, "title": title, **view}))
+    import tempfile
+
+    import matplotlib.image
+
+    with tempfile.TemporaryDirectory() as tmp:
+        parts = []
+        for k, (points, panel) in enumerate(panels):
+            part = os.path.join(tmp, f"panel{k}.png")
+            title = panel.pop("title")
+            render_panels(points, [panel], part, size=(800, 700), title=title)
+            parts.append(matplotlib.image.imread(part)[..., :3])
+        height = max(p.shape[0] for p in parts)
+        parts = [np.pad(p, ((0, height - p.shape[0]), (0, 0), (0, 0)), constant_values=1.0) for p in parts]
+        matplotlib.image.imsave(path, np.concatenate(parts, axis=1))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tables", default="clean,noise,lownoise,heldout")
     parser.add_argument("--markdown", metavar="FILE", help="also write the table to FILE")
     parser.add_argument("--picture", metavar="FILE", help="draw the reliability diagram into FILE (PNG)")
+    parser.add_argument("--scans-picture", metavar="FILE",
+                        help="only draw mean_se on a face scan, a CAD part and a LiDAR tile into FILE (PNG)")
     args = parser.parse_args(argv)
+    if args.scans_picture:
+        real_picture(args.scans_picture)
+        print(f"picture: {args.scans_picture}")
+        return 0
     tables = [t for t in args.tables.split(",") if t]
     start = time.perf_counter()
     head = (f"Machine: {cpu_model()}, {os.cpu_count()} cores{memory_text()}; heatcurv {heatcurv.__version__} at "

@@ -223,10 +223,12 @@ def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: n
     """Stage ``standard_errors`` (:mod:`heatcurv.fits.uncertainty`) of the chord fit's values, operator order."""
     n, opts, pc, plan = op.points.shape[0], op.options, fitted.principal, fitted.plan
     k = np.full(n, plan.k) if fitted.width is None else np.asarray(fitted.width)
+    radius = op.neighbourhood.radius if fitted.radius is None else fitted.radius
+    values = np.column_stack([pc.mean, pc.k1, pc.k2, pc.gaussian])
     return standard_errors(
-        op.points, op.tree, weights_areas, fitted.normals, np.column_stack([pc.mean, pc.k1, pc.k2, pc.gaussian]), k,
-        keys, denoise=plan.denoise, noise=fitted.noise, noise_factors=fitted.noise_factors, low_noise=plan.refit,
-        alpha=opts.alpha, seed=opts.scale_tuning.seed, workers=opts.workers,
+        op.points, op.tree, weights_areas, fitted.normals, values, k, radius, keys, denoise=plan.denoise,
+        noise=fitted.noise, noise_factors=fitted.noise_factors, low_noise=plan.refit, alpha=opts.alpha,
+        seed=opts.scale_tuning.seed, workers=opts.workers,
     )
 
 

@@ -51,9 +51,12 @@ PAIRS_PER_POINT = 8
 #: ... at least this many, and at most one point in :data:`MAX_CENTRE_SHARE` of the cloud.
 MIN_CENTRES = 200
 MAX_CENTRE_SHARE = 16
-#: Floating-point floor of a curvature's standard error, relative to the point's largest ``|k1|, |k2|``:
-#: the chord fit solves normal equations whose condition number reaches 1e6-1e7, so even exact data
-#: (a sphere, where the fit is exact) leaves errors of 2e-10 - 6e-10 (median) in float64.
+#: Nearest centres whose estimates each point blends.
+BLENDED = 4
+#: Floating-point floor of a curvature's standard error, relative to the point's largest ``|k1|, |k2|``
+#: or ``1 / R`` of its ball, whichever is larger: the chord fit solves normal equations whose condition
+#: number reaches 1e6-1e7, so even exact data (a sphere, where the fit is exact) leaves errors of
+#: 2e-10 - 6e-10 (median) of the curvature in float64, and a plane's of the ball's ``1 / R``.
 ROUNDING = 1e-9
 
 
@@ -144,7 +147,8 @@ def _noise_variance(fit: ChordFit) -> np.ndarray:
 
 
 def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normals: np.ndarray, values: np.ndarray,
-                    k: np.ndarray, keys: np.ndarray, *, denoise: bool, noise: np.ndarray, noise_factors: np.ndarray,
+                    k: np.ndarray, radius: np.ndarray, keys: np.ndarray, *, denoise: bool, noise: np.ndarray,
+                    noise_factors: np.ndarray,
                     low_noise: bool = False, alpha: float = 2.0, seed: int = 0,
                     workers: int = -1) -> StandardErrors:
     """Stage ``standard_errors``: each point's standard errors (module docstring).
@@ -163,6 +167,8 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
         The fitted ``mean``, ``k1``, ``k2`` and ``gaussian``.
     k : ndarray of int, shape (m,)
         Each point's kernel (neighbours).
+    radius : ndarray, shape (m,)
+        Each point's fit ball radius (the float64 floor's scale on flat parts).
     keys : ndarray, shape (m,)
         Sampling keys of the centres.
     denoise : bool
@@ -182,7 +188,15 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
     StandardErrors
     """
     n = points.shape[0]
+    # a point without a fit (an outlier's island: no weighted neighbour) has no error to estimate and
+    # is no centre: its standard errors are infinite
+    fitted = np.isfinite(noise) & np.all(np.isfinite(noise_factors), axis=1) & (areas > 0)
+    if not fitted.any():
+        return StandardErrors(*(np.full(n, np.inf) for _ in range(5)))
     centres = bias_centres(n, k, keys, seed)
+    centres = centres[fitted[centres]]
+    if centres.size == 0:
+        centres = np.flatnonzero(fitted)[:1]
     change, change_noise, own = (np.zeros((centres.shape[0], 5)) for _ in range(3))
     for size in np.unique(k[centres]):
         rows = np.flatnonzero(k[centres] == size)
@@ -192,30 +206,68 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
         # the values given against the fit at k centred at the centre itself: the carry's own error
         # (fits at anchors), or the last tilt the fit's normal leaves out (fits at every point)
         own[rows] = _differences(values[at], normals[at], narrow)
-    # each centre's window of its nearest centres; each point takes its nearest centre's
+    # each centre's window of its nearest centres; each point blends those of its nearest centres
     tree_c = cKDTree(points[centres])
     window = min(WINDOW, centres.shape[0])
     near = tree_c.query(points[centres], window, workers=workers)[1].reshape(-1, window)
-    nearest = tree_c.query(points, 1, workers=workers)[1]
-    carry = np.mean(own[near] ** 2, axis=1)[nearest]
-    squared = np.mean(change[near] ** 2, axis=1)
+    spread = _Blend(tree_c, points, workers)
+    carry = spread(_window_mean(own**2, near))
+    squared = _window_mean(change**2, near)
     if not denoise:  # a clean cloud's residual is misfit, not noise: the changes measure the whole error
-        return _with_rounding(squared[nearest] + carry, values)
+        return _with_rounding(spread(squared) + carry, values, radius, fitted)
     variance = noise[:, None] ** 2 * np.maximum(noise_factors, 0.0)
     variance[:, 1:3] += _eigenvalue_spread(variance, values[:, 1] - values[:, 2])[:, None]
     # the noise moves the point itself along the surface too (isotropic noise): the true normal at
     # its measured position turns by sigma k along each principal direction
     variance[:, 4] += noise**2 * (values[:, 1] ** 2 + values[:, 2] ** 2)
-    bias2 = np.maximum(squared - np.mean(change_noise[near], axis=1), 0.0)[nearest]
-    return _with_rounding(variance + bias2 + carry, values)
+    bias2 = spread(np.maximum(squared - _window_mean(change_noise, near), 0.0))
+    return _with_rounding(variance + bias2 + carry, values, radius, fitted)
 
 
-def _with_rounding(total: np.ndarray, values: np.ndarray) -> StandardErrors:
-    """The standard errors from the mean square errors ``total`` (shape (m, 5)), at least the float64 floor."""
-    scale = np.maximum(np.abs(values[:, 1]), np.abs(values[:, 2]))
+class _Blend:
+    """Values at the centres spread to every point: inverse-square-distance weights of its :data:`BLENDED` nearest.
+
+    (The nearest centre's alone draws the centres' cells on a smooth field.)
+    """
+
+    def __init__(self, tree: cKDTree, points: np.ndarray, workers: int):
+        count = min(BLENDED, tree.n)
+        distance, self.index = tree.query(points, count, workers=workers)
+        distance, self.index = distance.reshape(len(points), count), self.index.reshape(len(points), count)
+        weight = 1.0 / np.maximum(distance, 1e-12 * max(float(distance.max()), 1e-300)) ** 2
+        self.weight = weight / weight.sum(axis=1, keepdims=True)
+
+    def __call__(self, values: np.ndarray) -> np.ndarray:
+        """Shape (c, 5) at the centres -> (m, 5) at the points."""
+        return np.einsum("mc,mcf->mf", self.weight, values[self.index])
+
+
+def _window_mean(values: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """Each window's mean of ``values`` (shape (c, 5)) over its centres ``near`` (shape (c, w)), NaNs left out.
+
+    A refit that failed at a centre (no weighted pairs in its ball) gives NaN; a window of
+    nothing else gives infinity: no estimate.
+    """
+    gathered = values[near]
+    finite = np.isfinite(gathered)
+    count = finite.sum(axis=1)
+    total = np.where(finite, gathered, 0.0).sum(axis=1)
+    return np.divide(total, count, out=np.full(total.shape, np.inf), where=count > 0)
+
+
+def _with_rounding(total: np.ndarray, values: np.ndarray, radius: np.ndarray,
+                   fitted: np.ndarray) -> StandardErrors:
+    """The standard errors from the mean square errors ``total`` (shape (m, 5)), at least the float64 floor.
+
+    Points without a fit (``fitted`` False) get infinity.
+    """
+    scale = np.maximum(np.maximum(np.abs(values[:, 1]), np.abs(values[:, 2])), 1.0 / radius)
     floor = ROUNDING * np.stack([scale, scale, scale, scale * scale], axis=1)
-    root = np.sqrt(total)
+    with np.errstate(invalid="ignore"):
+        root = np.sqrt(total)
     root[:, :4] = np.maximum(root[:, :4], floor)
+    root[~fitted] = np.inf
+    root[np.isnan(root)] = np.inf
     return StandardErrors(*(root[:, column] for column in range(5)))
 
 
