@@ -53,11 +53,13 @@ MIN_CENTRES = 200
 MAX_CENTRE_SHARE = 16
 #: Nearest centres whose estimates each point blends.
 BLENDED = 4
-#: Floating-point floor of a curvature's standard error, relative to the point's largest ``|k1|, |k2|``
-#: or ``1 / R`` of its ball, whichever is larger: the chord fit solves normal equations whose condition
-#: number reaches 1e6-1e7, so even exact data (a sphere, where the fit is exact) leaves errors of
-#: 2e-10 - 6e-10 (median) of the curvature in float64, and a plane's of the ball's ``1 / R``.
+#: Floating-point floor of a curvature's standard error, relative to the point's largest ``|k1|, |k2|``:
+#: the chord fit solves normal equations whose condition number reaches 1e6-1e7, so even exact data
+#: (a sphere, where the fit is exact) leaves errors of 2e-10 - 6e-10 (median) of the curvature in float64 ...
 ROUNDING = 1e-9
+#: ... plus this much of the ball's ``1 / R``, so that an exact plane's bars (its errors are exactly 0)
+#: are not 0 either: 6x below the sphere's rounding on that scale (6e-11 / R).
+ROUNDING_FLAT = 1e-11
 
 
 @dataclass(frozen=True)
@@ -261,8 +263,9 @@ def _with_rounding(total: np.ndarray, values: np.ndarray, radius: np.ndarray,
 
     Points without a fit (``fitted`` False) get infinity.
     """
-    scale = np.maximum(np.maximum(np.abs(values[:, 1]), np.abs(values[:, 2])), 1.0 / radius)
-    floor = ROUNDING * np.stack([scale, scale, scale, scale * scale], axis=1)
+    largest = np.maximum(np.abs(values[:, 1]), np.abs(values[:, 2]))
+    curvature = ROUNDING * largest + ROUNDING_FLAT / radius
+    floor = np.stack([curvature, curvature, curvature, 2.0 * largest * curvature], axis=1)  # K = k1 k2
     with np.errstate(invalid="ignore"):
         root = np.sqrt(total)
     root[:, :4] = np.maximum(root[:, :4], floor)
