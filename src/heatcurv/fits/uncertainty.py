@@ -212,36 +212,31 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
     tree_c = cKDTree(points[centres])
     window = min(WINDOW, centres.shape[0])
     near = tree_c.query(points[centres], window, workers=workers)[1].reshape(-1, window)
-    spread = _Blend(tree_c, points, workers)
-    carry = spread(_window_mean(own**2, near))
+    carry = _window_mean(own**2, near)
     squared = _window_mean(change**2, near)
     if not denoise:  # a clean cloud's residual is misfit, not noise: the changes measure the whole error
-        return _with_rounding(spread(squared) + carry, values, radius, fitted)
+        return _with_rounding(_blend(tree_c, points, squared + carry, workers), values, radius, fitted)
     variance = noise[:, None] ** 2 * np.maximum(noise_factors, 0.0)
     variance[:, 1:3] += _eigenvalue_spread(variance, values[:, 1] - values[:, 2])[:, None]
     # the noise moves the point itself along the surface too (isotropic noise): the true normal at
     # its measured position turns by sigma k along each principal direction
     variance[:, 4] += noise**2 * (values[:, 1] ** 2 + values[:, 2] ** 2)
-    bias2 = spread(np.maximum(squared - _window_mean(change_noise, near), 0.0))
-    return _with_rounding(variance + bias2 + carry, values, radius, fitted)
+    bias2 = np.maximum(squared - _window_mean(change_noise, near), 0.0)
+    return _with_rounding(variance + _blend(tree_c, points, bias2 + carry, workers), values, radius, fitted)
 
 
-class _Blend:
-    """Values at the centres spread to every point: inverse-square-distance weights of its :data:`BLENDED` nearest.
-
-    (The nearest centre's alone draws the centres' cells on a smooth field.)
-    """
-
-    def __init__(self, tree: cKDTree, points: np.ndarray, workers: int):
-        count = min(BLENDED, tree.n)
-        distance, self.index = tree.query(points, count, workers=workers)
-        distance, self.index = distance.reshape(len(points), count), self.index.reshape(len(points), count)
-        weight = 1.0 / np.maximum(distance, 1e-12 * max(float(distance.max()), 1e-300)) ** 2
-        self.weight = weight / weight.sum(axis=1, keepdims=True)
-
-    def __call__(self, values: np.ndarray) -> np.ndarray:
-        """Shape (c, 5) at the centres -> (m, 5) at the points."""
-        return np.einsum("mc,mcf->mf", self.weight, values[self.index])
+def _blend(tree: cKDTree, points: np.ndarray, values: np.ndarray, workers: int) -> np.ndarray:
+    """``values`` at the centres (shape (c, 5)) at every point (shape (m, 5)): its :data:`BLENDED` nearest centres'
+    with inverse-square-distance weights (the nearest centre's alone draws the centres' cells on a smooth field)."""
+    count = min(BLENDED, tree.n)
+    distance, index = tree.query(points, count, workers=workers)
+    distance, index = distance.reshape(len(points), count), index.reshape(len(points), count)
+    weight = 1.0 / np.maximum(distance, 1e-12 * max(float(distance.max()), 1e-300)) ** 2
+    weight /= weight.sum(axis=1, keepdims=True)
+    out = np.zeros((len(points), values.shape[1]))
+    for column in range(count):  # one (m, 5) gather at a time
+        out += weight[:, column, None] * values[index[:, column]]
+    return out
 
 
 def _window_mean(values: np.ndarray, near: np.ndarray) -> np.ndarray:
