@@ -243,10 +243,8 @@ def eigen_table(cases):
     print("|---|---|---|---|---|---|---|---|")
     for n, k in cases:
         for method in EIGEN_METHODS:
-            cmd = [sys.executable, __file__, "--one-eigen", method, str(n), str(k)]
             try:
-                out = subprocess.run(cmd, capture_output=True, text=True, timeout=1800, check=True).stdout
-                r = json.loads(out.strip().splitlines()[-1])
+                r = child_result("--one-eigen", method, n, k)
                 print(f"| {n} | {k} | {method} | {r['build']:.1f} | {r['total'] - r['build']:.1f} | {r['total']:.1f} | "
                       f"{100 * r['error']:.2f} | {r['peak_gb']:.2f} |", flush=True)
             except Exception as exc:  # report, go on
@@ -287,15 +285,20 @@ def geodesic_table(sizes):
     print("|---|---|---|---|---|---|---|")
     for n in sizes:
         print(f"| {n} | heatcurv | not offered | | | | |")
-        cmd = [sys.executable, __file__, "--one-geodesic", str(n)]
         try:
-            out = subprocess.run(cmd, capture_output=True, text=True, timeout=1800, check=True).stdout
-            r = json.loads(out.strip().splitlines()[-1])
+            r = child_result("--one-geodesic", n)
             print(f"| {n} | potpourri3d | {r['precompute']:.2f} | {r['first']:.2f} | {r['each']:.3f} | "
                   f"{100 * r['error']:.2f} | {r['peak_gb']:.2f} |", flush=True)
         except Exception as exc:  # report, go on
             print(f"| {n} | potpourri3d | failed ({type(exc).__name__}) | | | | |", flush=True)
     print()
+
+
+def child_result(*args, timeout: float = 1800) -> dict:
+    """Run this script with ``args`` in a fresh process and return the JSON of its last line (errors raise)."""
+    cmd = [sys.executable, __file__, *map(str, args)]
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def peak_rss() -> float:
@@ -323,10 +326,8 @@ def timing_table(sizes):
     for n in sizes:
         eig = n <= 10_000  # a 100k eigensolve takes many minutes with SuperLU on this 2-core box
         for method in ("default", "robust"):
-            cmd = [sys.executable, __file__, "--one", method, str(n), "1" if eig else "0"]
             try:
-                out = subprocess.run(cmd, capture_output=True, text=True, timeout=900, check=True).stdout
-                r = json.loads(out.strip().splitlines()[-1])
+                r = child_result("--one", method, n, "1" if eig else "0", timeout=900)
                 total = f"{r['total']:.1f}" if eig else "not run"
                 print(f"| {n} | {method} | {r['build']:.1f} | {total} | {r['peak_gb']:.2f} |", flush=True)
             except Exception as exc:  # report, go on
