@@ -93,6 +93,7 @@ def bias_centres(n: int, k: np.ndarray, keys: np.ndarray, seed: int = 0) -> np.n
     keys : ndarray, shape (n,)
         Sampling keys (:func:`heatcurv.geometry.sampling.geometric_keys`).
     seed : int, optional
+        Shifts the keys' draw (:func:`heatcurv.geometry.sampling.key_sample`).
 
     Returns
     -------
