@@ -23,7 +23,8 @@ noise, held out), the share of points whose error is within ``z`` standard error
 ``z``, beside the share independent Gaussian errors would give.
 
 Run:  python benchmarks/error_bars.py [--markdown FILE] [--picture FILE] [--tables clean,noise,lownoise,heldout]
-      python benchmarks/error_bars.py --scans-picture docs/error_bars_scans.png   (where the bars are wide on scans)
+      python benchmarks/error_bars.py --scans-picture docs/error_bars_scans.png   (where the bars are wide on scans:
+      the bunny scan, a face range map, a CAD part, a LiDAR tile)
 """
 
 from __future__ import annotations
@@ -167,19 +168,22 @@ def picture(pooled: dict, path: str) -> None:
 
 
 def real_picture(path: str) -> None:
-    """Where the bars are wide on scans: ``log10(mean_se)`` on pymeshlab's face range map, the simulated CAD part
-    and the simulated LiDAR tile (``docs/error_bars_scans.png``)."""
+    """Where the bars are wide on scans: ``log10(mean_se)`` on the shipped bunny scan, pymeshlab's face range map,
+    the simulated CAD part and the simulated LiDAR tile (``docs/error_bars_scans.png``)."""
     from heatcurv import surfaces as hs
     from heatcurv.render import FieldStyle
 
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
+    from heatcurv.data import load_bunny
     from real_scans import render_panels
     from support.scans import fetch_pymeshlab_samples, read_mesh
 
     face = read_mesh(fetch_pymeshlab_samples() / "rangemaps" / "face000.ply").vertices
     cad, lidar = hs.cad_part(20000).points, hs.lidar_tile(20000, seed=0).points
+    bunny = np.asarray(load_bunny().points, dtype=np.float64)
     panels = []
     for points, options, unit, view, title in (
+        (bunny, {}, "length", {"view": (0, 0, 1), "up": (0, 1, 0)}, "bunny scan (1 839 points)"),
         (face, {}, "mm", {"view": (0, 0, 1), "up": (0, 1, 0)}, "face000 range map (85 849 points)"),
         (cad, {}, "mm", {"view": (0.5, -1.0, 0.0), "up": (0, 0, 1), "elevation": 35.0}, "CAD part (20 000)"),
         (lidar, {"orient": "up"}, "m", {"view": (0, -1, 0), "up": (0, 0, 1), "elevation": 40.0, "vertical": "z"},
