@@ -3,7 +3,9 @@
 On the clouds of ``benchmarks/accuracy.py`` (its clean clouds at 20 000 points with the three
 samplers, its noise table, its very-low-noise band and its held-out clouds, the same seeds and
 interior margins), ``heatcurv.estimate(points)`` with default options, judged at the reliable
-interior points:
+interior points; and on the scenes of :mod:`heatcurv.surfaces.scenes` (the LiDAR tile, with its
+noise and centimetre rounding, ``orient="up"``; the CAD part, clean and noisy), whose mean
+curvature and normals are exact where defined (not in the trees, not near a sharp edge):
 
 * coverage: the share of points whose true error is within two standard errors
   (``|value - exact| <= 2 se``; the normal: the angle to the exact normal), %;
@@ -74,6 +76,12 @@ def clouds(tables):
                 yield "lownoise", f"{surface} {acc.LOWNOISE_N} noise {noise:g}", \
                     lambda s=surface, z=noise, seed=seed: acc.make_surface(s).sample(acc.LOWNOISE_N, "random", noise=z,
                                                                                       seed=seed)
+    if "scenes" in tables:
+        from heatcurv import surfaces as hs
+
+        yield "scenes", "lidar_tile(20000) noise 0.03 m", lambda: hs.lidar_tile(20000, seed=0)
+        yield "scenes", "cad_part(20000)", lambda: hs.cad_part(20000)
+        yield "scenes", "cad_part(20000) noise 0.05 mm", lambda: hs.cad_part(20000, noise=0.05)
     if "heldout" in tables:
         for name, params, sampler, n, noise, seed in acc.HELDOUT:
             yield "heldout", f"{acc.heldout_label(name, params)} {sampler} {n} noise {100 * noise:g} %", \
@@ -104,13 +112,23 @@ def ratios(sample, res, margin: float) -> dict:
     return out
 
 
+def scene_ratios(scene, res) -> dict:
+    """A scene's (:mod:`heatcurv.surfaces.scenes`) ``|error|`` and ``se`` of the mean curvature and the normal, at
+    the reliable points where its curvature is defined (not in vegetation, not near a sharp edge)."""
+    side = np.sign(np.einsum("ij,ij->i", res.normals, scene.normals))  # the exact values for the normal's side
+    inner = res.reliable & np.isfinite(scene.mean)
+    cosine = np.clip(np.abs(np.einsum("ij,ij->i", res.normals, scene.normals)), 0.0, 1.0)
+    return {"mean": (np.abs(res.mean - side * scene.mean)[inner], res.mean_se[inner]),
+            "normal": (np.degrees(np.arccos(cosine))[inner], res.normal_se[inner])}
+
+
 def verdict(scores: dict) -> str:
     """``ok``, or what fails among mean, k1 and k2: ``under`` (coverage below the band), ``over`` (above it),
     ``wide`` (sharpness above :data:`SHARPNESS`), each with its fields."""
     parts = []
     for word, test in (("under", lambda c, s: c < COVERAGE[0]), ("over", lambda c, s: c > COVERAGE[1]),
                        ("wide", lambda c, s: s > SHARPNESS)):
-        names = [name for name in FIELDS[:3] if test(*scores[name])]
+        names = [name for name in FIELDS[:3] if name in scores and test(*scores[name])]
         if names:
             parts.append(f"{word} {' '.join(names)}")
     return "; ".join(parts) or "ok"
@@ -123,17 +141,22 @@ def run(tables, log):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             start = time.perf_counter()
-            res = heatcurv.estimate(sample.points)
+            # the LiDAR tile as the command line reads a LAS file: normals up
+            res = heatcurv.estimate(sample.points, **({"orient": "up"} if "lidar" in label else {}))
             seconds = time.perf_counter() - start
-        measured = ratios(sample, res, margin_of(table, sample))
+        if table == "scenes":
+            measured = scene_ratios(sample, res)
+        else:
+            measured = ratios(sample, res, margin_of(table, sample))
         scores = {}
         for name, (error, se) in measured.items():
             scores[name] = (100 * float(np.mean(error <= 2 * se)), float(np.median(se) / np.median(error)))
             share = np.mean(error[:, None] <= Z[None, :] * se[:, None], axis=0)
             pooled.setdefault((table, name), []).append(share)
         plan = res.info["plan"]
-        rows.append([table, label, plan.label, *(f"{scores[n][0]:.1f}" for n in FIELDS),
-                     *(f"{scores[n][1]:.2f}" for n in FIELDS), f"{seconds:.1f}",
+        rows.append([table, label, plan.label,
+                     *(f"{scores[n][0]:.1f}" if n in scores else "-" for n in FIELDS),
+                     *(f"{scores[n][1]:.2f}" if n in scores else "-" for n in FIELDS), f"{seconds:.1f}",
                      f"{res.info['timings'].get('standard_errors', float('nan')):.2f}", verdict(scores)])
         log(" | ".join(rows[-1]))
     return rows, pooled
@@ -151,7 +174,7 @@ def picture(pooled: dict, path: str) -> None:
     for ax, name in zip(axes, FIELDS):
         ax.plot(Z, 100 * gaussian if name != "normal" else 100 * (1 - np.exp(-Z**2)), "k--", lw=1,
                 label="exact Gaussian errors")
-        for table in ("clean", "noise", "lownoise", "heldout"):
+        for table in ("clean", "noise", "lownoise", "heldout", "scenes"):
             shares = pooled.get((table, name))
             if shares:
                 ax.plot(Z, 100 * np.mean(shares, axis=0), lw=1.8, label=f"{table} ({len(shares)} clouds)")
@@ -214,7 +237,7 @@ def real_picture(path: str) -> None:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tables", default="clean,noise,lownoise,heldout")
+    parser.add_argument("--tables", default="clean,noise,lownoise,heldout,scenes")
     parser.add_argument("--markdown", metavar="FILE", help="also write the table to FILE")
     parser.add_argument("--picture", metavar="FILE", help="draw the reliability diagram into FILE (PNG)")
     parser.add_argument("--scans-picture", metavar="FILE",
