@@ -134,6 +134,11 @@ def verdict(scores: dict) -> str:
     return "; ".join(parts) or "ok"
 
 
+def _ratio(value: float) -> str:
+    """A sharpness: two decimals, or two digits where exact values made the median error ~0 (a flat face)."""
+    return f"{value:.2f}" if value < 1000 else f"{value:.2g}"
+
+
 def run(tables, log):
     rows, pooled = [], {}
     for table, label, make in clouds(tables):
@@ -156,7 +161,7 @@ def run(tables, log):
         plan = res.info["plan"]
         rows.append([table, label, plan.label,
                      *(f"{scores[n][0]:.1f}" if n in scores else "-" for n in FIELDS),
-                     *(f"{scores[n][1]:.2f}" if n in scores else "-" for n in FIELDS), f"{seconds:.1f}",
+                     *(_ratio(scores[n][1]) if n in scores else "-" for n in FIELDS), f"{seconds:.1f}",
                      f"{res.info['timings'].get('standard_errors', float('nan')):.2f}", verdict(scores)])
         log(" | ".join(rows[-1]))
     return rows, pooled
