@@ -194,7 +194,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             with clock.stage("kernel_choice"):
                 choice = kernel_choice(op, nrm, weights_areas, keys, frame.n_points,
                                         None if choices is None else choices.scale)
-        plan = plan_fit(opts, choice, keep_normals=normals is not None)  # the one place that chooses the fit
+        # the one place that chooses the fit
+        plan = plan_fit(opts, choice, keep_normals=normals is not None, whole_cloud=choices is None)
         if plan.form.startswith("paper"):
             fitted = paper_fit_stages(op, plan, nrm, K, weights_areas, clock)
         elif plan.anchored:
@@ -208,7 +209,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             # a scanner sees only surfaces facing it: the fit's refined normals must too
             fitted = facing_viewpoint(fitted, op.points, towards)
         errors = None
-        if opts.se and choices is None and fitted.noise_factors is not None and plan.radius is None:
+        if plan.standard_errors:
             with clock.stage("standard_errors"):
                 errors = fit_standard_errors(op, fitted, weights_areas, keys)
     orientation = replace(orientation, report=explained(orientation.report, policy, op.points.shape[0]))

@@ -22,6 +22,8 @@ with anchor normals      noise above ``TUNING.strong_noise`` spacings: the ancho
                          their own normals (the operator's balls are swamped)
 with very low noise      the very-low-noise band (:attr:`heatcurv.choice.scale.ScaleChoice.low_noise`):
                          the quartic refit, denser anchors and the cubic regression of their tensors
+with standard errors     the chord fit's own kernel (not ``radius=``) on a whole cloud, unless ``se=False``:
+                         refits at ``k`` and ``2 k`` at sample centres (:mod:`heatcurv.fits.uncertainty`)
 =======================  =======================================================================
 """
 
@@ -70,6 +72,9 @@ class FitPlan:
         models, 3 the cubic regression of the anchors' own tensors (very low noise).
     keep_normals : bool
         The caller gave the normals: the fit keeps them.
+    standard_errors : bool
+        The chord fit's standard errors are computed (:mod:`heatcurv.fits.uncertainty`): with its own
+        kernel choice (not ``radius=``), on a whole cloud (not a tile's part) and unless ``se=False``.
     reason : str
         Why this path, in words.
     """
@@ -85,6 +90,7 @@ class FitPlan:
     refit: bool = False
     carry_degree: int = 0
     keep_normals: bool = False
+    standard_errors: bool = True
     reason: str = ""
 
     @property
@@ -119,7 +125,7 @@ class FitPlan:
                 + (f" ({self.reason})" if self.reason else ""))
 
 
-def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
+def plan_fit(options, choice=None, *, keep_normals: bool = False, whole_cloud: bool = True) -> FitPlan:
     """The fit a cloud gets, from the options and the kernel choice.
 
     Parameters
@@ -131,6 +137,9 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
         with ``radius=``, or a tiled run's survey); not used by the paper's fit.
     keep_normals : bool, optional
         The caller gave the normals.
+    whole_cloud : bool, optional
+        The points are the whole cloud, not a tile's part of it (whose standard errors would need the
+        sample centres of its neighbours).
 
     Returns
     -------
@@ -138,7 +147,8 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     """
     if options.fit != "chord":
         form = "paper-constrained" if options.fit == "constrained" else "paper-free"
-        return FitPlan(form, keep_normals=keep_normals, reason=f"fit={options.fit!r}: the paper's tensor fit, eq 3.1")
+        return FitPlan(form, keep_normals=keep_normals, standard_errors=False,
+                       reason=f"fit={options.fit!r}: the paper's tensor fit, eq 3.1")
     if choice is None:
         raise ValueError("the chord fit's plan needs the kernel choice")
     scale = choice.scale
@@ -148,10 +158,12 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     gate = f"noise {choice.relative_noise:.2g} h" if scale.denoise else "clean"
     if options.radius is not None:
         return FitPlan(form, k=scale.k, k_min=k_min, k_max=k_max, radius=float(options.radius),
-                       keep_normals=keep_normals, reason=f"radius={options.radius:g}; {gate}")
+                       keep_normals=keep_normals, standard_errors=False, reason=f"radius={options.radius:g}; {gate}")
+    errors = bool(options.se) and whole_cloud
     k_fit = int(options.scale_tuning.k_fit)
     if not scale.denoise and scale.k <= k_fit:
-        return FitPlan("chord", k=scale.k, k_min=k_min, k_max=k_max, keep_normals=keep_normals, reason=gate)
+        return FitPlan("chord", k=scale.k, k_min=k_min, k_max=k_max, keep_normals=keep_normals,
+                       standard_errors=errors, reason=gate)
     # noise, or a kernel too wide to fit at every point: the denoised form at anchors (its offset
     # absorbs the centre's own height error, which a carried chord fit would keep)
     why = gate if scale.denoise else f"clean, but {scale.k} neighbours is wider than k_fit = {k_fit}"
@@ -162,5 +174,5 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     return FitPlan(
         "denoised", k=scale.k, k_min=k_min, k_max=k_max, anchored=True, anchors_per_ball=anchors_per_ball(low_noise),
         anchor_normals=strong, refit=low_noise, carry_degree=carry_degree(low_noise), keep_normals=keep_normals,
-        reason=why,
+        standard_errors=errors, reason=why,
     )

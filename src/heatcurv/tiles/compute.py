@@ -310,7 +310,7 @@ def describe(context: SurveyContext, options: dict) -> dict:
     choices = context.choices
     frame, scale = choices.frame, choices.scale
     estimator = {key: value for key, value in options.items() if key not in ("method", "viewpoint")}
-    plan = plan_fit(resolve_options(options.get("method", "default"), **estimator), scale)
+    plan = plan_fit(resolve_options(options.get("method", "default"), **estimator), scale, whole_cloud=False)
     out = {
         "halo": float(context.halo), "support": float(context.support),
         "offset": frame.offset.tolist(), "unit": frame.unit, "points": frame.n_points,
