@@ -58,6 +58,7 @@ from .flags.reliability import (
     coordinate_rounding,
     imprecise,
     precision_step,
+    rounding_height_variance,
     rounding_uncertainty,
 )
 from .flags.sheets import second_sheet
@@ -122,7 +123,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         whose curvature that rounding can move by more than
         ``TUNING.precision_tolerance`` of its size are not
         reliable; ``info["precision"]`` (a
-        :class:`heatcurv.flags.reliability.PrecisionReport`) counts them. Default:
+        :class:`heatcurv.flags.reliability.PrecisionReport`) counts them. The
+        standard errors hold the rounding as noise. Default:
         from the type of ``points``: float32 coordinates (and float64 ones
         float32 holds exactly) are rounded to float32's spacing, other
         float64 coordinates are exact (:func:`heatcurv.flags.reliability.coordinate_rounding`).
@@ -211,7 +213,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         errors = None
         if plan.standard_errors:
             with clock.stage("standard_errors"):
-                errors = fit_standard_errors(op, fitted, weights_areas, keys)
+                errors = fit_standard_errors(op, fitted, weights_areas, keys, _stage_rounding(op, rounding))
     orientation = replace(orientation, report=explained(orientation.report, policy, op.points.shape[0]))
     if orientation.report.undecided:
         warn_undecided(orientation.report.agreement, orientation.report.outside_share, stacklevel=3)
@@ -220,8 +222,12 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
 
 
 def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: np.ndarray,
-                        keys: np.ndarray) -> StandardErrors:
-    """Stage ``standard_errors`` (:mod:`heatcurv.fits.uncertainty`) of the chord fit's values, operator order."""
+                        keys: np.ndarray, half_step: np.ndarray | None = None) -> StandardErrors:
+    """Stage ``standard_errors`` (:mod:`heatcurv.fits.uncertainty`) of the chord fit's values, operator order.
+
+    ``half_step``: the largest rounding error of each point's coordinates (:func:`_stage_rounding`), None
+    if they are exact.
+    """
     n, opts, pc, plan = op.points.shape[0], op.options, fitted.principal, fitted.plan
     k = np.full(n, plan.k) if fitted.width is None else np.asarray(fitted.width)
     radius = op.neighbourhood.radius if fitted.radius is None else fitted.radius
@@ -229,6 +235,7 @@ def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: n
     return standard_errors(
         op.points, op.tree, weights_areas, fitted.normals, values, k, radius, keys, denoise=plan.denoise,
         noise=fitted.noise, noise_factors=fitted.noise_factors, low_noise=plan.refit, alpha=opts.alpha,
+        rounding=None if half_step is None else rounding_height_variance(half_step, fitted.normals),
         seed=opts.scale_tuning.seed, workers=opts.workers,
     )
 
@@ -257,6 +264,18 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: Fitted, ball_shape, orie
     return ReliabilityInputs(local, residual, width, rho, ~outliers.mask)
 
 
+def _stage_rounding(op: HeatKernelOperator, rounding) -> np.ndarray | None:
+    """The largest rounding error of each distinct point's coordinates in the stages' unit, shape (m, 3) or (3,).
+
+    ``rounding``: :func:`heatcurv.flags.reliability.coordinate_rounding` of the input (None: exact, returned).
+    """
+    if rounding is None:
+        return None
+    half_step, prepared = rounding[0], op.prepared
+    # the rounding happened in the input's coordinates: a row's error is its own (before centring)
+    return (half_step[prepared.first] if half_step.ndim == 2 else half_step) / prepared.unit
+
+
 def _precision(op: HeatKernelOperator, fitted: Fitted, rounding) -> tuple:
     """The points too coarse for their curvature (or None) and ``info["precision"]``.
 
@@ -269,8 +288,7 @@ def _precision(op: HeatKernelOperator, fitted: Fitted, rounding) -> tuple:
         return None, None
     half_step, source = rounding
     prepared, pc = op.prepared, fitted.principal
-    # the rounding happened in the input's coordinates: a row's error is its own (before centring)
-    stage_step = (half_step[prepared.first] if half_step.ndim == 2 else half_step) / prepared.unit
+    stage_step = _stage_rounding(op, rounding)
     largest = float(np.max(half_step))
     rule = (f"{TUNING.precision_coverage:g} x the mean curvature's standard deviation under the rounding above "
             f"{TUNING.precision_tolerance:.0%} of the point's largest |k1|, |k2|")

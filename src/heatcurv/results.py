@@ -74,7 +74,8 @@ class CurvatureResult:
         values reach, with the cloud-wide choices fixed (:mod:`heatcurv.choice.choices`).
     mean_se, k1_se, k2_se, gaussian_se : ndarray, shape (n,) or None
         Standard errors of ``mean``, ``k1``, ``k2`` and ``gaussian``, in their
-        units: the root of the noise variance propagated through the fit and of
+        units: the root of the noise variance propagated through the fit (the
+        rounding of float32 or gridded coordinates included) and of
         the discretisation bias estimated from a refit at twice the kernel
         (:mod:`heatcurv.fits.uncertainty`; their calibration against exact
         values: docs/accuracy.md). None for ``method="paper"``, with

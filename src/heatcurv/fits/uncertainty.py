@@ -151,7 +151,7 @@ def _noise_variance(fit: ChordFit) -> np.ndarray:
 
 def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normals: np.ndarray, values: np.ndarray,
                     k: np.ndarray, radius: np.ndarray, keys: np.ndarray, *, denoise: bool, noise: np.ndarray,
-                    noise_factors: np.ndarray,
+                    noise_factors: np.ndarray, rounding: np.ndarray | None = None,
                     low_noise: bool = False, alpha: float = 2.0, seed: int = 0,
                     workers: int = -1) -> StandardErrors:
     """Stage ``standard_errors``: each point's standard errors (module docstring).
@@ -180,6 +180,10 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
         The fit's noise estimate at each point (:attr:`heatcurv.fits.chordfit.ChordFit.noise`), length units.
     noise_factors : ndarray, shape (m, 5)
         :attr:`heatcurv.fits.chordfit.ChordFit.noise_factors` of each point's fit.
+    rounding : ndarray, shape (m,), optional
+        Variance of each point's height under the rounding of the input coordinates
+        (:func:`heatcurv.flags.reliability.rounding_height_variance`), length^2; None: exact coordinates.
+        It is noise the clean fit's residual does not measure; a denoised fit's noise estimate holds it.
     low_noise : bool, optional
         With ``denoise``: the fit's low-noise refit (very low noise; :func:`heatcurv.fits.chordfit.chord_fit`),
         whose bias the changes then measure.
@@ -216,7 +220,10 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
     carry = _window_mean(own**2, near)
     squared = _window_mean(change**2, near)
     if not denoise:  # a clean cloud's residual is misfit, not noise: the changes measure the whole error
-        return _with_rounding(_blend(tree_c, points, squared + carry, workers), values, radius, fitted)
+        total = _blend(tree_c, points, squared + carry, workers)
+        if rounding is not None:  # ... but for the rounding of the coordinates, which is noise of known size
+            total += rounding[:, None] * np.maximum(noise_factors, 0.0)
+        return _with_rounding(total, values, radius, fitted)
     variance = noise[:, None] ** 2 * np.maximum(noise_factors, 0.0)
     variance[:, 1:3] += _eigenvalue_spread(variance, values[:, 1] - values[:, 2])[:, None]
     # the noise moves the point itself along the surface too (isotropic noise): the true normal at

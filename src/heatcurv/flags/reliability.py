@@ -35,7 +35,7 @@ from ..tuning import TUNING
 
 __all__ = [
     "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "imprecise", "misfit_baselines",
-    "misfits", "precision_step", "resolution", "rounding_uncertainty", "warn_too_coarse",
+    "misfits", "precision_step", "resolution", "rounding_height_variance", "rounding_uncertainty", "warn_too_coarse",
 ]
 
 
@@ -263,8 +263,23 @@ def rounding_uncertainty(half_step: np.ndarray, normals: np.ndarray, mean_varian
     mean_variance_factor : ndarray, shape (m,)
         The fit's variance factor, 1/length^4.
     """
-    height_variance = np.einsum("ij,ij->i", normals**2, np.broadcast_to(half_step, normals.shape) ** 2) / 3.0
-    return np.sqrt(height_variance * np.maximum(mean_variance_factor, 0.0))
+    return np.sqrt(rounding_height_variance(half_step, normals) * np.maximum(mean_variance_factor, 0.0))
+
+
+def rounding_height_variance(half_step: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Variance of each point's height along its normal under the rounding of the coordinates, shape (m,).
+
+    Each coordinate's rounding error is uniform within ``+- half_step`` (variance ``half_step^2 / 3``) and
+    independent of the others: ``sum(n_c^2 half_step_c^2) / 3``.
+
+    Parameters
+    ----------
+    half_step : ndarray, shape (m, 3) or (3,)
+        Largest rounding error of each coordinate, the fit's length unit.
+    normals : ndarray, shape (m, 3)
+        Unit normals.
+    """
+    return np.einsum("ij,ij->i", normals**2, np.broadcast_to(half_step, normals.shape) ** 2) / 3.0
 
 
 def imprecise(uncertainty: np.ndarray, k1: np.ndarray, k2: np.ndarray, radius: np.ndarray) -> np.ndarray:
