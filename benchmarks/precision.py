@@ -11,7 +11,9 @@ points, moved 10^0 ... 10^4 of their size from the origin and stored as float32.
 A point is **off** when its ``k1``, ``k2`` or mean curvature moved by more than
 ``TUNING.precision_tolerance`` of its curvature scale (the larger of ``|k1|``,
 ``|k2|`` and ``TUNING.flat_curvature`` over its fit's radius). The table counts the off points reliable
-without and with the flag, and the points the flag took out that were not off ("needlessly").
+without and with the flag, those of them that moved by more than :data:`COVERAGE` of the float32 estimate's
+standard errors too (``k1_se``, ``k2_se``, ``mean_se``: the tolerance docs/robustness.md states), and
+the points the flag took out that were not off ("needlessly").
 "same fit" splits the clouds whose float32 estimate kept the float64 fit's form and anchor count
 from those where the rounding changed them: the kernel choice saw the rounding as noise, or a
 sampling key (:mod:`heatcurv.geometry.sampling`) crossed its threshold and the anchors changed.
@@ -31,6 +33,9 @@ import heatcurv
 from heatcurv import surfaces
 from heatcurv.tuning import TUNING
 
+#: Standard errors a reliable value may move by under the rounding, beyond the share of its scale.
+COVERAGE = 5.0
+
 SURFACES = {"sphere": lambda: surfaces.Sphere(radius=1.0), "torus": lambda: surfaces.Torus(),
             "paraboloid": lambda: surfaces.Paraboloid(), "saddle": lambda: surfaces.Saddle()}
 
@@ -45,22 +50,27 @@ def measure(kind: str, sampler: str, noise: float, n: int, seed: int, exponent: 
     moved_by = np.maximum.reduce([np.abs(rounded.k1 - exact.k1), np.abs(rounded.k2 - exact.k2),
                                   np.abs(rounded.mean - exact.mean)])
     off = moved_by > TUNING.precision_tolerance * scale
+    beyond = np.maximum.reduce([np.abs(rounded.k1 - exact.k1) / rounded.k1_se,
+                                np.abs(rounded.k2 - exact.k2) / rounded.k2_se,
+                                np.abs(rounded.mean - exact.mean) / rounded.mean_se]) > COVERAGE
     a, b = exact.info["scale"], rounded.info["scale"]
     return {"points": n, "off": int(off.sum()), "before": int((off & unflagged).sum()),
-            "after": int((off & rounded.reliable).sum()),
+            "after": int((off & rounded.reliable).sum()), "beyond": int((off & beyond & rounded.reliable).sum()),
             "needless": int((unflagged & ~rounded.reliable & ~off).sum()),
             "same": a.fit == b.fit and a.anchors == b.anchors}
 
 
 def table(rows: list, groups: dict) -> str:
-    lines = ["| clouds | n | points | off | off & reliable, no flag | off & reliable, flag | flagged needlessly |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| clouds | n | points | off | off & reliable, no flag | off & reliable, flag | "
+             f"of which beyond {COVERAGE:g} SE | flagged needlessly |",
+             "|---|---|---|---|---|---|---|---|"]
     for label, keep in groups.items():
         sel = [r for r in rows if keep(r)]
         if sel:
-            total = {key: sum(r[key] for r in sel) for key in ("points", "off", "before", "after", "needless")}
+            total = {key: sum(r[key] for r in sel) for key in ("points", "off", "before", "after", "beyond",
+                                                               "needless")}
             lines.append(f"| {label} | {len(sel)} | {total['points']} | {total['off']} | {total['before']} | "
-                         f"{total['after']} | {total['needless']} |")
+                         f"{total['after']} | {total['beyond']} | {total['needless']} |")
     return "\n".join(lines)
 
 
@@ -85,8 +95,9 @@ def main(argv=None) -> None:
               for noise in (0.0, 0.003) for n in (574, 2000)}
     groups.update({f"noise-free, 10^{e} sizes away": (lambda r, e=e: r["noise"] == 0.0 and r["exponent"] == e)
                    for e in range(5)})
-    groups["noise-free, same fit"] = lambda r: r["noise"] == 0.0 and r["same"]
-    groups["noise-free, the rounding changed the fit"] = lambda r: r["noise"] == 0.0 and not r["same"]
+    for noise, label in ((0.0, "noise-free"), (0.003, "noise 0.003")):
+        groups[f"{label}, same fit"] = lambda r, noise=noise: r["noise"] == noise and r["same"]
+        groups[f"{label}, the rounding changed the fit"] = lambda r, noise=noise: r["noise"] == noise and not r["same"]
     groups["noise-free 2000 points, same fit"] = lambda r: r["noise"] == 0.0 and r["points"] == 2000 and r["same"]
     print(table(rows, groups))
 

@@ -26,6 +26,12 @@ def off(rounded, exact) -> np.ndarray:
     return moved > TUNING.precision_tolerance * scale
 
 
+def standard_errors_moved(rounded, exact) -> np.ndarray:
+    """How far the rounding moved each point's mean, k1 or k2, the most, in its standard errors, shape (n,)."""
+    return np.maximum.reduce([np.abs(getattr(rounded, name) - getattr(exact, name)) / getattr(rounded, f"{name}_se")
+                              for name in ("mean", "k1", "k2")])
+
+
 @pytest.fixture(scope="module")
 def torus_2k():
     return surfaces.Torus(r1=1.0, r2=3.0).sample(2000, "random", seed=1).points
@@ -197,6 +203,32 @@ def test_where_the_rounding_changes_the_fit_values_move_within_their_standard_er
                                                                           exact.info["scale"].anchors)
     moved = off(rounded, exact)
     assert int((moved & rounded.reliable).sum()) == n_reliable_off
-    beyond = np.maximum.reduce([np.abs(getattr(rounded, name) - getattr(exact, name)) / getattr(rounded, f"{name}_se")
-                                for name in ("mean", "k1", "k2")])
-    assert not (moved & rounded.reliable & (beyond > STANDARD_ERRORS)).any()
+    assert not (moved & rounded.reliable & (standard_errors_moved(rounded, exact) > STANDARD_ERRORS)).any()
+
+
+#: The float32 property's clouds (tests/fuzz/test_fuzz_properties.py, its derandomized examples): kind, points,
+#: sampler, noise, seed, offset (10**offset sizes from the origin), points off by 1 % of their scale and reliable.
+FLOAT32_PROPERTY_CLOUDS = [
+    ("sphere", 300, "random", 0.0, 0, 0.0, 0),
+    ("torus", 1024, "random", 0.001, 6509, 0.0681849876522982, 0),
+    ("torus", 322, "random", 0.003, 56921, 0.09617622398268202, 0),
+    ("paraboloid", 3000, "random", 0.0, 90, 2.673164642154911, 1),
+    ("sphere", 573, "random", 0.001, 13507, 1.2855979031712785, 3),
+    ("paraboloid", 1906, "random", 0.003, 65536, 0.14887292280259337, 149),
+    ("torus", 341, "random", 0.001, 2149, 2.1357080544265024e-212, 0),
+    ("paraboloid", 583, "random", 0.003, 65535, 2.7627332744009343, 424),
+]
+
+
+@pytest.mark.parametrize("kind, n, sampler, noise, seed, offset, n_reliable_off", FLOAT32_PROPERTY_CLOUDS)
+def test_no_reliable_value_of_the_float32_property_clouds_moves_beyond_its_tolerance(kind, n, sampler, noise, seed,
+                                                                                     offset, n_reliable_off):
+    # on noisy clouds the rounding moves the sampling keys, so values move by their noise: by more than 1 % of
+    # their scale, within their standard errors (measured: at most 4.8 of them, on the clean paraboloid whose
+    # float32 copy the kernel choice took for noisy)
+    points = PROPERTY_SURFACES[kind]().sample(n, sampler, noise=noise, seed=seed).points
+    far = points + float(np.linalg.norm(np.ptp(points, axis=0))) * 10.0**offset
+    exact, rounded = heatcurv.estimate(far), heatcurv.estimate(far.astype(np.float32))
+    moved = off(rounded, exact) & rounded.reliable
+    assert int(moved.sum()) == n_reliable_off
+    assert not (moved & (standard_errors_moved(rounded, exact) > STANDARD_ERRORS)).any()
