@@ -171,7 +171,9 @@ def test_float32_property_clouds_keep_no_point_off_by_the_tolerance_reliable(kin
 
 def test_the_standard_errors_of_a_clean_float32_cloud_hold_its_rounding():
     # a float64 sphere is fitted exactly (errors near 1e-9 of the curvature); in float32 at 10 sizes from the
-    # origin the rounding alone leaves errors of about 1e-6, noise the clean fit's residual does not measure
+    # origin the rounding alone leaves errors of about 3e-5, noise the clean fit's residual does not measure.
+    # The centre point's own rounding moves the chord fit's curvatures the most, and its gain is counted at
+    # its worst: the bars are conservative here
     sphere = surfaces.Sphere(radius=1.0).sample(2000, "random", seed=3)
     exact = heatcurv.estimate(sphere.points + 10.0)
     single = heatcurv.estimate((sphere.points + 10.0).astype(np.float32))
@@ -180,9 +182,9 @@ def test_the_standard_errors_of_a_clean_float32_cloud_hold_its_rounding():
     for name in ("mean", "k1", "k2"):
         error = np.abs(getattr(single, name) - getattr(sphere, name))[reliable]
         se = getattr(single, f"{name}_se")[reliable]
-        # measured: 87 %, 93 %, 91 % within 2 standard errors; median bar 1.4x, 2.0x, 1.5x the median error
-        assert 0.85 < np.mean(error < 2 * se) < 0.98, name
-        assert 1.0 < np.median(se) / np.median(error) < 2.5, name
+        # measured: 99.8 %, 98.1 %, 98.5 % within 2 standard errors; median bar 2.5x, 2.3x, 2.2x the median error
+        assert np.mean(error < 2 * se) > 0.97, name
+        assert 1.8 < np.median(se) / np.median(error) < 3.2, name
         assert np.median(getattr(exact, f"{name}_se")) < 1e-3 * np.median(se), name
 
 

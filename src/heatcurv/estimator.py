@@ -234,7 +234,8 @@ def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: n
     values = np.column_stack([pc.mean, pc.k1, pc.k2, pc.gaussian])
     return standard_errors(
         op.points, op.tree, weights_areas, fitted.normals, values, k, radius, keys, denoise=plan.denoise,
-        noise=fitted.noise, noise_factors=fitted.noise_factors, low_noise=plan.refit, alpha=opts.alpha,
+        noise=fitted.noise, noise_factors=fitted.noise_factors, residual=fitted.residual, low_noise=plan.refit,
+        alpha=opts.alpha,
         rounding=None if half_step is None else rounding_height_variance(half_step, fitted.normals),
         seed=opts.scale_tuning.seed, workers=opts.workers,
     )

@@ -19,7 +19,11 @@ Each standard error is the root of the value's estimated mean square error, the 
   noise of variance ``Var(f_k) - Var(f_2k)`` (nested fits). Its square, averaged over
   the :data:`WINDOW` centres nearest a centre and less that noise variance, is the
   squared bias of the points nearest that centre: a regional estimate, as the bias
-  field is smooth on the scale of the ball.
+  field is smooth on the scale of the ball. A region ends where the fit's residual
+  changes: the average weighs each centre by how close its residual is to the centre's
+  own (:data:`RESIDUAL_WIDTH`), and so does the blend to the points, so that the
+  changes of the balls that reach a sharp edge, a tree or noisier ground are not
+  spread onto the smooth surface beside them, whose residual is the noise alone.
 * **carry**: the values a point was given against the fit at ``k`` centred at the
   centre itself, averaged the same way: the error of carrying the anchors' fits to the
   points (:mod:`heatcurv.fits.anchors`), and on clean clouds the last tilt correction the
@@ -41,7 +45,7 @@ from ..geometry.sampling import draw_subset
 from .balls import Scale, fit_blocks
 from .chordfit import NOISE_FIELDS, ChordFit
 
-__all__ = ["StandardErrors", "WINDOW", "standard_errors", "bias_centres"]
+__all__ = ["RESIDUAL_WIDTH", "StandardErrors", "WINDOW", "standard_errors", "bias_centres"]
 
 #: Sample centres whose squared changes are averaged into each point's bias.
 WINDOW = 16
@@ -53,6 +57,11 @@ MIN_CENTRES = 200
 MAX_CENTRE_SHARE = 16
 #: Nearest centres whose estimates each point blends.
 BLENDED = 4
+#: Width of the residual similarity, in natural log units: a centre whose fit residual is ``e^0.2``
+#: (1.22) times another's weighs ``e^-0.5`` in its window and blend. About twice the sampling
+#: spread of a residual over 60 neighbours (``1 / sqrt(120)``); measured on the error-bar benchmark
+#: (docs/accuracy.md), widths 0.1-0.35 against none.
+RESIDUAL_WIDTH = 0.2
 #: Floating-point floor of a curvature's standard error, relative to the point's largest ``|k1|, |k2|``:
 #: the chord fit solves normal equations whose condition number reaches 1e6-1e7, so even exact data
 #: (a sphere, where the fit is exact) leaves errors of 2e-10 - 6e-10 (median) of the curvature in float64 ...
@@ -151,7 +160,7 @@ def _noise_variance(fit: ChordFit) -> np.ndarray:
 
 def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normals: np.ndarray, values: np.ndarray,
                     k: np.ndarray, radius: np.ndarray, keys: np.ndarray, *, denoise: bool, noise: np.ndarray,
-                    noise_factors: np.ndarray, rounding: np.ndarray | None = None,
+                    noise_factors: np.ndarray, residual: np.ndarray, rounding: np.ndarray | None = None,
                     low_noise: bool = False, alpha: float = 2.0, seed: int = 0,
                     workers: int = -1) -> StandardErrors:
     """Stage ``standard_errors``: each point's standard errors (module docstring).
@@ -180,6 +189,9 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
         The fit's noise estimate at each point (:attr:`heatcurv.fits.chordfit.ChordFit.noise`), length units.
     noise_factors : ndarray, shape (m, 5)
         :attr:`heatcurv.fits.chordfit.ChordFit.noise_factors` of each point's fit.
+    residual : ndarray, shape (m,)
+        The fit's residual at each point (root mean square height misfit, length units): where
+        it changes, a region of the bias estimate ends.
     rounding : ndarray, shape (m,), optional
         Variance of each point's height under the rounding of the input coordinates
         (:func:`heatcurv.flags.reliability.rounding_height_variance`), length^2; None: exact coordinates.
@@ -217,10 +229,14 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
     tree_c = cKDTree(points[centres])
     window = min(WINDOW, centres.shape[0])
     near = tree_c.query(points[centres], window, workers=workers)[1].reshape(-1, window)
-    carry = _window_mean(own**2, near)
-    squared = _window_mean(change**2, near)
+    # (a residual that is not finite, or 0, matches no other)
+    level = np.log(np.maximum(np.where(np.isfinite(residual), residual, 0.0), np.finfo(float).tiny))
+    # each window's centres weighed by how near their residual is to its own
+    alike = _similarity(level[centres][near], level[centres][:, None])
+    carry = _window_mean(own**2, near, alike)
+    squared = _window_mean(change**2, near, alike)
     if not denoise:  # a clean cloud's residual is misfit, not noise: the changes measure the whole error
-        total = _blend(tree_c, points, squared + carry, workers)
+        total = _blend(tree_c, points, squared + carry, level, level[centres], workers)
         if rounding is not None:  # ... but for the rounding of the coordinates, which is noise of known size
             total += rounding[:, None] * np.maximum(noise_factors, 0.0)
         return _with_rounding(total, values, radius, fitted)
@@ -229,17 +245,28 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
     # the noise moves the point itself along the surface too (isotropic noise): the true normal at
     # its measured position turns by sigma k along each principal direction
     variance[:, 4] += noise**2 * (values[:, 1] ** 2 + values[:, 2] ** 2)
-    bias2 = np.maximum(squared - _window_mean(change_noise, near), 0.0)
-    return _with_rounding(variance + _blend(tree_c, points, bias2 + carry, workers), values, radius, fitted)
+    bias2 = np.maximum(squared - _window_mean(change_noise, near, alike), 0.0)
+    blended = _blend(tree_c, points, bias2 + carry, level, level[centres], workers)
+    return _with_rounding(variance + blended, values, radius, fitted)
 
 
-def _blend(tree: cKDTree, points: np.ndarray, values: np.ndarray, workers: int) -> np.ndarray:
+def _similarity(level: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Weight of residuals of log ``level`` beside log ``reference`` (broadcast): a Gaussian of width
+    :data:`RESIDUAL_WIDTH`, at least 1e-12 so that a lone centre still counts."""
+    return np.exp(-0.5 * ((level - reference) / RESIDUAL_WIDTH) ** 2) + 1e-12
+
+
+def _blend(tree: cKDTree, points: np.ndarray, values: np.ndarray, level: np.ndarray, level_centres: np.ndarray,
+           workers: int) -> np.ndarray:
     """``values`` at the centres (shape (c, 5)) at every point (shape (m, 5)): its :data:`BLENDED` nearest centres'
-    with inverse-square-distance weights (the nearest centre's alone draws the centres' cells on a smooth field)."""
+    with inverse-square-distance weights (the nearest centre's alone draws the centres' cells on a smooth field),
+    times the similarity of the centre's log residual ``level_centres`` (shape (c,)) to the point's ``level``
+    (shape (m,))."""
     count = min(BLENDED, tree.n)
     distance, index = tree.query(points, count, workers=workers)
     distance, index = distance.reshape(len(points), count), index.reshape(len(points), count)
     weight = 1.0 / np.maximum(distance, 1e-12 * max(float(distance.max()), 1e-300)) ** 2
+    weight *= _similarity(level_centres[index], level[:, None])
     weight /= weight.sum(axis=1, keepdims=True)
     out = np.zeros((len(points), values.shape[1]))
     for column in range(count):  # one (m, 5) gather at a time
@@ -247,16 +274,18 @@ def _blend(tree: cKDTree, points: np.ndarray, values: np.ndarray, workers: int) 
     return out
 
 
-def _window_mean(values: np.ndarray, near: np.ndarray) -> np.ndarray:
-    """Each window's mean of ``values`` (shape (c, 5)) over its centres ``near`` (shape (c, w)), NaNs left out.
+def _window_mean(values: np.ndarray, near: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Each window's weighted mean of ``values`` (shape (c, 5)) over its centres ``near`` (shape (c, w)) with
+    ``weights`` (shape (c, w)), NaNs left out.
 
     A refit that failed at a centre (no weighted pairs in its ball) gives NaN; a window of
     nothing else gives infinity: no estimate.
     """
     gathered = values[near]
     finite = np.isfinite(gathered)
-    count = finite.sum(axis=1)
-    total = np.where(finite, gathered, 0.0).sum(axis=1)
+    weight = weights[:, :, None] * finite
+    count = weight.sum(axis=1)
+    total = (np.where(finite, gathered, 0.0) * weight).sum(axis=1)
     return np.divide(total, count, out=np.full(total.shape, np.inf), where=count > 0)
 
 
