@@ -11,8 +11,9 @@ points, moved 10^0 ... 10^4 of their size from the origin and stored as float32.
 A point is **off** when its ``k1``, ``k2`` or mean curvature moved by more than
 ``TUNING.precision_tolerance`` of its curvature scale (the larger of ``|k1|``,
 ``|k2|`` and ``TUNING.flat_curvature`` over its fit's radius). The table counts the off points reliable
-without and with the flag, those of them that moved by more than :data:`COVERAGE` of the float32 estimate's
-standard errors too (``k1_se``, ``k2_se``, ``mean_se``: the tolerance docs/robustness.md states), and
+without and with the flag, those of them that moved by more than :data:`COVERAGE` standard errors of the move
+too (``k1_se``, ``k2_se``, ``mean_se`` of the float32 and float64 estimates combined: the tolerance
+docs/robustness.md states), and
 the points the flag took out that were not off ("needlessly").
 "same fit" splits the clouds whose float32 estimate kept the float64 fit's form and anchor count
 from those where the rounding changed them: the kernel choice saw the rounding as noise, or a
@@ -50,9 +51,9 @@ def measure(kind: str, sampler: str, noise: float, n: int, seed: int, exponent: 
     moved_by = np.maximum.reduce([np.abs(rounded.k1 - exact.k1), np.abs(rounded.k2 - exact.k2),
                                   np.abs(rounded.mean - exact.mean)])
     off = moved_by > TUNING.precision_tolerance * scale
-    beyond = np.maximum.reduce([np.abs(rounded.k1 - exact.k1) / rounded.k1_se,
-                                np.abs(rounded.k2 - exact.k2) / rounded.k2_se,
-                                np.abs(rounded.mean - exact.mean) / rounded.mean_se]) > COVERAGE
+    beyond = np.maximum.reduce([np.abs(getattr(rounded, name) - getattr(exact, name))
+                                / np.hypot(getattr(rounded, f"{name}_se"), getattr(exact, f"{name}_se"))
+                                for name in ("mean", "k1", "k2")]) > COVERAGE
     a, b = exact.info["scale"], rounded.info["scale"]
     return {"points": n, "off": int(off.sum()), "before": int((off & unflagged).sum()),
             "after": int((off & rounded.reliable).sum()), "beyond": int((off & beyond & rounded.reliable).sum()),

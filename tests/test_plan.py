@@ -167,7 +167,6 @@ def test_plan_fit_alone_on_every_branch():
 def test_the_plan_says_where_standard_errors_are_computed():
     options = resolve_options("default")
     assert plan_fit(options, choice(60, False)).standard_errors and plan_fit(options, choice(480, True)).standard_errors
-    assert not plan_fit(options, choice(480, True), whole_cloud=False).standard_errors  # a tile's part
     assert not plan_fit(resolve_options("default", se=False), choice(60, False)).standard_errors
     assert not plan_fit(resolve_options("default", radius=2.0), choice(60, True)).standard_errors
     assert not plan_fit(resolve_options("paper")).standard_errors

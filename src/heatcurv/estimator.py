@@ -197,7 +197,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
                 choice = kernel_choice(op, nrm, weights_areas, keys, frame.n_points,
                                         None if choices is None else choices.scale)
         # the one place that chooses the fit
-        plan = plan_fit(opts, choice, keep_normals=normals is not None, whole_cloud=choices is None)
+        plan = plan_fit(opts, choice, keep_normals=normals is not None)
         if plan.form.startswith("paper"):
             fitted = paper_fit_stages(op, plan, nrm, K, weights_areas, clock)
         elif plan.anchored:
@@ -213,7 +213,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         errors = None
         if plan.standard_errors:
             with clock.stage("standard_errors"):
-                errors = fit_standard_errors(op, fitted, weights_areas, keys, _stage_rounding(op, rounding))
+                errors = fit_standard_errors(op, fitted, weights_areas, keys, _value_reach(op, fitted, orientation),
+                                             frame.n_points, _stage_rounding(op, rounding))
     orientation = replace(orientation, report=explained(orientation.report, policy, op.points.shape[0]))
     if orientation.report.undecided:
         warn_undecided(orientation.report.agreement, orientation.report.outside_share, stacklevel=3)
@@ -221,19 +222,21 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
                    rounding=rounding, errors=errors)
 
 
-def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: np.ndarray,
-                        keys: np.ndarray, half_step: np.ndarray | None = None) -> StandardErrors:
+def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: np.ndarray, keys: np.ndarray,
+                        reach: np.ndarray, cloud_points: int, half_step: np.ndarray | None = None) -> StandardErrors:
     """Stage ``standard_errors`` (:mod:`heatcurv.fits.uncertainty`) of the chord fit's values, operator order.
 
-    ``half_step``: the largest rounding error of each point's coordinates (:func:`_stage_rounding`), None
-    if they are exact.
+    ``reach``: how far each point's values reach (:func:`_value_reach`); ``cloud_points``: points of the
+    whole cloud; ``half_step``: the largest rounding error of each point's coordinates
+    (:func:`_stage_rounding`), None if they are exact.
     """
     n, opts, pc, plan = op.points.shape[0], op.options, fitted.principal, fitted.plan
     k = np.full(n, plan.k) if fitted.width is None else np.asarray(fitted.width)
     radius = op.neighbourhood.radius if fitted.radius is None else fitted.radius
     values = np.column_stack([pc.mean, pc.k1, pc.k2, pc.gaussian])
     return standard_errors(
-        op.points, op.tree, weights_areas, fitted.normals, values, k, radius, keys, denoise=plan.denoise,
+        op.points, op.tree, weights_areas, fitted.normals, values, k, radius, keys, reach,
+        cloud_points=cloud_points, denoise=plan.denoise,
         noise=fitted.noise, noise_factors=fitted.noise_factors, residual=fitted.residual, low_noise=plan.refit,
         alpha=opts.alpha,
         rounding=None if half_step is None else rounding_height_variance(half_step, fitted.normals),
@@ -263,6 +266,16 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: Fitted, ball_shape, orie
     rho = np.where(roundness > TUNING.round_ball, np.inf, rho)
     residual = None if fitted.residual is None else fitted.residual / op.h
     return ReliabilityInputs(local, residual, width, rho, ~outliers.mask)
+
+
+def _value_reach(op: HeatKernelOperator, fitted: Fitted, orientation: Orientation) -> np.ndarray:
+    """How far each point's values reach, shape (m,), stage units: its fit's support, then the neighbours'
+    normals and areas it weighs (one operator ball further, or as far as their sides were carried from:
+    ``Orientation.reach`` of "up" and "viewpoint")."""
+    radius = op.neighbourhood.radius
+    support = radius if fitted.support is None else fitted.support
+    near = radius if orientation.reach is None else np.maximum(radius, orientation.reach)
+    return support + near
 
 
 def _stage_rounding(op: HeatKernelOperator, rounding) -> np.ndarray | None:
@@ -340,12 +353,9 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
             back(inputs.local), None if inputs.residual is None else back(inputs.residual), back(inputs.width),
             back(inputs.rho), back(inputs.counted) & first,
         )}
-        # how far each point's values reach: its fit's support, then the neighbours' normals and
-        # areas it weighs (one operator ball further, or as far as their sides were carried from:
-        # Orientation.reach of "up" and "viewpoint"), input units
-        support = nbhd.radius if fitted.support is None else fitted.support
-        near = nbhd.radius if orientation.reach is None else np.maximum(nbhd.radius, orientation.reach)
-        extra["reach"] = back(support + near) * unit
+        # how far each point's values (and standard errors) reach, input units
+        reach = _value_reach(op, fitted, orientation) if errors is None else errors.reach
+        extra["reach"] = back(reach) * unit
         if orientation.patch is not None:  # "outward": what the winding number needs over the whole cloud
             # one row per set of duplicates is a source and carries the area
             source, weight = np.zeros(prepared.n_input, dtype=bool), np.zeros(prepared.n_input)

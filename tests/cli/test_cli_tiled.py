@@ -53,7 +53,7 @@ def test_a_tight_budget_runs_in_this_process_and_below_the_minimum_is_refused(tm
 def test_features_are_refused_in_tiles(tmp_path):
     np.save(tmp_path / "c.npy", heatcurv.surfaces.Sphere().sample(3000, "random", seed=1).points)
     out = _run("compute", tmp_path / "c.npy", "-o", tmp_path / "o.ply", "--tile-size", "1000", "--features")
-    assert out.returncode != 0 and "sharp features and standard errors are computed in memory only" in out.stderr
+    assert out.returncode != 0 and "sharp features are computed in memory only" in out.stderr
     assert not (tmp_path / "o.ply").exists()
     out = _run("compute", tmp_path / "c.npy", "-o", tmp_path / "o.ply", "--max-memory", "3X")
     assert out.returncode == 2 and "expected a memory size such as 3G" in out.stderr
@@ -78,11 +78,13 @@ def test_bad_tile_flags(flag, value, problem, tmp_path):
     assert out.returncode == 2 and problem in out.stderr
 
 
-def test_a_tiled_run_refuses_the_standard_errors(tmp_path):
-    np.save(tmp_path / "sphere.npy", heatcurv.surfaces.Sphere().sample(2000, "random", seed=9).points)
+def test_a_tiled_run_writes_the_standard_errors_of_the_in_memory_run(tmp_path):
+    points = heatcurv.surfaces.Sphere().sample(2000, "random", seed=9).points
+    np.save(tmp_path / "sphere.npy", points)
     out = _run("compute", tmp_path / "sphere.npy", "-o", tmp_path / "tiled.ply", "--tile-size", "1000",
-               "--fields", "default,mean_se")
-    assert out.returncode == 2
-    assert "a tiled run cannot write the field(s) mean_se (sharp features and standard errors are computed in " \
-        "memory only)" in out.stderr
-    assert not (tmp_path / "tiled.ply").exists()
+               "--fields", "default,errors", "--float64")
+    assert out.returncode == 0, out.stderr
+    written = read_points(tmp_path / "tiled.ply").fields
+    memory = heatcurv.estimate(points)
+    for name in ("mean_se", "k1_se", "k2_se", "gaussian_se", "normal_se"):
+        np.testing.assert_allclose(written[name], getattr(memory, name), rtol=1e-12, err_msg=name)

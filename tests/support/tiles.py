@@ -31,7 +31,7 @@ EXACT_FIELDS = ("reliable", "outlier", "border", "neighbours")
 def result_columns(res) -> dict:
     """The fields of an in-memory result by the names a tiled run uses (``normals``, ``d1`` ...)."""
     names = ("normals", "mean", "gaussian", "k1", "k2", "d1", "d2", "area", "reliable", "outlier", "border",
-             "spacing", "neighbours", "fit_radius")
+             "spacing", "neighbours", "fit_radius", "mean_se", "k1_se", "k2_se", "gaussian_se", "normal_se")
     return {name: np.asarray(getattr(res, name)) for name in names if getattr(res, name, None) is not None}
 
 
@@ -65,7 +65,8 @@ def compare_fields(tiled: dict, memory: dict, rtol: float = 1e-6) -> dict:
             ok = err <= rtol
         else:
             floor = max(float(np.median(np.abs(b[np.isfinite(b)]))) * 1e-3, np.finfo(float).tiny) if b.size else 1.0
-            err = np.abs(a - b) / np.maximum(np.abs(b), floor)
+            with np.errstate(invalid="ignore"):  # inf - inf: equal infinities (a point without a fit) agree
+                err = np.where(a == b, 0.0, np.abs(a - b) / np.maximum(np.abs(b), floor))
             ok = err <= rtol
         ok &= np.isfinite(err)
         out[name] = {"share": float(ok.mean()) if ok.size else 1.0, "bad": int((~ok).sum()),
@@ -90,7 +91,7 @@ def tiled_agreement(path, res, rtol: float = 1e-6) -> dict:
         if all(f"{name}{a}" in fields for a in "xyz"):
             tiled[name] = np.column_stack([fields[f"{name}{a}"] for a in "xyz"])
     for name in ("mean", "gaussian", "k1", "k2", "area", "reliable", "outlier", "border", "spacing",
-                 "neighbours", "fit_radius"):
+                 "neighbours", "fit_radius", "mean_se", "k1_se", "k2_se", "gaussian_se", "normal_se"):
         if name in fields:
             tiled[name] = fields[name]
     return compare_fields(tiled, result_columns(res), rtol)

@@ -125,7 +125,7 @@ class FitPlan:
                 + (f" ({self.reason})" if self.reason else ""))
 
 
-def plan_fit(options, choice=None, *, keep_normals: bool = False, whole_cloud: bool = True) -> FitPlan:
+def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     """The fit a cloud gets, from the options and the kernel choice.
 
     Parameters
@@ -137,9 +137,6 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False, whole_cloud: b
         with ``radius=``, or a tiled run's survey); not used by the paper's fit.
     keep_normals : bool, optional
         The caller gave the normals.
-    whole_cloud : bool, optional
-        The points are the whole cloud, not a tile's part of it (whose standard errors would need the
-        sample centres of its neighbours).
 
     Returns
     -------
@@ -159,7 +156,7 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False, whole_cloud: b
     if options.radius is not None:
         return FitPlan(form, k=scale.k, k_min=k_min, k_max=k_max, radius=float(options.radius),
                        keep_normals=keep_normals, standard_errors=False, reason=f"radius={options.radius:g}; {gate}")
-    errors = bool(options.se) and whole_cloud
+    errors = bool(options.se)
     k_fit = int(options.scale_tuning.k_fit)
     if not scale.denoise and scale.k <= k_fit:
         return FitPlan("chord", k=scale.k, k_min=k_min, k_max=k_max, keep_normals=keep_normals,

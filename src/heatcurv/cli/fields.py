@@ -18,7 +18,7 @@ DEFAULT_FIELDS = (
 FEATURE_FIELDS = ("feature", "feature_score")
 #: Further fields ``--fields`` can ask for.
 EXTRA_FIELDS = ("border", "outlier", "spacing", "neighbours", "fit_radius")
-#: Standard errors of the curvatures (their units) and of the normal (degrees), in memory only.
+#: Standard errors of the curvatures (their units) and of the normal (degrees).
 ERROR_FIELDS = ("mean_se", "gaussian_se", "k1_se", "k2_se", "normal_se")
 #: Every field heatcurv computes, in the written order.
 COMPUTED_FIELDS = DEFAULT_FIELDS + FEATURE_FIELDS + EXTRA_FIELDS + ERROR_FIELDS

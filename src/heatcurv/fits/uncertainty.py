@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..geometry.sampling import draw_subset
+from ..geometry.sampling import key_thinning
 from .balls import Scale, fit_blocks
 from .chordfit import NOISE_FIELDS, ChordFit
 
@@ -49,10 +49,10 @@ __all__ = ["RESIDUAL_WIDTH", "StandardErrors", "WINDOW", "standard_errors", "bia
 
 #: Sample centres whose squared changes are averaged into each point's bias.
 WINDOW = 16
-#: Pairs the refits at ``k`` and ``2 k`` may take, per point of the cloud: ``PAIRS_PER_POINT n / (3 k)``
-#: centres ...
+#: Pairs the refits at ``k`` and ``2 k`` may take, per point of the cloud: a share ``PAIRS_PER_POINT / (3 k)``
+#: of the points are centres ...
 PAIRS_PER_POINT = 8
-#: ... at least this many, and at most one point in :data:`MAX_CENTRE_SHARE` of the cloud.
+#: ... at least this many over the whole cloud, and at most one point in :data:`MAX_CENTRE_SHARE`.
 MIN_CENTRES = 200
 MAX_CENTRE_SHARE = 16
 #: Nearest centres whose estimates each point blends.
@@ -81,6 +81,10 @@ class StandardErrors:
         1 / length (``gaussian``: 1 / length^2).
     normal : ndarray, shape (m,)
         Radians.
+    reach : ndarray, shape (m,)
+        How far each point's standard errors reach: no point farther changes them (its values'
+        reach, then the centres its estimate is blended from, their windows and their refits'
+        balls), length units; infinite where no centre was drawn.
     """
 
     mean: np.ndarray
@@ -88,30 +92,38 @@ class StandardErrors:
     k2: np.ndarray
     gaussian: np.ndarray
     normal: np.ndarray
+    reach: np.ndarray
 
 
-def bias_centres(n: int, k: np.ndarray, keys: np.ndarray, seed: int = 0) -> np.ndarray:
-    """The sample centres of the bias estimate, drawn by ``keys``: as many as :data:`PAIRS_PER_POINT` allows.
+def bias_centres(k: np.ndarray, keys: np.ndarray, cloud_points: int, seed: int = 0) -> np.ndarray:
+    """The sample centres of the bias estimate: the points whose key is below their share of centres.
+
+    A point of kernel ``k`` is a centre with probability ``PAIRS_PER_POINT / (3 k)`` (the refits at
+    ``k`` and ``2 k`` then take about :data:`PAIRS_PER_POINT` pairs per point), at least
+    ``MIN_CENTRES / cloud_points`` and at most ``1 / MAX_CENTRE_SHARE``. The draw is local
+    (:func:`heatcurv.geometry.sampling.key_thinning`): a part of the cloud holding a point and its
+    surroundings draws the same centres there as the whole cloud.
 
     Parameters
     ----------
-    n : int
-        Points.
     k : ndarray, shape (n,)
         Each point's kernel (neighbours).
     keys : ndarray, shape (n,)
         Sampling keys (:func:`heatcurv.geometry.sampling.geometric_keys`).
+    cloud_points : int
+        Points of the whole cloud (:attr:`heatcurv.choice.choices.CloudFrame.n_points`).
     seed : int, optional
-        Shifts the keys' draw (:func:`heatcurv.geometry.sampling.key_sample`).
+        Shifts the keys (:func:`heatcurv.geometry.sampling.key_thinning`).
 
     Returns
     -------
     ndarray of int
         Sorted point indices.
     """
-    wanted = PAIRS_PER_POINT * n / (3.0 * max(float(np.median(k)), 1.0))
-    size = int(min(n, max(MIN_CENTRES, min(wanted, n / MAX_CENTRE_SHARE))))
-    return draw_subset(n, size, seed, keys)
+    k = np.maximum(np.asarray(k, dtype=np.float64), 1.0)
+    share = np.maximum(MIN_CENTRES / max(cloud_points, 1), np.minimum(PAIRS_PER_POINT / (3.0 * k),
+                                                                      1.0 / MAX_CENTRE_SHARE))
+    return key_thinning(keys, share, seed)
 
 
 def _scale_changes(points, tree, normals, areas, centres, k, denoise: bool, low_noise: bool, alpha: float,
@@ -120,22 +132,24 @@ def _scale_changes(points, tree, normals, areas, centres, k, denoise: bool, low_
 
     Returns ``change`` and ``noise``, shape (c, 5) each, columns :data:`NOISE_FIELDS`: ``f_2k - f_k``
     (the normal's angle between the two fits) scaled to the bias of ``f_k`` (bias ~ k), and the
-    variance its noise adds, ``Var(f_k) - Var(f_2k)`` scaled alike; and the fit at ``k`` (a :class:`ChordFit`).
+    variance its noise adds, ``Var(f_k) - Var(f_2k)`` scaled alike; the fit at ``k`` (a :class:`ChordFit`);
+    and the radius of the ball at ``2 k``, shape (c,).
     """
     wide = int(min(2 * k, points.shape[0] - 1))
-    fits = [
-        ChordFit.concatenate([
-            fit for *_, fit in fit_blocks(points, tree, normals, areas, Scale(int(size), denoise), centres=centres,
-                                          alpha=alpha, workers=workers, low_noise=low_noise)
-        ])
-        for size in (k, wide)
-    ]
+    fits, radius = [], np.zeros(len(centres))
+    for size in (k, wide):
+        blocks = []
+        for lo, hi, nbhd, fit in fit_blocks(points, tree, normals, areas, Scale(int(size), denoise), centres=centres,
+                                            alpha=alpha, workers=workers, low_noise=low_noise):
+            blocks.append(fit)
+            radius[lo:hi] = np.maximum(radius[lo:hi], nbhd.radius)
+        fits.append(ChordFit.concatenate(blocks))
     gain = k / max(wide - k, 1)
     narrow, broad = fits
     pc = broad.principal
     change = _differences(np.column_stack([pc.mean, pc.k1, pc.k2, pc.gaussian]), broad.normals, narrow)
     noise = _noise_variance(narrow) - _noise_variance(broad)
-    return gain * change, gain**2 * np.maximum(noise, 0.0), narrow
+    return gain * change, gain**2 * np.maximum(noise, 0.0), narrow, radius
 
 
 def _eigenvalue_spread(variance: np.ndarray, split: np.ndarray) -> np.ndarray:
@@ -159,7 +173,8 @@ def _noise_variance(fit: ChordFit) -> np.ndarray:
 
 
 def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normals: np.ndarray, values: np.ndarray,
-                    k: np.ndarray, radius: np.ndarray, keys: np.ndarray, *, denoise: bool, noise: np.ndarray,
+                    k: np.ndarray, radius: np.ndarray, keys: np.ndarray, reach: np.ndarray, *, cloud_points: int,
+                    denoise: bool, noise: np.ndarray,
                     noise_factors: np.ndarray, residual: np.ndarray, rounding: np.ndarray | None = None,
                     low_noise: bool = False, alpha: float = 2.0, seed: int = 0,
                     workers: int = -1) -> StandardErrors:
@@ -183,6 +198,10 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
         Each point's fit ball radius (the float64 floor's scale on flat parts).
     keys : ndarray, shape (m,)
         Sampling keys of the centres.
+    reach : ndarray, shape (m,)
+        How far each point's values, normal and residual reach (no point farther changes them).
+    cloud_points : int
+        Points of the whole cloud, of which ``points`` may be a part (:func:`bias_centres`).
     denoise : bool
         The fit's form: denoised heights (noisy clouds) or chord curvatures (clean).
     noise : ndarray, shape (m,)
@@ -210,25 +229,27 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
     # a point without a fit (an outlier's island: no weighted neighbour) has no error to estimate and
     # is no centre: its standard errors are infinite
     fitted = np.isfinite(noise) & np.all(np.isfinite(noise_factors), axis=1) & (areas > 0)
-    if not fitted.any():
-        return StandardErrors(*(np.full(n, np.inf) for _ in range(5)))
-    centres = bias_centres(n, k, keys, seed)
+    centres = bias_centres(k, keys, cloud_points, seed)
     centres = centres[fitted[centres]]
-    if centres.size == 0:
-        centres = np.flatnonzero(fitted)[:1]
+    if centres.size == 0:  # no estimate (and no bound on what one would need)
+        return StandardErrors(*(np.full(n, np.inf) for _ in range(5)), reach=np.full(n, np.inf))
     change, change_noise, own = (np.zeros((centres.shape[0], 5)) for _ in range(3))
+    centre_reach = np.asarray(reach, dtype=np.float64)[centres]
     for size in np.unique(k[centres]):
         rows = np.flatnonzero(k[centres] == size)
         at = centres[rows]
-        change[rows], change_noise[rows], narrow = _scale_changes(points, tree, normals[at], areas, at, int(size),
-                                                                  denoise, low_noise, alpha, workers)
+        change[rows], change_noise[rows], narrow, wide = _scale_changes(points, tree, normals[at], areas, at,
+                                                                        int(size), denoise, low_noise, alpha, workers)
         # the values given against the fit at k centred at the centre itself: the carry's own error
         # (fits at anchors), or the last tilt the fit's normal leaves out (fits at every point)
         own[rows] = _differences(values[at], normals[at], narrow)
+        centre_reach[rows] = np.maximum(centre_reach[rows], wide)
     # each centre's window of its nearest centres; each point blends those of its nearest centres
     tree_c = cKDTree(points[centres])
     window = min(WINDOW, centres.shape[0])
-    near = tree_c.query(points[centres], window, workers=workers)[1].reshape(-1, window)
+    distance, near = (a.reshape(-1, window) for a in tree_c.query(points[centres], window, workers=workers))
+    # what a centre's window estimate depends on: its centres' refits, values and residuals
+    window_reach = np.max(distance + centre_reach[near], axis=1)
     # (a residual that is not finite, or 0, matches no other)
     level = np.log(np.maximum(np.where(np.isfinite(residual), residual, 0.0), np.finfo(float).tiny))
     # each window's centres weighed by how near their residual is to its own
@@ -236,18 +257,18 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
     carry = _window_mean(own**2, near, alike)
     squared = _window_mean(change**2, near, alike)
     if not denoise:  # a clean cloud's residual is misfit, not noise: the changes measure the whole error
-        total = _blend(tree_c, points, squared + carry, level, level[centres], workers)
+        total, blend_reach = _blend(tree_c, points, squared + carry, level, level[centres], window_reach, workers)
         if rounding is not None:  # ... but for the rounding of the coordinates, which is noise of known size
             total += rounding[:, None] * np.maximum(noise_factors, 0.0)
-        return _with_rounding(total, values, radius, fitted)
+        return _with_rounding(total, values, radius, fitted, np.maximum(reach, blend_reach))
     variance = noise[:, None] ** 2 * np.maximum(noise_factors, 0.0)
     variance[:, 1:3] += _eigenvalue_spread(variance, values[:, 1] - values[:, 2])[:, None]
     # the noise moves the point itself along the surface too (isotropic noise): the true normal at
     # its measured position turns by sigma k along each principal direction
     variance[:, 4] += noise**2 * (values[:, 1] ** 2 + values[:, 2] ** 2)
     bias2 = np.maximum(squared - _window_mean(change_noise, near, alike), 0.0)
-    blended = _blend(tree_c, points, bias2 + carry, level, level[centres], workers)
-    return _with_rounding(variance + blended, values, radius, fitted)
+    blended, blend_reach = _blend(tree_c, points, bias2 + carry, level, level[centres], window_reach, workers)
+    return _with_rounding(variance + blended, values, radius, fitted, np.maximum(reach, blend_reach))
 
 
 def _similarity(level: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -257,11 +278,11 @@ def _similarity(level: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 
 def _blend(tree: cKDTree, points: np.ndarray, values: np.ndarray, level: np.ndarray, level_centres: np.ndarray,
-           workers: int) -> np.ndarray:
+           centre_reach: np.ndarray, workers: int) -> tuple[np.ndarray, np.ndarray]:
     """``values`` at the centres (shape (c, 5)) at every point (shape (m, 5)): its :data:`BLENDED` nearest centres'
     with inverse-square-distance weights (the nearest centre's alone draws the centres' cells on a smooth field),
     times the similarity of the centre's log residual ``level_centres`` (shape (c,)) to the point's ``level``
-    (shape (m,))."""
+    (shape (m,)). Also how far each point's blend reaches, given each centre's ``centre_reach`` (shape (m,))."""
     count = min(BLENDED, tree.n)
     distance, index = tree.query(points, count, workers=workers)
     distance, index = distance.reshape(len(points), count), index.reshape(len(points), count)
@@ -271,7 +292,7 @@ def _blend(tree: cKDTree, points: np.ndarray, values: np.ndarray, level: np.ndar
     out = np.zeros((len(points), values.shape[1]))
     for column in range(count):  # one (m, 5) gather at a time
         out += weight[:, column, None] * values[index[:, column]]
-    return out
+    return out, np.max(distance + centre_reach[index], axis=1)
 
 
 def _window_mean(values: np.ndarray, near: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -290,8 +311,9 @@ def _window_mean(values: np.ndarray, near: np.ndarray, weights: np.ndarray) -> n
 
 
 def _with_rounding(total: np.ndarray, values: np.ndarray, radius: np.ndarray,
-                   fitted: np.ndarray) -> StandardErrors:
-    """The standard errors from the mean square errors ``total`` (shape (m, 5)), at least the float64 floor.
+                   fitted: np.ndarray, reach: np.ndarray) -> StandardErrors:
+    """The standard errors from the mean square errors ``total`` (shape (m, 5)), at least the float64 floor,
+    reaching ``reach`` (shape (m,)).
 
     Points without a fit (``fitted`` False) get infinity.
     """
@@ -303,7 +325,7 @@ def _with_rounding(total: np.ndarray, values: np.ndarray, radius: np.ndarray,
     root[:, :4] = np.maximum(root[:, :4], floor)
     root[~fitted] = np.inf
     root[np.isnan(root)] = np.inf
-    return StandardErrors(*(root[:, column] for column in range(5)))
+    return StandardErrors(*(root[:, column] for column in range(5)), reach=reach)
 
 
 def _differences(values: np.ndarray, normals: np.ndarray, fit: ChordFit) -> np.ndarray:

@@ -36,6 +36,7 @@ __all__ = [
     "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame", "describe",
     "key_halo", "key_tile", "plan_centres", "centre_reach", "gate_levels", "fit_tile_centres", "merge_rounds",
     "orients_outward", "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS", "DEPTH", "HALO_MARGIN",
+    "ERRORS_HALO",
 ]
 
 #: The certificate's dependency radius is DEPTH x what :func:`compute_tile` returns as ``support``;
@@ -44,6 +45,11 @@ __all__ = [
 DEPTH = 1
 #: A halo widened by the certificate is what the failing points need times this.
 HALO_MARGIN = 1.1
+#: The first halo of a run with standard errors, in the widest chosen ball (without them: 2, the fit's
+#: ball and its neighbours'): a point's standard errors blend the nearest sample centres' (about 1.2
+#: balls away at 8 refit pairs per point), whose windows hold the 16 nearest centres (2.5 balls) and
+#: their refits at twice the kernel (1.4 balls) or their own values (2 balls).
+ERRORS_HALO = 6.0
 
 #: What :func:`compute_tile` returns for the core rows: name -> (columns, dtype).
 RESULT_FIELDS = {
@@ -54,6 +60,9 @@ RESULT_FIELDS = {
     # the inputs of the two cloud-wide flags (heatcurv.flags.reliability), joined after the last tile
     "misfit_residual": (1, np.float64), "fit_width": (1, np.int64), "resolution_rho": (1, np.float64),
     "counted": (1, np.bool_),
+    # the standard errors (NaN where the run does not compute them: se=False)
+    "mean_se": (1, np.float64), "k1_se": (1, np.float64), "k2_se": (1, np.float64), "gaussian_se": (1, np.float64),
+    "normal_se": (1, np.float64),
 }
 #: The fields of :data:`RESULT_FIELDS` that hold :class:`heatcurv.flags.reliability.ReliabilityInputs`, in its order
 #: (``reliable`` holds its ``local`` flags until :func:`finish_reliability`).
@@ -228,7 +237,8 @@ def _first_halo(choices, fits: list, frame: CloudFrame, options: dict) -> Survey
         return opts.alpha * float(max((x.max() for x in h if x.size), default=0.0)) * frame.unit
 
     chosen, operator = ball(widest), ball(int(opts.neighbours))
-    return SurveyContext(choices, (2.0 * chosen + operator) * HALO_MARGIN, chosen)
+    balls = ERRORS_HALO if opts.se else 2.0
+    return SurveyContext(choices, (balls * chosen + operator) * HALO_MARGIN, chosen)
 
 
 def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, options: dict) -> dict:
@@ -261,6 +271,9 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, o
     """
     res = estimate(points, choices=context.choices, **options)
     fields = {name: getattr(res, name) for name in RESULT_FIELDS if hasattr(res, name)}
+    for name in ("mean_se", "k1_se", "k2_se", "gaussian_se", "normal_se"):
+        if fields[name] is None:
+            fields[name] = np.full(len(points), np.nan)
     inputs = res.info["reliability"]
     fields["reliable"] = inputs.local
     fields["misfit_residual"] = np.full(len(points), np.nan) if inputs.residual is None else inputs.residual
@@ -310,7 +323,7 @@ def describe(context: SurveyContext, options: dict) -> dict:
     choices = context.choices
     frame, scale = choices.frame, choices.scale
     estimator = {key: value for key, value in options.items() if key not in ("method", "viewpoint")}
-    plan = plan_fit(resolve_options(options.get("method", "default"), **estimator), scale, whole_cloud=False)
+    plan = plan_fit(resolve_options(options.get("method", "default"), **estimator), scale)
     out = {
         "halo": float(context.halo), "support": float(context.support),
         "offset": frame.offset.tolist(), "unit": frame.unit, "points": frame.n_points,

@@ -62,7 +62,7 @@ from . import compute
 from .context import SurveyContext
 from .executors import SCHEDULERS
 from .job import Job
-from .output import DEFAULT_FIELDS, TILED_FIELDS, TILED_WRITE
+from .output import DEFAULT_FIELDS, ERROR_FIELDS, TILED_FIELDS, TILED_WRITE
 from .phase_orient import orient_cloud
 from .phase_plan import find_plan, identity_of, make_plan
 from .phase_survey import survey
@@ -259,8 +259,8 @@ def _settle(src, dst, method, viewpoint, max_memory, tile_workers, scheduler, sc
     wanted = tuple(fields) if fields is not None else DEFAULT_FIELDS
     unknown = [n for n in wanted if n not in TILED_FIELDS]
     if unknown:
-        raise HeatcurvError(f"a tiled run cannot write the field(s) {', '.join(unknown)} (sharp features and "
-                            f"standard errors are computed in memory only); choose from {', '.join(TILED_FIELDS)}")
+        raise HeatcurvError(f"a tiled run cannot write the field(s) {', '.join(unknown)} (sharp features are "
+                            f"computed in memory only); choose from {', '.join(TILED_FIELDS)}")
     if dtype not in (None, "float32", "float64"):
         raise HeatcurvError(f"dtype must be float32 or float64, got {dtype!r}")
     if isinstance(scheduler, str) and scheduler not in SCHEDULERS and not scheduler.startswith("tcp://"):
@@ -270,6 +270,8 @@ def _settle(src, dst, method, viewpoint, max_memory, tile_workers, scheduler, sc
     check_smallest_budget(budget)  # not even the smallest tile fits: say so before reading anything
     options = dict(options)
     threads = options.pop("workers", -1)
+    # the standard errors widen every tile's halo: computed only when written
+    options.setdefault("se", any(name in ERROR_FIELDS for name in wanted))
     est = estimator_options(method, viewpoint, options, source.kind)
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     requested = cpus if tile_workers in (None, -1) else int(tile_workers)

@@ -40,8 +40,8 @@ from .compute import RESULT_FIELDS
 from .sources import CHUNK_POINTS, Source
 
 __all__ = [
-    "RECORD", "DEFAULT_FIELDS", "EXTRA_FIELDS", "TILED_FIELDS", "TILED_WRITE", "create_results", "store_tile",
-    "write_records",
+    "RECORD", "DEFAULT_FIELDS", "EXTRA_FIELDS", "ERROR_FIELDS", "TILED_FIELDS", "TILED_WRITE", "create_results",
+    "store_tile", "write_records",
     "read_results", "output_columns", "write_output",
 ]
 
@@ -59,8 +59,10 @@ DEFAULT_FIELDS = (
 )
 #: Further fields a tiled run can write (heatcurv.cli.fields.EXTRA_FIELDS).
 EXTRA_FIELDS = ("border", "outlier", "spacing", "neighbours", "fit_radius")
+#: The standard errors (heatcurv.cli.fields.ERROR_FIELDS), computed where they are asked for.
+ERROR_FIELDS = ("mean_se", "gaussian_se", "k1_se", "k2_se", "normal_se")
 #: Every field a tiled run writes, in the written order (the features are not computed in tiles).
-TILED_FIELDS = DEFAULT_FIELDS + EXTRA_FIELDS
+TILED_FIELDS = DEFAULT_FIELDS + EXTRA_FIELDS + ERROR_FIELDS
 #: Output extensions of a tiled run.
 TILED_WRITE = (".las", ".laz", ".ply")
 #: Patch key of a tile's patch: ``tile << PATCH_SHIFT | label``.
@@ -204,6 +206,10 @@ def _flipped(block: np.ndarray, flip: np.ndarray) -> np.ndarray:
     for name in ("k1", "k2", "d1", "d2", "mean", "gaussian"):
         block[name] = getattr(pc, name)
     block["normals"] = np.where(flip[:, None], -block["normals"], block["normals"])
+    # k1 and k2 trade places on the other side, and so do their standard errors
+    k1_se = block["k1_se"].copy()
+    block["k1_se"] = np.where(flip, block["k2_se"], block["k1_se"])
+    block["k2_se"] = np.where(flip, k1_se, block["k2_se"])
     return block
 
 
