@@ -98,7 +98,8 @@ def test_tiles_with_halos_equal_the_whole_cloud_bit_for_bit(noisy):
 
 def test_reach_certifies_exactly_the_points_a_narrow_halo_computes_right(noisy, records):
     points, whole = noisy
-    out, certified, _ = _tiled(points, 0.6, orient="up")
+    # the values' reach (the standard errors reach several balls further: tests/tiles/test_tiles_lidar_identity.py)
+    out, certified, _ = _tiled(points, 0.6, orient="up", se=False)
     assert 0.1 < certified.mean() < 0.9  # this halo (kernel of 240 neighbours) is too narrow for some
     for f in ("normals", "mean", "k1", "k2", "area"):
         np.testing.assert_array_equal(out[f][certified], getattr(whole, f)[certified], err_msg=f)
