@@ -29,6 +29,13 @@ Each standard error is the root of the value's estimated mean square error, the 
   points (:mod:`heatcurv.fits.anchors`), and on clean clouds the last tilt correction the
   reported normal leaves out.
 
+The rounding of the input coordinates (float32, a LAS file's grid) is noise of known size: a
+noisy fit's residual holds it, a clean one's is given it through the noise factors.
+
+Everything is local, so a part of a cloud computes the whole cloud's standard errors where it
+holds a point's surroundings (:mod:`heatcurv.tiles`): each point draws itself as a centre by its
+own key, and :attr:`StandardErrors.reach` says how far its errors depend on other points.
+
 The standard errors are regional where the bias dominates: a value whose error is a
 smooth field (clean clouds, wide kernels) is within two standard errors more often than
 the 95 % of independent Gaussian errors (docs/accuracy.md, error bars).
