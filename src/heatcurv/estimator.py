@@ -174,6 +174,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         frame = None if choices is None else choices.frame
         op = HeatKernelOperator.from_points(points, opts, progress, frame)  # validate, neighbours, spacing, areas
         rounding = coordinate_rounding(points, coordinate_precision)  # the points are valid now
+        half_step = _stage_rounding(op, rounding)
         clock = StageClock(progress, dict(op.timings))
         with clock.stage("kernel_check"):
             frame = frame_of(op.prepared) if frame is None else frame
@@ -214,12 +215,12 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         if plan.standard_errors:
             with clock.stage("standard_errors"):
                 errors = fit_standard_errors(op, fitted, weights_areas, keys, _value_reach(op, fitted, orientation),
-                                             frame.n_points, _stage_rounding(op, rounding))
+                                             frame.n_points, half_step)
     orientation = replace(orientation, report=explained(orientation.report, policy, op.points.shape[0]))
     if orientation.report.undecided:
         warn_undecided(orientation.report.agreement, orientation.report.outside_share, stacklevel=3)
     return _result(op, fitted, ball_shape, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
-                   rounding=rounding, errors=errors)
+                   rounding=rounding, half_step=half_step, errors=errors)
 
 
 def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: np.ndarray, keys: np.ndarray,
@@ -290,19 +291,18 @@ def _stage_rounding(op: HeatKernelOperator, rounding) -> np.ndarray | None:
     return (half_step[prepared.first] if half_step.ndim == 2 else half_step) / prepared.unit
 
 
-def _precision(op: HeatKernelOperator, fitted: Fitted, rounding) -> tuple:
+def _precision(op: HeatKernelOperator, fitted: Fitted, rounding, stage_step: np.ndarray | None) -> tuple:
     """The points too coarse for their curvature (or None) and ``info["precision"]``.
 
     The checks are :mod:`heatcurv.flags.reliability`'s.
 
     ``rounding``: :func:`heatcurv.flags.reliability.coordinate_rounding` of the input (None: exact coordinates,
-    no report).
+    no report); ``stage_step``: the same per distinct point in the stages' unit (:func:`_stage_rounding`).
     """
     if rounding is None:
         return None, None
     half_step, source = rounding
     prepared, pc = op.prepared, fitted.principal
-    stage_step = _stage_rounding(op, rounding)
     largest = float(np.max(half_step))
     rule = (f"{TUNING.precision_coverage:g} x the mean curvature's standard deviation under the rounding above "
             f"{TUNING.precision_tolerance:.0%} of the point's largest |k1|, |k2|")
@@ -321,7 +321,8 @@ def _precision(op: HeatKernelOperator, fitted: Fitted, rounding) -> tuple:
 
 
 def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: Orientation, outliers: Outliers,
-            timings, whole_cloud: bool = True, rounding=None, errors: StandardErrors | None = None):
+            timings, whole_cloud: bool = True, rounding=None, half_step: np.ndarray | None = None,
+            errors: StandardErrors | None = None):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
     Outliers stand for no measured surface, and a point whose ball holds both sides of a thin
@@ -331,7 +332,8 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     the points are only a part of the cloud (``whole_cloud`` False), the flags
     that compare with the whole cloud's medians are left out of ``reliable``
     and their inputs returned in ``info["reliability"]`` (input order). ``rounding``: the input
-    coordinates' rounding (:func:`_precision`; ``info["precision"]``), None if they are exact. ``errors``:
+    coordinates' rounding (:func:`_precision`; ``info["precision"]``), None if they are exact, and ``half_step``
+    the same per distinct point in the stages' unit (:func:`_stage_rounding`). ``errors``:
     the standard errors (:mod:`heatcurv.fits.uncertainty`), None where not computed.
     """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
@@ -339,7 +341,7 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     # a ball holding both sides of a thin part is no one sheet's neighbourhood: no area, and so not reliable
     sheets = second_sheet(op.points, fitted.normals, nbhd, op.h) & ~outliers.mask
     areas = np.where(outliers.mask | sheets, 0.0, fitted.areas)
-    coarse, precision = _precision(op, fitted, rounding)
+    coarse, precision = _precision(op, fitted, rounding, half_step)
     inputs = _reliability_inputs(op, fitted, ball_shape, orientation, outliers, areas, coarse)
     back = prepared.to_input_order
     if whole_cloud:

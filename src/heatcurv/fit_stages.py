@@ -199,9 +199,11 @@ def point_fit_stages(
     fit = ChordFit.concatenate(fits)
     pc = fit.principal
     report = ScaleReport.from_choice(choice, plan.label, radius, opts.alpha, fixed_radius=fixed_radius, support=radius)
-    # the centre's own height error shifts k1, k2 and the mean alike, and K = k1 k2 by (k1 + k2) times that
-    factors = fit.noise_factors + np.column_stack([centre**2, centre**2, centre**2,
-                                                   (centre * (pc.k1 + pc.k2)) ** 2, np.zeros(n)])
+    factors = fit.noise_factors
+    if rounded and not plan.denoise:
+        # the centre's own height error shifts k1, k2 and the mean alike, and K = k1 k2 by (k1 + k2) times that
+        factors = factors + np.column_stack([centre**2, centre**2, centre**2, (centre * (pc.k1 + pc.k2)) ** 2,
+                                             np.zeros(n)])
     return Fitted(fit.normals, pc.mean, pc, areas, border, plan, report, residual, radius, support=radius,
                    mean_variance_factor=factors[:, 0], noise=fit.noise, noise_factors=factors)
 

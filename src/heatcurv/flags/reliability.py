@@ -248,20 +248,10 @@ def coordinate_rounding(points, coordinate_precision=None) -> tuple[np.ndarray, 
 def rounding_uncertainty(half_step: np.ndarray, normals: np.ndarray, mean_variance_factor: np.ndarray) -> np.ndarray:
     """Standard deviation of each point's fitted mean curvature under the rounding of the coordinates, shape (m,).
 
-    Each coordinate's rounding error is taken as uniform within ``+- half_step`` (variance ``half_step^2 / 3``),
-    independent from point to point: along a point's normal its variance is ``sum(n_c^2 half_step_c^2) / 3``,
-    and the fit turns a height-noise variance into a mean-curvature variance through its own variance
-    factor (:attr:`heatcurv.fits.chordfit.ChordFit.mean_variance_factor`), which holds the fit's weights and how
-    well its neighbours pin its coefficients down.
-
-    Parameters
-    ----------
-    half_step : ndarray, shape (m, 3) or (3,)
-        Largest rounding error of each coordinate, the fit's length unit.
-    normals : ndarray, shape (m, 3)
-        Unit normals.
-    mean_variance_factor : ndarray, shape (m,)
-        The fit's variance factor, 1/length^4.
+    The rounding's height variance (:func:`rounding_height_variance`, same ``half_step`` and ``normals``) times
+    the fit's variance factor ``mean_variance_factor`` (shape (m,), 1/length^4:
+    :attr:`heatcurv.fits.chordfit.ChordFit.mean_variance_factor`), which holds the fit's weights and how well its
+    neighbours pin its coefficients down.
     """
     return np.sqrt(rounding_height_variance(half_step, normals) * np.maximum(mean_variance_factor, 0.0))
 
