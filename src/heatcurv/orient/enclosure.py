@@ -34,7 +34,9 @@ inside) out of ``[0, 1]``. This module uses that field twice.
    is a point whose disc (below) holds more than ``TUNING.spread_share`` of
    flagged points: a small spot turned inside out amid right ones has levels
    that agree (the field of a hole in a closed surface is 1/2 on both sides,
-   and the spot's own disc adds the jump), its neighbours' do not.
+   and the spot's own disc adds the jump), its neighbours' do not. A patch
+   has one side, so when more than ``TUNING.patch_share`` of its area is
+   flagged, all of it is.
 
 Each query's value is summed over point dipoles (Barill et al. 2018, "Fast
 winding numbers for soups and clouds"), except near its own point: the sources
@@ -183,8 +185,9 @@ class PatchSides:
     sign : ndarray, shape (n_patch,)
         ``+1`` to keep each patch's normals, ``-1`` to flip them.
     bad : ndarray, shape (m,), bool
-        Sources whose levels (with those signs) contradict their side, or
-        whose disc holds more than ``TUNING.spread_share`` of such sources.
+        Sources whose levels (with those signs) contradict their side, whose
+        disc holds more than ``TUNING.spread_share`` of such sources, or whose
+        patch has more than ``TUNING.patch_share`` of its weight in them.
     agreement : float
         Share of the sources' weight whose levels are within
         ``TUNING.closed_tolerance`` of their targets.
@@ -241,6 +244,9 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     share = np.bincount(disc_rows, weights=bad[disc_members], minlength=bad.size) / np.bincount(
         disc_rows, minlength=bad.size)
     bad |= share > TUNING.spread_share
+    # a patch has one side: where much of it disagrees, that side is in doubt at its agreeing points too
+    patch_bad = np.bincount(label, weights=weight * bad, minlength=n_patch)
+    bad |= patch_bad[label] > TUNING.patch_share * np.bincount(label, weights=weight, minlength=n_patch)[label]
     undecided = TUNING.undecided_share <= agreement < TUNING.closed_share and outside_share >= TUNING.outside_share
     return PatchSides(sign, bad, agreement, agreement >= TUNING.closed_share, undecided, outside_share)
 
