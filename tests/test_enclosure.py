@@ -1,14 +1,17 @@
 """heatcurv.orient.enclosure: the winding number turns parts of a closed cloud outward and flags what it contradicts."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.winding import winding_numbers
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
-from heatcurv.orient.enclosure import Enclosure, enclose, patch_fields, patches
+from heatcurv.orient.enclosure import Enclosure, enclose, patch_fields, patch_sides, patches
 from heatcurv.orient.orientation import _spanning_forest
 from heatcurv.tuning import TUNING
 
@@ -204,3 +207,33 @@ def test_a_single_point_behind_an_unsure_edge_joins_its_neighbours_patch():
     excluded[98] = True
     label = patches(points, forest, excluded)
     assert label[98] == -1 and label[99] >= 0 and np.count_nonzero(label == label[99]) == 1
+
+
+def _straddling_patch(turned_share):
+    """Sources of a Fibonacci sphere cut into six patches, one of them straddling two sides.
+
+    The part of patch 3 farthest along a tangent direction (``turned_share`` of its points) has its
+    normals turned, as where the spanning tree crossed between the two sides of a thin part inside one
+    patch: no single sign makes that patch right.
+    """
+    s = surfaces.get("sphere").sample(3000, "fibonacci", seed=0)
+    centres = surfaces.get("sphere").sample(6, "fibonacci", seed=0).points
+    label = cKDTree(centres).query(s.points)[1]
+    in_patch = label == 3
+    tangent = np.cross(centres[3], [0.0, 0.0, 1.0])
+    along = s.points @ tangent
+    turned = in_patch & (along >= np.quantile(along[in_patch], 1.0 - turned_share))
+    normals = np.where(turned[:, None], -s.normals, s.normals)
+    return s.points, normals, np.full(3000, s.total_area / 3000), label, in_patch
+
+
+def test_a_patch_mostly_contradicted_is_flagged_whole(monkeypatch):
+    # 45 % of the patch turned: the field contradicts the levels of 87 of its 499 sources, 17 % of it
+    # (a turned spot's own levels agree away from its rim); past the patch share the whole patch is in doubt
+    points, normals, area, label, in_patch = _straddling_patch(0.45)
+    sides = patch_sides(points, normals, area, label, 6)
+    assert sides.closed and 0 < sides.bad[in_patch].mean() < TUNING.patch_share
+    assert not sides.bad[~in_patch].any()
+    monkeypatch.setattr("heatcurv.orient.enclosure.TUNING", dataclasses.replace(TUNING, patch_share=0.1))
+    sides = patch_sides(points, normals, area, label, 6)
+    assert sides.bad[in_patch].all() and not sides.bad[~in_patch].any()

@@ -363,7 +363,7 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
             source, weight = np.zeros(prepared.n_input, dtype=bool), np.zeros(prepared.n_input)
             source[prepared.first[orientation.sources]] = True
             weight[prepared.first] = orientation.weights * unit**2
-            extra["winding"] = {"patch": back(orientation.patch), "source": source,
+            extra["winding"] = {"patch": back(orientation.patch), "fine": back(orientation.fine), "source": source,
                                 "normals": back(orientation.normals), "weight": weight}
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,

@@ -126,6 +126,7 @@ class Tuning:
     spread_share: float = _knob(0.2, "share of disagreeing sources in a disc that flags its source too")
     #: A patch whose side is wrong keeps agreeing levels at some of its points (a face's folds, an armpit).
     patch_share: float = _knob(0.3, "share of a winding-number patch's area disagreeing that flags all of it")
+    refine_share: float = _knob(0.1, "share of a winding-number patch's area disagreeing that re-cuts it finer")
     against_share: float = _knob(0.5, "share of a near point's sources that disagree before it is flagged too")
     #: An open sheet curved like a bowl has levels near 0 and 1/2.
     closed_share: float = _knob(0.3, "share of the area with clean winding levels from which a cloud is closed")

@@ -37,6 +37,13 @@ inside) out of ``[0, 1]``. This module uses that field twice.
    and the spot's own disc adds the jump), its neighbours' do not. A patch
    has one side, so when more than ``TUNING.patch_share`` of its area is
    flagged, all of it is.
+3. **Finer pieces.** Where the tree crossed between the two sides of a thin
+   part inside a patch, no sign of the patch is right. A closed cloud's
+   patches with more than ``TUNING.refine_share`` of their area flagged are
+   cut again into pieces of a quarter of their size (:func:`fine_patches`),
+   and the energy is solved once more over those pieces and the other
+   patches, with the first solve's sides as the tree's; a source is flagged
+   when either solve contradicts it.
 
 Each query's value is summed over point dipoles (Barill et al. 2018, "Fast
 winding numbers for soups and clouds"), except near its own point: the sources
@@ -65,6 +72,7 @@ the sources in its ball are.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass
 
@@ -79,8 +87,8 @@ from ..geometry.neighbourhood import Neighbourhood
 from ..tuning import TUNING
 
 __all__ = [
-    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "MAX_SOURCES",
-    "warn_undecided",
+    "Enclosure", "PatchSides", "enclose", "fine_patches", "patch_sides", "patches", "sampled_sources", "source_keys",
+    "MAX_SOURCES", "warn_undecided",
 ]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
@@ -161,14 +169,15 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     if n - excluded.sum() < 16:
         return nothing
     patch = patches(points, forest, excluded)
-    n_patch = int(patch.max()) + 1
+    fine = fine_patches(points, forest, excluded, patch)
     source = _sources(points, patch, excluded)
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
-    sides = patch_sides(points[source], normals[source], weight, patch[source], n_patch)
+    sides = patch_sides(points[source], normals[source], weight, patch[source], int(patch.max()) + 1,
+                        fine[source], int(fine.max()) + 1)
     if not (sides.closed or sides.undecided):
         return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0,
                          outside_share=sides.outside_share)
-    flip = sides.sign[patch] < 0
+    flip = sides.sign[patch] * sides.fine_sign[fine] < 0
     flip[excluded] = False
     unsupported = ~excluded if sides.undecided else _unsupported(source, sides.bad, neighbourhood, excluded)
     oriented = np.where(flip[:, None], -normals, normals)
@@ -199,6 +208,9 @@ class PatchSides:
     outside_share : float
         Share of the sources' weight whose outside level is within
         ``TUNING.closed_tolerance`` of 0.
+    fine_sign : ndarray, shape (n_fine,), optional
+        With finer patches: ``+1`` or ``-1`` for each, on top of its patch's
+        ``sign`` (all ``+1`` where no patch was re-cut).
     """
 
     sign: np.ndarray
@@ -207,10 +219,20 @@ class PatchSides:
     closed: bool
     undecided: bool = False
     outside_share: float = 0.0
+    fine_sign: np.ndarray | None = None
 
 
-def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int) -> PatchSides:
+def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int,
+                fine: np.ndarray | None = None, n_fine: int = 0) -> PatchSides:
     """Each patch's side and each source's verdict, from the winding number of the sources (module docstring).
+
+    With finer patches (:func:`fine_patches`), a closed cloud's patches of
+    which more than ``TUNING.refine_share`` of the area disagrees are re-cut
+    into them and the energy is solved again, the other patches as they are,
+    every normal turned by the first solve's signs: where the spanning tree
+    crossed between the two sides of a thin part inside a patch, one sign
+    for the patch cannot be right, one for each of its pieces can. A source
+    is flagged when either solve contradicts it.
 
     Parameters
     ----------
@@ -221,11 +243,37 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     label : ndarray, shape (m,), int
         Their patches, ``0 <= label < n_patch`` (a patch without sources keeps its side).
     n_patch : int
+    fine : ndarray, shape (m,), int, optional
+        Their finer patches, ``0 <= fine < n_fine``, each inside one patch.
+    n_fine : int, optional
 
     Returns
     -------
     PatchSides
     """
+    sides = _solved_sides(x, nrm, weight, label, n_patch)
+    fine_sign = np.ones(n_fine)
+    if fine is None or not sides.closed:
+        return dataclasses.replace(sides, fine_sign=fine_sign)
+    disagreeing = np.bincount(label, weights=weight * sides.bad, minlength=n_patch)
+    recut = disagreeing > TUNING.refine_share * np.bincount(label, weights=weight, minlength=n_patch)
+    if not recut.any():
+        return dataclasses.replace(sides, fine_sign=fine_sign)
+    # the re-cut patches' pieces are unknowns of their own, after the others
+    pieces, piece = np.unique(fine[recut[label]], return_inverse=True)
+    combined = label.copy()
+    combined[recut[label]] = n_patch + piece
+    turned = nrm * sides.sign[label][:, None]
+    again = _solved_sides(x, turned, weight, combined, n_patch + pieces.size)
+    if not again.closed:
+        return dataclasses.replace(sides, fine_sign=fine_sign)
+    fine_sign[pieces] = again.sign[n_patch:]
+    sign = sides.sign * np.where(recut, 1.0, again.sign[:n_patch])
+    return dataclasses.replace(sides, sign=sign, bad=sides.bad | again.bad, fine_sign=fine_sign)
+
+
+def _solved_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int) -> PatchSides:
+    """One solve of the winding energy over the patches ``label`` (:func:`patch_sides`, without re-cutting)."""
     along, against, (disc_rows, disc_members) = patch_fields(x, nrm, weight, label, n_patch)
     G, c = _energy(along, against, label, weight)
     sign = _patch_signs(G, c, label, weight)
@@ -317,6 +365,29 @@ def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray,
     # a point that only unsure edges reach (a noisy point whose normal disagrees with its neighbours')
     # cannot carry a side of its own: it joins a neighbour across its tree edge
     label = merged_components(n, i, j, label[i] == label[j], np.ones(i.size, dtype=bool), TUNING.tiny_patch)
+    label[excluded] = -1
+    used = np.unique(label[label >= 0])
+    relabel = np.full(label.max() + 2, -1)
+    relabel[used] = np.arange(used.size)
+    return relabel[label]
+
+
+def fine_patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray, patch: np.ndarray,
+                 cloud_points: int | None = None) -> np.ndarray:
+    """Each patch of :func:`patches` cut again in grid cells of half the side, shape (n,).
+
+    The pieces are subtrees inside one patch, cut as :func:`patches` cuts
+    (small pieces join a neighbour across a tree edge inside the same patch),
+    for a quarter of the points a patch aims at: what :func:`patch_sides`
+    solves for where a patch's one side is contradicted. Excluded points get -1.
+    """
+    n = points.shape[0]
+    i, j, entry, length = undirected_edges(forest.indptr, forest.indices, excluded, points)
+    inside = (patch[i] == patch[j]) & (forest.data[entry] <= TUNING.sure_cost)
+    target = max(PATCH_POINTS, (n - excluded.sum() if cloud_points is None else cloud_points) / MAX_PATCHES) / 4
+    cell = _cell_ids(points, np.sqrt(target) * (np.median(length) if length.size else 1.0))
+    label = merged_components(n, i, j, inside & (cell[i] == cell[j]), inside, max(int(target / 4), 1))
+    label = merged_components(n, i, j, label[i] == label[j], patch[i] == patch[j], TUNING.tiny_patch)
     label[excluded] = -1
     used = np.unique(label[label >= 0])
     relabel = np.full(label.max() + 2, -1)

@@ -86,7 +86,7 @@ from .._kernels import segment as kernels
 from ..errors import HeatcurvError
 from ..geometry.neighbourhood import Neighbourhood, knn_neighbourhood
 from ..tuning import TUNING
-from .enclosure import enclose, patches, sampled_sources
+from .enclosure import enclose, fine_patches, patches, sampled_sources
 
 __all__ = [
     "ORIENT_MODES", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
@@ -202,6 +202,9 @@ class Orientation:
         (:func:`heatcurv.orient.enclosure.sampled_sources`).
     weights : ndarray, shape (n,), optional
         With ``patch``: the sources' dipole strengths (the areas, 0 for excluded points).
+    fine : ndarray, shape (n,), int, optional
+        With ``patch``: each patch cut finer (:func:`heatcurv.orient.enclosure.fine_patches`), the
+        pieces the winding number solves for where a patch's one side is contradicted.
     """
 
     normals: np.ndarray
@@ -211,6 +214,7 @@ class Orientation:
     patch: np.ndarray | None = None
     sources: np.ndarray | None = None
     weights: np.ndarray | None = None
+    fine: np.ndarray | None = None
 
 
 def as_viewpoint(viewpoint, n: int | None = None) -> np.ndarray:
@@ -485,7 +489,8 @@ def orient(
     agreement = outside_share = None
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
-        part = {"patch": patches(points, tree, cut, cloud_points), "weights": w,
+        patch = patches(points, tree, cut, cloud_points)
+        part = {"patch": patch, "fine": fine_patches(points, tree, cut, patch, cloud_points), "weights": w,
                 "sources": sampled_sources(points, cut, n if cloud_points is None else cloud_points)}
     else:
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded)

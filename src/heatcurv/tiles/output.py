@@ -50,7 +50,7 @@ __all__ = [
 RECORD = np.dtype(
     [(name, "u1" if dt is np.bool_ else np.dtype(dt).str, (cols,)) if cols > 1
      else (name, "u1" if dt is np.bool_ else np.dtype(dt).str) for name, (cols, dt) in RESULT_FIELDS.items()]
-    + [("patch", "<i8"), ("winding", "<i8"), ("computed", "u1")]
+    + [("patch", "<i8"), ("winding", "<i8"), ("winding_fine", "<i8"), ("computed", "u1")]
 )
 #: The fields written by default, in the order of ``heatcurv compute`` (heatcurv.cli.fields.DEFAULT_FIELDS).
 DEFAULT_FIELDS = (
@@ -90,8 +90,8 @@ def create_results(path, count: int, *, keep: bool = False) -> bool:
 #: 170 bytes a core point, would double the scratch (at 100M points 17 of 39 GB).
 STORED_KEYS = ("volume_labels", "volumes", "halo_rows", "halo_normals", "halo_patch")
 #: What a tile oriented ``outward`` keeps for the winding step (:func:`heatcurv.tiles.winding.tile_sources`).
-SOURCE_KEYS = ("winding_rows", "winding_x", "winding_normals", "winding_area", "winding_label", "winding_seam",
-               "winding_total")
+SOURCE_KEYS = ("winding_rows", "winding_x", "winding_normals", "winding_area", "winding_label", "winding_fine_label",
+               "winding_seam", "winding_total")
 
 
 def is_stored(tile_file) -> bool:
@@ -114,6 +114,7 @@ def store_tile(path, tile_file, tile: int) -> int:
             block[name] = data[name]
         block["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"]
         block["winding"] = (np.int64(tile) << PATCH_SHIFT) | data["winding"]
+        block["winding_fine"] = (np.int64(tile) << PATCH_SHIFT) | data["winding_fine"]
         block["computed"] = 1
     order = np.argsort(rows)
     rows, block = rows[order], block[order]
@@ -243,7 +244,7 @@ def _results_chunks(results_path, count: int, flips, size: int = CHUNK_POINTS):
     """``(start, records)`` in input order, each record turned over where an odd number of ``flips`` say so.
 
     ``flips``: ``(column, keys, flipped)`` triples (the seam flips by ``patch``,
-    the winding step's by ``winding``), or None.
+    the winding step's by ``winding`` and ``winding_fine``), or None.
     """
     for start in range(0, count, size):
         stop = min(count, start + size)

@@ -381,7 +381,7 @@ def run_tile(spec: TileTask) -> dict:
         arrays.update(tile_sources(frame, points[core], rows[core], patch[core], arrays,
                                    None if out["winding"] is None else {k: v[core] for k, v in out["winding"].items()}))
     else:
-        arrays["winding"] = np.zeros(c, dtype=np.int64)
+        arrays["winding"] = arrays["winding_fine"] = np.zeros(c, dtype=np.int64)
     path = tile_path(scratch, tile)
     temporary = f"{path}.{os.getpid()}.tmp.npz"
     try:

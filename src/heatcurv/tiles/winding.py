@@ -19,8 +19,9 @@ tile) is at most a threshold chosen for about
 (:func:`heatcurv.orient.enclosure.sampled_sources`). The driver,
 once the seam flips are known, gathers every tile's sources, turns their
 normals by the seam flips, and solves the same energy for the sides of all
-patches of all tiles (:func:`heatcurv.orient.enclosure.patch_sides`). A closed cloud's
-patch flips are then applied with the seam flips in the output pass, and a
+patches of all tiles (:func:`heatcurv.orient.enclosure.patch_sides`; a patch whose side is
+contradicted is re-cut into its finer pieces, which every tile cuts too, as in memory). A closed cloud's
+patch and piece flips are then applied with the seam flips in the output pass, and a
 point is flagged (not ``reliable``) when it is a disagreeing source, or when
 more than half of the sources within its fit radius disagree, as in memory.
 
@@ -65,7 +66,7 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         Their result fields (``normals``, ``area``, ``outlier``).
     winding : dict or None
         The core rows of the estimate's ``info["winding"]`` (``patch``,
-        ``source``, ``normals``, ``weight``). None (normals oriented on
+        ``fine``, ``source``, ``normals``, ``weight``). None (normals oriented on
         anchors): the seam pieces are the patches, and the sources are drawn
         from the results alike.
 
@@ -73,25 +74,29 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
     -------
     dict
         ``winding`` (c,): each row's patch, unique within the tile and within
-        one seam piece; the sources' ``winding_rows``, ``winding_x`` (the
-        frame's coordinates), ``winding_normals`` (as the tile oriented them),
+        one seam piece; ``winding_fine`` (c,): its finer piece, unique within
+        the tile; the sources' ``winding_rows``, ``winding_x`` (the frame's
+        coordinates), ``winding_normals`` (as the tile oriented them),
         ``winding_area`` (the frame's unit), ``winding_label``,
-        ``winding_seam``; ``winding_total``: the summed area of the core rows
+        ``winding_fine_label``, ``winding_seam``; ``winding_total``: the summed area of the core rows
         (excluded ones weigh 0), to which the sources' areas are scaled.
     """
     if winding is None:
         excluded = np.asarray(results["outlier"], dtype=bool)
-        label = np.unique(seam, return_inverse=True)[1].ravel()
+        label = fine = np.unique(seam, return_inverse=True)[1].ravel()
         source = sampled_sources(frame.to_stage(points), excluded, frame.n_points)
         normals, weight = results["normals"], np.where(excluded, 0.0, np.abs(results["area"]))
     else:
         pieces = np.column_stack([seam, np.asarray(winding["patch"], dtype=np.int64)])
         label = np.unique(pieces, axis=0, return_inverse=True)[1].ravel()
+        pieces = np.column_stack([pieces, np.asarray(winding["fine"], dtype=np.int64)])
+        fine = np.unique(pieces, axis=0, return_inverse=True)[1].ravel()
         source, normals, weight = np.asarray(winding["source"], dtype=bool), winding["normals"], winding["weight"]
     weight = np.abs(weight) / frame.unit**2
     return {
-        "winding": label.astype(np.int64), "winding_rows": rows[source], "winding_x": frame.to_stage(points[source]),
-        "winding_normals": normals[source], "winding_area": weight[source], "winding_label": label[source],
+        "winding": label.astype(np.int64), "winding_fine": fine.astype(np.int64), "winding_rows": rows[source],
+        "winding_x": frame.to_stage(points[source]), "winding_normals": normals[source],
+        "winding_area": weight[source], "winding_label": label[source], "winding_fine_label": fine[source],
         "winding_seam": seam[source], "winding_total": np.array(weight.sum()),
     }
 
@@ -109,6 +114,11 @@ class WindingSides:
         Patch keys (``tile << 32 | label``), sorted.
     flip : ndarray, shape (p,), bool
         Patches to turn over (after the seam flips); all False when neither ``closed`` nor ``undecided``.
+    fine_keys : ndarray, shape (f,), int64
+        The keys of the finer pieces (``results.rec`` column ``"winding_fine"``) the solve re-cut
+        patches into (:func:`heatcurv.orient.enclosure.patch_sides`), sorted.
+    fine_flip : ndarray, shape (f,), bool
+        Pieces to turn over on top of their patch's flip.
     rows : ndarray, shape (m,), int64
         The sources' input rows, sorted.
     x : ndarray, shape (m, 3)
@@ -127,6 +137,8 @@ class WindingSides:
     column: str
     keys: np.ndarray
     flip: np.ndarray
+    fine_keys: np.ndarray
+    fine_flip: np.ndarray
     rows: np.ndarray
     x: np.ndarray
     bad: np.ndarray
@@ -157,7 +169,7 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
             base = np.int64(tile) << PATCH_SHIFT
             for key in SOURCE_KEYS:
                 value = data[key]
-                if key in ("winding_label", "winding_seam"):
+                if key in ("winding_label", "winding_fine_label", "winding_seam"):
                     value = base | value.astype(np.int64)
                 parts[key].append(np.atleast_1d(value))
     arrays = {key: np.concatenate(value) for key, value in parts.items()}
@@ -167,6 +179,7 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
     order = np.argsort(rows)
     rows, x, nrm = rows[order], arrays["winding_x"][order], arrays["winding_normals"][order]
     area, label, seam = arrays["winding_area"][order], arrays["winding_label"][order], arrays["winding_seam"][order]
+    fine_keys, fine = np.unique(arrays["winding_fine_label"][order], return_inverse=True)
     at = np.clip(np.searchsorted(seam_keys, seam), 0, max(len(seam_keys) - 1, 0))
     turned = (seam_keys[at] == seam) & seam_flip[at] if len(seam_keys) else np.zeros(rows.size, dtype=bool)
     nrm = np.where(turned[:, None], -nrm, nrm)
@@ -175,11 +188,14 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
     if keys.size > MAX_TILED_PATCHES:  # the seam pieces: a winding patch lies in one, so their normals agree
         column = "patch"
         keys, index = np.unique(seam, return_inverse=True)
+        fine_keys, fine = np.zeros(0, dtype=np.int64), None
     weight = area * (arrays["winding_total"].sum() / area.sum())
-    sides = patch_sides(x, nrm, weight, index, keys.size)
-    flip = (sides.sign < 0) if sides.closed or sides.undecided else np.zeros(keys.size, dtype=bool)
-    return WindingSides(column, keys, flip, rows, x, sides.bad, sides.closed, sides.agreement, sides.undecided,
-                        sides.outside_share)
+    sides = patch_sides(x, nrm, weight, index, keys.size, fine, fine_keys.size)
+    decided = sides.closed or sides.undecided
+    flip = (sides.sign < 0) if decided else np.zeros(keys.size, dtype=bool)
+    fine_flip = (sides.fine_sign < 0) if decided else np.zeros(fine_keys.size, dtype=bool)
+    return WindingSides(column, keys, flip, fine_keys[fine_flip], np.ones(int(fine_flip.sum()), dtype=bool), rows, x,
+                        sides.bad, sides.closed, sides.agreement, sides.undecided, sides.outside_share)
 
 
 def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: int = 1 << 20) -> dict:
@@ -211,9 +227,8 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
     for start, points, _ in source.chunks(chunk):
         block = read_results(results_path, start, start + len(points))
         computed = block["computed"] == 1
-        key = block[sides.column]
-        at = np.clip(np.searchsorted(sides.keys, key), 0, len(sides.keys) - 1)
-        turned += int(np.sum(computed & (sides.keys[at] == key) & sides.flip[at]))
+        turned += int(np.sum(computed & (_flipped(block[sides.column], sides.keys, sides.flip)
+                                         ^ _flipped(block["winding_fine"], sides.fine_keys, sides.fine_flip))))
         if sides.undecided:
             flagged = computed & ~(block["outlier"] == 1)
         elif bad_tree is None:
@@ -227,6 +242,14 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
             changed["reliable"] = 0
             write_records(results_path, changed, rows + start)
     return {"turned": turned, "unsupported": unsupported}
+
+
+def _flipped(key: np.ndarray, keys: np.ndarray, flip: np.ndarray) -> np.ndarray:
+    """Whether each row's ``key`` is among the sorted ``keys`` with ``flip`` set, shape (len(key),), bool."""
+    if keys.size == 0:
+        return np.zeros(key.shape, dtype=bool)
+    at = np.clip(np.searchsorted(keys, key), 0, keys.size - 1)
+    return (keys[at] == key) & flip[at]
 
 
 def _contradicted(block, points, start: int, frame, sides: WindingSides, tree: cKDTree, bad_tree: cKDTree):
