@@ -224,16 +224,32 @@ def _straddling_patch(turned_share):
     along = s.points @ tangent
     turned = in_patch & (along >= np.quantile(along[in_patch], 1.0 - turned_share))
     normals = np.where(turned[:, None], -s.normals, s.normals)
-    return s.points, normals, np.full(3000, s.total_area / 3000), label, in_patch
+    return s.points, normals, np.full(3000, s.total_area / 3000), label, in_patch, along
 
 
 def test_a_patch_mostly_contradicted_is_flagged_whole(monkeypatch):
     # 45 % of the patch turned: the field contradicts the levels of 87 of its 499 sources, 17 % of it
     # (a turned spot's own levels agree away from its rim); past the patch share the whole patch is in doubt
-    points, normals, area, label, in_patch = _straddling_patch(0.45)
+    points, normals, area, label, in_patch, _ = _straddling_patch(0.45)
     sides = patch_sides(points, normals, area, label, 6)
     assert sides.closed and 0 < sides.bad[in_patch].mean() < TUNING.patch_share
     assert not sides.bad[~in_patch].any()
     monkeypatch.setattr("heatcurv.orient.enclosure.TUNING", dataclasses.replace(TUNING, patch_share=0.1))
     sides = patch_sides(points, normals, area, label, 6)
     assert sides.bad[in_patch].all() and not sides.bad[~in_patch].any()
+
+
+def test_a_contradicted_patch_is_re_cut_and_its_pieces_turned_back():
+    # one sign for the straddling patch leaves 45 % of it inside out; cut into pieces along the same
+    # direction (as fine_patches' grid cells would), each piece gets its own side and all face out
+    points, normals, area, label, in_patch, along = _straddling_patch(0.45)
+    outward = np.einsum("ij,ij->i", normals, points) > 0
+    sides = patch_sides(points, normals, area, label, 6)
+    right = sides.sign[label] * np.where(outward, 1, -1) > 0
+    assert np.mean(right[in_patch]) == pytest.approx(0.55, abs=0.01)
+    edges = np.quantile(along[in_patch], [0.275, 0.55, 0.775])  # the turned 45 % in two pieces
+    fine = np.where(in_patch, 6 + np.searchsorted(edges, along), label)  # patch 3 in four pieces, the others whole
+    sides = patch_sides(points, normals, area, label, 6, fine, 10)
+    side = sides.sign[label] * sides.fine_sign[fine]
+    assert np.all(side * np.where(outward, 1, -1) > 0)
+    assert np.all(sides.fine_sign[:6] == 1)  # the pieces of patches that were not re-cut keep their patch's side
