@@ -11,7 +11,7 @@ import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.winding import winding_numbers
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
-from heatcurv.orient.enclosure import Enclosure, enclose, patch_fields, patch_sides, patches
+from heatcurv.orient.enclosure import Enclosure, _recut, enclose, patch_fields, patch_sides, patches
 from heatcurv.orient.orientation import _spanning_forest
 from heatcurv.tuning import TUNING
 
@@ -253,3 +253,13 @@ def test_a_contradicted_patch_is_re_cut_and_its_pieces_turned_back():
     side = sides.sign[label] * sides.fine_sign[fine]
     assert np.all(side * np.where(outward, 1, -1) > 0)
     assert np.all(sides.fine_sign[:6] == 1)  # the pieces of patches that were not re-cut keep their patch's side
+
+
+def test_the_re_cut_stays_within_its_unknowns_the_most_contradicted_first(monkeypatch):
+    # five patches of four pieces each; patches 1, 2 and 4 are contradicted, 4 the most, then 2
+    label = np.repeat(np.arange(5), 8)
+    fine = label * 4 + np.tile(np.repeat(np.arange(4), 2), 5)
+    share = np.array([0.0, 0.12, 0.3, 0.05, 0.6])
+    assert np.flatnonzero(_recut(share, label, fine, 5)).tolist() == [1, 2, 4]
+    monkeypatch.setattr("heatcurv.orient.enclosure.MAX_UNKNOWNS", 5 + 8)  # room for the pieces of two
+    assert np.flatnonzero(_recut(share, label, fine, 5)).tolist() == [2, 4]

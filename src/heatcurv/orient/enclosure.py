@@ -88,13 +88,15 @@ from ..tuning import TUNING
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "fine_patches", "patch_sides", "patches", "sampled_sources", "source_keys",
-    "MAX_SOURCES", "warn_undecided",
+    "MAX_SOURCES", "MAX_UNKNOWNS", "warn_undecided",
 ]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
 MAX_SOURCES = 6000
 #: Fewest points a patch aims at, and the most patches a cloud is cut into.
 PATCH_POINTS, MAX_PATCHES = 30, 300
+#: Most unknowns of the solve over re-cut patches: its two fields hold 2 x 6000 x 3000 x 8 bytes (288 MB).
+MAX_UNKNOWNS = 3000
 #: A query sits this fraction of its tangent-plane disc's radius off the surface.
 QUERY_OFFSET = 0.5
 #: Neighbours a query's tangent-plane disc is made of.
@@ -228,7 +230,8 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
 
     With finer patches (:func:`fine_patches`), a closed cloud's patches of
     which more than ``TUNING.refine_share`` of the area disagrees are re-cut
-    into them and the energy is solved again, the other patches as they are,
+    into them (the most contradicted first, within :data:`MAX_UNKNOWNS`
+    unknowns) and the energy is solved again, the other patches as they are,
     every normal turned by the first solve's signs: where the spanning tree
     crossed between the two sides of a thin part inside a patch, one sign
     for the patch cannot be right, one for each of its pieces can. A source
@@ -255,8 +258,9 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     fine_sign = np.ones(n_fine)
     if fine is None or not sides.closed:
         return dataclasses.replace(sides, fine_sign=fine_sign)
-    disagreeing = np.bincount(label, weights=weight * sides.bad, minlength=n_patch)
-    recut = disagreeing > TUNING.refine_share * np.bincount(label, weights=weight, minlength=n_patch)
+    share = np.bincount(label, weights=weight * sides.bad, minlength=n_patch) / np.maximum(
+        np.bincount(label, weights=weight, minlength=n_patch), np.finfo(float).tiny)
+    recut = _recut(share, label, fine, n_patch)
     if not recut.any():
         return dataclasses.replace(sides, fine_sign=fine_sign)
     # the re-cut patches' pieces are unknowns of their own, after the others
@@ -270,6 +274,22 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     fine_sign[pieces] = again.sign[n_patch:]
     sign = sides.sign * np.where(recut, 1.0, again.sign[:n_patch])
     return dataclasses.replace(sides, sign=sign, bad=sides.bad | again.bad, fine_sign=fine_sign)
+
+
+def _recut(share: np.ndarray, label: np.ndarray, fine: np.ndarray, n_patch: int) -> np.ndarray:
+    """The patches to re-cut, shape (n_patch,), bool: over ``TUNING.refine_share`` contradicted, the most first.
+
+    The second solve's unknowns (the patches plus the pieces of the re-cut
+    ones) stay within :data:`MAX_UNKNOWNS`.
+    """
+    candidates = np.flatnonzero(share > TUNING.refine_share)
+    pairs = np.unique(np.column_stack([label, fine]), axis=0)
+    pieces = np.bincount(pairs[:, 0], minlength=n_patch)[candidates]
+    order = np.argsort(-share[candidates], kind="stable")
+    fits = np.cumsum(pieces[order]) <= MAX_UNKNOWNS - n_patch
+    recut = np.zeros(n_patch, dtype=bool)
+    recut[candidates[order[fits]]] = True
+    return recut
 
 
 def _solved_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int) -> PatchSides:
