@@ -198,14 +198,14 @@ def test_a_single_point_behind_an_unsure_edge_joins_its_neighbours_patch():
     costs[98] = 0.9  # the last point alone behind such an edge
     costs[0] = 0.9  # and the first
     points, forest = _chain_forest(costs)
-    label = patches(points, forest, np.zeros(100, dtype=bool))
+    label, _ = patches(points, forest, np.zeros(100, dtype=bool))
     assert label[99] == label[98] and label[0] == label[1]
     assert label[49] != label[50]
     assert set(np.unique(label[:50])).isdisjoint(np.unique(label[50:]))
     # an excluded point is no patch's, and a point whose only edge leads to it stays its own
     excluded = np.zeros(100, dtype=bool)
     excluded[98] = True
-    label = patches(points, forest, excluded)
+    label, _ = patches(points, forest, excluded)
     assert label[98] == -1 and label[99] >= 0 and np.count_nonzero(label == label[99]) == 1
 
 
@@ -241,7 +241,7 @@ def test_a_patch_mostly_contradicted_is_flagged_whole(monkeypatch):
 
 def test_a_contradicted_patch_is_re_cut_and_its_pieces_turned_back():
     # one sign for the straddling patch leaves 45 % of it inside out; cut into pieces along the same
-    # direction (as fine_patches' grid cells would), each piece gets its own side and all face out
+    # direction (as the grid cells of patches' pieces would), each piece gets its own side and all face out
     points, normals, area, label, in_patch, along = _straddling_patch(0.45)
     outward = np.einsum("ij,ij->i", normals, points) > 0
     sides = patch_sides(points, normals, area, label, 6)

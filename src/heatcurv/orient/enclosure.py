@@ -40,7 +40,7 @@ inside) out of ``[0, 1]``. This module uses that field twice.
 3. **Finer pieces.** Where the tree crossed between the two sides of a thin
    part inside a patch, no sign of the patch is right. A closed cloud's
    patches with more than ``TUNING.refine_share`` of their area flagged are
-   cut again into pieces of a quarter of their size (:func:`fine_patches`),
+   cut again into pieces of a quarter of their size (:func:`patches`),
    and the energy is solved once more over those pieces and the other
    patches, with the first solve's sides as the tree's; a source is flagged
    when either solve contradicts it.
@@ -87,7 +87,7 @@ from ..geometry.neighbourhood import Neighbourhood
 from ..tuning import TUNING
 
 __all__ = [
-    "Enclosure", "PatchSides", "enclose", "fine_patches", "patch_sides", "patches", "sampled_sources", "source_keys",
+    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys",
     "MAX_SOURCES", "MAX_UNKNOWNS", "warn_undecided",
 ]
 
@@ -170,8 +170,7 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     nothing = Enclosure(normals, np.zeros(n, dtype=bool), False, 0.0, 0)
     if n - excluded.sum() < 16:
         return nothing
-    patch = patches(points, forest, excluded)
-    fine = fine_patches(points, forest, excluded, patch)
+    patch, fine = patches(points, forest, excluded)
     source = _sources(points, patch, excluded)
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
     sides = patch_sides(points[source], normals[source], weight, patch[source], int(patch.max()) + 1,
@@ -228,7 +227,7 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
                 fine: np.ndarray | None = None, n_fine: int = 0) -> PatchSides:
     """Each patch's side and each source's verdict, from the winding number of the sources (module docstring).
 
-    With finer patches (:func:`fine_patches`), a closed cloud's patches of
+    With finer patches (:func:`patches`' pieces), a closed cloud's patches of
     which more than ``TUNING.refine_share`` of the area disagrees are re-cut
     into them (the most contradicted first, within :data:`MAX_UNKNOWNS`
     unknowns) and the energy is solved again, the other patches as they are,
@@ -359,55 +358,49 @@ def _unsupported(source: np.ndarray, bad: np.ndarray, neighbourhood: Neighbourho
 
 
 def patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray,
-            cloud_points: int | None = None) -> np.ndarray:
-    """Cut the spanning forest into patches: its subtrees inside grid cells, small ones merged, shape (n,).
+            cloud_points: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Cut the spanning forest into patches, and each patch into finer pieces, two arrays of shape (n,).
 
-    The cells' side is chosen for about ``max(PATCH_POINTS, N / MAX_PATCHES)``
-    points a cell, ``N`` the points not excluded, or ``cloud_points`` when
-    ``points`` are a part (a tile) of a cloud of that many; a piece of fewer than a quarter of that joins the patch
-    across one of its cut tree edges (in one pass over them), so every patch
-    is a subtree and the orientation inside it is the tree's. Tree edges
-    across which the normals or the tangent planes disagree join nothing,
-    except that a piece of fewer than ``TUNING.tiny_patch`` points (a single
-    point) joins a neighbour across any of its tree edges: noise leaves
-    single points behind such edges, thousands on a noisy cloud of a
-    million points, and each would be one more unknown of the energy.
-    Excluded points get -1.
+    Patches are the forest's subtrees inside grid cells whose side is chosen
+    for about ``max(PATCH_POINTS, N / MAX_PATCHES)`` points a cell, ``N`` the
+    points not excluded, or ``cloud_points`` when ``points`` are a part (a
+    tile) of a cloud of that many; a piece of fewer than a quarter of that
+    joins the patch across one of its cut tree edges (in one pass over them),
+    so every patch is a subtree and the orientation inside it is the tree's.
+    Tree edges across which the normals or the tangent planes disagree join
+    nothing, except that a piece of fewer than ``TUNING.tiny_patch`` points (a
+    single point) joins a neighbour across any of its tree edges: noise leaves
+    single points behind such edges, thousands on a noisy cloud of a million
+    points, and each would be one more unknown of the energy.
+
+    The pieces are cut alike inside each patch, in cells of half the side (a
+    quarter of the points): what :func:`patch_sides` solves for where a
+    patch's one side is contradicted. Excluded points get -1 in both.
     """
     n = points.shape[0]
     i, j, entry, length = undirected_edges(forest.indptr, forest.indices, excluded, points)
-    cost = forest.data[entry]
-    sure = cost <= TUNING.sure_cost
+    sure = forest.data[entry] <= TUNING.sure_cost
     target = max(PATCH_POINTS, (n - excluded.sum() if cloud_points is None else cloud_points) / MAX_PATCHES)
-    side = np.sqrt(target) * (np.median(length) if length.size else 1.0)
-    cell = _cell_ids(points, side)
-    label = merged_components(n, i, j, (cell[i] == cell[j]) & sure, sure, int(target / 4))
+    spacing = np.median(length) if length.size else 1.0
     # a point that only unsure edges reach (a noisy point whose normal disagrees with its neighbours')
     # cannot carry a side of its own: it joins a neighbour across its tree edge
-    label = merged_components(n, i, j, label[i] == label[j], np.ones(i.size, dtype=bool), TUNING.tiny_patch)
-    label[excluded] = -1
-    used = np.unique(label[label >= 0])
-    relabel = np.full(label.max() + 2, -1)
-    relabel[used] = np.arange(used.size)
-    return relabel[label]
+    patch = _cut(points, excluded, i, j, sure, np.ones(i.size, dtype=bool), target, spacing)
+    within = patch[i] == patch[j]
+    return patch, _cut(points, excluded, i, j, sure & within, within, target / 4, spacing)
 
 
-def fine_patches(points: np.ndarray, forest: sp.csr_matrix, excluded: np.ndarray, patch: np.ndarray,
-                 cloud_points: int | None = None) -> np.ndarray:
-    """Each patch of :func:`patches` cut again in grid cells of half the side, shape (n,).
+def _cut(points, excluded, i, j, sure, joinable, target: float, spacing: float) -> np.ndarray:
+    """Components of the tree edges ``(i, j)`` that are ``sure`` and inside one grid cell, shape (n,).
 
-    The pieces are subtrees inside one patch, cut as :func:`patches` cuts
-    (small pieces join a neighbour across a tree edge inside the same patch),
-    for a quarter of the points a patch aims at: what :func:`patch_sides`
-    solves for where a patch's one side is contradicted. Excluded points get -1.
+    The cells hold about ``target`` points; a piece of fewer than a quarter
+    of that joins a neighbour across a ``sure`` edge, one of fewer than
+    ``TUNING.tiny_patch`` points across a ``joinable`` one. Labels are
+    ``0..count-1``, excluded points -1.
     """
     n = points.shape[0]
-    i, j, entry, length = undirected_edges(forest.indptr, forest.indices, excluded, points)
-    inside = (patch[i] == patch[j]) & (forest.data[entry] <= TUNING.sure_cost)
-    target = max(PATCH_POINTS, (n - excluded.sum() if cloud_points is None else cloud_points) / MAX_PATCHES) / 4
-    cell = _cell_ids(points, np.sqrt(target) * (np.median(length) if length.size else 1.0))
-    label = merged_components(n, i, j, inside & (cell[i] == cell[j]), inside, max(int(target / 4), 1))
-    label = merged_components(n, i, j, label[i] == label[j], patch[i] == patch[j], TUNING.tiny_patch)
+    cell = _cell_ids(points, np.sqrt(target) * spacing)
+    label = merged_components(n, i, j, (cell[i] == cell[j]) & sure, sure, int(target / 4))
+    label = merged_components(n, i, j, label[i] == label[j], joinable, TUNING.tiny_patch)
     label[excluded] = -1
     used = np.unique(label[label >= 0])
     relabel = np.full(label.max() + 2, -1)

@@ -86,7 +86,7 @@ from .._kernels import segment as kernels
 from ..errors import HeatcurvError
 from ..geometry.neighbourhood import Neighbourhood, knn_neighbourhood
 from ..tuning import TUNING
-from .enclosure import enclose, fine_patches, patches, sampled_sources
+from .enclosure import enclose, patches, sampled_sources
 
 __all__ = [
     "ORIENT_MODES", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
@@ -203,7 +203,7 @@ class Orientation:
     weights : ndarray, shape (n,), optional
         With ``patch``: the sources' dipole strengths (the areas, 0 for excluded points).
     fine : ndarray, shape (n,), int, optional
-        With ``patch``: each patch cut finer (:func:`heatcurv.orient.enclosure.fine_patches`), the
+        With ``patch``: each patch cut finer (:func:`heatcurv.orient.enclosure.patches`), the
         pieces the winding number solves for where a patch's one side is contradicted.
     """
 
@@ -489,8 +489,8 @@ def orient(
     agreement = outside_share = None
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
-        patch = patches(points, tree, cut, cloud_points)
-        part = {"patch": patch, "fine": fine_patches(points, tree, cut, patch, cloud_points), "weights": w,
+        patch, fine = patches(points, tree, cut, cloud_points)
+        part = {"patch": patch, "fine": fine, "weights": w,
                 "sources": sampled_sources(points, cut, n if cloud_points is None else cloud_points)}
     else:
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded)

@@ -41,7 +41,7 @@ from .sources import CHUNK_POINTS, Source
 
 __all__ = [
     "RECORD", "DEFAULT_FIELDS", "EXTRA_FIELDS", "ERROR_FIELDS", "TILED_FIELDS", "TILED_WRITE", "create_results",
-    "store_tile", "write_records",
+    "keyed_flips", "store_tile", "write_records",
     "read_results", "output_columns", "write_output",
 ]
 
@@ -240,6 +240,14 @@ def output_columns(block: np.ndarray, wanted, dtype) -> dict:
     return out
 
 
+def keyed_flips(key: np.ndarray, keys: np.ndarray, flip: np.ndarray) -> np.ndarray:
+    """Whether each ``key`` is among the sorted ``keys`` with ``flip`` set, shape (len(key),), bool."""
+    if len(keys) == 0:
+        return np.zeros(len(key), dtype=bool)
+    at = np.clip(np.searchsorted(keys, key), 0, len(keys) - 1)
+    return (keys[at] == key) & flip[at]
+
+
 def _results_chunks(results_path, count: int, flips, size: int = CHUNK_POINTS):
     """``(start, records)`` in input order, each record turned over where an odd number of ``flips`` say so.
 
@@ -251,9 +259,7 @@ def _results_chunks(results_path, count: int, flips, size: int = CHUNK_POINTS):
         block = read_results(results_path, start, stop)
         flip = np.zeros(len(block), dtype=bool)
         for column, keys, flipped in flips or ():
-            if len(keys):
-                at = np.clip(np.searchsorted(keys, block[column]), 0, len(keys) - 1)
-                flip ^= (keys[at] == block[column]) & flipped[at]
+            flip ^= keyed_flips(block[column], keys, flipped)
         yield start, _flipped(block, flip & (block["computed"] == 1))
 
 

@@ -38,7 +38,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..orient.enclosure import patch_sides, sampled_sources
-from .output import PATCH_SHIFT, SOURCE_KEYS, read_results, write_records
+from .output import PATCH_SHIFT, SOURCE_KEYS, keyed_flips, read_results, write_records
 
 __all__ = ["MAX_TILED_PATCHES", "WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
 
@@ -115,8 +115,8 @@ class WindingSides:
     flip : ndarray, shape (p,), bool
         Patches to turn over (after the seam flips); all False when neither ``closed`` nor ``undecided``.
     fine_keys : ndarray, shape (f,), int64
-        The keys of the finer pieces (``results.rec`` column ``"winding_fine"``) the solve re-cut
-        patches into (:func:`heatcurv.orient.enclosure.patch_sides`), sorted.
+        The keys of the patches' finer pieces (``results.rec`` column ``"winding_fine"``) that hold a
+        source, sorted (:func:`heatcurv.orient.enclosure.patch_sides`).
     fine_flip : ndarray, shape (f,), bool
         Pieces to turn over on top of their patch's flip.
     rows : ndarray, shape (m,), int64
@@ -180,9 +180,7 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
     rows, x, nrm = rows[order], arrays["winding_x"][order], arrays["winding_normals"][order]
     area, label, seam = arrays["winding_area"][order], arrays["winding_label"][order], arrays["winding_seam"][order]
     fine_keys, fine = np.unique(arrays["winding_fine_label"][order], return_inverse=True)
-    at = np.clip(np.searchsorted(seam_keys, seam), 0, max(len(seam_keys) - 1, 0))
-    turned = (seam_keys[at] == seam) & seam_flip[at] if len(seam_keys) else np.zeros(rows.size, dtype=bool)
-    nrm = np.where(turned[:, None], -nrm, nrm)
+    nrm = np.where(keyed_flips(seam, seam_keys, seam_flip)[:, None], -nrm, nrm)
     column = "winding"
     keys, index = np.unique(label, return_inverse=True)
     if keys.size > MAX_TILED_PATCHES:  # the seam pieces: a winding patch lies in one, so their normals agree
@@ -194,8 +192,8 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
     decided = sides.closed or sides.undecided
     flip = (sides.sign < 0) if decided else np.zeros(keys.size, dtype=bool)
     fine_flip = (sides.fine_sign < 0) if decided else np.zeros(fine_keys.size, dtype=bool)
-    return WindingSides(column, keys, flip, fine_keys[fine_flip], np.ones(int(fine_flip.sum()), dtype=bool), rows, x,
-                        sides.bad, sides.closed, sides.agreement, sides.undecided, sides.outside_share)
+    return WindingSides(column, keys, flip, fine_keys, fine_flip, rows, x, sides.bad, sides.closed, sides.agreement,
+                        sides.undecided, sides.outside_share)
 
 
 def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: int = 1 << 20) -> dict:
@@ -227,8 +225,8 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
     for start, points, _ in source.chunks(chunk):
         block = read_results(results_path, start, start + len(points))
         computed = block["computed"] == 1
-        turned += int(np.sum(computed & (_flipped(block[sides.column], sides.keys, sides.flip)
-                                         ^ _flipped(block["winding_fine"], sides.fine_keys, sides.fine_flip))))
+        turned += int(np.sum(computed & (keyed_flips(block[sides.column], sides.keys, sides.flip)
+                                         ^ keyed_flips(block["winding_fine"], sides.fine_keys, sides.fine_flip))))
         if sides.undecided:
             flagged = computed & ~(block["outlier"] == 1)
         elif bad_tree is None:
@@ -242,14 +240,6 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
             changed["reliable"] = 0
             write_records(results_path, changed, rows + start)
     return {"turned": turned, "unsupported": unsupported}
-
-
-def _flipped(key: np.ndarray, keys: np.ndarray, flip: np.ndarray) -> np.ndarray:
-    """Whether each row's ``key`` is among the sorted ``keys`` with ``flip`` set, shape (len(key),), bool."""
-    if keys.size == 0:
-        return np.zeros(key.shape, dtype=bool)
-    at = np.clip(np.searchsorted(keys, key), 0, keys.size - 1)
-    return (keys[at] == key) & flip[at]
 
 
 def _contradicted(block, points, start: int, frame, sides: WindingSides, tree: cKDTree, bad_tree: cKDTree):
