@@ -31,6 +31,9 @@ def test_the_reason_says_why_the_sides_are_what_they_are():
     assert explained(OrientationReport("given"), None, 10).reason == "the given normals, as they are"
     assert explained(OrientationReport("viewpoint"), None, 10).reason == "towards the viewpoint"
     assert explained(OrientationReport("up"), None, 10).reason == "orient='up': towards +z"
+    crowns = explained(OrientationReport("viewpoint", axisless=3), None, 10).reason
+    assert crowns == ("towards the viewpoint; 3 points whose ball has no normal axis (a tree crown, a wire) start "
+                      "from it, flagged")
     closed = explained(OrientationReport("outward", closed=True), None, 10)
     assert closed.reason.startswith("encloses a volume")
     part = explained(OrientationReport("outward", closed=None), None, 10)

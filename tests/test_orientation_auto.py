@@ -79,7 +79,8 @@ def test_a_lidar_tile_without_options_is_oriented_up_and_says_why():
     # a convention on the coordinates: every point counted, so that a turned cloud may differ
     assert report.by_convention == auto.info["n_distinct"]  # duplicates counted once
     assert np.array_equal(auto.normals, up.normals) and np.array_equal(auto.mean, up.mean)
-    assert up.info["orientation"].reason == "orient='up': towards +z" and up.info["orientation"].by_convention == 0
+    assert up.info["orientation"].reason.startswith("orient='up': towards +z")
+    assert up.info["orientation"].by_convention == 0
 
 
 def test_a_closed_cloud_without_options_is_outward_and_says_why():
@@ -99,18 +100,24 @@ def _on_axis_disagreement(a, b):
 
 
 def test_a_lidar_tile_and_its_random_half_agree_without_options(records):
-    # the tree crowns have no surface normal: their PCA axis changes with the sample (2.6 % of the points
-    # off by more than 30 degrees), so sides are compared where the axes agree
+    # the tree crowns have no surface normal: where their balls have no axis at all the normal is up
+    # itself (0.74 % of all points disagreed while a crown's PCA axis, which turns with the sample, set it)
     tile = surfaces.lidar_tile(22000)
     half = np.sort(np.random.default_rng(1).choice(len(tile.points), len(tile.points) // 2, replace=False))
     full, part = heatcurv.estimate(tile.points), heatcurv.estimate(tile.points[half])
     assert full.info["orientation"].mode == part.info["orientation"].mode == "up"
+    crowns = tile.labels == surfaces.VEGETATION
+    axisless = full.info["orientation"].axisless
+    assert 0.5 * crowns.sum() <= axisless <= 1.1 * crowns.sum()  # about half the crowns' balls (and a few wires)
+    cosine = np.einsum("ij,ij->i", full.normals[half], part.normals)
+    everywhere = 100.0 * np.mean(cosine < 0)
+    assert everywhere <= 0.5  # a cloud and its random half agree on >= 99.5 % of the points
     disagree, on_axis = _on_axis_disagreement(full.normals[half], part.normals)
     assert disagree <= 0.5 and on_axis >= 0.95
-    surface = tile.labels[half] != surfaces.VEGETATION
-    everywhere = 100.0 * np.mean(np.einsum("ij,ij->i", full.normals[half], part.normals)[surface] < 0)
-    assert everywhere <= 0.5
-    records.check("orientation_auto/lidar-tile-22000-half", on_axis_disagree=disagree, surface_disagree=everywhere)
+    on_surface = 100.0 * np.mean(cosine[~crowns[half]] < 0)
+    assert on_surface <= 0.5
+    records.check("orientation_auto/lidar-tile-22000-half", all_disagree=everywhere, on_axis_disagree=disagree,
+                  surface_disagree=on_surface)
 
 
 def test_turning_an_open_cloud_that_is_not_terrain_turns_its_normals_with_it():

@@ -76,13 +76,16 @@ def explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> O
     """
     if report.mode == "given":
         return replace(report, reason="the given normals, as they are")
+    # balls without a normal axis (tree crowns, wires) take the reference direction itself
+    axisless = (f"; {report.axisless} points whose ball has no normal axis (a tree crown, a wire) start from it, "
+                "flagged") if report.axisless else ""
     if report.mode == "viewpoint":
-        return replace(report, reason="towards the viewpoint")
+        return replace(report, reason="towards the viewpoint" + axisless)
     if report.mode == "up":
         if policy is None:
-            return replace(report, reason="orient='up': towards +z")
+            return replace(report, reason="orient='up': towards +z" + axisless)
         # turning the cloud may change the choice
-        return replace(report, reason=policy.reason, by_convention=n, policy=policy)
+        return replace(report, reason=policy.reason + axisless, by_convention=n, policy=policy)
     if report.closed:
         why = "encloses a volume: away from it (winding number)"
     elif report.undecided:
@@ -137,6 +140,6 @@ def normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np
         policy = _auto_policy(op, keys, choices, nrm, outlier) if mode == "auto" else None
         orientation = orient(X, nrm, nbhd, op.areas, mode=mode if policy is None else policy.mode, towards=towards,
                              excluded=outlier, whole_cloud=choices is None,
-                             cloud_points=None if choices is None else choices.frame.n_points)
+                             cloud_points=None if choices is None else choices.frame.n_points, roundness=roundness)
     return orientation.normals, (planarity, roundness), orientation, policy
 

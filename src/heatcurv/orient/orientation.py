@@ -146,6 +146,11 @@ class OrientationReport:
         Which rule chose the sides, in words (``orient="auto"``: why this mode).
     policy : AutoPolicy or None
         ``orient="auto"`` without a viewpoint: the choice and the numbers it was made on.
+    axisless : int
+        ``"up"``, ``"viewpoint"``: points whose ball has no normal axis
+        (``TUNING.axisless_ball``: a tree crown's scatter, a wire), whose
+        normal starts from the reference direction itself; counted in
+        ``ambiguous``.
     on_anchors : int
         0 when every point's normal was oriented over the points' graph; else
         the noise swamped the operator's balls and the normals were oriented
@@ -165,6 +170,7 @@ class OrientationReport:
     agreement: float | None = None
     outside_share: float | None = None
     undecided: bool = False
+    axisless: int = 0
     reason: str = ""
     policy: AutoPolicy | None = None
 
@@ -417,6 +423,7 @@ def orient(
     excluded: np.ndarray | None = None,
     whole_cloud: bool = True,
     cloud_points: int | None = None,
+    roundness: np.ndarray | None = None,
 ) -> Orientation:
     """Orient unoriented normals by one of :data:`ORIENT_MODES`.
 
@@ -459,6 +466,12 @@ def orient(
     cloud_points : int, optional
         Points of the whole cloud (``whole_cloud`` False): the patches are cut
         to the size the whole cloud's would have.
+    roundness : ndarray, shape (n,), optional
+        ``"up"`` and ``"viewpoint"``: each ball's ``lambda_0 / lambda_1``
+        (:func:`heatcurv.orient.normals.pca_normals`). A ball from
+        ``TUNING.axisless_ball`` on has no normal axis (a tree crown's
+        scatter, a wire): its normal becomes the reference direction itself,
+        flagged ambiguous, so that no sample decides it.
 
     Returns
     -------
@@ -475,7 +488,7 @@ def orient(
         w = np.where(excluded, 0.0, w)
     reference = _reference_directions(points, mode, towards)
     if reference is not None:
-        return _orient_locally(points, normals, graph, reference, mode, excluded)
+        return _orient_locally(points, normals, graph, reference, mode, excluded, roundness)
 
     oriented, tree, labels = _tree_sides(points, normals, graph)
     n_comp = int(labels.max()) + 1
@@ -507,8 +520,13 @@ def orient(
     return Orientation(oriented, ambiguous, report, **part)
 
 
-def _orient_locally(points, normals, graph, reference, mode, excluded) -> Orientation:
-    """``"up"`` and ``"viewpoint"``: anchors by their reference direction, the others by :func:`local_sides`."""
+def _orient_locally(points, normals, graph, reference, mode, excluded, roundness=None) -> Orientation:
+    """``"up"`` and ``"viewpoint"``: anchors by their reference direction, the others by :func:`local_sides`.
+
+    A ball without a normal axis (``roundness`` from ``TUNING.axisless_ball``)
+    gets the reference direction: its PCA axis is whichever of two about equal
+    variances the sample made smaller, and turns with it.
+    """
     facing = np.einsum("ij,ij->i", normals, reference)
     anchors = np.abs(facing) >= TUNING.anchor_cosine
     facing_side = np.where(facing < 0, -1.0, 1.0)
@@ -516,13 +534,18 @@ def _orient_locally(points, normals, graph, reference, mode, excluded) -> Orient
     undecided = side == 0
     oriented = normals * np.where(undecided, facing_side, side)[:, None]
     ambiguous = _conflicting(points, oriented, graph) | undecided
+    axisless = np.zeros(points.shape[0], dtype=bool)
+    if roundness is not None:
+        axisless = np.asarray(roundness) >= TUNING.axisless_ball  # NaN (a ball of one line) compares False
+        oriented[axisless] = reference[axisless]
+        ambiguous |= axisless
     if excluded is not None:
         ambiguous &= ~excluded  # an outlier's own side: it is flagged an outlier already
     reach = row_reach(own_reach, graph)
     n_comp, labels = csgraph.connected_components(_symmetric(graph), directed=False)
     report = OrientationReport(
         mode=mode, components=_surface_components(labels, excluded), anchored=int(anchors.sum()),
-        ambiguous=int(ambiguous.sum()),
+        ambiguous=int(ambiguous.sum()), axisless=int(axisless.sum()),
     )
     return Orientation(oriented, ambiguous, report, reach)
 
