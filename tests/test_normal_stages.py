@@ -32,8 +32,8 @@ def test_the_reason_says_why_the_sides_are_what_they_are():
     assert explained(OrientationReport("viewpoint"), None, 10).reason == "towards the viewpoint"
     assert explained(OrientationReport("up"), None, 10).reason == "orient='up': towards +z"
     crowns = explained(OrientationReport("viewpoint", axisless=3), None, 10).reason
-    assert crowns == ("towards the viewpoint; 3 points whose ball has no normal axis (a tree crown, a wire) start "
-                      "from it, flagged")
+    assert crowns == ("towards the viewpoint; 3 points whose ball has no normal axis (a tree crown, a wire, strong "
+                      "noise) start from it")
     closed = explained(OrientationReport("outward", closed=True), None, 10)
     assert closed.reason.startswith("encloses a volume")
     part = explained(OrientationReport("outward", closed=None), None, 10)

@@ -1,5 +1,7 @@
 """heatcurv.orient.orientation: outward, up and towards a scanner; thin parts; what cannot be oriented is flagged."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -362,7 +364,7 @@ def _ground_and_crown(seed=0):
 
 
 @pytest.mark.parametrize("mode", ["up", "viewpoint"])
-def test_a_ball_without_a_normal_axis_faces_the_reference_direction_and_is_flagged(mode):
+def test_a_ball_without_a_normal_axis_faces_the_reference_direction(mode):
     pts, crown = _ground_and_crown()
     nb = _knn(pts)
     nrm, _, roundness = pca_normals(pts, nb, roundness=True)
@@ -375,11 +377,33 @@ def test_a_ball_without_a_normal_axis_faces_the_reference_direction_and_is_flagg
     reference = np.broadcast_to([0.0, 0.0, 1.0], pts.shape) if mode == "up" else towards - pts
     reference = reference / np.linalg.norm(reference, axis=1)[:, None]
     np.testing.assert_allclose(got.normals[axisless], reference[axisless], atol=1e-15)
-    assert got.ambiguous[axisless].all() and got.report.axisless == axisless.sum()
-    # the other points as without the rule
+    assert got.report.axisless == axisless.sum()
+    # the other points and every flag as without the rule (the estimator judges these points by their fit)
     plain = orient(pts, nrm, nb, mode=mode, towards=towards)
     np.testing.assert_array_equal(got.normals[~axisless], plain.normals[~axisless])
+    np.testing.assert_array_equal(got.ambiguous, plain.ambiguous)
     assert plain.report.axisless == 0
+
+
+def test_a_noisy_surface_whose_balls_have_no_axis_stays_reliable(monkeypatch):
+    # noise of 0.6 % of the diagonal makes some of the operator's balls as round as a crown's; the fit over
+    # its wider ball finds the surface (residual about the cloud's noise), so nothing is lost
+    sample = surfaces.get("saddle").sample(20000, "random", seed=0, noise=0.006)
+    pts = sample.points
+    res = heatcurv.estimate(pts)
+    assert res.info["orientation"].mode == "up" and res.info["orientation"].axisless >= 500  # measured 836
+    for module in ("heatcurv.orient.orientation", "heatcurv.estimator"):
+        monkeypatch.setattr(f"{module}.TUNING", dataclasses.replace(TUNING, axisless_ball=np.inf))
+    plain = heatcurv.estimate(pts)
+    assert plain.info["orientation"].axisless == 0
+    # the refined normals start elsewhere at the round balls: measured 2 points newly reliable, none lost
+    assert np.count_nonzero(res.reliable != plain.reliable) <= 10 and not (plain.reliable & ~res.reliable).any()
+    # their fits move a little (normals 0.003 degrees, median), no closer to or further from the truth:
+    # mean absolute error of the mean curvature over the 1127 moved points 0.07730 of its scale either way
+    both = res.reliable & plain.reliable
+    moved = both & (res.mean != plain.mean)
+    error = [np.mean(np.abs(r.mean - sample.mean)[moved]) for r in (res, plain)]
+    assert moved.sum() <= 2000 and abs(error[0] - error[1]) <= 1e-3 * error[1]
 
 
 def test_a_crown_and_its_random_half_agree_where_the_pca_axis_does_not():

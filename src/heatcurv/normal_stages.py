@@ -77,8 +77,8 @@ def explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> O
     if report.mode == "given":
         return replace(report, reason="the given normals, as they are")
     # balls without a normal axis (tree crowns, wires) take the reference direction itself
-    axisless = (f"; {report.axisless} points whose ball has no normal axis (a tree crown, a wire) start from it, "
-                "flagged") if report.axisless else ""
+    axisless = (f"; {report.axisless} points whose ball has no normal axis (a tree crown, a wire, strong noise) "
+                "start from it") if report.axisless else ""
     if report.mode == "viewpoint":
         return replace(report, reason="towards the viewpoint" + axisless)
     if report.mode == "up":

@@ -98,6 +98,9 @@ class Tuning:
     # --- orientation (heatcurv.orient.orientation, heatcurv.orient.enclosure) ---
     #: The LiDAR tile's tree crowns: median 0.52, 5 % under 0.34; its ground, roofs and walls: 0.08 % from 0.5.
     axisless_ball: float = _knob(0.5, "lambda_0 / lambda_1 from which up and viewpoint give a ball no normal axis")
+    #: Such balls' fit residual over the cloud's noise: the LiDAR tiles' crowns 13-46 (5-50 %); saddles and
+    #: paraboloids with noise of 0.6 and 1.2 % of their diagonal 1.1-1.7.
+    axisless_residual: float = _knob(3.0, "fit residual, in noise sigmas, up to which an axisless ball is a surface")
     #: 72.5 degrees from the reference direction: a normal closer to perpendicular takes its neighbours' side.
     anchor_cosine: float = _knob(0.3, "|n . r| from which a normal's side is read off its reference direction")
     #: A wall takes about its half-height over the graph's edge length: a few to ten rounds on our LiDAR tiles.

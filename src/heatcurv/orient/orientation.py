@@ -148,9 +148,8 @@ class OrientationReport:
         ``orient="auto"`` without a viewpoint: the choice and the numbers it was made on.
     axisless : int
         ``"up"``, ``"viewpoint"``: points whose ball has no normal axis
-        (``TUNING.axisless_ball``: a tree crown's scatter, a wire), whose
-        normal starts from the reference direction itself; counted in
-        ``ambiguous``.
+        (``TUNING.axisless_ball``: a tree crown's scatter, a wire, strong
+        noise), whose normal starts from the reference direction itself.
     on_anchors : int
         0 when every point's normal was oriented over the points' graph; else
         the noise swamped the operator's balls and the normals were oriented
@@ -471,7 +470,8 @@ def orient(
         (:func:`heatcurv.orient.normals.pca_normals`). A ball from
         ``TUNING.axisless_ball`` on has no normal axis (a tree crown's
         scatter, a wire): its normal becomes the reference direction itself,
-        flagged ambiguous, so that no sample decides it.
+        so that no sample decides it (the estimator flags it unless its fit
+        finds a surface there).
 
     Returns
     -------
@@ -525,7 +525,9 @@ def _orient_locally(points, normals, graph, reference, mode, excluded, roundness
 
     A ball without a normal axis (``roundness`` from ``TUNING.axisless_ball``)
     gets the reference direction: its PCA axis is whichever of two about equal
-    variances the sample made smaller, and turns with it.
+    variances the sample made smaller, and turns with it. Its side is not
+    flagged here: a noisy surface's ball can be as round, and its fit finds
+    the surface (:func:`heatcurv.estimator.estimate` judges it by the fit).
     """
     facing = np.einsum("ij,ij->i", normals, reference)
     anchors = np.abs(facing) >= TUNING.anchor_cosine
@@ -538,7 +540,6 @@ def _orient_locally(points, normals, graph, reference, mode, excluded, roundness
     if roundness is not None:
         axisless = np.asarray(roundness) >= TUNING.axisless_ball  # NaN (a ball of one line) compares False
         oriented[axisless] = reference[axisless]
-        ambiguous |= axisless
     if excluded is not None:
         ambiguous &= ~excluded  # an outlier's own side: it is flagged an outlier already
     reach = row_reach(own_reach, graph)
