@@ -48,9 +48,10 @@ Columns
 The second table turns the LiDAR tile, the face, the torus (closed, 20 000
 random points) and the bunny scan shipped with heatcurv (closed, 1839
 points) into 8 random poses (``Rotation.random(random_state=i)``) and counts
-the policies chosen and the worst ``mixed %``, ``half off, axes %`` and ``half off, reliable %`` over
-the poses ("rotating an open cloud changes nothing except where the
-convention is up").
+the policies chosen and the worst ``mixed %``, ``half off %`` (separately over
+the poses oriented up and outward; ``-`` where no pose was), ``half off, axes %``
+and ``half off, reliable %`` over the poses ("rotating an open cloud changes
+nothing except where the convention is up").
 
 Usage::
 
@@ -162,7 +163,7 @@ def measure(name: str, load=None, rotation=None) -> dict:
 COLUMNS = ["cloud", "points", "policy", "vertical %", "down %", "mixed %", "wrong %", "half off %",
            "half off, axes %", "half off, reliable %", "s"]
 POSE_COLUMNS = ["cloud", "poses", "up", "outward (open)", "outward (closed)", "worst mixed %",
-                "worst half off, axes %", "worst half off, reliable %"]
+                "worst half off %, up / outward", "worst half off, axes %", "worst half off, reliable %"]
 
 
 def cells(r: dict) -> list[str]:
@@ -175,8 +176,14 @@ def cells(r: dict) -> list[str]:
 def pose_cells(name: str, results: list) -> list[str]:
     count = {p: sum(r["policy"] == p for r in results) for p in ("up", "outward (open)", "outward (closed)")}
     mixed = [r["mixed"] for r in results if r["mixed"] is not None]
+
+    def worst_half(up: bool) -> str:
+        half = [r["half"] for r in results if (r["policy"] == "up") == up]
+        return f"{max(half):.2f}" if half else "-"
+
     return [name, str(len(results)), *map(str, count.values()), f"{max(mixed):.2f}" if mixed else "-",
-            f"{max(r['half_axes'] for r in results):.2f}", f"{max(r['half_reliable'] for r in results):.2f}"]
+            f"{worst_half(True)} / {worst_half(False)}", f"{max(r['half_axes'] for r in results):.2f}",
+            f"{max(r['half_reliable'] for r in results):.2f}"]
 
 
 def show(header: list, rows: list, markdown: bool) -> None:
