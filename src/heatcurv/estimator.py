@@ -68,7 +68,7 @@ from .operators.areas import fit_areas
 from .operators.operator import HeatKernelOperator
 from .options import resolve_options
 from .orient.enclosure import warn_undecided
-from .orient.orientation import Orientation, as_viewpoint
+from .orient.orientation import Orientation, as_viewpoint, axisless_balls
 from .progress import StageClock
 from .results import CurvatureResult
 from .tuning import TUNING
@@ -255,8 +255,7 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: Fitted, ball_shape, orie
     planarity, roundness = ball_shape
     local = ~nbhd.augmented & (planarity >= TUNING.planarity_min) & pc.well_posed & (areas > 0) & ~fitted.border
     local &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask
-    if orientation.report.mode in ("up", "viewpoint"):
-        local &= ~_no_surface(op, fitted, roundness)
+    local &= ~_no_surface(fitted, axisless_balls(roundness, orientation.report.mode))
     if coarse is not None:
         local &= ~coarse
     m = op.points.shape[0]
@@ -271,17 +270,16 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: Fitted, ball_shape, orie
     return ReliabilityInputs(local, residual, width, rho, ~outliers.mask)
 
 
-def _no_surface(op: HeatKernelOperator, fitted: Fitted, roundness: np.ndarray) -> np.ndarray:
+def _no_surface(fitted: Fitted, axisless: np.ndarray) -> np.ndarray:
     """Points whose ball has no normal axis and whose fit finds no surface either, shape (m,), bool.
 
-    Their normal started from the reference direction (``TUNING.axisless_ball``,
-    :func:`heatcurv.orient.orientation.orient`). A noisy surface's ball can be as
+    ``axisless``: :func:`heatcurv.orient.orientation.axisless_balls`, whose
+    normal started from the reference direction. A noisy surface's ball can be as
     round, but its fit, over its own wider ball, leaves residuals of about the
     cloud's noise (the kernel choice's ``sigma``); a tree crown's scatter leaves
     ten times that or more (``TUNING.axisless_residual``). Without a residual
     or a noise level (the paper's fit) every such point counts.
     """
-    axisless = roundness >= TUNING.axisless_ball  # NaN (given normals) compares False
     if fitted.residual is None or fitted.scale is None:
         return axisless
     return axisless & ~(fitted.residual <= TUNING.axisless_residual * fitted.scale.sigma)

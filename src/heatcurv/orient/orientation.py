@@ -90,7 +90,7 @@ from .enclosure import enclose, patches, sampled_sources
 
 __all__ = [
     "ORIENT_MODES", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
-    "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy",
+    "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy", "axisless_balls",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
@@ -536,10 +536,8 @@ def _orient_locally(points, normals, graph, reference, mode, excluded, roundness
     undecided = side == 0
     oriented = normals * np.where(undecided, facing_side, side)[:, None]
     ambiguous = _conflicting(points, oriented, graph) | undecided
-    axisless = np.zeros(points.shape[0], dtype=bool)
-    if roundness is not None:
-        axisless = np.asarray(roundness) >= TUNING.axisless_ball  # NaN (a ball of one line) compares False
-        oriented[axisless] = reference[axisless]
+    axisless = np.zeros(points.shape[0], dtype=bool) if roundness is None else axisless_balls(roundness, mode)
+    oriented[axisless] = reference[axisless]
     if excluded is not None:
         ambiguous &= ~excluded  # an outlier's own side: it is flagged an outlier already
     reach = row_reach(own_reach, graph)
@@ -705,6 +703,19 @@ def _reference_directions(points: np.ndarray, mode: str, towards) -> np.ndarray 
     if np.any(length == 0):
         raise HeatcurvError("the viewpoint coincides with a point of the cloud; give the sensor's position")
     return to_sensor / length[:, None]
+
+
+def axisless_balls(roundness: np.ndarray, mode: str) -> np.ndarray:
+    """The balls without a normal axis whose normal starts from the reference direction, shape (n,), bool.
+
+    ``roundness`` is each ball's ``lambda_0 / lambda_1``; from
+    ``TUNING.axisless_ball`` on its two smallest variances are about equal.
+    Only ``"up"`` and ``"viewpoint"`` have a reference direction (all False
+    otherwise); NaN (a ball of one line, given normals) compares False.
+    """
+    if mode not in ("up", "viewpoint"):
+        return np.zeros(np.shape(roundness), dtype=bool)
+    return np.asarray(roundness) >= TUNING.axisless_ball
 
 
 def _spanning_forest(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood) -> sp.csr_matrix:
