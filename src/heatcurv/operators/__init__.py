@@ -9,6 +9,7 @@
 ``operator``           :class:`~heatcurv.operators.operator.HeatKernelOperator`:
                        neighbours, spacing, areas and weights as one object
 ``point_laplacian``    the accurate operator of :func:`heatcurv.laplacian`
+``geodesic``           geodesic distance on it by the heat method
 =====================  ======================================================
 
 Imports only :mod:`heatcurv.geometry` of the core's subpackages.
