@@ -14,14 +14,14 @@ Prints markdown tables (docs/laplacian.md carries them):
    as its documentation shows (shift-invert, scipy's own SuperLU factorisation) and with the
    factorisation heatcurv uses (:func:`heatcurv.operators.point_laplacian.spd_factor`), each in a fresh
    process, errors against the exact ``l (l + 1)``;
-5. geodesic distance from one point on random unit-sphere points: potpourri3d's
-   ``PointCloudHeatSolver`` (the heat method on a point cloud), precomputation and time per source,
-   mean relative error against the great-circle distance; heatcurv offers no geodesic distance yet
-   (docs/laplacian.md), and its row says so.
+5. geodesic distance from one point on random sphere and torus points: heatcurv's
+   ``PointCloudLaplacian.geodesic_distance`` and potpourri3d's ``PointCloudHeatSolver`` (both the heat
+   method), precomputation and time per source, mean relative error against the great circle (sphere)
+   and exact polyhedral geodesics (torus, pygeodesic).
 
 Run:  python benchmarks/laplacian.py  [--quick] [--sizes 10000,100000,1000000] [--eigen 20000:50,100000:100]
-      [--geodesic 20000,100000]
-Needs the ``peers`` extra (robust-laplacian, potpourri3d) and psutil.
+      [--geodesic sphere:20000,sphere:100000,torus:20000,torus:40000]
+Needs the ``peers`` extra (robust-laplacian, potpourri3d), the ``bench`` extra (psutil, pygeodesic).
 """
 
 from __future__ import annotations
@@ -252,45 +252,83 @@ def eigen_table(cases):
     print()
 
 
-#: Sources of the geodesic table: the first one's time includes the solver's factorisations.
+#: Sources of the geodesic table: the first one's time includes the factorisations.
 GEODESIC_SOURCES = (0, 1, 2)
 
 
-def one_geodesic_timing(n):
-    """Run in a child: potpourri3d's heat-method distance on n random unit-sphere points; print JSON."""
-    import potpourri3d
+def geodesic_cloud(surface: str, n: int) -> np.ndarray:
+    """The geodesic table's cloud: ``n`` random points of the unit sphere or of the default torus."""
+    shape = surfaces.Sphere() if surface == "sphere" else surfaces.Torus()
+    return shape.sample(n, "random", seed=0).points
 
-    pts = surfaces.Sphere().sample(n, "random", seed=0).points
+
+def exact_geodesics(surface: str, n: int) -> np.ndarray:
+    """Exact distances from each of :data:`GEODESIC_SOURCES`, shape (sources, n).
+
+    The sphere's great circle; the torus's exact polyhedral geodesic on a fine triangulation through
+    the cloud's points (pygeodesic, tests/support/geodesics.py).
+    """
+    points = geodesic_cloud(surface, n)
+    if surface == "sphere":
+        return np.arccos(np.clip(points[list(GEODESIC_SOURCES)] @ points.T, -1.0, 1.0))
+    from support.geodesics import exact_distances
+
+    sample = surfaces.Torus().sample(n, "random", seed=0)
+    return np.stack([exact_distances(sample, source) for source in GEODESIC_SOURCES])
+
+
+def one_geodesic_timing(method: str, surface: str, n: int, exact_path: str):
+    """Run in a child: one method's geodesic distance from each source; print JSON."""
+    points = geodesic_cloud(surface, n)
     start = time.perf_counter()
-    solver = potpourri3d.PointCloudHeatSolver(pts)
+    if method == "heatcurv":
+        solver = heatcurv.PointCloudLaplacian(points)
+        distance_from = solver.geodesic_distance
+    else:
+        import potpourri3d
+
+        solver = potpourri3d.PointCloudHeatSolver(points)
+        distance_from = solver.compute_distance
     precompute = time.perf_counter() - start
-    seconds, errors = [], []
+    seconds, distances = [], []
     for source in GEODESIC_SOURCES:
         start = time.perf_counter()
-        distance = solver.compute_distance(source)
+        distances.append(distance_from(source))
         seconds.append(time.perf_counter() - start)
-        exact = np.arccos(np.clip(pts @ pts[source], -1.0, 1.0))  # great-circle distance on the unit sphere
+    peak = peak_rss()
+    exact = np.load(exact_path)
+    errors = []
+    for source, distance, truth in zip(GEODESIC_SOURCES, distances, exact):
         others = np.arange(n) != source
-        errors.append(float(np.mean(np.abs(distance[others] - exact[others]) / exact[others])))
+        errors.append(float(np.mean(np.abs(distance[others] - truth[others]) / truth[others])))
     print(json.dumps({"precompute": precompute, "first": seconds[0], "each": float(np.mean(seconds[1:])),
-                      "error": float(np.mean(errors)), "peak_gb": peak_rss() / 1e9}))
+                      "error": float(np.mean(errors)), "peak_gb": peak / 1e9}))
 
 
-def geodesic_table(sizes):
-    print("## Geodesic distance from one point (random unit-sphere points, fresh process each)\n")
+def geodesic_table(cases):
+    """Geodesic distance from one point, heatcurv against potpourri3d; ``cases`` are (surface, n) pairs."""
+    import tempfile
+
+    print("## Geodesic distance from one point (random points, fresh process each)\n")
     print(f"Mean over sources {', '.join(map(str, GEODESIC_SOURCES))} of the mean relative error against the "
-          "great-circle distance (every point but the source); `first source s` includes the factorisations, "
+          "exact distance (every point but the source): the great circle on the unit sphere, exact polyhedral "
+          "geodesics through the cloud's points on the torus (r1 = 1, r2 = 2.3701). `precompute s` is the "
+          "solver's construction (heatcurv: the Laplacian), `first source s` includes the factorisations, "
           "`each further source s` is the mean of the others.\n")
-    print("| n | method | precompute s | first source s | each further source s | mean error % | peak RSS GB |")
-    print("|---|---|---|---|---|---|---|")
-    for n in sizes:
-        print(f"| {n} | heatcurv | not offered | | | | |")
-        try:
-            r = child_result("--one-geodesic", n)
-            print(f"| {n} | potpourri3d | {r['precompute']:.2f} | {r['first']:.2f} | {r['each']:.3f} | "
-                  f"{100 * r['error']:.2f} | {r['peak_gb']:.2f} |", flush=True)
-        except Exception as exc:  # report, go on
-            print(f"| {n} | potpourri3d | failed ({type(exc).__name__}) | | | | |", flush=True)
+    print("| surface | n | method | precompute s | first source s | each further source s | mean error % | "
+          "peak RSS GB |")
+    print("|---|---|---|---|---|---|---|---|")
+    for surface, n in cases:
+        with tempfile.TemporaryDirectory() as folder:
+            exact_path = os.path.join(folder, "exact.npy")
+            np.save(exact_path, exact_geodesics(surface, n))
+            for method in ("heatcurv", "potpourri3d"):
+                try:
+                    r = child_result("--one-geodesic", method, surface, n, exact_path)
+                    print(f"| {surface} | {n} | {method} | {r['precompute']:.2f} | {r['first']:.2f} | "
+                          f"{r['each']:.3f} | {100 * r['error']:.2f} | {r['peak_gb']:.2f} |", flush=True)
+                except Exception as exc:  # report, go on
+                    print(f"| {surface} | {n} | {method} | failed ({type(exc).__name__}) | | | | |", flush=True)
     print()
 
 
@@ -336,7 +374,10 @@ def timing_table(sizes):
 
 
 def pictures(folder):
-    """Heat diffused from one point, and an eigenfunction, on the packaged bunny scan (docs/laplacian_bunny_*.png)."""
+    """Heat diffused from one point, an eigenfunction and the geodesic distance on the packaged bunny scan.
+
+    Writes docs/laplacian_bunny_heat.png, _eigen.png and _geodesic.png into ``folder``.
+    """
     from heatcurv.data import load_bunny
     from heatcurv.render import FieldStyle, render_field
 
@@ -359,7 +400,12 @@ def pictures(folder):
     render_field(pts, vectors[:, 11], f"{folder}/laplacian_bunny_eigen.png", field=eigen_style, views=2,
                  size=(1600, 800), normals=normals,
                  title=f"12th Laplace-Beltrami eigenfunction, lambda = {values[11]:.3f} (bunny scan)")
-    print(f"pictures: bunny {len(pts)} points, h = {lap.h:.3f}, first eigenvalues {np.round(values[:6], 4)}")
+    distance = lap.geodesic_distance(source)
+    render_field(pts, distance, f"{folder}/laplacian_bunny_geodesic.png", field="geodesic_distance", views=2,
+                 size=(1600, 800), normals=normals, percentiles=(0.0, 100.0),
+                 title=f"geodesic distance from the ear's tip, heat method (bunny scan, {len(pts)} points)")
+    print(f"pictures: bunny {len(pts)} points, h = {lap.h:.3f}, first eigenvalues {np.round(values[:6], 4)}, "
+          f"geodesic distance up to {distance.max():.2f}")
 
 
 def main():
@@ -369,8 +415,9 @@ def main():
     parser.add_argument("--only", default="spectra,residuals,timing,eigen,geodesic")
     parser.add_argument("--eigen", default="20000:50,100000:100", help="n:k cases of the eigenpair timing")
     parser.add_argument("--one-eigen", nargs=3, help=argparse.SUPPRESS)
-    parser.add_argument("--geodesic", default="20000,100000", help="cloud sizes of the geodesic table")
-    parser.add_argument("--one-geodesic", help=argparse.SUPPRESS)
+    parser.add_argument("--geodesic", default="sphere:20000,sphere:100000,torus:20000,torus:40000",
+                        help="surface:n cases of the geodesic table")
+    parser.add_argument("--one-geodesic", nargs=4, help=argparse.SUPPRESS)
     parser.add_argument("--clouds", default="", help="comma-separated words: only the spectra of clouds named so")
     parser.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     parser.add_argument("--pictures", metavar="FOLDER", help="only draw the bunny pictures into FOLDER")
@@ -385,7 +432,8 @@ def main():
         one_eigen_timing(args.one_eigen[0], int(args.one_eigen[1]), int(args.one_eigen[2]))
         return
     if args.one_geodesic:
-        one_geodesic_timing(int(args.one_geodesic))
+        method, surface, n, exact_path = args.one_geodesic
+        one_geodesic_timing(method, surface, int(n), exact_path)
         return
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from machine import commit, cpu_model, memory_text  # benchmarks/machine.py
@@ -402,7 +450,7 @@ def main():
     if "eigen" in args.only:
         eigen_table([tuple(int(x) for x in case.split(":")) for case in args.eigen.split(",") if case])
     if "geodesic" in args.only:
-        geodesic_table([int(s) for s in args.geodesic.split(",") if s])
+        geodesic_table([(case.split(":")[0], int(case.split(":")[1])) for case in args.geodesic.split(",") if case])
     print(f"Whole run: {time.perf_counter() - start:.0f} s, load average {os.getloadavg()[0]:.1f} at the end")
 
 

@@ -161,6 +161,7 @@ FIELD_STYLES: dict[str, FieldStyle] = {
     "k1_se": FieldStyle("standard error of k1", "1/{L}", "sequential"),
     "k2_se": FieldStyle("standard error of k2", "1/{L}", "sequential"),
     "normal_se": FieldStyle("standard error of the normal", "degrees", "sequential"),
+    "geodesic_distance": FieldStyle("geodesic distance", "{L}", "sequential"),
     **{f"n{a}": FieldStyle(f"normal, {a} component", "", "signed") for a in "xyz"},
     **{f"d1{a}": FieldStyle(f"principal direction d1, {a} component", "", "signed") for a in "xyz"},
     **{f"d2{a}": FieldStyle(f"principal direction d2, {a} component", "", "signed") for a in "xyz"},

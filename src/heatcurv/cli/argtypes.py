@@ -11,7 +11,7 @@ from ..options import SEED_RANGE, Range, range_problem
 from ..render import PICTURE_RANGES
 
 __all__ = [
-    "numbers", "point3", "pair", "percentile_pair", "picture_size", "finite_float", "in_range", "CLI_RANGES",
+    "numbers", "point3", "indices", "pair", "percentile_pair", "picture_size", "finite_float", "in_range", "CLI_RANGES",
 ]
 
 
@@ -30,6 +30,14 @@ def numbers(text: str, count: int, what: str) -> tuple:
 def point3(text: str) -> tuple:
     """A point or direction ``X,Y,Z``."""
     return numbers(text, 3, "three numbers X,Y,Z")
+
+
+def indices(text: str) -> tuple:
+    """Point indices ``I[,J...]``, counted from 0."""
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    if not parts or not all(re.fullmatch(r"\d+", p) for p in parts):
+        raise argparse.ArgumentTypeError(f"expected point indices counted from 0, like 0 or 12,40, got {text!r}")
+    return tuple(int(p) for p in parts)
 
 
 def pair(text: str) -> tuple:

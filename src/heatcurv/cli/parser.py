@@ -13,8 +13,8 @@ import os
 import sys
 
 from .. import __version__, surfaces
-from . import compute, demo, features, info, picture, view
-from .argtypes import in_range, pair, percentile_pair, picture_size, point3
+from . import compute, demo, features, geodesic, info, picture, view
+from .argtypes import in_range, indices, pair, percentile_pair, picture_size, point3
 from .fields import COMPUTED_FIELDS, field_list
 from .options import add_estimator_options
 from .tiled import add_tile_options
@@ -22,7 +22,7 @@ from .tiled import add_tile_options
 __all__ = ["UsageError", "build_parser", "join_negative_values"]
 
 # options taking one value that may start with '-' (negative coordinates): joined as --opt=value
-_VALUE_OPTIONS = ("--viewpoint", "--range", "--view", "--up", "--percentiles")
+_VALUE_OPTIONS = ("--viewpoint", "--range", "--view", "--up", "--percentiles", "--near")
 
 
 class UsageError(Exception):
@@ -213,6 +213,31 @@ def _add_features(add, write_exts: str) -> None:
     parser.set_defaults(run=features.run)
 
 
+def _add_geodesic(add, write_exts: str) -> None:
+    parser = add(
+        "geodesic", "write the geodesic distance from given points, along the surface",
+        "Compute the distance along the surface from the nearest of the given points to every point, by "
+        "the heat method on heatcurv's Laplacian (no mesh), and write it as the field geodesic_distance "
+        "next to the input's own properties. Points in parts of the cloud that no neighbour joins to a "
+        "source get inf.",
+        epilog=f"output formats: {write_exts}\n\nexamples:\n"
+        "  heatcurv geodesic bunny.ply -o bunny_distance.ply --source 0\n"
+        "  heatcurv geodesic part.las -o part_distance.laz --near 12.5,3.0,41.2 --near 15,3,40",
+    )
+    parser.add_argument("input", help="point-cloud file")
+    parser.add_argument("-o", "--output", required=True, help=f"output file ({write_exts})")
+    parser.add_argument("--source", type=indices, action="append", default=[], metavar="ROWS",
+                        help="source points by their rows in the file, counted from 0, e.g. 0 or 12,40 (repeatable)")
+    parser.add_argument("--near", type=point3, action="append", default=[], metavar="X,Y,Z",
+                        help="the point nearest to X,Y,Z is a source (repeatable)")
+    parser.add_argument("--skip-nonfinite", action="store_true",
+                        help="leave out points with NaN or infinite coordinates (their distance is NaN) "
+                        "instead of stopping")
+    _add_float64(parser)
+    _add_global_options(parser, suppress=True)
+    parser.set_defaults(run=geodesic.run)
+
+
 def _add_info(add, read_exts: str) -> None:
     parser = add(
         "info", "describe a point-cloud file: points, bounding box, spacing, fields",
@@ -303,6 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
         "  heatcurv compute scan.ply -o scan_curvature.ply\n"
         "  heatcurv render scan_curvature.ply -o mean.png --field mean --views 2\n"
         "  heatcurv view scan_curvature.ply\n"
+        "  heatcurv geodesic scan.ply -o scan_distance.ply --source 0\n"
         "  heatcurv demo\n\n"
         "Run 'heatcurv COMMAND --help' for a command's options.",
         formatter_class=_Formatter,
@@ -319,6 +345,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_compute(add, read_exts, write_exts)
     _add_render(add)
     _add_features(add, write_exts)
+    _add_geodesic(add, write_exts)
     _add_info(add, read_exts)
     _add_view(add, read_exts)
     _add_demo(add)
