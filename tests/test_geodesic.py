@@ -93,6 +93,18 @@ def test_gradient_is_exact_on_linear_functions_and_the_divergence_is_its_adjoint
     np.testing.assert_allclose(lap.first_order @ f, divergence, atol=1e-12 * np.abs(divergence).max())
 
 
+def test_a_faint_heat_gives_the_same_directions(sphere, monkeypatch):
+    # far from the source of a large cloud the heat is ~1e-200 and its gradient's square underflows;
+    # the directions, and so the distances, must not depend on the heat's scale
+    _, lap = sphere
+    lap.geodesic_distance(0)  # builds the solver
+    method = lap._geodesics
+    usual = method.distance(np.array([3]))
+    heat = method.heat
+    monkeypatch.setattr(method, "heat", lambda sources: 1e-250 * heat(sources))
+    np.testing.assert_allclose(method.distance(np.array([3])), usual, rtol=1e-9, atol=1e-12)
+
+
 def test_pieces_without_a_source_are_infinitely_far():
     ball = surfaces.Sphere().sample(3000, "random", seed=0).points
     lap = heatcurv.PointCloudLaplacian(np.vstack([ball, ball + [5.0, 0.0, 0.0]]))

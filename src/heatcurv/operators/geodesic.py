@@ -185,9 +185,10 @@ class HeatGeodesics:
         """
         u = self.heat(sources)
         grad = self.gradient(u)
-        size = np.linalg.norm(grad, axis=1)
-        unit = -grad / np.where(size > 0, size, 1.0)[:, None]
-        unit[size == 0] = 0.0
+        # far from the source the heat and its gradient are tiny (1e-200): squaring them would underflow
+        largest = np.abs(grad).max(axis=1)
+        unit = -grad / np.where(largest > 0, largest, 1.0)[:, None]
+        unit /= np.maximum(np.linalg.norm(unit, axis=1), 1.0)[:, None]  # largest component 1: norm in [1, sqrt 3]
         phi = self._poisson.solve(self.divergence(unit))
         chord = cKDTree(self.points[sources]).query(self.points)[0]
         lo, hi = RING[0] * self.spacing, RING[1] * self.spacing
