@@ -70,6 +70,20 @@ def test_plane_gives_the_straight_line_also_from_a_corner(records):
     records.check("geodesic/plane-random-5000", **errors)
 
 
+def test_the_curved_chord_near_a_source_is_the_great_circle_to_third_order(sphere, records):
+    points, lap = sphere
+    lap.geodesic_distance(0)  # builds the solver
+    method = lap._geodesics
+    arc = great_circle(points, 0)
+    near = (arc > 0) & (arc < geodesic.RING[1] * method.spacing)  # where the ring and the near field read it
+    chord = np.linalg.norm(points - points[0], axis=1)
+    curved = method.near_distance(np.array([0]))
+    errors = {"chord_max": 100 * np.max(np.abs(chord - arc)[near] / arc[near]),
+              "curved_max": 100 * np.max(np.abs(curved - arc)[near] / arc[near])}
+    assert errors["curved_max"] < errors["chord_max"] / 10
+    records.check("geodesic/sphere-random-10000-near-source", **errors)
+
+
 def test_distances_scale_with_the_units_and_are_symmetric(sphere):
     points, lap = sphere
     scaled = heatcurv.PointCloudLaplacian(1000.0 * points + 5e4).geodesic_distance(7)

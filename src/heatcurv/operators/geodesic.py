@@ -30,12 +30,13 @@ The constant is fixed last. The heat method rounds the distance's cone at
 the source over a few spacings, so ``phi`` at the source itself sits above
 the cone's apex and pinning ``phi(source) = 0`` would shorten every distance
 by that much (1.4 spacings on a random sphere). Instead ``phi`` is shifted to
-match the straight-line distance ``c`` to the nearest source over the ring
-of points :data:`RING` spacings from it, where the geodesic and the chord
-differ by ``kappa^2 c^3 / 24`` (on the unit sphere at 20 000 points, under
-7e-4 of a unit); inside the ring, where the heat's distance is rounded, the
-chord is the distance (where the heat's distance agrees that the point is
-near: under twice the ring's inner radius).
+match the distance near the source over the ring of points :data:`RING`
+spacings from it, the chord ``c`` lengthened by the curvature along it
+(:meth:`HeatGeodesics.near_distance`: ``c + h^2 / (6 c)``, ``h`` the height
+over the source's tangent plane, the geodesic over a quadric to third
+order); inside the ring, where the heat's distance is rounded, that is the
+distance (where the heat's distance agrees that the point is near: under
+twice the ring's inner radius).
 
 The heat of a short step falls off by a constant factor per spacing, so on
 a large cloud it can fall below the floating-point range far from the
@@ -62,7 +63,7 @@ __all__ = ["HeatGeodesics", "HEAT_TIME", "RING", "HEAT_FLOOR"]
 #: 0.41 / 0.53 % at 0.1, 0.37 / 0.66 % at 0.25, 0.34 / 0.82 % at 0.5; docs/laplacian.md).
 HEAT_TIME = 0.1
 #: Inner and outer radius, in mean spacings, of the ring around each source that fixes the constant.
-RING = (5.0, 10.0)
+RING = (8.0, 16.0)
 #: Fewest ring points; a smaller ring is widened to this many nearest points.
 RING_POINTS = 16
 #: Least heat at a reachable point before the step is lengthened (about 1e58 above the smallest double).
@@ -108,6 +109,7 @@ class HeatGeodesics:
     _along: list = field(init=False, repr=False)
     _row_sums: np.ndarray = field(init=False, repr=False)
     _slope: np.ndarray = field(init=False, repr=False)
+    _normal: np.ndarray = field(init=False, repr=False)
     _heat: object = field(init=False, repr=False)
     _poisson: object = field(init=False, repr=False)
 
@@ -129,6 +131,7 @@ class HeatGeodesics:
         value, vector = np.linalg.eigh(moment)  # ascending: the last two span the tangent plane
         if not np.all(value[:, 1] > 1e-12 * value[:, 2]):
             raise HeatcurvError("a point's neighbours lie on a line: it has no tangent plane for a geodesic gradient")
+        self._normal = vector[:, :, 0]
         tangent = vector[:, :, 1:]
         self._slope = np.einsum("nik,nk,njk->nij", tangent, 1.0 / value[:, 1:], tangent)  # M_i^+, shape (n, 3, 3)
         self.piece = csgraph.connected_components(W, directed=False)[1]
@@ -170,6 +173,19 @@ class HeatGeodesics:
         raise HeatcurvError("the heat from the sources falls below the floating-point range even after a step "
                             f"{4**LONGER_STEPS} times longer: the cloud is too long and thin for the heat method")
 
+    def near_distance(self, sources: np.ndarray) -> np.ndarray:
+        """The geodesic distance to the nearest source over a quadric through it, shape (n,): ``c + h^2 / (6 c)``.
+
+        ``c`` is the chord, ``h`` the point's height over the source's tangent
+        plane (its normal: the least eigenvector of ``M_s``). Over a quadric
+        ``h = kappa_n c^2 / 2`` and the geodesic is ``c (1 + kappa_n^2 c^2 / 24)``
+        to third order, ``kappa_n`` the normal curvature along the chord.
+        """
+        chord, nearest = cKDTree(self.points[sources]).query(self.points)
+        source = np.asarray(sources)[nearest]
+        height = np.einsum("ij,ij->i", self.points - self.points[source], self._normal[source])
+        return chord + height**2 / (6.0 * np.maximum(chord, np.finfo(float).tiny))
+
     def distance(self, sources: np.ndarray) -> np.ndarray:
         """Geodesic distance from the nearest of ``sources`` to every point, shape (n,), input units.
 
@@ -190,7 +206,7 @@ class HeatGeodesics:
         unit = -grad / np.where(largest > 0, largest, 1.0)[:, None]
         unit /= np.maximum(np.linalg.norm(unit, axis=1), 1.0)[:, None]  # largest component 1: norm in [1, sqrt 3]
         phi = self._poisson.solve(self.divergence(unit))
-        chord = cKDTree(self.points[sources]).query(self.points)[0]
+        chord = self.near_distance(sources)
         lo, hi = RING[0] * self.spacing, RING[1] * self.spacing
         distance = np.full(phi.size, np.inf)
         for piece in np.unique(self.piece[sources]):
@@ -200,7 +216,7 @@ class HeatGeodesics:
                 ring = np.zeros(chord.size, dtype=bool)
                 ring[np.flatnonzero(member)[np.argsort(chord[member])[:RING_POINTS]]] = True
             distance[member] = phi[member] - np.median(phi[ring] - chord[ring])
-        # inside the ring the chord is the distance (to kappa^2 c^3 / 24), where the heat's is rounded
+        # inside the ring the curved chord is the distance, where the heat's is rounded
         near = (chord < lo) & (distance < 2.0 * lo)
         distance[near] = chord[near]
         return distance
