@@ -34,9 +34,11 @@ match the distance near the source over the ring of points :data:`RING`
 spacings from it, the chord ``c`` lengthened by the curvature along it
 (:meth:`HeatGeodesics.near_distance`: ``c + h^2 / (6 c)``, ``h`` the height
 over the source's tangent plane, the geodesic over a quadric to third
-order); inside the ring, where the heat's distance is rounded, that is the
-distance (where the heat's distance agrees that the point is near: under
-twice the ring's inner radius).
+order), at the points where the quadric can hold (under :data:`FLAT_SLOPE`
+of a chord high: not across a thin part or round a bend); inside the ring,
+where the heat's distance is rounded, that is the distance (where the heat's
+distance agrees that the point is near: under twice the ring's inner
+radius).
 
 The heat of a short step falls off by a constant factor per spacing, so on
 a large cloud it can fall below the floating-point range far from the
@@ -57,7 +59,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import HeatcurvError
 
-__all__ = ["HeatGeodesics", "HEAT_TIME", "RING", "HEAT_FLOOR"]
+__all__ = ["HeatGeodesics", "HEAT_TIME", "RING", "HEAT_FLOOR", "FLAT_SLOPE"]
 
 #: Heat time in squared mean spacings (mean relative error, sphere / torus of 20 000 random points:
 #: 0.41 / 0.53 % at 0.1, 0.37 / 0.66 % at 0.25, 0.34 / 0.82 % at 0.5; docs/laplacian.md).
@@ -70,6 +72,8 @@ RING_POINTS = 16
 HEAT_FLOOR = 1e-250
 #: Most times the heat step is lengthened (each four times).
 LONGER_STEPS = 8
+#: Most height over the source's tangent plane, per unit of chord, at which its quadric gives the distance.
+FLAT_SLOPE = 0.3
 
 
 @dataclass
@@ -173,18 +177,26 @@ class HeatGeodesics:
         raise HeatcurvError("the heat from the sources falls below the floating-point range even after a step "
                             f"{4**LONGER_STEPS} times longer: the cloud is too long and thin for the heat method")
 
-    def near_distance(self, sources: np.ndarray) -> np.ndarray:
-        """The geodesic distance to the nearest source over a quadric through it, shape (n,): ``c + h^2 / (6 c)``.
+    def near_distance(self, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The geodesic distance to the nearest source over a quadric through it: ``c + h^2 / (6 c)``.
 
         ``c`` is the chord, ``h`` the point's height over the source's tangent
         plane (its normal: the least eigenvector of ``M_s``). Over a quadric
         ``h = kappa_n c^2 / 2`` and the geodesic is ``c (1 + kappa_n^2 c^2 / 24)``
         to third order, ``kappa_n`` the normal curvature along the chord.
+
+        Returns
+        -------
+        distance : ndarray, shape (n,)
+        flat : ndarray, shape (n,), bool
+            Where the quadric can hold: ``|h| <= FLAT_SLOPE c`` (not across a
+            thin part, not round a bend).
         """
         chord, nearest = cKDTree(self.points[sources]).query(self.points)
         source = np.asarray(sources)[nearest]
         height = np.einsum("ij,ij->i", self.points - self.points[source], self._normal[source])
-        return chord + height**2 / (6.0 * np.maximum(chord, np.finfo(float).tiny))
+        distance = chord + height**2 / (6.0 * np.maximum(chord, np.finfo(float).tiny))
+        return distance, np.abs(height) <= FLAT_SLOPE * chord
 
     def distance(self, sources: np.ndarray) -> np.ndarray:
         """Geodesic distance from the nearest of ``sources`` to every point, shape (n,), input units.
@@ -206,17 +218,18 @@ class HeatGeodesics:
         unit = -grad / np.where(largest > 0, largest, 1.0)[:, None]
         unit /= np.maximum(np.linalg.norm(unit, axis=1), 1.0)[:, None]  # largest component 1: norm in [1, sqrt 3]
         phi = self._poisson.solve(self.divergence(unit))
-        chord = self.near_distance(sources)
+        near, flat = self.near_distance(sources)
         lo, hi = RING[0] * self.spacing, RING[1] * self.spacing
         distance = np.full(phi.size, np.inf)
         for piece in np.unique(self.piece[sources]):
             member = self.piece == piece
-            ring = member & (chord >= lo) & (chord <= hi)
-            if ring.sum() < RING_POINTS:
-                ring = np.zeros(chord.size, dtype=bool)
-                ring[np.flatnonzero(member)[np.argsort(chord[member])[:RING_POINTS]]] = True
-            distance[member] = phi[member] - np.median(phi[ring] - chord[ring])
+            ring = member & flat & (near >= lo) & (near <= hi)
+            if ring.sum() < RING_POINTS:  # a small or coarse piece: its nearest points where the quadric holds
+                usable = np.flatnonzero(member & flat)
+                ring = np.zeros(near.size, dtype=bool)
+                ring[usable[np.argsort(near[usable])[:RING_POINTS]]] = True
+            distance[member] = phi[member] - np.median(phi[ring] - near[ring])
         # inside the ring the curved chord is the distance, where the heat's is rounded
-        near = (chord < lo) & (distance < 2.0 * lo)
-        distance[near] = chord[near]
+        inside = flat & (near < lo) & (distance < 2.0 * lo)
+        distance[inside] = near[inside]
         return distance
