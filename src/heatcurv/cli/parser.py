@@ -120,6 +120,12 @@ def _add_picture_options(parser) -> None:
                        help="length unit for the colour-bar label, e.g. m gives 1/m (default: %(default)s)")
 
 
+def _add_cloud_in_and_out(parser, write_exts: str) -> None:
+    """The input file and ``-o`` output file of a command that writes a point cloud."""
+    parser.add_argument("input", help="point-cloud file")
+    parser.add_argument("-o", "--output", required=True, help=f"output file ({write_exts})")
+
+
 def _add_float64(parser) -> None:
     parser.add_argument("--float64", action="store_true",
                         help="write the computed values in double precision (default: float32 in PLY, "
@@ -143,8 +149,7 @@ def _add_compute(add, read_exts: str, write_exts: str) -> None:
         "is not to be\ntrusted (too few neighbours, border of an open scan, ill-posed fit).\n\n"
         "example:\n  heatcurv compute scan.laz -o scan_curvature.laz --viewpoint 0,0,1.8 -j 4",
     )
-    parser.add_argument("input", help="point-cloud file")
-    parser.add_argument("-o", "--output", required=True, help=f"output file ({write_exts})")
+    _add_cloud_in_and_out(parser, write_exts)
     parser.add_argument("--fields", type=field_list, metavar="LIST",
                         help="comma-separated fields to write (names above, or normals, d1, d2, "
                         "curvatures, features, border, spacing, neighbours, all) "
@@ -201,8 +206,7 @@ def _add_features(add, write_exts: str) -> None:
         "fields feature (0/1) and feature_score next to the input's own properties.",
         epilog=f"output formats: {write_exts}\n\nexample:\n  heatcurv features part.ply -o part_features.ply",
     )
-    parser.add_argument("input", help="point-cloud file")
-    parser.add_argument("-o", "--output", required=True, help=f"output file ({write_exts})")
+    _add_cloud_in_and_out(parser, write_exts)
     parser.add_argument("--threshold", type=in_range("threshold"), metavar="DEGREES",
                         help="turning angle above which a point is a feature, 0-180 (default: automatic)")
     parser.add_argument("--min-angle", type=in_range("min_angle"), default=10.0, metavar="DEGREES",
@@ -224,8 +228,7 @@ def _add_geodesic(add, write_exts: str) -> None:
         "  heatcurv geodesic bunny.ply -o bunny_distance.ply --source 0\n"
         "  heatcurv geodesic part.las -o part_distance.laz --near 12.5,3.0,41.2 --near 15,3,40",
     )
-    parser.add_argument("input", help="point-cloud file")
-    parser.add_argument("-o", "--output", required=True, help=f"output file ({write_exts})")
+    _add_cloud_in_and_out(parser, write_exts)
     parser.add_argument("--source", type=indices, action="append", default=[], metavar="ROWS",
                         help="source points by their rows in the file, counted from 0, e.g. 0 or 12,40 (repeatable)")
     parser.add_argument("--near", type=point3, action="append", default=[], metavar="X,Y,Z",
