@@ -63,7 +63,7 @@ def run(args, log: Log) -> int:
     points = cloud.points if rows is None else cloud.points[rows]
     sources = source_rows(cloud, rows, [i for group in args.source for i in group], args.near)
     # the Laplacian wants distinct points: coincident ones get one distance
-    distinct, first, inverse = np.unique(points, axis=0, return_index=True, return_inverse=True)
+    distinct, inverse = np.unique(points, axis=0, return_inverse=True)
     inverse = inverse.ravel()
     tic = time.perf_counter()
     log.info(f"geodesic distance from {sources.size} source(s) over {len(distinct)} distinct points")

@@ -61,8 +61,8 @@ from ..errors import HeatcurvError
 
 __all__ = ["HeatGeodesics", "HEAT_TIME", "RING", "HEAT_FLOOR", "FLAT_SLOPE"]
 
-#: Heat time in squared mean spacings (mean relative error, sphere / torus of 20 000 random points:
-#: 0.41 / 0.53 % at 0.1, 0.37 / 0.66 % at 0.25, 0.34 / 0.82 % at 0.5; docs/laplacian.md).
+#: Heat time in squared mean spacings: longer steps smooth the distance over a torus's cut locus, shorter
+#: ones lose the sphere (the choice is measured in docs/laplacian.md).
 HEAT_TIME = 0.1
 #: Inner and outer radius, in mean spacings, of the ring around each source that fixes the constant.
 RING = (8.0, 16.0)
@@ -141,9 +141,13 @@ class HeatGeodesics:
         self.piece = csgraph.connected_components(W, directed=False)[1]
         self.spacing = float(np.sqrt(self.area.mean()))
         self.time = HEAT_TIME * self.spacing**2
-        self._heat = self.factor(sp.diags(self.area) + self.time * S1)
+        self._heat = self._heat_factor()
         shift = 1e-9 * float(np.median(S1.diagonal() / self.area))
         self._poisson = self.factor(S1 + shift * sp.diags(self.area))
+
+    def _heat_factor(self):
+        """The factorised backward Euler matrix ``diag(A) + t S1`` of the current heat time."""
+        return self.factor(sp.diags(self.area) + self.time * self.first_order)
 
     def gradient(self, u: np.ndarray) -> np.ndarray:
         """Tangent gradient of a field ``u``, shape (n,) -> (n, 3): ``M_i^+ sum_j W_ij (u_j - u_i) d_ij`` (step 2)."""
@@ -173,7 +177,7 @@ class HeatGeodesics:
             if np.all(u[reached] > HEAT_FLOOR):
                 return u
             self.time *= 4.0
-            self._heat = self.factor(sp.diags(self.area) + self.time * self.first_order)
+            self._heat = self._heat_factor()
         raise HeatcurvError("the heat from the sources falls below the floating-point range even after a step "
                             f"{4**LONGER_STEPS} times longer: the cloud is too long and thin for the heat method")
 
