@@ -45,6 +45,20 @@ def test_isolated_points_get_their_nearest_neighbours():
     np.testing.assert_array_equal(np.sort(far), np.sort(np.argsort(d)[:6]))
 
 
+def test_ball_queries_in_blocks_change_nothing(monkeypatch):
+    import heatcurv.geometry.neighbourhood as neighbourhood_module
+
+    # a random cube with a far point: augmented rows in some blocks, counts that vary by block
+    pts = np.vstack([np.random.default_rng(4).random((2000, 3)), [[3.0, 3.0, 3.0]]])
+    whole = ball_neighbourhood(pts, 0.08, min_neighbours=6)
+    assert whole.augmented.sum() > 10
+    monkeypatch.setattr(neighbourhood_module, "BLOCK_PAIRS", 500)  # blocks of about 8 to 60 queries
+    blocked = ball_neighbourhood(pts, 0.08, min_neighbours=6)
+    for name in ("indptr", "indices", "distances", "radius", "augmented"):
+        np.testing.assert_array_equal(getattr(blocked, name), getattr(whole, name))
+    assert blocked.indices.dtype == whole.indices.dtype == np.int32
+
+
 def test_segment_sum_and_counts():
     pts = np.random.default_rng(3).random((100, 3))
     nb = ball_neighbourhood(pts, 0.3, min_neighbours=3)

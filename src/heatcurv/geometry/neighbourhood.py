@@ -40,6 +40,10 @@ BLOCK_PAIRS = 1_000_000
 #: Smaller batches cost time (1M points, k = 60: 5.6 s at this size, 6.2 s at BLOCK_PAIRS).
 QUERY_PAIRS = 12_000_000
 
+#: Pairs per query expected in the first block of a ball query (later blocks use the
+#: mean count found so far), sizing it to :data:`BLOCK_PAIRS`.
+BALL_GUESS = 64
+
 
 def rows_per_block(pairs_per_row: int, block_pairs: int | None = None) -> int:
     """Rows (points) per block when each row holds ``pairs_per_row`` pairs (at least 1).
@@ -348,15 +352,27 @@ def ball_neighbourhood(
         raise HeatcurvError("the ball radius must be finite and positive")
     if min_neighbours >= n_src:
         raise HeatcurvError(f"need more than {min_neighbours} points for {min_neighbours} neighbours, got {n_src}")
-    lists = tree.query_ball_point(queries, radius, workers=workers, return_sorted=True)
-    counts = np.fromiter(map(len, lists), dtype=np.int64, count=m)
-    cols = np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum()))
-    del lists
-    rows = np.repeat(np.arange(m), counts)
-    dist = np.linalg.norm(points[cols] - queries[rows], axis=1)
-    keep = dist > 0  # the points are distinct: distance 0 is the query itself
-    rows, cols, dist = rows[keep], cols[keep], dist[keep]
-    counts = np.bincount(rows, minlength=m)
+    counts = np.empty(m, dtype=np.int64)
+    cols_parts, dist_parts = [], []
+    lo, rows_in_block = 0, rows_per_block(BALL_GUESS)
+    while lo < m:
+        # blocks of queries bound scipy's Python lists (about 40 bytes a pair) and the
+        # coordinate differences; each block is sized by the mean count of the last
+        hi = min(m, lo + rows_in_block)
+        lists = tree.query_ball_point(queries[lo:hi], radius[lo:hi], workers=workers, return_sorted=True)
+        found = np.fromiter(map(len, lists), dtype=np.int64, count=hi - lo)
+        cols = np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(found.sum()))
+        del lists
+        rows = np.repeat(np.arange(lo, hi), found)
+        dist = np.linalg.norm(points[cols] - queries[rows], axis=1)
+        keep = dist > 0  # the points are distinct: distance 0 is the query itself
+        counts[lo:hi] = np.bincount(rows[keep] - lo, minlength=hi - lo)
+        cols_parts.append(cols[keep].astype(_index_dtype(n_src)))
+        dist_parts.append(dist[keep])
+        rows_in_block = rows_per_block(int(np.ceil(found.mean())))
+        lo = hi
+    cols, dist = np.concatenate(cols_parts), np.concatenate(dist_parts)
+    del cols_parts, dist_parts
 
     augmented = counts < min_neighbours
     if augmented.any():
@@ -366,9 +382,10 @@ def ball_neighbourhood(
         self_hit = nd[:, 0] == 0
         nn = np.where(self_hit[:, None], nn[:, 1:], nn[:, :-1])
         nd = np.where(self_hit[:, None], nd[:, 1:], nd[:, :-1])
+        rows = np.repeat(np.arange(m), counts)
         keep_rows = ~augmented[rows]
         rows = np.concatenate([rows[keep_rows], np.repeat(sparse_ids, min_neighbours)])
-        cols = np.concatenate([cols[keep_rows], nn.reshape(-1)])
+        cols = np.concatenate([cols[keep_rows], nn.reshape(-1).astype(cols.dtype)])
         dist = np.concatenate([dist[keep_rows], nd.reshape(-1)])
         order = np.lexsort((cols, rows))
         rows, cols, dist = rows[order], cols[order], dist[order]

@@ -83,7 +83,7 @@ from scipy.spatial import cKDTree
 from .._kernels import laplacian as lap_kernels
 from .._kernels import segment as segment_kernels
 from ..errors import HeatcurvError
-from ..geometry.neighbourhood import ball_neighbourhood
+from ..geometry.neighbourhood import ball_neighbourhood, block_ranges, rows_per_block
 from ..geometry.validation import prepare_points
 from .geodesic import HeatGeodesics
 from .operator import build_operator
@@ -185,18 +185,29 @@ def _voronoi_areas(X: np.ndarray, tree: cKDTree, neighbours: int, gap: float, wo
 def _symmetric_scaling(M: sp.csr_matrix, target: np.ndarray) -> np.ndarray:
     """``c > 0`` with ``c_i sum_j M_ij c_j = target_i`` (the geometric-mean fixed-point iteration)."""
     c = np.full(target.size, np.sqrt(target.sum() / M.sum()))
-    for _ in range(SCALING_ITERATIONS):
-        Mc = M @ c
-        residual = float(np.max(np.abs(c * Mc / target - 1.0)))
-        if residual < SCALING_TOLERANCE:
-            return c
-        c = np.sqrt(c * target / Mc)
-    if residual > 1e-6:
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        for _ in range(SCALING_ITERATIONS):
+            Mc = M @ c
+            residual = float(np.max(np.abs(c * Mc / target - 1.0)))
+            if residual < SCALING_TOLERANCE or not np.isfinite(residual):
+                break
+            c = np.sqrt(c * target / Mc)
+    if residual < SCALING_TOLERANCE:
+        return c
+    if not residual <= 1e-6:  # also NaN: weights that underflow around isolated points overflow c
         raise HeatcurvError(
             f"the calibration of the kernel weights did not converge (relative residual {residual:.1e} after "
-            f"{SCALING_ITERATIONS} iterations): is the cloud a sampled surface?"
+            f"{SCALING_ITERATIONS} iterations): is the cloud a sampled surface, without isolated outliers?"
         )
     return c
+
+
+def _scale_pairs(W: sp.csr_matrix, factor: np.ndarray) -> None:
+    """``W_ij *= factor_i factor_j`` in place, a block of rows at a time (bounded temporaries)."""
+    for lo, hi in block_ranges(W.shape[0], rows_per_block(W.nnz // W.shape[0])):
+        a, b = W.indptr[lo], W.indptr[hi]
+        rows = np.repeat(np.arange(lo, hi), np.diff(W.indptr[lo : hi + 1]))
+        W.data[a:b] *= factor[rows] * factor[W.indices[a:b]]
 
 
 def _stiffness_and_areas(X: np.ndarray, tree: cKDTree, neighbours: int, width: float, order: int, workers: int):
@@ -211,12 +222,12 @@ def _stiffness_and_areas(X: np.ndarray, tree: cKDTree, neighbours: int, width: f
     nbhd = ball_neighbourhood(X, R, tree=tree, min_neighbours=8, workers=workers)
     # pairs of points given their nearest neighbours beyond R (sparse parts) are made symmetric here
     K = sp.csr_matrix((np.exp(-((nbhd.distances / h) ** 2)), nbhd.indices, nbhd.indptr), shape=(n, n))
+    del nbhd
     K = K.maximum(K.T).tocsr()
     # the quadrature of the kernel energy: w_ij = A_i A_j k(|xi - xj|) (scaled in place: no sparse products)
     W = K
     W.sort_indices()
-    rows = np.repeat(np.arange(n, dtype=W.indices.dtype), np.diff(W.indptr))
-    W.data *= area[rows] * area[W.indices]
+    _scale_pairs(W, area)
     moment, total = lap_kernels.border_moments(X, W.indptr, W.indices, W.data, normals)
     if not np.all(total > 0):
         raise HeatcurvError("a point has no neighbour within its kernel: the cloud has isolated points")
@@ -230,8 +241,7 @@ def _stiffness_and_areas(X: np.ndarray, tree: cKDTree, neighbours: int, width: f
                       shape=(n, n))
     c = _symmetric_scaling(M, area)
     del M
-    W.data *= c[rows] * c[W.indices]
-    del rows
+    _scale_pairs(W, c)
     S = (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
     _, c2, c4 = kernel_moments(width)
     gamma = c4 / c2 * h * h if order == 2 else 0.0
