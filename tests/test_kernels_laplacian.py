@@ -69,3 +69,27 @@ def test_voronoi_cells_of_a_lattice_are_its_cells():
     assert not opened[interior].any() and opened[corner].all()
     # a corner's cell opens diagonally: clipped on the diagonal, larger than a quarter cell's square
     assert np.all(area[corner] > 0.01)
+
+
+def test_heat_method_gradient_and_divergence_match_numpy():
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(300, 3))
+    indptr, indices, weights = _csr(X, 12)
+    rows = np.repeat(np.arange(300), 12)
+    d = X[indices] - X[rows]
+    second = kernels.pair_second_moments(X, indptr, indices, weights)
+    expected = np.zeros((300, 3, 3))
+    np.add.at(expected, rows, weights[:, None, None] * d[:, :, None] * d[:, None, :])
+    np.testing.assert_allclose(second, expected, rtol=1e-12, atol=1e-12)
+
+    inverse = rng.normal(size=(300, 3, 3))
+    u = rng.normal(size=300)
+    slope = np.zeros((300, 3))
+    np.add.at(slope, rows, (weights * (u[indices] - u[rows]))[:, None] * d)
+    np.testing.assert_allclose(kernels.tangent_gradient(X, indptr, indices, weights, inverse, u),
+                               np.einsum("nij,nj->ni", inverse, slope), rtol=1e-12, atol=1e-12)
+
+    field = rng.normal(size=(300, 3))
+    divergence = -0.5 * np.bincount(rows, weights * np.sum((field[rows] + field[indices]) * d, axis=1), minlength=300)
+    np.testing.assert_allclose(kernels.weak_divergence(X, indptr, indices, weights, field), divergence,
+                               rtol=1e-12, atol=1e-12)

@@ -261,20 +261,50 @@ def test_duplicates_and_bad_queries_are_heatcurv_errors(random_sphere):
         lap.heat(pts[:10, 0], 1.0)
 
 
-def test_spd_factor_solves_the_shifted_stiffness_as_a_pivoting_factorisation_does(random_sphere):
-    # no row pivoting for a positive definite matrix: the same solution as SuperLU's default, to rounding
+@pytest.mark.parametrize("cholesky", [True, False])
+def test_spd_factor_solves_the_shifted_stiffness_as_a_pivoting_factorisation_does(random_sphere, cholesky, monkeypatch):
+    # CHOLMOD's Cholesky, or SuperLU without row pivoting (no cholespy, complex matrices): a positive definite
+    # matrix needs no pivoting, so both give the solution of SuperLU's default, to rounding
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    from heatcurv.operators.point_laplacian import spd_factor
+    from heatcurv.operators import point_laplacian
 
+    if cholesky:
+        pytest.importorskip("cholespy", reason="cholespy has no wheel for this platform")
+    else:
+        monkeypatch.setattr(point_laplacian, "cholespy", None)
     pts, lap = random_sphere
     shifted = lap.first_order + 0.05 * sp.diags(lap.area)
     rhs = np.column_stack([pts[:, 2], np.random.default_rng(0).normal(size=len(pts))])
-    got = spd_factor(shifted).solve(rhs)
+    factor = point_laplacian.spd_factor(shifted)
+    assert isinstance(factor, point_laplacian.CholeskyFactor) == cholesky
+    got = factor.solve(rhs)
     want = spla.splu(shifted.tocsc()).solve(rhs)
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12 * np.abs(want).max())
     np.testing.assert_allclose(shifted @ got, rhs, atol=1e-9 * np.abs(rhs).max())
+    np.testing.assert_allclose(factor.solve(rhs[:, 1]), want[:, 1], rtol=1e-9, atol=1e-12 * np.abs(want).max())
+    complex_factor = point_laplacian.spd_factor(shifted.astype(complex))
+    assert not isinstance(complex_factor, point_laplacian.CholeskyFactor)
+
+
+def test_without_cholespy_the_spectral_tools_give_the_same_numbers(random_sphere, monkeypatch):
+    from heatcurv.operators import point_laplacian
+
+    pts, _ = random_sphere
+    fast = PointCloudLaplacian(pts)
+    values, vectors = fast.eigenpairs(8)
+    heat = fast.heat(pts[:, 2], time=0.05)
+    distance = fast.geodesic_distance(7)
+    monkeypatch.setattr(point_laplacian, "cholespy", None)
+    plain = PointCloudLaplacian(pts)
+    plain_values, plain_vectors = plain.eigenpairs(8)
+    np.testing.assert_allclose(plain_values, values, rtol=1e-9, atol=1e-9)
+    # eigenvectors up to a rotation within each degree: the same projector onto degrees 0-1 (4 vectors)
+    np.testing.assert_allclose(plain_vectors[:, :4] @ (plain_vectors[:, :4].T * plain.area),
+                               vectors[:, :4] @ (vectors[:, :4].T * fast.area), atol=1e-7)
+    np.testing.assert_allclose(plain.heat(pts[:, 2], time=0.05), heat, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(plain.geodesic_distance(7), distance, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize("steps_per_gamma", [0.5, 3.9, 4.0, 40.0])

@@ -12,7 +12,10 @@
   ``sum_j w_ij P_i (x_j - x_i)`` (the centroid offset of a cut ball) and
   weight sum;
 * :func:`moment_weights`: the calibration weights of each pair, the
-  isotropic ``|d|^2`` blended into the border-tangential ``2 (d . v_i)^2``.
+  isotropic ``|d|^2`` blended into the border-tangential ``2 (d . v_i)^2``;
+* :func:`pair_second_moments`, :func:`tangent_gradient`, :func:`weak_divergence`:
+  the heat method's least-squares gradient and its adjoint divergence over
+  the operator's pair weights (:mod:`heatcurv.operators.geodesic`).
 
 Arrays in, arrays out: this module imports nothing from heatcurv but the
 kernel helpers of :mod:`heatcurv._kernels`.
@@ -25,7 +28,8 @@ from numba import njit
 
 from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
 
-__all__ = ["knn_covariances", "voronoi_cells", "border_moments", "moment_weights"]
+__all__ = ["knn_covariances", "voronoi_cells", "border_moments", "moment_weights", "pair_second_moments",
+           "tangent_gradient", "weak_divergence"]
 
 
 def knn_covariances(points, neighbours) -> np.ndarray:
@@ -325,3 +329,119 @@ def _moment_weights(row0, row1, points, indptr, indices, weights, beta, along, o
             iso = d0 * d0 + d1 * d1 + d2 * d2
             dv = d0 * along[i, 0] + d1 * along[i, 1] + d2 * along[i, 2]
             out[p] = 0.25 * weights[p] * ((1.0 - b) * iso + 2.0 * b * dv * dv)
+
+
+def pair_second_moments(points, indptr, indices, weights) -> np.ndarray:
+    """Weighted second moment ``sum_j w_ij d_ij d_ij^T`` of each CSR row, ``d_ij = x_j - x_i``.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    indptr, indices : ndarray
+        CSR pairs, row ``i`` holding the neighbours of point ``i``.
+    weights : ndarray, shape (nnz,)
+        Pair weights ``w_ij``.
+
+    Returns
+    -------
+    ndarray, shape (n, 3, 3)
+    """
+    points = as_floats(points)
+    n = points.shape[0]
+    second = np.zeros((n, 3, 3))
+    parallel_rows(_pair_second_moments, n, points, as_pointers(indptr), as_indices(indices, n), as_floats(weights),
+                  second)
+    return second
+
+
+@njit(**ROW_CORE)
+def _pair_second_moments(row0, row1, points, indptr, indices, weights, second):
+    d = np.empty(3)
+    for i in range(row0, row1):
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            w = weights[p]
+            for a in range(3):
+                d[a] = points[j, a] - points[i, a]
+            for a in range(3):
+                for b in range(3):
+                    second[i, a, b] += w * d[a] * d[b]
+
+
+def tangent_gradient(points, indptr, indices, weights, inverse, values) -> np.ndarray:
+    """Weighted least-squares slope of a field over each CSR row: ``P_i sum_j w_ij (u_j - u_i) d_ij``.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    indptr, indices : ndarray
+        CSR pairs.
+    weights : ndarray, shape (nnz,)
+        Pair weights ``w_ij``.
+    inverse : ndarray, shape (n, 3, 3)
+        ``P_i``: the (pseudo-)inverse of each row's second moment.
+    values : ndarray, shape (n,)
+        The field ``u``.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    points = as_floats(points)
+    n = points.shape[0]
+    out = np.empty((n, 3))
+    parallel_rows(_tangent_gradient, n, points, as_pointers(indptr), as_indices(indices, n), as_floats(weights),
+                  as_floats(inverse), as_floats(values), out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _tangent_gradient(row0, row1, points, indptr, indices, weights, inverse, values, out):
+    for i in range(row0, row1):
+        s0 = s1 = s2 = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            c = weights[p] * (values[j] - values[i])
+            s0 += c * (points[j, 0] - points[i, 0])
+            s1 += c * (points[j, 1] - points[i, 1])
+            s2 += c * (points[j, 2] - points[i, 2])
+        for a in range(3):
+            out[i, a] = inverse[i, a, 0] * s0 + inverse[i, a, 1] * s1 + inverse[i, a, 2] * s2
+
+
+def weak_divergence(points, indptr, indices, weights, field) -> np.ndarray:
+    """The weak divergence of a vector field against the pair energy: ``-sum_j w_ij (X_i + X_j) / 2 . d_ij``.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    indptr, indices : ndarray
+        CSR pairs of a symmetric weight matrix.
+    weights : ndarray, shape (nnz,)
+        Pair weights ``w_ij``.
+    field : ndarray, shape (n, 3)
+        ``X_i`` at each point.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        ``b_i``, with ``d_ij = x_j - x_i``.
+    """
+    points = as_floats(points)
+    n = points.shape[0]
+    out = np.empty(n)
+    parallel_rows(_weak_divergence, n, points, as_pointers(indptr), as_indices(indices, n), as_floats(weights),
+                  as_floats(field), out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _weak_divergence(row0, row1, points, indptr, indices, weights, field, out):
+    for i in range(row0, row1):
+        s = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            s += weights[p] * ((field[i, 0] + field[j, 0]) * (points[j, 0] - points[i, 0])
+                               + (field[i, 1] + field[j, 1]) * (points[j, 1] - points[i, 1])
+                               + (field[i, 2] + field[j, 2]) * (points[j, 2] - points[i, 2]))
+        out[i] = -0.5 * s

@@ -57,6 +57,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
+from .._kernels import laplacian as lap_kernels
 from ..errors import HeatcurvError
 
 __all__ = ["HeatGeodesics", "HEAT_TIME", "RING", "HEAT_FLOOR", "FLAT_SLOPE"]
@@ -110,28 +111,19 @@ class HeatGeodesics:
     time: float = field(init=False)
     spacing: float = field(init=False)
     piece: np.ndarray = field(init=False, repr=False)
-    _along: list = field(init=False, repr=False)
-    _row_sums: np.ndarray = field(init=False, repr=False)
+    _weights: sp.csr_matrix = field(init=False, repr=False)
     _slope: np.ndarray = field(init=False, repr=False)
     _normal: np.ndarray = field(init=False, repr=False)
     _heat: object = field(init=False, repr=False)
     _poisson: object = field(init=False, repr=False)
 
     def __post_init__(self):
-        x = self.points - self.points.mean(axis=0)
-        n = x.shape[0]
         S1 = self.first_order.tocsr()
         W = (sp.diags(S1.diagonal()) - S1).tocsr()  # the pair weights, zero diagonal
         W.eliminate_zeros()
-        rows = np.repeat(np.arange(n), np.diff(W.indptr))
-        d = x[W.indices] - x[rows]  # d_ij = x_j - x_i, one row per pair
-        # W_c: the pair weights times d_c, so that (W_c u)_i - (W_c 1)_i u_i = sum_j W_ij d_ij,c (u_j - u_i)
-        self._along = [sp.csr_matrix((W.data * d[:, c], W.indices, W.indptr), shape=(n, n)) for c in range(3)]
-        self._row_sums = np.column_stack([np.asarray(a.sum(axis=1)).ravel() for a in self._along])
-        moment = np.zeros((n, 3, 3))
-        for a in range(3):
-            for b in range(a, 3):
-                moment[:, a, b] = moment[:, b, a] = np.bincount(rows, weights=W.data * d[:, a] * d[:, b], minlength=n)
+        W.sort_indices()
+        self._weights = W
+        moment = lap_kernels.pair_second_moments(self.points, W.indptr, W.indices, W.data)
         value, vector = np.linalg.eigh(moment)  # ascending: the last two span the tangent plane
         if not np.all(value[:, 1] > 1e-12 * value[:, 2]):
             raise HeatcurvError("a point's neighbours lie on a line: it has no tangent plane for a geodesic gradient")
@@ -151,17 +143,16 @@ class HeatGeodesics:
 
     def gradient(self, u: np.ndarray) -> np.ndarray:
         """Tangent gradient of a field ``u``, shape (n,) -> (n, 3): ``M_i^+ sum_j W_ij (u_j - u_i) d_ij`` (step 2)."""
-        slope = np.column_stack([a @ u for a in self._along]) - self._row_sums * u[:, None]
-        return np.einsum("nij,nj->ni", self._slope, slope)
+        W = self._weights
+        return lap_kernels.tangent_gradient(self.points, W.indptr, W.indices, W.data, self._slope, u)
 
     def divergence(self, field: np.ndarray) -> np.ndarray:
         """Weak divergence of a tangent field, shape (n, 3) -> (n,) (step 3).
 
         ``b_i = sum_j W_ij (X_i + X_j) / 2 . (x_i - x_j)``.
         """
-        own = np.einsum("nc,nc->n", field, self._row_sums)
-        other = sum(a @ field[:, c] for c, a in enumerate(self._along))
-        return -0.5 * (own + other)
+        W = self._weights
+        return lap_kernels.weak_divergence(self.points, W.indptr, W.indices, W.data, field)
 
     def heat(self, sources: np.ndarray) -> np.ndarray:
         """The heat ``u`` of one backward Euler step from the sources, shape (n,) (step 1).
