@@ -150,7 +150,7 @@ if __name__ == "__main__":
         out = {"seconds": time.perf_counter() - tic, "points": report.points, "tiles": report.tiles,
                "tile_size": report.tile_size, "workers": report.workers, "halo": report.halo,
                "timings": report.timings, "peak": report.peak_memory, "scheduler": report.scheduler,
-               "tile_seconds": report.tile_seconds}
+               "tile_seconds": report.tile_seconds, "tile_points": report.tile_points}
     import resource
     # CPU seconds of this process and of its reaped children (the workers): a number a busy machine inflates
     # far less than the wall time

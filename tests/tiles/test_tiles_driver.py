@@ -65,7 +65,8 @@ def test_a_failing_tile_fails_the_run_without_output(torus_file, torus_threads, 
     monkeypatch.delenv(FAULT_VARIABLE)
     report = compute_file(torus_file[0], out, tile_size=1200, scheduler="serial", dtype="float64",
                           fields=ALL_FIELDS)
-    assert report.resumed == 2 and len(report.tile_seconds) == 6
+    assert report.resumed == 2 and len(report.tile_seconds) == len(report.tile_points) == 6
+    assert all(0 < core <= 1200 and halo > 0 for core, halo in report.tile_points)
     assert os.listdir(tmp_path) == ["failed.ply"]  # the scratch directory is gone
     a, b = read_fields(out), read_fields(torus_threads[0])  # the same tiles, computed in one go
     assert all(np.array_equal(a[k], b[k]) for k in b)
@@ -85,6 +86,7 @@ def test_resume_without_results_recomputes_the_stored_tiles(torus_file, torus_th
     report = compute_file(torus_file[0], out, tile_size=1200, scheduler="serial", dtype="float64",
                           fields=ALL_FIELDS, log=said.append)
     assert report.resumed == 0 and len(report.tile_seconds) == 8
+    assert sum(core for core, _ in report.tile_points) == report.computed  # every tile's core, once
     assert any("3 finished tile(s) must be computed again" in line for line in said)
     a, b = read_fields(out), read_fields(torus_threads[0])
     assert all(np.array_equal(a[k], b[k]) for k in b)

@@ -116,6 +116,11 @@ class TiledReport:
         Everything written into the output's VLR / PLY comment.
     scratch : str
         The scratch directory (removed after a successful run unless kept).
+    tile_seconds : list of float
+        The compute time in its worker of each tile this run computed (not the
+        resumed ones), in tile order.
+    tile_points : list of tuple of int
+        The ``(core, halo)`` points of the same tiles.
     """
 
     source: str
@@ -137,6 +142,7 @@ class TiledReport:
     parameters: dict
     scratch: str
     tile_seconds: list = field(default_factory=list)
+    tile_points: list = field(default_factory=list)
 
 
 def estimator_options(method: str, viewpoint, options: dict, source_kind: str) -> dict:
@@ -309,6 +315,7 @@ def _report(run: Job, plan: TilePlan, context: SurveyContext, store: TileStore, 
         peak_memory={"driver": driver_peak, "worker": worker_peak, "estimate": driver_peak + workers * worker_peak},
         timings=timings, context=compute.describe(context, run.options), orientation=orientation, parameters=parameters,
         scratch=str(run.work), tile_seconds=[results[t]["seconds"] for t in sorted(results)],
+        tile_points=[(results[t]["points"], results[t]["halo_points"]) for t in sorted(results)],
     )
 
 
