@@ -118,6 +118,8 @@ NOT_RUN = {
                       "clouds in tiles", "big.laz"),
     ("tiles.md", 1): ("it needs a SLURM cluster (dask_jobqueue); tests/tiles/ run the Dask schedulers on a local "
                       "cluster", "SLURMCluster"),
+    ("tiles.md", 2): ("it needs a Kubernetes cluster with the Dask operator (dask_kubernetes); tests/tiles/ run the "
+                      "Dask schedulers on a local cluster", "KubeCluster"),
 }
 # run by a test of their own, which also checks what they return
 RUN_ELSEWHERE = {("getting_started.md", 0)}
