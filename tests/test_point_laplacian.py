@@ -286,6 +286,9 @@ def test_spd_factor_solves_the_shifted_stiffness_as_a_pivoting_factorisation_doe
     np.testing.assert_allclose(factor.solve(rhs[:, 1]), want[:, 1], rtol=1e-9, atol=1e-12 * np.abs(want).max())
     complex_factor = point_laplacian.spd_factor(shifted.astype(complex))
     assert not isinstance(complex_factor, point_laplacian.CholeskyFactor)
+    if cholesky:  # an indefinite matrix: a clear error, where an LU without pivoting would go on
+        with pytest.raises(HeatcurvError, match="not positive definite"):
+            point_laplacian.spd_factor(lap.first_order - 0.05 * sp.diags(lap.area))
 
 
 def test_without_cholespy_the_spectral_tools_give_the_same_numbers(random_sphere, monkeypatch):

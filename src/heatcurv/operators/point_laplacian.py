@@ -576,8 +576,13 @@ class CholeskyFactor:
     def __init__(self, matrix: sp.spmatrix):
         A = sp.csr_matrix(matrix, dtype=np.float64)
         A.sort_indices()
-        self._solver = cholespy.CholeskySolverD(A.shape[0], A.indptr.astype(np.int32), A.indices.astype(np.int32),
-                                                np.ascontiguousarray(A.data), cholespy.MatrixType.CSR)
+        try:
+            self._solver = cholespy.CholeskySolverD(A.shape[0], A.indptr.astype(np.int32),
+                                                    A.indices.astype(np.int32), np.ascontiguousarray(A.data),
+                                                    cholespy.MatrixType.CSR)
+        except ValueError as err:  # CHOLMOD met a pivot <= 0
+            raise HeatcurvError(f"a matrix to factorise is not positive definite ({err}): is the cloud "
+                                "a sampled surface, without coincident or isolated points?") from None
 
     def solve(self, b) -> np.ndarray:
         b = np.ascontiguousarray(b, dtype=np.float64)
