@@ -313,7 +313,8 @@ def _write_las(stream, compress, source, stats, chunks, wanted, dtype, parameter
     import laspy
 
     header, carried = _las_header(laspy, source, stats, wanted, dtype, parameters)
-    backend = laspy.LazBackend.Lazrs if compress else None
+    # lazrs compresses the chunks on every core (the same bytes as its sequential writer)
+    backend = laspy.LazBackend.LazrsParallel if compress else None
     with laspy.open(stream, mode="w", header=header, do_compress=compress, closefd=False,
                     laz_backend=backend) as writer:
         reader = source.chunks(CHUNK_POINTS, coordinates_only=False)
