@@ -12,7 +12,8 @@ a numba kernel, with no per-pair temporaries:
                and connected components (outliers, serial)
 ``anchors``    carrying the anchors' fits to every point (:mod:`heatcurv.fits.anchors`)
 ``laplacian``  the default Laplacian's tangent-plane Voronoi cells and border
-               moments (:mod:`heatcurv.operators.point_laplacian`)
+               moments (:mod:`heatcurv.operators.point_laplacian`), the heat
+               method's gradient and divergence (:mod:`heatcurv.operators.geodesic`)
 =============  ==============================================================
 
 The kernels take and return plain arrays and import nothing from the rest of
