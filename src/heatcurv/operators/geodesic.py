@@ -121,7 +121,6 @@ class HeatGeodesics:
         S1 = self.first_order.tocsr()
         W = (sp.diags(S1.diagonal()) - S1).tocsr()  # the pair weights, zero diagonal
         W.eliminate_zeros()
-        W.sort_indices()
         self._weights = W
         moment = lap_kernels.pair_second_moments(self.points, W.indptr, W.indices, W.data)
         value, vector = np.linalg.eigh(moment)  # ascending: the last two span the tangent plane
