@@ -62,7 +62,7 @@ def _keyed(noise):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         keys = [key_part(points[rows], core, frame) for rows, core in tiles]
-    return points, frame, tiles, join_keys([survey for survey, _ in keys], frame), [reach for _, reach in keys]
+    return points, frame, tiles, join_keys([survey for survey, _, _ in keys], frame), [reach for _, reach, _ in keys]
 
 
 @pytest.mark.parametrize("noise", [0.0012, 0.0])

@@ -77,7 +77,7 @@ __all__ = ["CurvatureResult", "estimate"]
 
 
 def estimate(points, normals=None, *, method: str = "default", viewpoint=None, progress=None, choices=None,
-             coordinate_precision=None, **options):
+             coordinate_precision=None, knn=None, **options):
     """Normals, mean, Gaussian and principal curvatures, directions and areas of a point cloud.
 
     Parameters
@@ -117,6 +117,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         is a source, its normal as the spanning tree oriented it and its
         weight (area, input units; on one row of a set of duplicates).
         Default: made from ``points``.
+    knn : callable, optional
+        With ``choices``: the tile's neighbourhoods where they are known
+        already (:meth:`heatcurv.operators.operator.HeatKernelOperator.from_points`,
+        :mod:`heatcurv.tiles.neighbours`). Default: queried.
     coordinate_precision : float or array_like of shape (3,), optional
         The step of the grid the coordinates were rounded to, input units,
         for all axes or one per axis (a LAS file's scale; 0: exact). Points
@@ -172,7 +176,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     precision_step(coordinate_precision)  # fail before the work
     with threads(opts.workers):
         frame = None if choices is None else choices.frame
-        op = HeatKernelOperator.from_points(points, opts, progress, frame)  # validate, neighbours, spacing, areas
+        op = HeatKernelOperator.from_points(points, opts, progress, frame, knn)  # validate, neighbours, spacing, areas
         rounding = coordinate_rounding(points, coordinate_precision)  # the points are valid now
         half_step = _stage_rounding(op, rounding)
         clock = StageClock(progress, dict(op.timings))

@@ -14,6 +14,8 @@ a numba kernel, with no per-pair temporaries:
 ``laplacian``  the default Laplacian's tangent-plane Voronoi cells and border
                moments (:mod:`heatcurv.operators.point_laplacian`), the heat
                method's gradient and divergence (:mod:`heatcurv.operators.geodesic`)
+``neighbours`` a tiled run's stored neighbour lists read back as a tile's
+               neighbourhood (:mod:`heatcurv.tiles.neighbours`)
 =============  ==============================================================
 
 The kernels take and return plain arrays and import nothing from the rest of

@@ -125,7 +125,7 @@ def _candidate_rows(keys: np.ndarray, core: np.ndarray, size: int, seed: int) ->
     return rows[order]
 
 
-def survey_part(points, core, frame: CloudFrame, **options) -> CentreSurvey:
+def survey_part(points, core, frame: CloudFrame, operator=None, **options) -> CentreSurvey:
     """Fit the candidate kernels at a tile's candidate centres (step 1 of the module).
 
     Parameters
@@ -136,6 +136,8 @@ def survey_part(points, core, frame: CloudFrame, **options) -> CentreSurvey:
         The tile's own points (the candidates are drawn from them).
     frame : CloudFrame
         The whole cloud's frame.
+    operator : HeatKernelOperator, optional
+        The operator over ``points`` with these options, if built already.
     **options
         As :func:`heatcurv.estimate` (:func:`tile_options`).
 
@@ -146,7 +148,7 @@ def survey_part(points, core, frame: CloudFrame, **options) -> CentreSurvey:
     opts = tile_options(options)
     tuning = opts.scale_tuning
     core = np.asarray(core, dtype=bool)
-    op = HeatKernelOperator.from_points(points, opts, frame=frame)
+    op = HeatKernelOperator.from_points(points, opts, frame=frame) if operator is None else operator
     X, base = op.points, op.neighbourhood
     prepared = op.prepared
     core_rows = np.zeros(X.shape[0], dtype=bool)
@@ -283,7 +285,7 @@ class KeySurvey:
     largest_ball: float
 
 
-def key_part(points, core, frame: CloudFrame, **options) -> tuple[KeySurvey, np.ndarray]:
+def key_part(points, core, frame: CloudFrame, **options) -> tuple[KeySurvey, np.ndarray, tuple]:
     """Round 1 on a tile: the sampling keys of its core points and its candidate centres.
 
     Parameters
@@ -303,6 +305,10 @@ def key_part(points, core, frame: CloudFrame, **options) -> tuple[KeySurvey, np.
     reach : ndarray, shape (k,)
         The operator ball radius of each core row (``points[core]``, in order),
         stages' units: the key reads no point farther.
+    queried : tuple
+        ``(prepared, neighbourhood)``: the distinct points and their
+        ``neighbours`` nearest, as the operator's (a tiled run keeps the core's,
+        :mod:`heatcurv.tiles.neighbours`).
     """
     from scipy.spatial import cKDTree
 
@@ -323,7 +329,7 @@ def key_part(points, core, frame: CloudFrame, **options) -> tuple[KeySurvey, np.
     radius = base.radius
     survey = KeySurvey(shifted_keys(keys[rows], opts.scale_tuning.seed), X[rows], radius[rows],
                        float(radius[core_rows].max()) if core_rows.any() else 0.0)
-    return survey, radius[prepared.inverse[core]]
+    return survey, radius[prepared.inverse[core]], (prepared, base)
 
 
 @dataclass(frozen=True)

@@ -83,7 +83,7 @@ class HeatKernelOperator:
 
     @classmethod
     def from_points(
-        cls, points, options: Options | None = None, progress=None, frame=None, **overrides
+        cls, points, options: Options | None = None, progress=None, frame=None, knn=None, **overrides
     ) -> HeatKernelOperator:
         """Run validation, neighbourhood, spacing and areas once.
 
@@ -97,6 +97,13 @@ class HeatKernelOperator:
             ``progress(stage, fraction)`` (:mod:`heatcurv.progress`).
         frame : heatcurv.choice.choices.CloudFrame, optional
             The whole cloud's frame when ``points`` are a part of it (a tile).
+        knn : callable, optional
+            ``knn(prepared, tree, k, workers) -> Neighbourhood``: the ``k`` nearest
+            neighbours of every distinct point (rows in ``prepared``'s order),
+            as :func:`~heatcurv.geometry.neighbourhood.knn_neighbourhood`
+            returns them, when they are known already (a tile whose
+            neighbourhoods the survey computed, :mod:`heatcurv.tiles.neighbours`).
+            Used with ``spacing="density"`` (the default); default: queried.
         **overrides
             ``method`` and any :class:`~heatcurv.options.Options` field.
 
@@ -117,7 +124,7 @@ class HeatKernelOperator:
             with clock.stage("validate"):
                 prepared = _prepare(points, options, frame)
                 tree = cKDTree(prepared.points)
-            nbhd, h = _neighbourhood_and_spacing(prepared, tree, options, clock)
+            nbhd, h = _neighbourhood_and_spacing(prepared, tree, options, clock, knn)
             with clock.stage("areas"):
                 if options.area_method == "density":
                     weights = None  # computed on first use (.weights), not stored on large clouds
@@ -195,8 +202,9 @@ def _prepare(points, options: Options, frame=None) -> PreparedPoints:
     return prepared.reordered(cKDTree(prepared.points).indices)
 
 
-def _neighbourhood_and_spacing(prepared: PreparedPoints, tree: cKDTree, options: Options, clock: StageClock):
-    """The ball neighbourhood and the spacing ``h``, each timed as its own stage."""
+def _neighbourhood_and_spacing(prepared: PreparedPoints, tree: cKDTree, options: Options, clock: StageClock,
+                               knn=None):
+    """The ball neighbourhood and the spacing ``h``, each timed as its own stage (``knn``: :meth:`from_points`)."""
     X = prepared.points
     if options.radius is not None:
         # one physical ball for every point: h = radius / alpha (radius given in input units)
@@ -211,7 +219,11 @@ def _neighbourhood_and_spacing(prepared: PreparedPoints, tree: cKDTree, options:
     elif options.spacing == "density":
         # the ball of radius d_k = alpha h holds the k nearest neighbours: one query gives both
         with clock.stage("neighbours"):
-            nbhd = knn_neighbourhood(X, int(options.neighbours), tree=tree, workers=options.workers)
+            k = int(options.neighbours)
+            if knn is None:
+                nbhd = knn_neighbourhood(X, k, tree=tree, workers=options.workers)
+            else:  # known already (a tile whose survey queried them)
+                nbhd = knn(prepared, tree, k, options.workers)
         with clock.stage("spacing"):
             h = nbhd.radius / options.alpha
     else:

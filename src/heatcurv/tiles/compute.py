@@ -29,6 +29,7 @@ from ..choice.survey import merge_surveys as merge_centre_surveys
 from ..estimator import estimate
 from ..flags.reliability import ReliabilityInputs, cloud_flags
 from ..geometry.validation import bounding_box_frame
+from ..operators.operator import HeatKernelOperator
 from ..options import resolve_options
 from .context import SurveyContext
 
@@ -87,11 +88,16 @@ def _estimate_options(options: dict) -> dict:
     return {k: v for k, v in options.items() if k not in ("viewpoint", "orient", "progress")}
 
 
+def operator_neighbours(options: dict) -> int:
+    """The neighbours of the operator's balls (``k``) under a tiled run's estimator options."""
+    return int(tile_options(_estimate_options(options)).neighbours)
+
+
 def _core_ball(core_points: np.ndarray, options: dict) -> float:
     """The 90th percentile of the operator ball radius (``neighbours`` nearest) on a sample of a tile's core."""
     from scipy.spatial import cKDTree
 
-    k0 = int(tile_options(_estimate_options(options)).neighbours)
+    k0 = operator_neighbours(options)
     sample = core_points[:: max(1, len(core_points) // 2000)]
     radius = cKDTree(core_points).query(sample, min(k0 + 1, len(core_points)))[0][:, -1]
     return float(np.quantile(radius, 0.9))
@@ -133,10 +139,12 @@ def key_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
     survey : heatcurv.choice.survey.KeySurvey
     reach : ndarray, shape (c,)
         Each core row's operator ball radius, input units (the certificate's).
+    queried : tuple
+        ``(prepared, neighbourhood)``: the ``k`` nearest it queried (:mod:`.neighbours`).
     """
     frame = cloud_frame(stats)
-    survey, reach = key_part(points, core, frame, **_estimate_options(options))
-    return survey, reach * frame.unit
+    survey, reach, queried = key_part(points, core, frame, **_estimate_options(options))
+    return survey, reach * frame.unit, queried
 
 
 def plan_centres(surveys: list, stats, options: dict):
@@ -154,7 +162,7 @@ def centre_reach(plan, places: np.ndarray, stats, options: dict, levels: int | N
     certificate widens it where that is not enough.
     """
     frame = cloud_frame(stats)
-    k0 = int(tile_options(_estimate_options(options)).neighbours)
+    k0 = operator_neighbours(options)
     ball = plan.balls[places] * np.sqrt(plan.widths(places, levels) / k0) * CENTRE_MARGIN
     return (ball + 2.0 * plan.largest_ball) * HALO_MARGIN * frame.unit
 
@@ -202,9 +210,14 @@ def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
 
     Returns
     -------
-    heatcurv.choice.survey.CentreSurvey
+    survey : heatcurv.choice.survey.CentreSurvey
+    operator : HeatKernelOperator
+        The operator the survey built over ``points`` (its neighbourhoods are
+        the tile phase's, :mod:`.neighbours`).
     """
-    return survey_part(points, core, cloud_frame(stats), **_estimate_options(options))
+    frame, options = cloud_frame(stats), _estimate_options(options)
+    op = HeatKernelOperator.from_points(points, tile_options(options), frame=frame)
+    return survey_part(points, core, frame, operator=op, **options), op
 
 
 def survey_reach(survey, stats) -> tuple[np.ndarray, np.ndarray]:
@@ -245,7 +258,7 @@ def _first_halo(choices, fits: list, frame: CloudFrame, options: dict) -> Survey
     return SurveyContext(choices, (balls * chosen + operator) * HALO_MARGIN, chosen)
 
 
-def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, options: dict) -> dict:
+def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, options: dict, knn=None) -> dict:
     """Every result field of the core rows of a tile, and what the driver needs around them.
 
     Parameters
@@ -258,6 +271,8 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, o
         :func:`merge_surveys`' choices.
     options : dict
         The keyword arguments of :func:`heatcurv.estimate`.
+    knn : callable, optional
+        The neighbourhoods the survey queried (:func:`.neighbours.known_neighbours`).
 
     Returns
     -------
@@ -273,7 +288,7 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, o
         (:mod:`.winding`; the estimate's ``info["winding"]``, None where the
         normals were oriented on anchors).
     """
-    res = estimate(points, choices=context.choices, **options)
+    res = estimate(points, choices=context.choices, knn=knn, **options)
     fields = {name: getattr(res, name) for name in RESULT_FIELDS if hasattr(res, name)}
     for name in ("mean_se", "k1_se", "k2_se", "gaussian_se", "normal_se"):
         if fields[name] is None:

@@ -23,7 +23,8 @@ Scratch files live in ``<scratch>/.<output name>.heatcurv-tiles/``
 :class:`.plan.TilePlan`: source identity, options hash, tiling, statistics,
 halos), ``context.json`` (the survey's
 :class:`.context.SurveyContext`), ``points.f8``,
-``rows.i8``, ``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
+``rows.i8``, ``knn/knn_NNNNN.npy`` (the survey's neighbour lists, :mod:`.neighbours`),
+``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
 tile: its done marker; once its rows are copied into ``results.rec`` it keeps
 only the seam vote's and the winding step's inputs, :data:`.output.STORED_KEYS`
 and :data:`.output.SOURCE_KEYS`). A run whose scratch

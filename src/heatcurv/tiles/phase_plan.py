@@ -19,6 +19,7 @@ from pathlib import Path
 from ..errors import HeatcurvError
 from . import compute, job
 from .job import Job
+from .neighbours import list_bytes
 from .output import RECORD
 from .plan import (
     DRIVER_MEMORY,
@@ -87,8 +88,9 @@ def make_plan(run: Job, identity: dict, tile_size, skip_nonfinite: bool, timings
             # no worker process holds a tile and its halo: one tile at a time in this process
             tile_size = default_tile_size(room, 1, in_process=True)
     # points.f8 + rows.i8 with the halos' copies (~1.25x), results.rec, the slimmed tile files (their
-    # halo rows, normals and patches) and the few full ones in flight
-    need = stats.finite * (48 + RECORD.itemsize + 48)
+    # halo rows, normals and patches) and the few full ones in flight, the survey's neighbour lists
+    lists = list_bytes(stats.finite, compute.operator_neighbours(run.options))
+    need = stats.finite * (48 + RECORD.itemsize + 48) + lists
     check_disk(run.work, need, f"the scratch files of {stats.finite} points")
     if os.stat(run.work).st_dev == os.stat(run.dst.parent).st_dev:
         need += stats.count * 100

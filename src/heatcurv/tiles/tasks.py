@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import HeatcurvError
 from . import compute
 from .context import SurveyContext
+from .neighbours import core_lists, known_neighbours, write_lists
 from .plan import CloudStats, Tiling, read_rows
 from .winding import tile_sources
 
@@ -119,12 +120,15 @@ def tile_points(scratch, tiling: Tiling, tile: int, halo: float):
         The first ``counts[tile]`` rows.
     low, high : ndarray, shape (3,)
         The halo box.
+    positions : ndarray, shape (m,), int64
+        Each point's position in the scratch files.
     """
     offsets = tiling.offsets
     points, rows = read_rows(scratch, int(offsets[tile]), int(offsets[tile + 1]))
     low, high = tiling.box(tile)
     low, high = low - halo, high + halo
     parts, part_rows = [points], [rows]
+    part_positions = [np.arange(int(offsets[tile]), int(offsets[tile + 1]), dtype=np.int64)]
     for other in tiling.overlapping(low, high):
         if other == tile:
             continue
@@ -132,9 +136,10 @@ def tile_points(scratch, tiling: Tiling, tile: int, halo: float):
         inside = np.all((p >= low) & (p <= high), axis=1)
         parts.append(p[inside])
         part_rows.append(r[inside])
+        part_positions.append(int(offsets[other]) + np.flatnonzero(inside))
     core = np.zeros(sum(len(p) for p in parts), dtype=bool)
     core[: len(points)] = True
-    return np.concatenate(parts), np.concatenate(part_rows), core, low, high
+    return np.concatenate(parts), np.concatenate(part_rows), core, low, high, np.concatenate(part_positions)
 
 
 def certificate(points: np.ndarray, support: np.ndarray, box: tuple, halo_box: tuple, cloud: tuple) -> float:
@@ -199,7 +204,8 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
     Parameters
     ----------
     evaluate : callable
-        ``evaluate(points, core) -> (result, positions, reach)``: the tile's
+        ``evaluate(points, core, positions) -> (result, centres, reach)``: given
+        what :func:`tile_points` read, the tile's
         result, and the positions (shape (c, 3)) and radii (shape (c,)) whose
         balls must lie inside what was read (:func:`certificate`).
     what, advice : str
@@ -208,7 +214,8 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
     Returns
     -------
     tuple
-        ``(result, points, rows, core, halo, widened)`` of the certified read.
+        ``(result, points, rows, core, halo, widened, positions)`` of the certified read
+        (:func:`tile_points`).
 
     Raises
     ------
@@ -217,11 +224,11 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
         times :data:`.compute.HALO_MARGIN`).
     """
     for widened in range(WIDENINGS + 1):
-        points, rows, core, low, high = tile_points(scratch, tiling, tile, halo)
-        result, positions, reach = evaluate(points, core)
-        need = certificate(positions, reach, tiling.box(tile), (low, high), cloud)
+        points, rows, core, low, high, positions = tile_points(scratch, tiling, tile, halo)
+        result, centres, reach = evaluate(points, core, positions)
+        need = certificate(centres, reach, tiling.box(tile), (low, high), cloud)
         if need == 0.0:
-            return result, points, rows, core, halo, widened
+            return result, points, rows, core, halo, widened, positions
         if widened == WIDENINGS:
             raise HeatcurvError(
                 f"{what}: the certificate failed after {WIDENINGS} widenings of the halo (last {halo:.6g}, "
@@ -247,12 +254,18 @@ def run_survey(spec: SurveyTask):
     # the driver's (the plan budgets the survey's workers with it); the same function of the same core
     halo = float(spec.halo) if spec.halo is not None else compute.survey_halo(core_points, stats, options)
 
-    def survey(points, core):
-        part = compute.survey_tile(points, core, stats, options)
+    def survey(points, core, _):
+        part, op = compute.survey_tile(points, core, stats, options)
         centres, reach = compute.survey_reach(part, stats)
-        return part, centres, reach / compute.DEPTH
+        return (part, op), centres, reach / compute.DEPTH
 
-    return _certified(scratch, tiling, tile, halo, cloud, survey, f"survey of tile {tile}", LARGER_TILES)[0]
+    (part, op), _, _, core, halo, _, positions = _certified(scratch, tiling, tile, halo, cloud, survey,
+                                                            f"survey of tile {tile}", LARGER_TILES)
+    # the core's neighbourhoods, which the tile phase reads instead of querying them again
+    low, high = tiling.box(tile)
+    write_lists(scratch, tile, core_lists(op.prepared, op.neighbourhood, core, positions, (low - halo, high + halo),
+                                          cloud))
+    return part
 
 
 def run_keys(spec: KeysTask):
@@ -272,11 +285,16 @@ def run_keys(spec: KeysTask):
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     halo = float(spec.halo)
 
-    def keys(points, core):
-        part, reach = compute.key_tile(points, core, stats, options)
-        return part, points[core], reach / compute.DEPTH
+    def keys(points, core, _):
+        part, reach, queried = compute.key_tile(points, core, stats, options)
+        return (part, queried), points[core], reach / compute.DEPTH
 
-    return _certified(scratch, tiling, tile, halo, cloud, keys, f"keys of tile {tile}", LARGER_TILES)[0]
+    (part, (prepared, nbhd)), _, _, core, halo, _, positions = _certified(
+        scratch, tiling, tile, halo, cloud, keys, f"keys of tile {tile}", LARGER_TILES)
+    # the core's neighbourhoods, which the tile phase reads instead of querying them again
+    low, high = tiling.box(tile)
+    write_lists(scratch, tile, core_lists(prepared, nbhd, core, positions, (low - halo, high + halo), cloud))
+    return part
 
 
 def run_centres(spec: CentresTask):
@@ -307,7 +325,7 @@ def run_centres(spec: CentresTask):
     done = []
     for widened in range(WIDENINGS + 1):
         # the centres are core points and the halo the largest guess: every guessed ball lies in the box read
-        points, _, _, _, _ = tile_points(scratch, tiling, tile, float(guess.max()))
+        points = tile_points(scratch, tiling, tile, float(guess.max()))[0]
         keep = np.flatnonzero(_within(points, centres, guess, int(options.get("workers", 1))))
         if keep.size > int(centres_plan.widths(places, levels).max()):
             part, reach, _ = compute.fit_tile_centres(points[keep], stats, options, centres_plan, places, levels)
@@ -361,11 +379,12 @@ def run_tile(spec: TileTask) -> dict:
     centroid = np.asarray(plan["stats"]["centroid"])
     halo = float(context.halo if spec.halo is None else spec.halo)
 
-    def tile_values(points, core):
-        out = compute.compute_tile(points, core, context, options)
+    def tile_values(points, core, positions):
+        knn = known_neighbours(scratch, tiling.offsets, positions)
+        out = compute.compute_tile(points, core, context, options, knn)
         return out, points[core], out["support"]
 
-    out, points, rows, core, halo, widened = _certified(
+    out, points, rows, core, halo, widened, _ = _certified(
         scratch, tiling, tile, halo, cloud, tile_values, f"tile {tile}",
         ": some point's values depend on points farther than the halo; pass a smaller tile size or report this",
     )

@@ -1,0 +1,192 @@
+"""Each point's nearest neighbours, queried once: the survey keeps them for the tile phase.
+
+The ``neighbours`` nearest points of every point (the operator's ball,
+:func:`heatcurv.geometry.neighbourhood.knn_neighbourhood`) are the largest
+single cost of a tile: a k-d tree query over its core and its halo. The
+survey of a tile queries them before (:func:`.tasks.run_survey` for the
+operator it builds over the core and a wider halo; in a survey of two rounds,
+:func:`.tasks.run_keys` for the keys), so it writes the neighbours of its core
+points to ``knn/knn_NNNNN.npy`` (their scratch positions, one row of
+``neighbours`` per core point, nearest first); a tile of the tile phase reads
+the rows of its core and halo points from the files of the tiles that hold
+them (:func:`known_neighbours`) and queries only the points whose neighbours
+are not all among the points it read (the outer rim of its halo) or that no
+file holds.
+
+A point's ``k`` nearest within the points a tile read are its ``k`` nearest in
+the whole cloud when the whole cloud's are all among them, so a row read back
+is the row the tile would query (up to the order of points tied at one
+distance, which the operator's kernels weigh alike; the distances are
+recomputed from the coordinates, as the k-d tree computes them). A survey
+writes a core point's row only when its ball lies inside what the survey read
+(or reaches past it only across the cloud's bounding box), else ``-1``.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .._kernels.neighbours import stored_neighbours
+from ..geometry.neighbourhood import Neighbourhood, _index_dtype, knn_neighbourhood
+from ..geometry.validation import PreparedPoints
+
+__all__ = ["core_lists", "write_lists", "known_neighbours", "lists_path", "list_bytes"]
+
+
+def list_bytes(points: int, neighbours: int) -> int:
+    """Bytes of the neighbour files of ``points`` points (int32 positions where they fit, else int64)."""
+    return int(points) * int(neighbours) * (4 if int(points) < np.iinfo(np.int32).max else 8)
+
+
+def lists_path(scratch, tile: int) -> str:
+    """The neighbour file of tile ``tile``'s core points."""
+    return os.path.join(scratch, "knn", f"knn_{tile:05d}.npy")
+
+
+def core_lists(prepared: PreparedPoints, nbhd: Neighbourhood, core: np.ndarray, positions: np.ndarray,
+               halo_box: tuple, cloud: tuple) -> np.ndarray | None:
+    """The scratch positions of each core point's nearest neighbours, from a query over a tile.
+
+    Parameters
+    ----------
+    prepared : PreparedPoints
+        The distinct points of the tile's core and halo (the operator's).
+    nbhd : Neighbourhood
+        Their neighbourhood: each one's ``k`` nearest (the operator's with
+        ``spacing="density"``, the default).
+    core : ndarray, shape (m,), bool
+        The tile's own rows (the first ones).
+    positions : ndarray, shape (m,), int64
+        Each row's position in the scratch files.
+    halo_box, cloud : tuple of ndarray, shape (3,)
+        ``(low, high)`` of the box read and of the cloud's bounding box, input units.
+
+    Returns
+    -------
+    ndarray, shape (c, k), or None
+        Row ``i``: the positions of core point ``i``'s ``k`` nearest, nearest
+        first; ``-1`` where its ball is not certainly inside what was read.
+        None when the neighbourhood is not a ``k``-nearest one (other options).
+    """
+    if not nbhd.by_distance or nbhd.n_points == 0:
+        return None
+    k = int(nbhd.counts[0])
+    if k == 0 or not np.all(nbhd.counts == k):
+        return None
+    distinct = prepared.inverse[np.flatnonzero(core)]
+    rows = nbhd.indices.reshape(-1, k)[distinct]
+    dtype = np.int32 if int(positions.max(initial=0)) < np.iinfo(np.int32).max else np.int64  # as list_bytes
+    lists = positions[prepared.first[rows]].astype(dtype)
+    # a ball reaching past the box read may miss a nearer point beyond it
+    points = prepared.points[distinct] * prepared.unit + prepared.offset
+    radius = (nbhd.radius[distinct] * prepared.unit)[:, None]
+    low, high = halo_box
+    open_low, open_high = low > cloud[0], high < cloud[1]
+    inside = np.all(~open_low | (points - radius > low), axis=1) & np.all(~open_high | (points + radius < high), axis=1)
+    lists[~inside] = -1
+    return lists
+
+
+def write_lists(scratch, tile: int, lists: np.ndarray | None) -> None:
+    """Write a tile's :func:`core_lists` atomically (nothing when None)."""
+    if lists is None:
+        return
+    path = lists_path(scratch, tile)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    temporary = f"{path}.{os.getpid()}.tmp.npy"
+    try:
+        np.save(temporary, lists)
+        os.replace(temporary, path)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        raise
+
+
+def _read_lists(scratch, tile: int) -> np.ndarray | None:
+    """A tile's neighbour file, or None when there is none (a two-round survey, other options)."""
+    path = lists_path(scratch, tile)
+    if not os.path.exists(path):
+        return None
+    return np.load(path)
+
+
+def known_neighbours(scratch, offsets: np.ndarray, positions: np.ndarray):
+    """The ``knn`` argument of :func:`heatcurv.estimate` for a tile read from the scratch files.
+
+    Parameters
+    ----------
+    scratch : str
+        The scratch directory.
+    offsets : ndarray, shape (t + 1,)
+        Where each tile's points start in the scratch files.
+    positions : ndarray, shape (m,), int64
+        The scratch position of each point the tile read, in the order given to ``estimate``.
+
+    Returns
+    -------
+    callable
+        ``knn(prepared, tree, k, workers) -> Neighbourhood``: every distinct
+        point's ``k`` nearest, read back where the survey wrote them and all
+        of them are among the tile's points, else queried.
+    """
+    offsets = np.asarray(offsets, dtype=np.int64)
+
+    def knn(prepared, tree, k: int, workers: int = -1) -> Neighbourhood:
+        X = prepared.points
+        n = X.shape[0]
+        lists, base, lookup = _stored_lists(scratch, offsets, positions)  # read now: held only for this call
+        if lists is None or lists.shape[1] != k:
+            return knn_neighbourhood(X, k, tree=tree, workers=workers)
+        indices, distances, known = stored_neighbours(X, prepared.first, prepared.inverse, lists, offsets, base,
+                                                      lookup, _index_dtype(n))
+        del lists, lookup
+        ask = np.flatnonzero(~known)
+        if ask.size:
+            queried = knn_neighbourhood(X, k, tree=tree, workers=workers, queries=X[ask])
+            indices[ask] = queried.indices.reshape(-1, k)
+            distances[ask] = queried.distances.reshape(-1, k)
+        return Neighbourhood(
+            indptr=np.arange(0, n * k + 1, k, dtype=np.int64), indices=indices.reshape(-1),
+            distances=distances.reshape(-1), radius=distances[:, -1].copy(), augmented=np.zeros(n, dtype=bool),
+            by_distance=True,
+        )
+
+    return knn
+
+
+def _stored_lists(scratch, offsets: np.ndarray, positions: np.ndarray):
+    """The stored lists of the points read (-1 rows where none is stored) and the map from scratch positions to them.
+
+    Returns
+    -------
+    lists : ndarray, shape (m, k), or None
+        Per point read, its list (:func:`core_lists`); None when no tile read has one.
+    base : ndarray, shape (t,), int64
+        Where each tile's slice starts in ``lookup`` (-1: no point of it read).
+    lookup : ndarray, int64
+        The tiles' slices end to end: per scratch position, its point's row, -1 if not read.
+    """
+    m = positions.shape[0]
+    home = np.searchsorted(offsets, positions, side="right") - 1
+    lists = None
+    base = np.full(len(offsets) - 1, -1, dtype=np.int64)
+    maps, start = [], 0
+    for tile in np.unique(home):
+        mine = np.flatnonzero(home == tile)
+        count = int(offsets[tile + 1] - offsets[tile])
+        local = np.full(count, -1, dtype=np.int64)
+        local[positions[mine] - offsets[tile]] = mine
+        base[tile], start = start, start + count
+        maps.append(local)
+        stored = _read_lists(scratch, int(tile))
+        if stored is None:
+            continue
+        if lists is None:
+            lists = np.full((m, stored.shape[1]), -1, dtype=stored.dtype)
+        if stored.shape[1] == lists.shape[1]:
+            lists[mine] = stored[positions[mine] - offsets[tile]]
+    lookup = np.concatenate(maps) if maps else np.zeros(0, dtype=np.int64)
+    return lists, base, lookup

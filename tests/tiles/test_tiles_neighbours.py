@@ -1,0 +1,97 @@
+"""The tile phase reads back the neighbourhoods its survey queried (heatcurv.tiles.neighbours)."""
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+from tiles_helpers import ALL_FIELDS, read_fields
+
+from heatcurv.geometry.neighbourhood import knn_neighbourhood
+from heatcurv.geometry.validation import prepare_points
+from heatcurv.tiles import compute_file, neighbours, phase_survey, tasks
+
+
+def _scratch_lists(tmp_path, points, offsets, k, missing=()):
+    """Write every tile's lists from one query over the whole cloud (positions = rows of ``points``)."""
+    rows = cKDTree(points).query(points, k + 1)[1][:, 1:]
+    for tile in range(len(offsets) - 1):
+        if tile not in missing:
+            neighbours.write_lists(tmp_path, tile, rows[offsets[tile]:offsets[tile + 1]].astype(np.int32))
+
+
+def _queried_rows(monkeypatch):
+    """Record how many rows the provider leaves to the k-d tree."""
+    asked = []
+    query = neighbours.knn_neighbourhood
+
+    def counting(points, k, tree=None, workers=-1, queries=None, **kwargs):
+        asked.append(len(points) if queries is None else len(queries))
+        return query(points, k, tree=tree, workers=workers, queries=queries, **kwargs)
+
+    monkeypatch.setattr(neighbours, "knn_neighbourhood", counting)
+    return asked
+
+
+def test_stored_neighbourhoods_are_the_query_bit_for_bit(tmp_path, monkeypatch):
+    # a slab cut into three tiles along x; the middle tile reads its core and a band of the others
+    rng = np.random.default_rng(0)
+    points = rng.uniform(size=(6000, 3)) * [6.0, 1.0, 0.2]
+    points = points[np.argsort(points[:, 0])]
+    offsets, k = np.array([0, 2000, 4000, 6000]), 12
+    _scratch_lists(tmp_path, points, offsets, k)
+    low, high = points[2000, 0] - 0.4, points[3999, 0] + 0.4
+    positions = np.flatnonzero((points[:, 0] >= low) & (points[:, 0] <= high))
+    prepared = prepare_points(points[positions])
+    tree = cKDTree(prepared.points)
+    asked = _queried_rows(monkeypatch)
+    stored = neighbours.known_neighbours(tmp_path, offsets, positions)(prepared, tree, k, 1)
+    queried = knn_neighbourhood(prepared.points, k, tree=tree)
+    np.testing.assert_array_equal(stored.indices, queried.indices)
+    np.testing.assert_array_equal(stored.distances, queried.distances)  # the k-d tree's sum, bit for bit
+    np.testing.assert_array_equal(stored.radius, queried.radius)
+    # only the rim of the band is queried: rows whose nearest lie beyond what was read
+    assert 0 < asked[0] < 0.15 * len(positions)
+
+
+def test_a_tile_without_stored_lists_queries_and_agrees(tmp_path, monkeypatch):
+    rng = np.random.default_rng(1)
+    points = rng.uniform(size=(3000, 3)) * [3.0, 1.0, 0.2]
+    points = points[np.argsort(points[:, 0])]
+    offsets, k = np.array([0, 1000, 2000, 3000]), 10
+    _scratch_lists(tmp_path, points, offsets, k, missing=(0,))
+    positions = np.arange(3000)
+    prepared = prepare_points(points)
+    tree = cKDTree(prepared.points)
+    asked = _queried_rows(monkeypatch)
+    stored = neighbours.known_neighbours(tmp_path, offsets, positions)(prepared, tree, k, 1)
+    queried = knn_neighbourhood(prepared.points, k, tree=tree)
+    np.testing.assert_array_equal(stored.indices, queried.indices)
+    np.testing.assert_array_equal(stored.distances, queried.distances)
+    assert asked == [1000]  # tile 0's rows, and only those
+    # lists of another width than asked for: every row is queried
+    asked.clear()
+    neighbours.known_neighbours(tmp_path, offsets, positions)(prepared, tree, k + 1, 1)
+    assert asked == [3000]
+
+
+@pytest.mark.parametrize("rounds", [1, 2])
+def test_the_tiled_torus_is_the_same_with_and_without_the_stored_lists(torus_file, tmp_path, monkeypatch, rounds):
+    # the survey in one round writes its operator's lists, in two rounds the keys' round does
+    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 63 if rounds == 1 else 0)
+    options = dict(tile_size=1200, scheduler="serial", dtype="float64", fields=ALL_FIELDS, max_memory="4G")
+    asked = _queried_rows(monkeypatch)
+    (tmp_path / "scratch").mkdir()
+    stored = compute_file(torus_file[0], tmp_path / "stored.ply", scratch=tmp_path / "scratch", keep_scratch=True,
+                          **options)
+    files = sorted((tmp_path / "scratch").rglob("knn_*.npy"))
+    assert len(files) == stored.tiles
+    counts = [np.load(f).shape for f in files]
+    assert sum(c[0] for c in counts) == 6000 and {c[1] for c in counts} == {60}
+    # the tile phase queried the rims of the halos only (wide here: tiles of 1200 points)
+    read = sum(core + halo for core, halo in stored.tile_points)
+    assert sum(asked) < 0.25 * read, (asked, read)
+    monkeypatch.setattr(tasks, "write_lists", lambda *args: None)
+    queried = compute_file(torus_file[0], tmp_path / "queried.ply", **options)
+    a, b = read_fields(tmp_path / "stored.ply"), read_fields(tmp_path / "queried.ply")
+    for name in ALL_FIELDS:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    assert queried.tiles == stored.tiles
