@@ -194,7 +194,7 @@ def merge_rounds(parts: list, plan, stats, options: dict) -> SurveyContext:
     return _first_halo(choices, [part.fits for part in parts], frame, options)
 
 
-def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
+def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict, keep=None):
     """A tile's fits at its sample centres (:func:`heatcurv.choice.survey.survey_part`).
 
     Parameters
@@ -207,17 +207,19 @@ def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict):
         Count, bounding box, centroid and rms radius of the whole cloud.
     options : dict
         The keyword arguments of :func:`heatcurv.estimate`.
+    keep : callable, optional
+        ``keep(operator)``, called with the operator over ``points`` before the
+        fits (a tiled run stores its neighbourhoods for the tile phase, :mod:`.neighbours`).
 
     Returns
     -------
-    survey : heatcurv.choice.survey.CentreSurvey
-    operator : HeatKernelOperator
-        The operator the survey built over ``points`` (its neighbourhoods are
-        the tile phase's, :mod:`.neighbours`).
+    heatcurv.choice.survey.CentreSurvey
     """
     frame, options = cloud_frame(stats), _estimate_options(options)
     op = HeatKernelOperator.from_points(points, tile_options(options), frame=frame)
-    return survey_part(points, core, frame, operator=op, **options), op
+    if keep is not None:
+        keep(op)
+    return survey_part(points, core, frame, operator=op, **options)
 
 
 def survey_reach(survey, stats) -> tuple[np.ndarray, np.ndarray]:

@@ -29,7 +29,7 @@ import os
 import numpy as np
 
 from .._kernels.neighbours import stored_neighbours
-from ..geometry.neighbourhood import Neighbourhood, _index_dtype, knn_neighbourhood
+from ..geometry.neighbourhood import Neighbourhood, _index_dtype, block_ranges, knn_neighbourhood, rows_per_block
 from ..geometry.validation import PreparedPoints
 
 __all__ = ["core_lists", "write_lists", "known_neighbours", "lists_path", "list_bytes"]
@@ -76,16 +76,20 @@ def core_lists(prepared: PreparedPoints, nbhd: Neighbourhood, core: np.ndarray, 
     if k == 0 or not np.all(nbhd.counts == k):
         return None
     distinct = prepared.inverse[np.flatnonzero(core)]
-    rows = nbhd.indices.reshape(-1, k)[distinct]
     dtype = np.int32 if int(positions.max(initial=0)) < np.iinfo(np.int32).max else np.int64  # as list_bytes
-    lists = positions[prepared.first[rows]].astype(dtype)
-    # a ball reaching past the box read may miss a nearer point beyond it
-    points = prepared.points[distinct] * prepared.unit + prepared.offset
-    radius = (nbhd.radius[distinct] * prepared.unit)[:, None]
+    lists = np.empty((distinct.size, k), dtype=dtype)
+    rows = nbhd.indices.reshape(-1, k)
     low, high = halo_box
     open_low, open_high = low > cloud[0], high < cloud[1]
-    inside = np.all(~open_low | (points - radius > low), axis=1) & np.all(~open_high | (points + radius < high), axis=1)
-    lists[~inside] = -1
+    for lo, hi in block_ranges(distinct.size, rows_per_block(k)):  # a block at a time: the temporaries are int64
+        mine = distinct[lo:hi]
+        lists[lo:hi] = positions[prepared.first[rows[mine]]]
+        # a ball reaching past the box read may miss a nearer point beyond it
+        points = prepared.points[mine] * prepared.unit + prepared.offset
+        radius = (nbhd.radius[mine] * prepared.unit)[:, None]
+        inside = np.all(~open_low | (points - radius > low), axis=1)
+        inside &= np.all(~open_high | (points + radius < high), axis=1)
+        lists[lo + np.flatnonzero(~inside)] = -1
     return lists
 
 

@@ -204,8 +204,8 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
     Parameters
     ----------
     evaluate : callable
-        ``evaluate(points, core, positions) -> (result, centres, reach)``: given
-        what :func:`tile_points` read, the tile's
+        ``evaluate(points, core, positions, halo_box) -> (result, centres, reach)``:
+        given what :func:`tile_points` read, the tile's
         result, and the positions (shape (c, 3)) and radii (shape (c,)) whose
         balls must lie inside what was read (:func:`certificate`).
     what, advice : str
@@ -214,8 +214,7 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
     Returns
     -------
     tuple
-        ``(result, points, rows, core, halo, widened, positions)`` of the certified read
-        (:func:`tile_points`).
+        ``(result, points, rows, core, halo, widened)`` of the certified read.
 
     Raises
     ------
@@ -225,10 +224,10 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
     """
     for widened in range(WIDENINGS + 1):
         points, rows, core, low, high, positions = tile_points(scratch, tiling, tile, halo)
-        result, centres, reach = evaluate(points, core, positions)
+        result, centres, reach = evaluate(points, core, positions, (low, high))
         need = certificate(centres, reach, tiling.box(tile), (low, high), cloud)
         if need == 0.0:
-            return result, points, rows, core, halo, widened, positions
+            return result, points, rows, core, halo, widened
         if widened == WIDENINGS:
             raise HeatcurvError(
                 f"{what}: the certificate failed after {WIDENINGS} widenings of the halo (last {halo:.6g}, "
@@ -254,18 +253,15 @@ def run_survey(spec: SurveyTask):
     # the driver's (the plan budgets the survey's workers with it); the same function of the same core
     halo = float(spec.halo) if spec.halo is not None else compute.survey_halo(core_points, stats, options)
 
-    def survey(points, core, _):
-        part, op = compute.survey_tile(points, core, stats, options)
-        centres, reach = compute.survey_reach(part, stats)
-        return (part, op), centres, reach / compute.DEPTH
+    def survey(points, core, positions, halo_box):
+        def keep(op):  # the core's neighbourhoods, which the tile phase reads instead of querying them again
+            write_lists(scratch, tile, core_lists(op.prepared, op.neighbourhood, core, positions, halo_box, cloud))
 
-    (part, op), _, _, core, halo, _, positions = _certified(scratch, tiling, tile, halo, cloud, survey,
-                                                            f"survey of tile {tile}", LARGER_TILES)
-    # the core's neighbourhoods, which the tile phase reads instead of querying them again
-    low, high = tiling.box(tile)
-    write_lists(scratch, tile, core_lists(op.prepared, op.neighbourhood, core, positions, (low - halo, high + halo),
-                                          cloud))
-    return part
+        part = compute.survey_tile(points, core, stats, options, keep)
+        centres, reach = compute.survey_reach(part, stats)
+        return part, centres, reach / compute.DEPTH
+
+    return _certified(scratch, tiling, tile, halo, cloud, survey, f"survey of tile {tile}", LARGER_TILES)[0]
 
 
 def run_keys(spec: KeysTask):
@@ -285,16 +281,13 @@ def run_keys(spec: KeysTask):
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
     halo = float(spec.halo)
 
-    def keys(points, core, _):
-        part, reach, queried = compute.key_tile(points, core, stats, options)
-        return (part, queried), points[core], reach / compute.DEPTH
+    def keys(points, core, positions, halo_box):
+        part, reach, (prepared, nbhd) = compute.key_tile(points, core, stats, options)
+        # the core's neighbourhoods, which the tile phase reads instead of querying them again
+        write_lists(scratch, tile, core_lists(prepared, nbhd, core, positions, halo_box, cloud))
+        return part, points[core], reach / compute.DEPTH
 
-    (part, (prepared, nbhd)), _, _, core, halo, _, positions = _certified(
-        scratch, tiling, tile, halo, cloud, keys, f"keys of tile {tile}", LARGER_TILES)
-    # the core's neighbourhoods, which the tile phase reads instead of querying them again
-    low, high = tiling.box(tile)
-    write_lists(scratch, tile, core_lists(prepared, nbhd, core, positions, (low - halo, high + halo), cloud))
-    return part
+    return _certified(scratch, tiling, tile, halo, cloud, keys, f"keys of tile {tile}", LARGER_TILES)[0]
 
 
 def run_centres(spec: CentresTask):
@@ -379,12 +372,12 @@ def run_tile(spec: TileTask) -> dict:
     centroid = np.asarray(plan["stats"]["centroid"])
     halo = float(context.halo if spec.halo is None else spec.halo)
 
-    def tile_values(points, core, positions):
+    def tile_values(points, core, positions, _):
         knn = known_neighbours(scratch, tiling.offsets, positions)
         out = compute.compute_tile(points, core, context, options, knn)
         return out, points[core], out["support"]
 
-    out, points, rows, core, halo, widened, _ = _certified(
+    out, points, rows, core, halo, widened = _certified(
         scratch, tiling, tile, halo, cloud, tile_values, f"tile {tile}",
         ": some point's values depend on points farther than the halo; pass a smaller tile size or report this",
     )
