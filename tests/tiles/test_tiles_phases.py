@@ -70,3 +70,18 @@ def test_the_write_phase_writes_the_runs_parameters(torus_file, tmp_path, monkey
     assert params["tile_size"] == 1500 and params["source"] == "torus.npy" and params["halo"] == report.halo
     cloud = read_points(out)
     assert cloud.points.shape == (6000, 3) and np.isfinite(cloud.fields["mean"]).all()
+
+
+def test_cleanup_removes_stray_temporaries_and_keeps_finished_tiles(tmp_path):
+    from heatcurv.tiles.phase_tiles import _cleanup
+
+    (tmp_path / "tiles").mkdir()
+    (tmp_path / "knn").mkdir()
+    done, lists = tmp_path / "tiles" / "tile_00000.npz", tmp_path / "knn" / "knn_00000.npy"
+    strays = [tmp_path / "tiles" / "tile_00001.npz.7.tmp.npz", tmp_path / "knn" / "knn_00001.npy.7.tmp.npy"]
+    for path in (done, lists, *strays):
+        path.write_bytes(b"x")
+    message = _cleanup(tmp_path, keep_done=True)
+    assert "1 finished tile(s) are kept" in message
+    assert done.exists() and lists.exists() and not any(path.exists() for path in strays)
+    assert _cleanup(tmp_path, keep_done=False) == "" and not tmp_path.exists()

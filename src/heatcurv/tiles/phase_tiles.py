@@ -117,10 +117,9 @@ def cloud_flags(run: Job, plan: TilePlan, timings: dict) -> dict:
 
 def _cleanup(work: Path, keep_done: bool) -> str:
     """Remove temporaries (and everything unless finished tiles are kept); say what is left."""
-    tiles = work / "tiles"
-    done = sorted(tiles.glob("tile_*.npz")) if tiles.exists() else []
-    for stray in (tiles.glob("*.tmp.npz") if tiles.exists() else []):
+    for stray in [*work.glob("tiles/*.tmp.npz"), *work.glob("knn/*.tmp.npy")]:  # results, neighbour lists
         stray.unlink(missing_ok=True)
+    done = sorted(work.glob("tiles/tile_*.npz"))  # after the strays, whose names start alike
     if keep_done and done:  # results.rec holds the rows of the tiles already stored
         return f"{len(done)} finished tile(s) are kept in {work}: run the same command again to resume, or delete it"
     shutil.rmtree(work, ignore_errors=True)
