@@ -146,7 +146,8 @@ if __name__ == "__main__":
     else:
         from heatcurv.tiles import compute_file
         print("START " + repr(time.time()), flush=True)
-        report = compute_file(src, dst, progress=False, **arg)
+        # resume=False: a scratch left by a killed run must not turn a timing into a resume
+        report = compute_file(src, dst, progress=False, resume=False, **arg)
         out = {"seconds": time.perf_counter() - tic, "points": report.points, "tiles": report.tiles,
                "tile_size": report.tile_size, "workers": report.workers, "halo": report.halo,
                "timings": report.timings, "peak": report.peak_memory, "scheduler": report.scheduler,
