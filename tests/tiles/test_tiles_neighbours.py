@@ -7,7 +7,7 @@ from tiles_helpers import ALL_FIELDS, read_fields
 
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
 from heatcurv.geometry.validation import prepare_points
-from heatcurv.tiles import compute_file, neighbours, phase_survey, tasks
+from heatcurv.tiles import compute, compute_file, neighbours, phase_survey, tasks
 
 
 def _scratch_lists(tmp_path, points, offsets, k, missing=()):
@@ -18,16 +18,25 @@ def _scratch_lists(tmp_path, points, offsets, k, missing=()):
             neighbours.write_lists(tmp_path, tile, rows[offsets[tile]:offsets[tile + 1]].astype(np.int32))
 
 
-def _queried_rows(monkeypatch):
-    """Record how many rows the provider leaves to the k-d tree."""
-    asked = []
-    query = neighbours.knn_neighbourhood
+def _queried_rows(monkeypatch, tile_phase_only=False):
+    """Record how many rows the provider leaves to the k-d tree (in the tile phase only, if asked)."""
+    asked, in_tile = [], [not tile_phase_only]
+    query, compute_tile = neighbours.knn_neighbourhood, compute.compute_tile
 
     def counting(points, k, tree=None, workers=-1, queries=None, **kwargs):
-        asked.append(len(points) if queries is None else len(queries))
+        if in_tile[0]:
+            asked.append(len(points) if queries is None else len(queries))
         return query(points, k, tree=tree, workers=workers, queries=queries, **kwargs)
 
+    def tile(*args, **kwargs):
+        in_tile[0] = True
+        try:
+            return compute_tile(*args, **kwargs)
+        finally:
+            in_tile[0] = not tile_phase_only
+
     monkeypatch.setattr(neighbours, "knn_neighbourhood", counting)
+    monkeypatch.setattr(compute, "compute_tile", tile)
     return asked
 
 
@@ -75,10 +84,11 @@ def test_a_tile_without_stored_lists_queries_and_agrees(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("rounds", [1, 2])
 def test_the_tiled_torus_is_the_same_with_and_without_the_stored_lists(torus_file, tmp_path, monkeypatch, rounds):
-    # the survey in one round writes its operator's lists, in two rounds the keys' round does
+    # the survey in one round writes its operator's lists, in two rounds the keys' round does (and the
+    # centres' round reads them)
     monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 63 if rounds == 1 else 0)
     options = dict(tile_size=1200, scheduler="serial", dtype="float64", fields=ALL_FIELDS, max_memory="4G")
-    asked = _queried_rows(monkeypatch)
+    asked = _queried_rows(monkeypatch, tile_phase_only=True)
     (tmp_path / "scratch").mkdir()
     stored = compute_file(torus_file[0], tmp_path / "stored.ply", scratch=tmp_path / "scratch", keep_scratch=True,
                           **options)

@@ -430,7 +430,7 @@ class CentreFitsPart:
         return CentreFitsPart(self.places[keep], fits, self.reach[keep])
 
 
-def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, levels: int | None = None,
+def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, levels: int | None = None, knn=None,
                 **options) -> CentreFitsPart:
     """Round 2 on a tile: every candidate at the tile's centres that need it (step 3 of the rounds).
 
@@ -447,6 +447,9 @@ def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, levels: int
         Fit only the ladder's first ``levels`` candidates (and the chord at
         ``neighbours``): :data:`GATE_LEVELS` for the noise gate's round.
         Default: every candidate.
+    knn : callable, optional
+        The points' nearest neighbours where they are known already
+        (:meth:`heatcurv.operators.operator.HeatKernelOperator.from_points`).
     **options
         As :func:`heatcurv.estimate`.
 
@@ -458,7 +461,7 @@ def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, levels: int
 
     opts = tile_options(options)
     places = np.asarray(places, dtype=np.int64)
-    op = HeatKernelOperator.from_points(points, opts, frame=frame)
+    op = HeatKernelOperator.from_points(points, opts, frame=frame, knn=knn)
     X, base = op.points, op.neighbourhood
     dist, rows = cKDTree(X).query(plan.positions[places])
     if places.size and dist.max() != 0.0:

@@ -180,10 +180,14 @@ def gate_levels(options: dict) -> int | None:
     return GATE_LEVELS if tile_options(_estimate_options(options)).scale == "auto" else None
 
 
-def fit_tile_centres(points: np.ndarray, stats, options: dict, plan, places: np.ndarray, levels: int | None = None):
-    """Round 2 of the survey on a tile (:func:`heatcurv.choice.survey.fit_centres`); its ``reach`` in input units."""
+def fit_tile_centres(points: np.ndarray, stats, options: dict, plan, places: np.ndarray, levels: int | None = None,
+                     knn=None):
+    """Round 2 of the survey on a tile (:func:`heatcurv.choice.survey.fit_centres`); its ``reach`` in input units.
+
+    ``knn``: the neighbourhoods round 1 stored (:func:`.neighbours.known_neighbours`).
+    """
     frame = cloud_frame(stats)
-    part = fit_centres(points, frame, plan, places, levels, **_estimate_options(options))
+    part = fit_centres(points, frame, plan, places, levels, knn, **_estimate_options(options))
     return part, part.reach * frame.unit, plan.positions[places] * frame.unit + frame.offset
 
 

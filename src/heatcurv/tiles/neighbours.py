@@ -7,7 +7,8 @@ survey of a tile queries them before (:func:`.tasks.run_survey` for the
 operator it builds over the core and a wider halo; in a survey of two rounds,
 :func:`.tasks.run_keys` for the keys), so it writes the neighbours of its core
 points to ``knn/knn_NNNNN.npy`` (their scratch positions, one row of
-``neighbours`` per core point, nearest first); a tile of the tile phase reads
+``neighbours`` per core point, nearest first); a tile of the tile phase (and
+a two-round survey's second round, :func:`.tasks.run_centres`) reads
 the rows of its core and halo points from the files of the tiles that hold
 them (:func:`known_neighbours`) and queries only the points whose neighbours
 are not all among the points it read (the outer rim of its halo) or that no

@@ -318,10 +318,12 @@ def run_centres(spec: CentresTask):
     done = []
     for widened in range(WIDENINGS + 1):
         # the centres are core points and the halo the largest guess: every guessed ball lies in the box read
-        points = tile_points(scratch, tiling, tile, float(guess.max()))[0]
+        points, _, _, _, _, positions = tile_points(scratch, tiling, tile, float(guess.max()))
         keep = np.flatnonzero(_within(points, centres, guess, int(options.get("workers", 1))))
         if keep.size > int(centres_plan.widths(places, levels).max()):
-            part, reach, _ = compute.fit_tile_centres(points[keep], stats, options, centres_plan, places, levels)
+            # the neighbourhoods round 1 queried (heatcurv.tiles.neighbours)
+            knn = known_neighbours(scratch, tiling.offsets, positions[keep])
+            part, reach, _ = compute.fit_tile_centres(points[keep], stats, options, centres_plan, places, levels, knn)
             ok = reach <= guess
             done.append(part.take(ok))
             if ok.all():
