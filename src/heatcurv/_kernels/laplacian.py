@@ -228,6 +228,12 @@ def _voronoi_cells(row0, row1, points, neighbours, normals, gap, reach, area, op
         opened[i] = is_open
 
 
+def _weighted_pairs(points, indptr, indices, weights) -> tuple:
+    """``(points, indptr, indices, weights)`` in the one type each the pair kernels below take."""
+    points = as_floats(points)
+    return points, as_pointers(indptr), as_indices(indices, points.shape[0]), as_floats(weights)
+
+
 def border_moments(points, indptr, indices, weights, normals) -> tuple[np.ndarray, np.ndarray]:
     """Weighted tangential first moment and weight sum of each CSR row.
 
@@ -248,12 +254,11 @@ def border_moments(points, indptr, indices, weights, normals) -> tuple[np.ndarra
     total : ndarray, shape (n,)
         ``sum_j w_ij``.
     """
-    points = as_floats(points)
-    n = points.shape[0]
+    pairs = _weighted_pairs(points, indptr, indices, weights)
+    n = pairs[0].shape[0]
     moment = np.zeros((n, 3))
     total = np.zeros(n)
-    parallel_rows(_border_moments, n, points, as_pointers(indptr), as_indices(indices, n), as_floats(weights),
-                  as_floats(normals), moment, total)
+    parallel_rows(_border_moments, n, *pairs, as_floats(normals), moment, total)
     return moment, total
 
 
@@ -294,11 +299,10 @@ def moment_weights(points, indptr, indices, weights, beta, along) -> np.ndarray:
     -------
     ndarray, shape (nnz,)
     """
-    points = as_floats(points)
-    n = points.shape[0]
+    pairs = _weighted_pairs(points, indptr, indices, weights)
+    n = pairs[0].shape[0]
     out = np.empty(len(indices))
-    parallel_rows(_moment_weights, n, points, as_pointers(indptr), as_indices(indices, n), as_floats(weights),
-                  as_floats(beta), as_floats(along), out)
+    parallel_rows(_moment_weights, n, *pairs, as_floats(beta), as_floats(along), out)
     return out
 
 
@@ -346,11 +350,10 @@ def pair_second_moments(points, indptr, indices, weights) -> np.ndarray:
     -------
     ndarray, shape (n, 3, 3)
     """
-    points = as_floats(points)
-    n = points.shape[0]
+    pairs = _weighted_pairs(points, indptr, indices, weights)
+    n = pairs[0].shape[0]
     second = np.zeros((n, 3, 3))
-    parallel_rows(_pair_second_moments, n, points, as_pointers(indptr), as_indices(indices, n), as_floats(weights),
-                  second)
+    parallel_rows(_pair_second_moments, n, *pairs, second)
     return second
 
 
@@ -387,11 +390,10 @@ def tangent_gradient(points, indptr, indices, weights, inverse, values) -> np.nd
     -------
     ndarray, shape (n, 3)
     """
-    points = as_floats(points)
-    n = points.shape[0]
+    pairs = _weighted_pairs(points, indptr, indices, weights)
+    n = pairs[0].shape[0]
     out = np.empty((n, 3))
-    parallel_rows(_tangent_gradient, n, points, as_pointers(indptr), as_indices(indices, n), as_floats(weights),
-                  as_floats(inverse), as_floats(values), out)
+    parallel_rows(_tangent_gradient, n, *pairs, as_floats(inverse), as_floats(values), out)
     return out
 
 
@@ -427,11 +429,10 @@ def weak_divergence(points, indptr, indices, weights, field) -> np.ndarray:
     ndarray, shape (n,)
         ``b_i``, with ``d_ij = x_j - x_i``.
     """
-    points = as_floats(points)
-    n = points.shape[0]
+    pairs = _weighted_pairs(points, indptr, indices, weights)
+    n = pairs[0].shape[0]
     out = np.empty(n)
-    parallel_rows(_weak_divergence, n, points, as_pointers(indptr), as_indices(indices, n), as_floats(weights),
-                  as_floats(field), out)
+    parallel_rows(_weak_divergence, n, *pairs, as_floats(field), out)
     return out
 
 
