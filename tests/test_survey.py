@@ -171,3 +171,58 @@ def test_under_strong_noise_a_walls_reach_covers_the_anchors_its_side_was_voted_
     mid_wall = (np.abs(np.abs(local[:, :2]).max(axis=1) - 12.0) < 3.0) & (to_edge > 0.4 * height)
     assert mid_wall.sum() > 1000
     assert np.all(res.info["reach"][mid_wall] >= to_edge[mid_wall])
+
+
+def test_each_tile_fits_only_its_candidates_below_the_key_bound(noisy):
+    from heatcurv.choice import survey as survey_module
+    from heatcurv.choice.scale import level_sizes
+
+    points, whole = noisy
+    stats = FrameStats()
+    stats.add(points)
+    frame = stats.frame()
+    tiles = _halves(points, 2.5)
+    bounded = [survey_part(points[r], c, frame, orient="up") for r, c, _, _ in tiles]
+    full = [survey_part(points[r], c, frame, orient="up", bounded=False) for r, c, _, _ in tiles]
+    q = 2000
+    bound = survey_module.key_bound(q, len(points))
+    assert bound == pytest.approx((2000 + 8 * np.sqrt(2000)) / 6000)
+    for b, f in zip(bounded, full):
+        assert b.bound == bound and f.bound == 1.0
+        assert np.all(b.keys < bound) and f.keys.shape[0] == q  # each half holds 3000 points
+        # the bounded candidates are the full list's first ones: the same fits there
+        c = b.keys.shape[0]
+        np.testing.assert_array_equal(b.keys, f.keys[:c])
+        for label, fits in b.fits.items():
+            size = fits.mean.shape[0]
+            np.testing.assert_array_equal(fits.mean, f.fits[label].mean[:size], err_msg=label)
+    # two halves of 3000 points fit 2 x (2000 + 8 sqrt(2000)) / 3 centres at the base width, not 2 x 2000
+    assert sum(b.keys.shape[0] for b in bounded) < 0.62 * sum(f.keys.shape[0] for f in full)
+    # a wide candidate is fitted at the halves' keys below its own bound: about half its centres each
+    ladder = survey_module._ladder(60, None, len(points))
+    sizes = dict(zip((s.label for s in ladder), level_sizes(ladder, q)))
+    widest = ladder[-1].label
+    fitted = [b.fits[widest].mean.shape[0] for b in bounded]
+    below = survey_module.key_bound(sizes[widest], len(points))
+    assert fitted == [min(sizes[widest], int((f.keys < below).sum())) for f in full]
+    assert sizes[widest] <= sum(fitted) < 0.75 * sum(f.fits[widest].mean.shape[0] for f in full)
+    # and the choice is the one every candidate gives, which is the in-memory one
+    a, b = merge_surveys(bounded, frame, orient="up"), merge_surveys(full, frame, orient="up")
+    assert a.scale.sigma == b.scale.sigma == whole.info["scale"].sigma
+    assert a.scale.scale == b.scale.scale
+    np.testing.assert_array_equal(a.scale.k_centre, b.scale.k_centre)
+
+
+def test_candidates_short_of_the_choice_are_an_error_the_driver_catches(noisy, monkeypatch):
+    from heatcurv.choice import survey as survey_module
+
+    points, _ = noisy
+    stats = FrameStats()
+    stats.add(points)
+    frame = stats.frame()
+    # a bound below the cloud's 2000th key: the halves hold fewer candidates than the choice reads
+    monkeypatch.setattr(survey_module, "KEY_BOUND_SIGMAS", -10.0)
+    parts = [survey_part(points[r], c, frame, orient="up") for r, c, _, _ in _halves(points, 2.5)]
+    assert sum(p.keys.shape[0] for p in parts) < 2000
+    with pytest.raises(survey_module.CandidatesShort, match="fewer than the 2000"):
+        merge_surveys(parts, frame, orient="up")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
-from tiles_helpers import ALL_FIELDS, read_fields
+from tiles_helpers import ALL_FIELDS, exact, read_fields
 
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
 from heatcurv.geometry.validation import prepare_points
@@ -105,3 +105,39 @@ def test_the_tiled_torus_is_the_same_with_and_without_the_stored_lists(torus_fil
     for name in ALL_FIELDS:
         np.testing.assert_array_equal(a[name], b[name], err_msg=name)
     assert queried.tiles == stored.tiles
+
+
+def test_a_short_key_bound_surveys_again_with_every_candidate(torus_file, torus_memory, tmp_path, monkeypatch):
+    from heatcurv.choice import survey as survey_module
+    from support.tiles import tiled_agreement
+
+    monkeypatch.setattr(survey_module, "KEY_BOUND_SIGMAS", -10.0)  # no cloud holds its centres below this bound
+    said = []
+    report = compute_file(torus_file[0], tmp_path / "t.ply", tile_size=2000, scheduler="serial", dtype="float64",
+                          max_memory="4G", log=said.append)
+    assert any("surveying again with every tile's candidates" in str(s) for s in said), said
+    agreement = tiled_agreement(tmp_path / "t.ply", torus_memory, rtol=0.0)
+    assert exact(agreement) == dict.fromkeys(agreement, (0, 0.0))
+    assert report.tiles == 4
+
+
+def test_a_survey_reads_the_lists_of_the_tiles_surveyed_before_it(torus_file, tmp_path, monkeypatch):
+    # serial: tile t's survey finds the lists of tiles 0..t-1, and queries only its core and the rest of its halo
+    calls = []
+    query, survey_tile = neighbours.knn_neighbourhood, compute.survey_tile
+
+    def counting(points, k, tree=None, workers=-1, queries=None, **kwargs):
+        if calls:
+            calls[-1][1] += len(points) if queries is None else len(queries)
+        return query(points, k, tree=tree, workers=workers, queries=queries, **kwargs)
+
+    def survey(points, core, *args, **kwargs):
+        calls.append([len(points), 0, int(core.sum())])
+        return survey_tile(points, core, *args, **kwargs)
+
+    monkeypatch.setattr(neighbours, "knn_neighbourhood", counting)
+    monkeypatch.setattr(compute, "survey_tile", survey)
+    compute_file(torus_file[0], tmp_path / "t.ply", tile_size=1200, scheduler="serial", max_memory="4G")
+    read, asked, core = np.array(calls).T
+    assert asked[0] == read[0]  # the first survey finds no list
+    assert np.all(asked[1:] >= core[1:]) and asked[1:].sum() < 0.7 * read[1:].sum(), calls

@@ -16,6 +16,13 @@ points within its ball, so a tiled run can fit the centres where they lie:
    (:func:`merge_surveys`), which gives :class:`heatcurv.choice.choices.CloudChoices`
    for every tile.
 
+The keys are uniform on [0, 1), so the cloud's first ``s`` lie below
+``(s + 8 sqrt(s)) / n`` but with a negligible chance (:func:`key_bound`): a
+tile fits each candidate kernel only at its centres below that bound (about
+``s / tiles`` of them, not ``s``), and the merge checks that the tiles' fits
+hold the cloud's first ``s`` (:class:`CandidatesShort` otherwise: the survey
+runs again without the bound).
+
 A tiled run surveys in two rounds that make the same fits at exactly the
 centres the decision reads and nowhere else (:func:`key_part`,
 :func:`join_keys`, :func:`fit_centres`, :func:`merge_fits`: the sampling keys
@@ -52,6 +59,7 @@ from .scale import CentreFits, CentreFitter, _ladder, decide_scale, level_sizes
 __all__ = [
     "CentreSurvey", "check_tileable", "merge_surveys", "survey_part", "tile_options", "KeySurvey", "CentrePlan",
     "CentreFitsPart", "key_part", "join_keys", "fit_centres", "merge_fits", "GATE_LEVELS", "FitsNotSurveyed",
+    "key_bound", "CandidatesShort",
 ]
 
 
@@ -109,23 +117,45 @@ class CentreSurvey:
         How far from each candidate its fits read points (the widest ball plus
         one operator ball for its neighbours' areas and normal), stages' units:
         the tile's halo must hold that much.
+    bound : float
+        The candidates are the tile's core points of shifted key below it, at
+        most ``n_sub`` (:func:`key_bound`; 1: every key).
     """
 
     keys: np.ndarray
     positions: np.ndarray
     fits: dict
     reach: np.ndarray
+    bound: float = 1.0
 
 
-def _candidate_rows(keys: np.ndarray, core: np.ndarray, size: int, seed: int) -> np.ndarray:
-    """The ``size`` core rows of smallest shifted keys, in key order."""
+#: Standard deviations of the count of keys below :func:`key_bound` above the centres the choice needs.
+KEY_BOUND_SIGMAS = 8.0
+
+
+def key_bound(size: int, n_points: int) -> float:
+    """A shifted key below which a cloud of ``n_points`` holds its ``size`` smallest but with a negligible chance.
+
+    The shifted keys are uniform on [0, 1) (:func:`heatcurv.geometry.sampling.geometric_keys`), so the
+    count below ``b`` is binomial with mean ``n b``: at ``b = (size + 8 sqrt(size)) / n`` it falls short of
+    ``size`` about once in 1e15 clouds (a lattice's repeated keys may do worse: :class:`CandidatesShort`).
+    """
+    return min(1.0, (size + KEY_BOUND_SIGMAS * np.sqrt(size)) / max(n_points, 1))
+
+
+class CandidatesShort(HeatcurvError):
+    """:func:`merge_surveys`: the tiles' candidates below :func:`key_bound` are fewer than the choice needs."""
+
+
+def _candidate_rows(keys: np.ndarray, core: np.ndarray, size: int, seed: int, bound: float = 1.0) -> np.ndarray:
+    """The ``size`` core rows of smallest shifted keys, those below ``bound`` only, in key order."""
     rows = np.flatnonzero(core)
     shifted = shifted_keys(keys[rows], seed)
     order = np.argsort(shifted, kind="stable")[:size]
-    return rows[order]
+    return rows[order[shifted[order] < bound]]
 
 
-def survey_part(points, core, frame: CloudFrame, operator=None, **options) -> CentreSurvey:
+def survey_part(points, core, frame: CloudFrame, operator=None, bounded: bool = True, **options) -> CentreSurvey:
     """Fit the candidate kernels at a tile's candidate centres (step 1 of the module).
 
     Parameters
@@ -138,6 +168,9 @@ def survey_part(points, core, frame: CloudFrame, operator=None, **options) -> Ce
         The whole cloud's frame.
     operator : HeatKernelOperator, optional
         The operator over ``points`` with these options, if built already.
+    bounded : bool, optional
+        Fit only the candidates below :func:`key_bound` (default), else the
+        tile's ``n_sub`` smallest keys.
     **options
         As :func:`heatcurv.estimate` (:func:`tile_options`).
 
@@ -159,18 +192,26 @@ def survey_part(points, core, frame: CloudFrame, operator=None, **options) -> Ce
     ladder = _ladder(int(opts.neighbours), tuning.max_k, frame.n_points)
     q = min(tuning.n_sub, frame.n_points)
     sizes = level_sizes(ladder, q)
-    rows = _candidate_rows(keys, core_rows, q, tuning.seed)
+    bound = key_bound(q, frame.n_points) if bounded else 1.0
+    rows = _candidate_rows(keys, core_rows, q, tuning.seed, bound)
+    candidate_keys = shifted_keys(keys[rows], tuning.seed)
+
+    def fitted(size: int) -> int:
+        """How many of the tile's candidates a kernel fitted at the cloud's first ``size`` centres needs."""
+        below = key_bound(size, frame.n_points) if bounded else 1.0
+        return min(size, int(np.searchsorted(candidate_keys, below)))
+
     fitter = CentreFitter(X, op.tree, normals[rows], fit_areas(op.areas, outliers.mask), rows, alpha=opts.alpha,
                           workers=opts.workers)
     base_k = int(opts.neighbours)
-    fits = {Scale(base_k, False).label: fitter(Scale(base_k, False), min(q, rows.shape[0]))}
+    fits = {Scale(base_k, False).label: fitter(Scale(base_k, False), fitted(q))}
     widest = np.zeros(rows.shape[0])
     for scale, size in zip(ladder, sizes):
-        size = min(size, rows.shape[0])
+        size = fitted(size)
         fits[scale.label] = fitter(scale, size)
         widest[:size] = np.maximum(widest[:size], fits[scale.label].h[:size] * opts.alpha)
     reach = widest + _largest_ball(base)
-    return CentreSurvey(shifted_keys(keys[rows], tuning.seed), X[rows], fits, reach)
+    return CentreSurvey(candidate_keys, X[rows], fits, reach, bound)
 
 
 def _largest_ball(base: Neighbourhood) -> float:
@@ -198,7 +239,8 @@ class SurveyedFits:
                 continue
             fits = survey.fits[scale.label]
             if rank[mine].max() >= fits.mean.shape[0]:
-                raise HeatcurvError(f"tile {i} did not fit {scale.label} at the centres the choice needs")
+                short = CandidatesShort if survey.bound < 1.0 else HeatcurvError
+                raise short(f"tile {i} did not fit {scale.label} at the centres the choice needs")
             for f in parts:
                 parts[f][mine] = getattr(fits, f)[rank[mine]]
         return CentreFits(**parts)
@@ -218,10 +260,20 @@ def merge_surveys(surveys: list, frame: CloudFrame, **options) -> CloudChoices:
     Returns
     -------
     CloudChoices
+
+    Raises
+    ------
+    CandidatesShort
+        When the tiles fitted their candidates below :func:`key_bound` only
+        and those are fewer than the choice needs: survey again unbounded.
     """
     opts = tile_options(options)
     tuning = opts.scale_tuning
-    q = min(tuning.n_sub, frame.n_points, sum(s.keys.shape[0] for s in surveys))
+    candidates = sum(s.keys.shape[0] for s in surveys)
+    if any(s.bound < 1.0 for s in surveys) and candidates < min(tuning.n_sub, frame.n_points):
+        raise CandidatesShort(f"the tiles hold {candidates} candidate centres below their key bound, fewer than "
+                              f"the {min(tuning.n_sub, frame.n_points)} the choice needs")
+    q = min(tuning.n_sub, frame.n_points, candidates)
     fits = SurveyedFits(surveys, q)
     return _decide(fits, fits.positions, frame, opts)
 

@@ -198,7 +198,8 @@ def merge_rounds(parts: list, plan, stats, options: dict) -> SurveyContext:
     return _first_halo(choices, [part.fits for part in parts], frame, options)
 
 
-def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict, keep=None):
+def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict, keep=None, bounded: bool = True,
+                knn=None):
     """A tile's fits at its sample centres (:func:`heatcurv.choice.survey.survey_part`).
 
     Parameters
@@ -214,16 +215,20 @@ def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict, keep
     keep : callable, optional
         ``keep(operator)``, called with the operator over ``points`` before the
         fits (a tiled run stores its neighbourhoods for the tile phase, :mod:`.neighbours`).
+    bounded : bool, optional
+        Only the candidates below the key bound (:func:`heatcurv.choice.survey.key_bound`).
+    knn : callable, optional
+        The neighbourhoods known already (:func:`.neighbours.known_neighbours`).
 
     Returns
     -------
     heatcurv.choice.survey.CentreSurvey
     """
     frame, options = cloud_frame(stats), _estimate_options(options)
-    op = HeatKernelOperator.from_points(points, tile_options(options), frame=frame)
+    op = HeatKernelOperator.from_points(points, tile_options(options), frame=frame, knn=knn)
     if keep is not None:
         keep(op)
-    return survey_part(points, core, frame, operator=op, **options)
+    return survey_part(points, core, frame, operator=op, bounded=bounded, **options)
 
 
 def survey_reach(survey, stats) -> tuple[np.ndarray, np.ndarray]:

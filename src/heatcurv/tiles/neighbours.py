@@ -12,7 +12,9 @@ a two-round survey's second round, :func:`.tasks.run_centres`) reads
 the rows of its core and halo points from the files of the tiles that hold
 them (:func:`known_neighbours`) and queries only the points whose neighbours
 are not all among the points it read (the outer rim of its halo) or that no
-file holds.
+file holds. A one-round survey reads them too, for its halo's points in the
+tiles whose surveys finished before it (the others it queries: what it finds
+depends on the order the tiles ran in, what it computes does not).
 
 A point's ``k`` nearest within the points a tile read are its ``k`` nearest in
 the whole cloud when the whole cloud's are all among them, so a row read back

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 
-from ..choice.survey import FitsNotSurveyed
+from ..choice.survey import CandidatesShort, FitsNotSurveyed
 from . import compute, job
 from .context import SurveyContext, read_context, write_context
 from .job import Job, Phase
@@ -47,15 +47,23 @@ def survey(run: Job, plan: TilePlan, timings: dict, bar) -> SurveyContext:
     return context
 
 
-def _one_round(run: Job, plan: TilePlan, phase: Phase) -> SurveyContext:
+def _one_round(run: Job, plan: TilePlan, phase: Phase, bounded: bool = True) -> SurveyContext:
     """One round (:func:`heatcurv.choice.survey.survey_part`): the cloud's centres fill so few tiles that round 2 would
-    compute as much as one round does, after round 1."""
+    compute as much as one round does, after round 1. Each tile fits its candidates below the key bound; when they
+    fall short of the cloud's centres (:class:`~heatcurv.choice.survey.CandidatesShort`), again without it."""
     n_tiles = len(plan.tiling.counts)
-    specs = {t: SurveyTask(str(run.work), t, phase.options, plan.stats, plan.survey_halos[t]) for t in range(n_tiles)}
+    specs = {t: SurveyTask(str(run.work), t, phase.options, plan.stats, plan.survey_halos[t], bounded)
+             for t in range(n_tiles)}
     surveys = {}
     job.submit(phase.executor, phase.workers, run_survey, specs, surveys.__setitem__, run.say, "survey of tile",
                n_tiles)
-    return compute.merge_surveys([surveys[t] for t in range(n_tiles)], plan.stats, run.options)
+    try:
+        return compute.merge_surveys([surveys[t] for t in range(n_tiles)], plan.stats, run.options)
+    except CandidatesShort as short:
+        if not bounded:
+            raise
+        run.say(f"{short}: surveying again with every tile's candidates")
+        return _one_round(run, plan, phase, bounded=False)
 
 
 def _two_rounds(run: Job, plan: TilePlan, phase: Phase) -> SurveyContext:

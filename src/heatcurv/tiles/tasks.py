@@ -64,10 +64,12 @@ class Task:
 
 @dataclass(frozen=True)
 class SurveyTask(Task):
-    """:func:`run_survey`: the cloud's statistics and the survey halo (None: :func:`.compute.survey_halo`)."""
+    """:func:`run_survey`: the cloud's statistics, the survey halo (None: :func:`.compute.survey_halo`) and whether
+    the candidates are those below the key bound (:func:`heatcurv.choice.survey.key_bound`)."""
 
     stats: CloudStats
     halo: float | None = None
+    bounded: bool = True
 
 
 @dataclass(frozen=True)
@@ -257,7 +259,9 @@ def run_survey(spec: SurveyTask):
         def keep(op):  # the core's neighbourhoods, which the tile phase reads instead of querying them again
             write_lists(scratch, tile, core_lists(op.prepared, op.neighbourhood, core, positions, halo_box, cloud))
 
-        part = compute.survey_tile(points, core, stats, options, keep)
+        # the halo's neighbourhoods where the surveys of the tiles holding it have written them already
+        knn = known_neighbours(scratch, offsets, positions)
+        part = compute.survey_tile(points, core, stats, options, keep, spec.bounded, knn)
         centres, reach = compute.survey_reach(part, stats)
         return part, centres, reach / compute.DEPTH
 
