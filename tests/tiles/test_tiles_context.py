@@ -101,3 +101,17 @@ def test_the_plan_is_a_frozen_dataclass_written_as_json():
     assert data["stats"]["low"] == [0.0, 0.0, 0.0] and data["tiling"]["counts"] == [2000, 2000]
     assert data["survey_halos"] == [2.5, 1 / 3]
     assert TilePlan.from_json(data) == plan
+
+
+def test_a_clean_clouds_first_halo_is_three_of_its_largest_operator_balls(torus_file, tmp_path):
+    # the chosen kernel is the operator's: its largest ball over every point (not over the surveyed centres,
+    # which the key bound thins: a halo that moved with them moved the tiled orientation's patches)
+    from heatcurv.choice.survey import tile_options
+    from heatcurv.operators.operator import HeatKernelOperator
+    from heatcurv.tiles.compute import HALO_MARGIN
+
+    report = compute_file(torus_file[0], tmp_path / "t.ply", tile_size=1500, scheduler="serial", max_memory="4G")
+    assert report.context["kernel"] == "chord-60"
+    op = HeatKernelOperator.from_points(torus_file[1].points, tile_options({}))
+    largest = float(op.neighbourhood.radius.max()) * op.prepared.unit
+    assert report.halo == pytest.approx(3.0 * largest * HALO_MARGIN, rel=1e-12)

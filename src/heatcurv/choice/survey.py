@@ -120,6 +120,8 @@ class CentreSurvey:
     bound : float
         The candidates are the tile's core points of shifted key below it, at
         most ``n_sub`` (:func:`key_bound`; 1: every key).
+    largest_ball : float
+        The largest operator ball radius of the tile's core points, stages' units.
     """
 
     keys: np.ndarray
@@ -127,6 +129,7 @@ class CentreSurvey:
     fits: dict
     reach: np.ndarray
     bound: float = 1.0
+    largest_ball: float = 0.0
 
 
 #: Standard deviations of the count of keys below :func:`key_bound` above the centres the choice needs.
@@ -211,7 +214,8 @@ def survey_part(points, core, frame: CloudFrame, operator=None, bounded: bool = 
         fits[scale.label] = fitter(scale, size)
         widest[:size] = np.maximum(widest[:size], fits[scale.label].h[:size] * opts.alpha)
     reach = widest + _largest_ball(base)
-    return CentreSurvey(candidate_keys, X[rows], fits, reach, bound)
+    largest = float(base.radius[core_rows].max()) if core_rows.any() else 0.0
+    return CentreSurvey(candidate_keys, X[rows], fits, reach, bound, largest)
 
 
 def _largest_ball(base: Neighbourhood) -> float:

@@ -195,7 +195,7 @@ def merge_rounds(parts: list, plan, stats, options: dict) -> SurveyContext:
     """:func:`merge_surveys` for the survey in two rounds: the choices, and a first halo for the tiles."""
     frame = cloud_frame(stats)
     choices = merge_fits(parts, plan, frame, **_estimate_options(options))
-    return _first_halo(choices, [part.fits for part in parts], frame, options)
+    return _first_halo(choices, [part.fits for part in parts], plan.largest_ball, frame, options)
 
 
 def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict, keep=None, bounded: bool = True,
@@ -245,26 +245,32 @@ def merge_surveys(surveys: list, stats, options: dict) -> SurveyContext:
     SurveyContext
         ``choices``: :class:`heatcurv.choice.choices.CloudChoices`; ``halo``: twice the
         widest chosen ball plus the narrowest candidate's ball (the operator's),
-        the largest the survey measured, input units: a first guess, which each
-        tile's certificate checks point by point; ``support``: the widest chosen ball.
+        the largest the survey measured (at its centres; the operator's at every
+        core point), input units: a first guess, which each tile's certificate
+        checks point by point; ``support``: the widest chosen ball.
     """
     frame = cloud_frame(stats)
     choices = merge_centre_surveys(surveys, frame, **_estimate_options(options))
-    return _first_halo(choices, [survey.fits for survey in surveys], frame, options)
+    largest = max((survey.largest_ball for survey in surveys), default=0.0)
+    return _first_halo(choices, [survey.fits for survey in surveys], largest, frame, options)
 
 
-def _first_halo(choices, fits: list, frame: CloudFrame, options: dict) -> SurveyContext:
-    """:func:`merge_surveys`' result from the choices and every part's fits (``{label: CentreFits}`` each)."""
+def _first_halo(choices, fits: list, largest_ball: float, frame: CloudFrame, options: dict) -> SurveyContext:
+    """:func:`merge_surveys`' result from the choices, every part's fits (``{label: CentreFits}`` each) and the
+    largest operator ball of any core point (stages' units)."""
     opts = tile_options(_estimate_options(options))
     scale = choices.scale
     widest = int(scale.scale.k if scale.k_centre is None else scale.k_centre.max())
+    base = int(opts.neighbours)
 
     def ball(k: int) -> float:
-        """The largest ball of ``k`` neighbours at any surveyed centre, input units (0 if none was fitted)."""
+        """The largest ball of ``k`` neighbours, input units: of any point for the operator's ``k``, else of any
+        surveyed centre (0 if none was fitted)."""
         h = [f.h for part in fits for label, f in part.items() if label.endswith(f"-{k}")]
-        return opts.alpha * float(max((x.max() for x in h if x.size), default=0.0)) * frame.unit
+        fitted = opts.alpha * float(max((x.max() for x in h if x.size), default=0.0))
+        return (max(fitted, largest_ball) if k == base else fitted) * frame.unit
 
-    chosen, operator = ball(widest), ball(int(opts.neighbours))
+    chosen, operator = ball(widest), ball(base)
     balls = ERRORS_HALO if opts.se else 2.0
     return SurveyContext(choices, (balls * chosen + operator) * HALO_MARGIN, chosen)
 
