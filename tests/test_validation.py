@@ -196,3 +196,34 @@ def test_a_cloud_too_far_out_to_resolve_is_refused():
     pts = heatcurv.surfaces.Sphere().sample(500, "random", seed=3).points
     with pytest.raises(HeatcurvError, match="subtract a nearby origin"):
         heatcurv.estimate(pts + 1e15)
+
+
+@pytest.mark.parametrize("n, values", [(2000, 12), (50_000, 40), (1000, None)])
+def test_distinct_rows_are_numpys_unique_rows_in_order_of_first_occurrence(n, values):
+    from heatcurv.geometry.validation import distinct_rows
+
+    rng = np.random.default_rng(n)
+    # a few values per coordinate: many repeated rows (none when values is None)
+    points = rng.integers(0, values, (n, 3)).astype(float) if values else rng.normal(size=(n, 3))
+    first, inverse = distinct_rows(points)
+    _, unique_first = np.unique(points, axis=0, return_index=True)
+    np.testing.assert_array_equal(first, np.sort(unique_first))
+    np.testing.assert_array_equal(points[first][inverse], points)
+
+
+def test_distinct_rows_tell_different_rows_of_one_hash_apart():
+    from heatcurv.geometry.validation import distinct_rows
+
+    # two different rows built to share the 64-bit hash: b' = (a c0 ^ b c1 ^ a' c0) / c1 mod 2^64
+    c0, c1, mask = 0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, (1 << 64) - 1
+    row = np.array([1.5, -2.25, 3.0])
+    a, b = (int(x) for x in row[:2].view(np.uint64))
+    for a2 in range(a + 1, a + 100):
+        b2 = (((a * c0) & mask) ^ ((b * c1) & mask) ^ ((a2 * c0) & mask)) * pow(c1, -1, 1 << 64) & mask
+        twin = np.array([a2, b2, int(row[2:].view(np.uint64)[0])], dtype=np.uint64).view(np.float64)
+        if np.isfinite(twin).all():
+            break
+    points = np.array([row, twin, row, [0.0, 0.0, 0.0], twin])
+    first, inverse = distinct_rows(points)
+    np.testing.assert_array_equal(first, [0, 1, 3])
+    np.testing.assert_array_equal(inverse, [0, 1, 0, 2, 1])

@@ -145,8 +145,10 @@ class FrameStats:
         chunk = np.asarray(chunk, dtype=np.float64)
         if chunk.shape[0] == 0:
             return
-        _, first = np.unique(frame.to_stage(chunk), axis=0, return_index=True)
-        self.add(chunk[np.sort(first)])
+        from ..geometry.validation import distinct_rows
+
+        first, _ = distinct_rows(frame.to_stage(chunk))
+        self.add(chunk if first.size == chunk.shape[0] else chunk[first])
 
     def frame(self) -> CloudFrame:
         """The frame of every row added so far."""
