@@ -15,7 +15,10 @@ import numpy as np
 
 from ..errors import HeatcurvError
 
-__all__ = ["PreparedPoints", "bounding_box_frame", "distinct_rows", "prepare_points", "prepare_normals", "EXTENT_RANGE", "UNIT_BAND"]
+__all__ = [
+    "PreparedPoints", "bounding_box_frame", "distinct_rows", "prepare_points", "prepare_normals", "EXTENT_RANGE",
+    "UNIT_BAND",
+]
 
 #: Clouds whose extent (largest bounding-box side, input units) lies outside this range are
 #: refused: their areas (extent^2 / n) or Gaussian curvatures (n / extent^2) would leave the
