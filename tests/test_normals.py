@@ -1,6 +1,7 @@
 """heatcurv.orient.normals: PCA normals, their orientation (outward, or towards a viewpoint) and tangent frames."""
 
 import numpy as np
+import pytest
 
 import heatcurv
 from heatcurv import surfaces
@@ -132,3 +133,18 @@ def test_orientation_graph_spans_scan_lines(records):
         "normals/sphere-scan-lines-40x16", normal_max_deg=worst_angle_deg(res.normals, pts),
         mean_max=100 * np.abs(res.mean - 1.0).max(),
     )
+
+
+@pytest.mark.parametrize("taper", [False, True])
+def test_pca_normals_of_some_rows_are_those_rows_of_every_rows_normals(taper):
+    from heatcurv.geometry.neighbourhood import knn_neighbourhood
+
+    pts = surfaces.Torus().sample(3000, "random", seed=2).points
+    nbhd = knn_neighbourhood(pts, 30)
+    rows = np.random.default_rng(0).choice(3000, 200, replace=False)
+    every = pca_normals(pts, nbhd, taper=taper, roundness=True)
+    some = pca_normals(pts, nbhd, taper=taper, roundness=True, rows=rows)
+    for a, b in zip(every, some):
+        np.testing.assert_array_equal(a[rows], b)
+    with pytest.raises(heatcurv.HeatcurvError, match="weights or rows"):
+        pca_normals(pts, nbhd, np.ones(nbhd.n_pairs), rows=rows)

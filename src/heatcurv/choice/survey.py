@@ -191,7 +191,6 @@ def survey_part(points, core, frame: CloudFrame, operator=None, bounded: bool = 
     core_rows[prepared.inverse[core]] = True
     keys = geometric_keys(X, base, frame)
     outliers = find_outliers(X, base)
-    normals, _ = pca_normals(X, base, taper=opts.taper)
     ladder = _ladder(int(opts.neighbours), tuning.max_k, frame.n_points)
     q = min(tuning.n_sub, frame.n_points)
     sizes = level_sizes(ladder, q)
@@ -204,7 +203,8 @@ def survey_part(points, core, frame: CloudFrame, operator=None, bounded: bool = 
         below = key_bound(size, frame.n_points) if bounded else 1.0
         return min(size, int(np.searchsorted(candidate_keys, below)))
 
-    fitter = CentreFitter(X, op.tree, normals[rows], fit_areas(op.areas, outliers.mask), rows, alpha=opts.alpha,
+    normals, _ = pca_normals(X, base, taper=opts.taper, rows=rows)
+    fitter = CentreFitter(X, op.tree, normals, fit_areas(op.areas, outliers.mask), rows, alpha=opts.alpha,
                           workers=opts.workers)
     base_k = int(opts.neighbours)
     fits = {Scale(base_k, False).label: fitter(Scale(base_k, False), fitted(q))}
@@ -523,8 +523,8 @@ def fit_centres(points, frame: CloudFrame, plan: CentrePlan, places, levels: int
     if places.size and dist.max() != 0.0:
         raise HeatcurvError("a survey centre is missing from its tile's points (the scratch files changed?)")
     outliers = find_outliers(X, base)
-    normals, _ = pca_normals(X, base, taper=opts.taper)
-    fitter = CentreFitter(X, op.tree, normals[rows], fit_areas(op.areas, outliers.mask), rows, alpha=opts.alpha,
+    normals, _ = pca_normals(X, base, taper=opts.taper, rows=rows)
+    fitter = CentreFitter(X, op.tree, normals, fit_areas(op.areas, outliers.mask), rows, alpha=opts.alpha,
                           workers=opts.workers)
     base_k = int(opts.neighbours)
     fits = {Scale(base_k, False).label: fitter(Scale(base_k, False), places.shape[0])}

@@ -30,7 +30,7 @@ __all__ = [
 
 def pca_normals(
     points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | None = None, *, taper: bool = False,
-    roundness: bool = False,
+    roundness: bool = False, rows: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """Unoriented PCA normals of the ball neighbourhoods.
 
@@ -50,6 +50,9 @@ def pca_normals(
         points. Not together with ``weights``.
     roundness : bool, optional
         Also return each ball's roundness (below).
+    rows : ndarray of int, shape (r,), optional
+        Only these rows' normals (the same numbers as the full computation's
+        rows); then every output has ``r`` rows. Not together with ``weights``.
 
     Returns
     -------
@@ -67,6 +70,15 @@ def pca_normals(
     """
     if weights is not None and taper:
         raise HeatcurvError("give pca_normals either weights or taper=True, not both")
+    if rows is not None:
+        if weights is not None:
+            raise HeatcurvError("give pca_normals either weights or rows, not both")
+        # the kernel reads row i's own point at points[i]: the chosen rows' points go first
+        rows = np.asarray(rows, dtype=np.int64)
+        nbhd = nbhd.take_rows(rows)
+        nbhd = Neighbourhood(nbhd.indptr, nbhd.indices.astype(np.int64) + rows.size, nbhd.distances, nbhd.radius,
+                             nbhd.augmented, nbhd.by_distance)
+        points = np.concatenate([points[rows], points])
     if weights is None:
         cov = kernels.weighted_covariances(
             points, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, TAPER_START, taper
