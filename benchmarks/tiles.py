@@ -224,6 +224,9 @@ def main(argv=None) -> None:
     parser.add_argument("--budget", default="3G", help="memory budget of the tiled runs (default 3G)")
     parser.add_argument("--workers", nargs="+", type=int, default=[1, 2], help="process workers to compare")
     parser.add_argument("--no-memory", action="store_true", help="skip the in-memory runs")
+    parser.add_argument("--memory-up-to", type=float, default=1e6,
+                        help="run in memory the clouds of at most this many points (default 1e6; about 1.8 GB a "
+                             "million points)")
     parser.add_argument("--no-dask", action="store_true", help="skip the Dask runs")
     parser.add_argument("--huge", action="store_true", help="also 100M points, 2 workers (long: hours)")
     parser.add_argument("--cloud", choices=("lidar", "clean"), default="lidar",
@@ -253,7 +256,7 @@ def main(argv=None) -> None:
             (generate if args.cloud == "lidar" else generate_clean)(src, n)
             print(f"generated {src.name}: {n} points, {src.stat().st_size / 1e6:.0f} MB in "
                   f"{time.perf_counter() - tic:.0f} s", flush=True)
-        if n <= 1_000_000 and not args.no_memory:
+        if n <= args.memory_up_to and not args.no_memory:
             for threads in (1, -1):
                 r = measure("memory", src, "-", {"workers": threads})
                 rows.append(("in memory", n, f"{threads if threads > 0 else os.cpu_count()} thr", "-", r))
@@ -300,7 +303,13 @@ def _summary(rows):
     if memory:
         one = [r for r in memory if r[2].startswith("1 ")]
         if one:
-            print(f"in-memory time per point (1 thread, 1M): {one[0][4]['seconds'] / one[0][1] * 1e6:.1f} us")
+            for r in one:
+                print(f"in-memory time per point (1 thread, {r[1]:,d} points): {r[4]['seconds'] / r[1] * 1e6:.1f} us")
+    for (n, w), r in sorted(tiled.items()):
+        same = [m for m in memory if m[1] == n and not m[2].startswith("1 ")]
+        if same:
+            print(f"{n:,d} points: tiled ({w}) / in memory ({same[0][2]}): "
+                  f"{r['seconds'] / same[0][4]['seconds']:.2f}x")
     for (n, w), r in sorted(tiled.items()):
         base = tiled.get((n, "1 proc"))
         if base is not None and w != "1 proc":
