@@ -215,9 +215,11 @@ def test_a_tiled_run_takes_a_thin_plate_for_closed_too(tmp_path):
                           fields=("nx", "ny", "nz", "reliable"))
     out = read_points(dst)
     inward = np.einsum("ij,ij->i", out.normals, sample.normals) < 0
-    # measured: 0.88 % inward, 0.05 % inward and reliable (in memory 0.27 % and none: a tile's patches
-    # are not the whole cloud's), the same side as in memory on 99.4 % of the points
-    assert inward.mean() <= 0.02
-    assert np.mean(inward & out.fields["reliable"].astype(bool)) <= 1e-3
+    # measured: 0.30 % inward and none of them reliable (in memory 0.27 % and none: a tile's patches are
+    # not the whole cloud's), the same side as in memory on 99.97 % of the points. Before every patch of a
+    # tile's core held a winding source, the patches cut by a core's edge kept the tile's side unchecked:
+    # 0.88 % inward, 0.05-0.12 % inward and reliable, moving with the halo
+    assert inward.mean() <= 0.006
+    assert not np.any(inward & out.fields["reliable"].astype(bool))
     in_memory = heatcurv.estimate(sample.points)
-    assert np.mean(np.einsum("ij,ij->i", out.normals, in_memory.normals) > 0) >= 0.99
+    assert np.mean(np.einsum("ij,ij->i", out.normals, in_memory.normals) > 0) >= 0.999

@@ -219,3 +219,21 @@ def test_stored_tiles_are_slimmed_in_batches(torus_file, torus_threads, tmp_path
     assert sum(batches) == 8 and max(batches) >= 2 and len([b for b in batches if b]) >= 3
     a, b = read_fields(out), read_fields(torus_threads[0])
     assert all(np.array_equal(a[k], b[k]) for k in b)
+
+
+def test_every_patch_of_a_tiles_core_gets_a_winding_source():
+    # as in memory (the sample plus one a patch): a patch the sample misses gets its point of lowest rank
+    from heatcurv.orient.enclosure import source_keys
+    from heatcurv.tiles.winding import _one_a_patch
+
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(9, 3))
+    label = np.array([0, 0, 1, 1, 1, 2, 2, 3, 3])
+    source = np.array([1, 0, 0, 0, 0, 0, 0, 0, 0], dtype=bool)
+    excluded = np.array([0, 0, 0, 0, 0, 0, 0, 1, 1], dtype=bool)  # patch 3: outliers only, no source
+    out = _one_a_patch(source, label, excluded, x)
+    keys = source_keys(x)
+    assert out[0] and not out[1] and not out[7:].any()  # patch 0 had one; outliers never are
+    for rows in ([2, 3, 4], [5, 6]):  # patches 1 and 2
+        assert out[rows].sum() == 1 and out[rows[int(np.argmin(keys[rows]))]]
+    assert not source[1:].any()  # the input is not changed

@@ -16,7 +16,8 @@ spanning tree's PCA normals, the operator's areas): those whose coordinate
 rank (:func:`heatcurv.orient.enclosure.source_keys`, the same for a point in any
 tile) is at most a threshold chosen for about
 :data:`heatcurv.orient.enclosure.MAX_SOURCES` sources over the whole cloud
-(:func:`heatcurv.orient.enclosure.sampled_sources`). The driver,
+(:func:`heatcurv.orient.enclosure.sampled_sources`), and the point of lowest
+rank of each patch the threshold misses (in memory too every patch holds one). The driver,
 once the seam flips are known, gathers every tile's sources, turns their
 normals by the seam flips, and solves the same energy for the sides of all
 patches of all tiles (:func:`heatcurv.orient.enclosure.patch_sides`; a patch whose side is
@@ -37,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..orient.enclosure import patch_sides, sampled_sources
+from ..orient.enclosure import patch_sides, sampled_sources, source_keys
 from .output import PATCH_SHIFT, SOURCE_KEYS, keyed_flips, read_results, write_records
 
 __all__ = ["MAX_TILED_PATCHES", "WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
@@ -92,6 +93,10 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         pieces = np.column_stack([pieces, np.asarray(winding["fine"], dtype=np.int64)])
         fine = np.unique(pieces, axis=0, return_inverse=True)[1].ravel()
         source, normals, weight = np.asarray(winding["source"], dtype=bool), winding["normals"], winding["weight"]
+        excluded = np.asarray(results["outlier"], dtype=bool)
+    # every patch holds a source, as in memory (heatcurv.orient.enclosure's sample plus one a patch): a patch of the
+    # core without one (a patch cut by the core's edge) would keep the tile's side whatever the field says
+    source = _one_a_patch(source, label, excluded, frame.to_stage(points))
     weight = np.abs(weight) / frame.unit**2
     return {
         "winding": label.astype(np.int64), "winding_fine": fine.astype(np.int64), "winding_rows": rows[source],
@@ -99,6 +104,23 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         "winding_area": weight[source], "winding_label": label[source], "winding_fine_label": fine[source],
         "winding_seam": seam[source], "winding_total": np.array(weight.sum()),
     }
+
+
+def _one_a_patch(source: np.ndarray, label: np.ndarray, excluded: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``source`` (shape (c,), bool) with each patch (``label``) that holds none given its point of lowest rank.
+
+    The rank is :func:`heatcurv.orient.enclosure.source_keys` of ``x`` (the frame's coordinates): the same
+    point whatever the row order; excluded points (outliers) never are sources.
+    """
+    have = np.zeros(int(label.max(initial=-1)) + 1, dtype=bool)
+    have[label[source]] = True
+    missing = np.flatnonzero(~excluded & ~have[label])
+    if not missing.size:
+        return source
+    order = missing[np.lexsort((source_keys(x[missing]), label[missing]))]
+    source = source.copy()
+    source[order[np.unique(label[order], return_index=True)[1]]] = True
+    return source
 
 
 @dataclass(frozen=True)
