@@ -226,3 +226,19 @@ def test_candidates_short_of_the_choice_are_an_error_the_driver_catches(noisy, m
     assert sum(p.keys.shape[0] for p in parts) < 2000
     with pytest.raises(survey_module.CandidatesShort, match="fewer than the 2000"):
         merge_surveys(parts, frame, orient="up")
+
+
+def test_a_wide_kernel_fitted_short_of_its_centres_is_candidates_short_too(noisy, monkeypatch):
+    from heatcurv.choice import survey as survey_module
+
+    points, _ = noisy
+    stats = FrameStats()
+    stats.add(points)
+    frame = stats.frame()
+    real = survey_module.key_bound
+    # the base width's bound holds, the wider ones' fall below their centres: each half fits too few
+    monkeypatch.setattr(survey_module, "key_bound", lambda size, n: real(size, n) if size == 2000 else 0.5 * size / n)
+    parts = [survey_part(points[r], c, frame, orient="up") for r, c, _, _ in _halves(points, 2.5)]
+    assert sum(p.keys.shape[0] for p in parts) >= 2000
+    with pytest.raises(survey_module.CandidatesShort, match="did not fit"):
+        merge_surveys(parts, frame, orient="up")
