@@ -4,7 +4,8 @@ Generates LiDAR-like terrain (the smooth ground of :func:`heatcurv.surfaces.lida
 uniform in x and y, 1 cm of height noise, quantised to 1 mm as a LAS file stores it) as a
 LAZ file in a temporary directory, a chunk at a time, and prints tables:
 
-1. in memory: :func:`heatcurv.estimate` on the 1M-point file, one thread and all cores;
+1. in memory: :func:`heatcurv.estimate` on the 1M-point file (the clouds up to ``--memory-up-to``
+   points), one thread and all cores, and each tiled run's time over the in-memory one of its size;
 2. tiled within a budget (default 3 GB), 1 and 2 process workers, 1M and 12M points;
 3. the same with ``--scheduler dask`` (a local cluster of 2 workers): Dask's overhead per tile;
 4. ``--huge``: 100M points, generated on the fly (about 45 GB of scratch and files).
@@ -19,6 +20,7 @@ subprocess, so one run's caches do not help the next.
 
     python benchmarks/tiles.py                # 1M rows of every table
     python benchmarks/tiles.py --sizes 1e6 12e6
+    python benchmarks/tiles.py --sizes 4e6 --workers 2 --no-dask --memory-up-to 4e6
     python benchmarks/tiles.py --huge --dir /big/scratch
 """
 
