@@ -214,12 +214,13 @@ def test_distinct_rows_are_numpys_unique_rows_in_order_of_first_occurrence(n, va
 def test_distinct_rows_tell_different_rows_of_one_hash_apart():
     from heatcurv.geometry.validation import distinct_rows
 
-    # two different rows built to share the 64-bit hash: b' = (a c0 ^ b c1 ^ a' c0) / c1 mod 2^64
+    # two different rows built to share the 64-bit hash (a c0 + b c1 + c c2, then an invertible xor-shift):
+    # b' = (a c0 + b c1 - a' c0) / c1 mod 2^64
     c0, c1, mask = 0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, (1 << 64) - 1
     row = np.array([1.5, -2.25, 3.0])
     a, b = (int(x) for x in row[:2].view(np.uint64))
     for a2 in range(a + 1, a + 100):
-        b2 = (((a * c0) & mask) ^ ((b * c1) & mask) ^ ((a2 * c0) & mask)) * pow(c1, -1, 1 << 64) & mask
+        b2 = ((a * c0 + b * c1 - a2 * c0) * pow(c1, -1, 1 << 64)) & mask
         twin = np.array([a2, b2, int(row[2:].view(np.uint64)[0])], dtype=np.uint64).view(np.float64)
         if np.isfinite(twin).all():
             break

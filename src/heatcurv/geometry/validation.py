@@ -16,8 +16,8 @@ import numpy as np
 from ..errors import HeatcurvError
 
 __all__ = [
-    "PreparedPoints", "bounding_box_frame", "distinct_rows", "prepare_points", "prepare_normals", "EXTENT_RANGE",
-    "UNIT_BAND",
+    "PreparedPoints", "bounding_box_frame", "distinct_rows", "row_hashes", "prepare_points", "prepare_normals",
+    "EXTENT_RANGE", "UNIT_BAND",
 ]
 
 #: Clouds whose extent (largest bounding-box side, input units) lies outside this range are
@@ -118,6 +118,19 @@ def _as_float_array(points, name: str) -> np.ndarray:
     return arr
 
 
+def row_hashes(points: np.ndarray) -> np.ndarray:
+    """A 64-bit hash of the bits of each row, shape (n,), uint64: equal rows hash alike, whatever their order.
+
+    A multiply-add of the three coordinates' bits, then an xor-shift; also the winding number's
+    pseudo-random source rank (:func:`heatcurv.orient.enclosure.source_keys`).
+    """
+    bits = np.ascontiguousarray(points, dtype=np.float64).view(np.uint64)
+    key = (bits * np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], dtype=np.uint64)).sum(
+        axis=1, dtype=np.uint64)
+    key ^= key >> np.uint64(29)
+    return key
+
+
 def distinct_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The rows of ``points`` that first show each distinct value, and every row's distinct value.
 
@@ -143,13 +156,7 @@ def distinct_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = points.shape[0]
     if n < 2:
         return np.arange(n), np.arange(n)
-    bits = np.ascontiguousarray(points).view(np.uint64).reshape(n, 3)
-    with np.errstate(over="ignore"):
-        key = (
-            bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
-            ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
-            ^ bits[:, 2] * np.uint64(0x165667B19E3779F9)
-        )
+    key = row_hashes(points)
     order = np.argsort(key, kind="stable")
     sorted_key = key[order]
     starts = np.concatenate([[True], sorted_key[1:] != sorted_key[:-1]])

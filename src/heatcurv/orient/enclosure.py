@@ -84,6 +84,7 @@ from .._kernels.graph import merged_components, undirected_edges
 from .._kernels.winding import clipped_dipole_terms, winding_numbers
 from ..errors import HeatcurvWarning
 from ..geometry.neighbourhood import Neighbourhood
+from ..geometry.validation import row_hashes
 from ..tuning import TUNING
 
 __all__ = [
@@ -433,11 +434,7 @@ def source_keys(points: np.ndarray) -> np.ndarray:
     the cloud holds them (a tile), so a sample of the lowest ranks is the same
     sample everywhere.
     """
-    bits = np.ascontiguousarray(points, dtype=np.float64).view(np.uint64).astype(np.uint64)
-    key = (bits * np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], dtype=np.uint64)).sum(
-        axis=1, dtype=np.uint64)
-    key ^= key >> np.uint64(29)
-    return key
+    return row_hashes(points)
 
 
 def sampled_sources(points: np.ndarray, excluded: np.ndarray, cloud_points: int) -> np.ndarray:
