@@ -23,10 +23,11 @@ Columns
 
 ``policy``            what ``info["orientation"]`` says was used (``mode``, and
                       for ``outward`` whether the winding number found the
-                      cloud closed);
+                      cloud closed; ``up, own axis``: along the cloud's own
+                      axis, its convex side or by the convention);
 ``vertical %``        of the 2000 sample centres' normals, those within 45
-                      degrees of vertical (``info["orientation"].policy``;
-                      "up" needs 50 %);
+                      degrees of vertical, or of the cloud's own axis
+                      (``info["orientation"].policy``; "up" needs 50 %);
 ``down %``            once the sample is consistently oriented, the share of
                       the flat centres' ``sum |n_z|`` facing down ("up"
                       needs at most 3 %);
@@ -49,7 +50,8 @@ The second table turns the LiDAR tile, the face, the torus (closed, 20 000
 random points) and the bunny scan shipped with heatcurv (closed, 1839
 points) into 8 random poses (``Rotation.random(random_state=i)``) and counts
 the policies chosen and the worst ``mixed %``, ``half off %`` (separately over
-the poses oriented up and outward; ``-`` where no pose was), ``half off, axes %``
+the poses oriented up, along their own axis and outward; ``-`` where no pose
+was), ``half off, axes %``
 and ``half off, reliable %`` over the poses ("rotating an open cloud changes
 nothing except where the convention is up").
 
@@ -114,6 +116,8 @@ def policy_of(res) -> str:
     report = res.info["orientation"]
     if report.mode == "outward":
         return "outward (closed)" if report.closed else "outward (open)"
+    if report.policy is not None and report.policy.towards is not None:
+        return "up, own axis (convex)" if report.policy.convex else "up, own axis (convention)"
     return report.mode
 
 
@@ -162,8 +166,8 @@ def measure(name: str, load=None, rotation=None) -> dict:
 
 COLUMNS = ["cloud", "points", "policy", "vertical %", "down %", "mixed %", "wrong %", "half off %",
            "half off, axes %", "half off, reliable %", "s"]
-POSE_COLUMNS = ["cloud", "poses", "up", "outward (open)", "outward (closed)", "worst mixed %",
-                "worst half off %, up / outward", "worst half off, axes %", "worst half off, reliable %"]
+POSE_COLUMNS = ["cloud", "poses", "up", "up, own axis", "outward (open)", "outward (closed)", "worst mixed %",
+                "worst half off %, up / own axis / outward", "worst half off, axes %", "worst half off, reliable %"]
 
 
 def cells(r: dict) -> list[str]:
@@ -174,16 +178,20 @@ def cells(r: dict) -> list[str]:
 
 
 def pose_cells(name: str, results: list) -> list[str]:
-    count = {p: sum(r["policy"] == p for r in results) for p in ("up", "outward (open)", "outward (closed)")}
+    def group(r: dict) -> str:
+        return "own axis" if r["policy"].startswith("up, own axis") else r["policy"].split(" ")[0]
+
+    count = [sum(r["policy"] == "up" for r in results), sum(group(r) == "own axis" for r in results),
+             *(sum(r["policy"] == p for r in results) for p in ("outward (open)", "outward (closed)"))]
     mixed = [r["mixed"] for r in results if r["mixed"] is not None]
 
-    def worst_half(up: bool) -> str:
-        half = [r["half"] for r in results if (r["policy"] == "up") == up]
+    def worst_half(kind: str) -> str:
+        half = [r["half"] for r in results if group(r) == kind]
         return f"{max(half):.2f}" if half else "-"
 
-    return [name, str(len(results)), *map(str, count.values()), f"{max(mixed):.2f}" if mixed else "-",
-            f"{worst_half(True)} / {worst_half(False)}", f"{max(r['half_axes'] for r in results):.2f}",
-            f"{max(r['half_reliable'] for r in results):.2f}"]
+    return [name, str(len(results)), *map(str, count), f"{max(mixed):.2f}" if mixed else "-",
+            " / ".join(worst_half(k) for k in ("up", "own axis", "outward")),
+            f"{max(r['half_axes'] for r in results):.2f}", f"{max(r['half_reliable'] for r in results):.2f}"]
 
 
 def show(header: list, rows: list, markdown: bool) -> None:

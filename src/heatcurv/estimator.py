@@ -145,7 +145,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         reports the choice), ``scale_tuning`` (:class:`heatcurv.ScaleTuning`),
         ``orient`` (which side the normals point to: ``"auto"``, the
         default, is ``"viewpoint"`` when a viewpoint is given, else ``"up"``
-        (+z) for an open surface over the horizontal plane and
+        (+z) for an open surface over the horizontal plane, the same
+        along its own axis for an open surface over another plane, and
         ``"outward"`` for anything else; ``info["orientation"].reason``
         says which; :mod:`heatcurv.orient.orientation`),
         ``area_solver``, ``taper``, ``min_neighbours`` (6) and ``workers``

@@ -84,7 +84,7 @@ def explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> O
     if report.mode == "up":
         if policy is None:
             return replace(report, reason="orient='up': towards +z" + axisless)
-        # turning the cloud may change the choice
+        # turning the cloud may change the choice (along +z, or along its own axis)
         return replace(report, reason=policy.reason + axisless, by_convention=n, policy=policy)
     if report.closed:
         why = "encloses a volume: away from it (winding number)"
@@ -138,6 +138,8 @@ def normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np
         nrm, planarity, roundness = pca_normals(X, nbhd, taper=op.options.taper, roundness=True)
     with clock.stage("orientation"):
         policy = _auto_policy(op, keys, choices, nrm, outlier) if mode == "auto" else None
+        if policy is not None and policy.towards is not None:
+            towards = policy.towards
         orientation = orient(X, nrm, nbhd, op.areas, mode=mode if policy is None else policy.mode, towards=towards,
                              excluded=outlier, whole_cloud=choices is None,
                              cloud_points=None if choices is None else choices.frame.n_points, roundness=roundness)

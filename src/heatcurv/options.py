@@ -322,7 +322,8 @@ class Options:
         away from the enclosed volume, towards +z, or towards the scanner
         (``estimate(viewpoint=...)``); ``"auto"`` is ``"viewpoint"`` when a
         viewpoint is given, else ``"up"`` for an open surface over the
-        horizontal plane (terrain, roofs) and ``"outward"`` for anything else
+        horizontal plane (terrain, roofs), the same along its own axis for an
+        open surface over another plane, and ``"outward"`` for anything else
         (:func:`heatcurv.orient.orientation.auto_policy`;
         ``info["orientation"].reason`` says which).
     area_solver : {"auto", "cg", "bicgstab", "direct"}

@@ -124,6 +124,9 @@ class Tuning:
     #: The switch between outward and the flat-patch convention is where a cloud and its half can differ:
     #: a turned LiDAR tile votes 0.12, its random half 0.07.
     weak_vote: float = _knob(0.03, "outward vote below which a component is too flat to tell inside from outside")
+    #: Votes measured on the sample of surfaces over a plane turned away from horizontal: a face range map
+    #: 0.92-0.94, a torus scanned from its side 1.0, a paraboloid 1.0; a LiDAR tile 0.03-0.07, a saddle 0.02.
+    convex_vote: float = _knob(0.5, "outward vote of a surface over its own plane from which its convex side is up")
     tiny_patch: int = _knob(2, "pieces of fewer points join a neighbouring winding-number patch")
     level_tolerance: float = _knob(0.4, "distance of a winding level from its target that contradicts a side")
     sure_cost: float = _knob(0.7, "largest spanning-tree cost of an edge inside a winding-number patch")

@@ -315,12 +315,22 @@ def test_compute_says_which_side_the_default_chose(tmp_path):
     assert "orientation chosen: auto: an open surface over the horizontal plane" in out.stdout
     up = io.read_points(tmp_path / "up.ply")
     assert (up.normals[tile.labels == 2, 2] > 0).mean() >= 0.995
-    # the same terrain stood on its side is no longer terrain: outward by each piece's convex side
+    # the same terrain stood on its side is over its own plane, across y: too flat for a convex side,
+    # so the axis's largest coordinate (y) is made positive, a convention
     np.save(tmp_path / "side.npy", tile.points[:, [0, 2, 1]])
     out = run("compute", tmp_path / "side.npy", "-o", tmp_path / "side.ply")
     assert out.returncode == 0, out.stderr
+    assert "the axis's largest coordinate positive, a convention: the cloud is an open surface over the plane" \
+        in out.stdout
+    side = io.read_points(tmp_path / "side.ply")
+    assert (side.normals[tile.labels == 2, 1] > 0).mean() >= 0.995
+    # an open arc of a tube (240 degrees) is over no plane: outward, by each piece's convex side
+    tube = heatcurv.surfaces.get("cylinder").sample(8000, "random", seed=1).points
+    np.save(tmp_path / "arc.npy", tube[tube[:, 0] > -0.5])
+    out = run("compute", tmp_path / "arc.npy", "-o", tmp_path / "arc.ply")
+    assert out.returncode == 0, out.stderr
     assert "normals oriented outward of each piece (its convex side)" in out.stdout
-    assert "normals oriented up" not in out.stdout
+    assert "normals oriented up" not in out.stdout and "normals oriented along" not in out.stdout
 
 
 def test_compute_refuses_a_las_whose_records_are_misaligned(tmp_path):

@@ -13,6 +13,7 @@ the tests hold at 2e-14.
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 from tiles_helpers import ALL_FIELDS, read_fields
 
 import heatcurv
@@ -62,6 +63,28 @@ def test_lidar_tile_in_tiles_equals_in_memory(lidar_file, tmp_path, orient):
         # a scanner 1 km above: every final normal faces it
         assert np.all(np.einsum("ij,ij->i", normals, np.asarray(orient["viewpoint"]) - scene.points) > 0)
 
+
+def test_a_turned_lidar_tile_in_tiles_equals_in_memory(lidar_file, tmp_path):
+    # no longer over the horizontal plane: the survey's sample orients it along its own axis, which every
+    # tile then reads from the survey's context, as the in-memory run reads it from the same sample
+    _, scene = lidar_file
+    turn = Rotation.random(random_state=0).as_matrix()
+    points = (scene.points - scene.points.mean(axis=0)) @ turn.T
+    src = tmp_path / "turned.npy"
+    np.save(src, points)
+    memory = heatcurv.estimate(points)
+    policy = memory.info["orientation"].policy
+    assert policy.mode == "up" and policy.towards is not None
+    out = tmp_path / "turned.ply"
+    report = compute_file(src, out, tile_size=3000, scheduler="serial", dtype="float64", fields=ALL_FIELDS)
+    assert report.tiles >= 6
+    assert report.context["auto_orientation"] == "up"
+    assert np.allclose(report.context["auto_towards"], policy.towards, rtol=0.0, atol=1e-12)
+    agreement = tiled_agreement(out, memory, rtol=2e-14)
+    assert {name: a["bad"] for name, a in agreement.items()} == dict.fromkeys(agreement, 0)
+    columns = read_fields(out)
+    normals = np.column_stack([columns[a] for a in ("nx", "ny", "nz")])
+    assert np.all(np.einsum("ij,ij->i", normals, memory.normals) > 0)
 
 
 ERRORS = ("mean_se", "k1_se", "k2_se", "gaussian_se", "normal_se")

@@ -26,7 +26,9 @@ scale choice's sample centres, :func:`heatcurv.geometry.sampling.key_sample`, so
 that a tiled run decides alike): an open surface spread over the horizontal
 plane (terrain, roofs, a range scan from above: most normals within 45
 degrees of vertical, and almost none facing down once the sample is
-consistently oriented) is oriented ``"up"``; anything else ``"outward"``. A
+consistently oriented) is oriented ``"up"``; an open surface spread over
+another plane alike, along that plane's normal towards its convex side (a
+convention on the axis when it is nearly flat); anything else ``"outward"``. A
 closed surface is never taken for terrain: by the divergence theorem its
 outward normals have ``sum_i A_i n_z,i = 0``, as much facing down as up.
 An ``"outward"`` cloud the winding number finds open keeps each component's
@@ -74,7 +76,8 @@ number of a closed cloud contradicts), the points are flagged
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -260,6 +263,15 @@ class AutoPolicy:
         Share of the sample's points whose balls' residuals split in two
         layers (``TUNING.auto_split_share``): large for a plate too thin for
         ``layered``.
+    towards : tuple of float or None
+        ``"up"`` along the sample's own axis (a surface over a plane turned
+        away from horizontal): the unit direction the normals face, shape (3,),
+        the shares above then measured against it instead of ``z``; None for
+        ``+z``.
+    convex : bool
+        With ``towards``: whether its side is the surface's convex side
+        (:func:`_convex_side`), which turns with the cloud, rather than a
+        convention on the coordinates (a nearly flat surface).
     """
 
     mode: str
@@ -267,17 +279,25 @@ class AutoPolicy:
     down: float
     layered: float = 0.0
     split: float = 0.0
+    towards: tuple | None = None
+    convex: bool = False
 
     @property
     def reason(self) -> str:
         """Why, in words: the report's :attr:`OrientationReport.reason`."""
-        measured = (f"{100 * self.vertical:.0f} % of the sampled normals within 45 degrees of vertical; "
-                    f"consistently oriented, {100 * self.down:.1f} % of their vertical extent faces down; "
+        axis = "vertical" if self.towards is None else "the axis"
+        measured = (f"{100 * self.vertical:.0f} % of the sampled normals within 45 degrees of {axis}; "
+                    f"consistently oriented, {100 * self.down:.1f} % of their extent along it faces the other way; "
                     f"{100 * self.layered:.0f} % of the flat ones lie over or under another sheet, "
                     f"{100 * self.split:.0f} % have balls split in two layers")
-        if self.mode == "up":
+        if self.mode == "up" and self.towards is None:
             return f"auto: an open surface over the horizontal plane, oriented up (+z) ({measured})"
-        return f"auto: not a surface over the horizontal plane ({measured})"
+        if self.mode == "up":
+            direction = ", ".join(f"{c:.3f}" for c in self.towards)
+            side = "its convex side" if self.convex else "the axis's largest coordinate positive (nearly flat)"
+            return (f"auto: an open surface over the plane across its normals' axis, oriented along ({direction}), "
+                    f"{side} ({measured})")
+        return f"auto: not a surface over a plane ({measured})"
 
 
 def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
@@ -298,6 +318,16 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     flat, whose two sides the tree can orient alike) and at most
     ``TUNING.auto_split_share`` have balls whose residuals split in two layers
     (:func:`_split_share`: the same object thinner still).
+
+    A cloud that fails this test along ``z`` is tested again along the axis of
+    its flat sample normals (the top eigenvector of ``sum_i n_i n_i^T``): a
+    surface over a plane that is not horizontal (a terrain tile turned in a
+    scanner's frame, a range scan seen from the side, a facade) is then
+    oriented ``"up"`` along that axis (:attr:`AutoPolicy.towards`), towards
+    its convex side (:func:`_convex_side`), so that its sheets get one side
+    each point by point, as terrain does, instead of the spanning tree's
+    sides, which a tree crown's scatter carries at random. A closed surface
+    fails along every axis (its outward normals face every way alike).
 
     Parameters
     ----------
@@ -328,6 +358,43 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     normals = eigenvectors[:, :, 0]
     flat = eigenvalues[:, 0] <= TUNING.auto_flatness * eigenvalues[:, 1]
     oriented, _, labels = _tree_sides(centres, normals, nbhd)
+    spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
+    sample = _Sample(centres, normals, flat, oriented, labels, tree, spacing, noise)
+    vertical = _over_plane(sample, np.array([0.0, 0.0, 1.0]))
+    if vertical.mode == "up" or not flat.any():
+        return vertical
+    # the same test along the flat normals' own axis: a surface over a plane turned away from horizontal
+    axis = np.linalg.eigh(np.einsum("ni,nj->ij", normals[flat], normals[flat]))[1][:, -1]
+    tilted = _over_plane(sample, axis)
+    if tilted.mode != "up":
+        return vertical
+    towards, convex = _convex_side(centres, oriented, axis)
+    return replace(tilted, towards=tuple(float(c) for c in towards), convex=convex)
+
+
+class _Sample(NamedTuple):
+    """What :func:`auto_policy` measured on its sample (q points)."""
+
+    centres: np.ndarray  # (q, 3), sorted
+    normals: np.ndarray  # (q, 3), unoriented PCA normals
+    flat: np.ndarray  # (q,), bool: TUNING.auto_flatness
+    oriented: np.ndarray  # (q, 3), the normals oriented by the spanning tree
+    labels: np.ndarray  # (q,), the tree's components
+    tree: cKDTree
+    spacing: float  # median distance to the nearest sample point
+    noise: float  # the cloud's noise, length units
+
+
+def _over_plane(sample: _Sample, up: np.ndarray) -> AutoPolicy:
+    """:func:`auto_policy`'s test with the unit vector ``up``, shape (3,), as the vertical.
+
+    The sample is turned so that ``up`` is ``+z`` (with a new tree).
+    """
+    centres, normals, flat, oriented, labels, tree, spacing, noise = sample
+    if not np.array_equal(up, (0.0, 0.0, 1.0)):
+        basis = _frame(up)
+        centres, normals, oriented = centres @ basis.T, normals @ basis.T, oriented @ basis.T
+        tree = cKDTree(centres)
     nz, n_comp = oriented[:, 2], int(labels.max()) + 1
     # per component, the smaller of the upward and downward sums of n_z over its flat points (either
     # side: the tree's root chose it)
@@ -337,12 +404,39 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
     share = float(np.mean(np.abs(nz) >= TUNING.auto_vertical_cosine))
     level = flat & (np.abs(normals[:, 2]) >= TUNING.auto_vertical_cosine)
-    spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
     layered = _layered_share(centres, normals, level, noise, tree, spacing)
     split = _split_share(centres, normals, tree, spacing)
     terrain = share >= TUNING.auto_share and down <= TUNING.auto_down_share
     mode = "up" if terrain and layered <= TUNING.auto_layered_share and split <= TUNING.auto_split_share else "outward"
     return AutoPolicy(mode, share, down, layered, split)
+
+
+def _frame(up: np.ndarray) -> np.ndarray:
+    """A right-handed orthonormal basis, shape (3, 3), rows x, y, z, whose third row is the unit vector ``up``."""
+    helper = np.eye(3)[np.argmin(np.abs(up))]
+    x = np.cross(helper, up)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(up, x), up])
+
+
+def _convex_side(centres: np.ndarray, oriented: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, bool]:
+    """``axis`` or ``-axis``: the side a surface over the plane across ``axis`` bulges out to; whether it could tell.
+
+    The sample's normals within 45 degrees of the axis, each turned to face
+    it, vote as the outward vote does (``sum_i n_i . (x_i - c)``, 0 on a
+    plane). A curved surface (a face, a scan of a round object) votes clearly;
+    a vote below ``TUNING.convex_vote`` of its strength (a terrain tile, whose
+    sheet is nearly flat, a saddle) could turn over between a cloud and its
+    random half, so the axis's largest coordinate is made positive instead,
+    a convention on the coordinates.
+    """
+    facing = oriented @ axis
+    steep = np.abs(facing) >= TUNING.auto_vertical_cosine
+    radial = np.where(facing < 0, -1.0, 1.0) * np.einsum("ij,ij->i", oriented, centres - centres.mean(axis=0))
+    vote, strength = radial[steep].sum(), np.abs(radial[steep]).sum()
+    if not abs(vote) >= TUNING.convex_vote * strength:
+        return axis * np.sign(axis[np.argmax(np.abs(axis))]), False
+    return (axis if vote > 0 else -axis), True
 
 
 def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree, spacing: float) -> float:

@@ -369,6 +369,8 @@ def describe(context: SurveyContext, options: dict) -> dict:
     policy = getattr(choices, "orientation", None)
     if policy is not None:  # what orient="auto" without a viewpoint chose (heatcurv.orient.orientation.auto_policy)
         out["auto_orientation"] = policy.mode
+        if policy.towards is not None:  # "up" along the cloud's own axis
+            out["auto_towards"] = [float(c) for c in policy.towards]
     if scale.k_centre is not None:
         widths, counts = np.unique(scale.k_centre, return_counts=True)
         out["widths"] = {str(int(k)): int(c) for k, c in zip(widths, counts)}  # centres choosing each width
