@@ -28,6 +28,11 @@ Columns
 ``wrong on thick %``     the same among the points at least 3 spacings thick;
 ``wrong & reliable %``   (heatcurv, tiled) wrong and flagged reliable
                          (``res.reliable``), % of all points;
+``inward & reliable %``  (heatcurv, tiled) of those, the normals within 60
+                         degrees of the inward truth (``normal . truth <
+                         -0.5``): the side turned over, not an axis more than
+                         60 degrees off (a coarse feature's normal, whose
+                         side is then hardly defined);
 ``flagged %``            (heatcurv, tiled) not reliable;
 ``s``                    seconds of the call alone (heatcurv's numba kernels
                          compiled by a warm-up beforehand).
@@ -346,6 +351,8 @@ def measure(normals: np.ndarray, reliable, truth: np.ndarray, thick: np.ndarray,
            "flipped": flipped, "nan": int(np.count_nonzero(~np.isfinite(dot)))}
     if reliable is not None:
         out["wrong_reliable"] = 100.0 * np.mean(wrong & reliable)
+        inward = (dot > 0.5) if flipped else (dot < -0.5)
+        out["inward_reliable"] = 100.0 * np.mean(inward & reliable)
         out["flagged"] = 100.0 * np.mean(~reliable)
     return out
 
@@ -360,7 +367,7 @@ def header_row(methods) -> list[str]:
     for m in methods:
         head += [f"{m} wrong %", f"{m} wrong on thick %"]
         if m in FLAGGING:
-            head += [f"{m} wrong & reliable %", f"{m} flagged %"]
+            head += [f"{m} wrong & reliable %", f"{m} inward & reliable %", f"{m} flagged %"]
         head += [f"{m} s"]
     return head
 
@@ -370,11 +377,11 @@ def row(name: str, n: int, thin: float, results: dict, methods) -> list[str]:
     for m in methods:
         r = results.get(m)
         if r is None:
-            cells += ["-"] * (5 if m in FLAGGING else 3)
+            cells += ["-"] * (6 if m in FLAGGING else 3)
             continue
         cells += [f"{r['wrong']:.2f}", f"{r['wrong_thick']:.2f}"]
         if m in FLAGGING:
-            cells += [f"{r['wrong_reliable']:.2f}", f"{r['flagged']:.1f}"]
+            cells += [f"{r['wrong_reliable']:.2f}", f"{r['inward_reliable']:.2f}", f"{r['flagged']:.1f}"]
         cells += [f"{r['seconds']:.2f}"]
     return cells
 
@@ -393,6 +400,7 @@ def pooled(rows: list[dict], methods) -> dict:
                  "seconds": float(sum(x["seconds"] for x in res))}
         if m in FLAGGING:
             entry["wrong_reliable"] = float(np.sum(n * [x["wrong_reliable"] for x in res]) / n.sum())
+            entry["inward_reliable"] = float(np.sum(n * [x["inward_reliable"] for x in res]) / n.sum())
             entry["flagged"] = float(np.sum(n * [x["flagged"] for x in res]) / n.sum())
         out[m] = entry
     return out

@@ -24,16 +24,18 @@ def oriented(cgal_meshes):
         mesh = read_mesh(cgal_meshes / f"{name}.off")
         used = mesh.used
         res = heatcurv.estimate(mesh.vertices[used])
-        wrong = np.einsum("ij,ij->i", res.normals, mesh.outward_vertex_normals()[used]) < 0
-        out[name] = (wrong, res.reliable, res.info["orientation"])
+        cosine = np.einsum("ij,ij->i", res.normals, mesh.outward_vertex_normals()[used])
+        out[name] = (cosine < 0, res.reliable, res.info["orientation"], cosine < -0.5)
     return out
 
 
 @pytest.mark.parametrize("name", MODELS)
 def test_each_model(name, oriented, records):
-    wrong, reliable, report = oriented[name]
+    wrong, reliable, report, inward = oriented[name]
+    # inward: within 60 degrees of the inward normal, the side turned over; the rest of the wrong ones are
+    # axes more than 60 degrees off (coarse features), which the side cannot mend
     records.check(f"real_orientation/{name}", wrong=100 * wrong.mean(), wrong_reliable=100 * (wrong & reliable).mean(),
-                  flagged=100 * (1 - reliable.mean()))
+                  inward_reliable=100 * (inward & reliable).mean(), flagged=100 * (1 - reliable.mean()))
     if name != "elk":
         assert report.closed is True and not report.undecided
     else:  # the coarsest (1645 points, legs 2-3 spacings thick): closed or not cannot be told, so all is flagged
@@ -44,13 +46,13 @@ def test_what_the_winding_number_fixed(oriented):
     # measured at 83bead8, before the winding number (the spanning tree alone), over the 120,974 points:
     # 5.58 % inside out and 3.96 % inside out but reliable; each model: camel 10.38 %, elephant 14.52 %,
     # bull 10.02 %, cow 10.30 %, dino 14.40 % inside out and reliable
-    wrong = np.concatenate([w for w, _, _ in oriented.values()])
-    silent = np.concatenate([w & r for w, r, _ in oriented.values()])
+    wrong = np.concatenate([w for w, _, _, _ in oriented.values()])
+    silent = np.concatenate([w & r for w, r, _, _ in oriented.values()])
     assert wrong.mean() < 0.04 and silent.mean() < 0.01  # today 3.66 % and 0.55 % (the elk: undecided, all flagged)
     for name, before in (("camel", 10.38), ("elephant", 14.52), ("bull", 10.02), ("cow", 10.30), ("dino", 14.40)):
-        w, r, _ = oriented[name]
+        w, r, _, _ = oriented[name]
         assert 100 * (w & r).mean() < before / 2, name
     # nothing lost where the tree was right
     for name in ("bear", "diplodocus"):
-        w, r, _ = oriented[name]
+        w, r, _, _ = oriented[name]
         assert w.mean() < 0.007 and (w & r).mean() < 0.0002, name  # before: 0.00 and 0.01 %
