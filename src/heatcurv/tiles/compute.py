@@ -30,7 +30,7 @@ from ..estimator import estimate
 from ..flags.reliability import ReliabilityInputs, cloud_flags
 from ..geometry.validation import bounding_box_frame
 from ..operators.operator import HeatKernelOperator
-from ..options import resolve_options
+from ..options import Options, resolve_options
 from .context import SurveyContext
 
 __all__ = [
@@ -350,6 +350,12 @@ def finish_reliability(columns, medians=None) -> tuple[np.ndarray, float]:
     return cloud_flags(inputs, baselines, rho, stacklevel=3)
 
 
+def resolved_options(options: dict) -> Options:
+    """The :class:`heatcurv.options.Options` the tiles' estimator keywords resolve to (the viewpoint aside)."""
+    estimator = {key: value for key, value in options.items() if key not in ("method", "viewpoint")}
+    return resolve_options(options.get("method", "default"), **estimator)
+
+
 def describe(context: SurveyContext, options: dict) -> dict:
     """The choices of :func:`merge_surveys` as plain numbers (for the output file's parameters and the report).
 
@@ -358,8 +364,7 @@ def describe(context: SurveyContext, options: dict) -> dict:
     """
     choices = context.choices
     frame, scale = choices.frame, choices.scale
-    estimator = {key: value for key, value in options.items() if key not in ("method", "viewpoint")}
-    plan = plan_fit(resolve_options(options.get("method", "default"), **estimator), scale)
+    plan = plan_fit(resolved_options(options), scale)
     out = {
         "halo": float(context.halo), "support": float(context.support),
         "offset": frame.offset.tolist(), "unit": frame.unit, "points": frame.n_points,

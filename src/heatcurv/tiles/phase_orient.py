@@ -43,6 +43,7 @@ def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict
     if sides is not None and (sides.closed or sides.undecided):
         flips.append((sides.column, sides.keys, sides.flip))
         flips.append(("winding_fine", sides.fine_keys, sides.fine_flip))
-        orientation.update(flag_unsupported(results_path, run.source, context.choices.frame, sides))
+        alpha = compute.resolved_options(run.options).alpha
+        orientation.update(flag_unsupported(results_path, run.source, context.choices.frame, sides, alpha))
     timings["orientation"] = time.perf_counter() - tic
     return flips, orientation

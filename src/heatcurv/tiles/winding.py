@@ -24,7 +24,8 @@ patches of all tiles (:func:`heatcurv.orient.enclosure.patch_sides`; a patch who
 contradicted is re-cut into its finer pieces, which every tile cuts too, as in memory). A closed cloud's
 patch and piece flips are then applied with the seam flips in the output pass, and a
 point is flagged (not ``reliable``) when it is a disagreeing source, or when
-more than half of the sources within its fit radius disagree, as in memory.
+more than half of the sources within its operator ball (radius ``alpha h``)
+disagree, as in memory.
 
 The patches differ from the in-memory run's (a tile's forest is not the whole
 cloud's), so on a thin part the two runs can end with different sides or
@@ -218,12 +219,15 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
                         sides.undecided, sides.outside_share)
 
 
-def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: int = 1 << 20) -> dict:
+def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: float, chunk: int = 1 << 20) -> dict:
     """Clear ``reliable`` in ``results.rec`` where the winding number contradicts a point's side (closed clouds).
 
     A source is flagged when it disagrees (:attr:`WindingSides.bad`), and so
     are its exact duplicates; any other point when more than half of the
-    sources within its fit radius do (none when no source is that near).
+    sources within its operator ball do (none when no source is that near):
+    the ball of radius ``alpha h`` (``h`` the point's ``spacing``), which holds
+    the point's neighbours of the in-memory operator (more where
+    ``min_neighbours`` widened a ball of the equations-2.6/2.7 spacings).
     When the field is ``undecided``, every point but the outliers is.
 
     Parameters
@@ -235,6 +239,8 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
     frame : heatcurv.choice.choices.CloudFrame
         The whole cloud's frame.
     sides : WindingSides
+    alpha : float
+        The run's ``alpha``: ball radius in spacings.
 
     Returns
     -------
@@ -254,7 +260,7 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
         elif bad_tree is None:
             continue
         else:
-            flagged = _contradicted(block, points, start, frame, sides, tree, bad_tree)
+            flagged = _contradicted(block, points, start, frame, sides, tree, bad_tree, alpha)
         unsupported += int(flagged.sum())
         if flagged.any():
             rows = np.flatnonzero(flagged)
@@ -264,11 +270,13 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, chunk: in
     return {"turned": turned, "unsupported": unsupported}
 
 
-def _contradicted(block, points, start: int, frame, sides: WindingSides, tree: cKDTree, bad_tree: cKDTree):
+def _contradicted(block, points, start: int, frame, sides: WindingSides, tree: cKDTree, bad_tree: cKDTree,
+                  alpha: float):
     """The rows of one chunk whose side the field contradicts (:func:`flag_unsupported`), shape (len(points),), bool."""
     computed = block["computed"] == 1
     x = frame.to_stage(points)
-    radius = block["fit_radius"] / frame.unit
+    # the operator ball, alpha h, a hair wider so that rounding keeps its farthest neighbour in
+    radius = block["spacing"] / frame.unit * alpha * (1.0 + 1e-9)
     near = computed & ~(block["outlier"] == 1)
     flagged = np.zeros(len(points), dtype=bool)
     if near.any():
