@@ -19,8 +19,9 @@ from .geometry.sampling import key_sample
 from .geometry.validation import prepare_normals
 from .operators.areas import fit_areas
 from .operators.operator import HeatKernelOperator
+from .orient.auto import auto_policy
 from .orient.normals import pca_normals
-from .orient.orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, auto_policy, orient
+from .orient.orientation import AutoPolicy, Orientation, OrientationReport, as_viewpoint, orient
 from .progress import StageClock
 
 
@@ -50,7 +51,7 @@ def _auto_policy(op: HeatKernelOperator, keys: np.ndarray, choices, normals: np.
                  outlier: np.ndarray) -> AutoPolicy:
     """``orient="auto"`` without a viewpoint: ``"up"`` or ``"outward"``.
 
-    :func:`heatcurv.orient.orientation.auto_policy` decides.
+    :func:`heatcurv.orient.auto.auto_policy` decides.
 
     Decided on the scale choice's sample centres (the ``n_sub`` points of
     smallest keys) and the noise the choice measures there

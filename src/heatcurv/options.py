@@ -324,7 +324,7 @@ class Options:
         viewpoint is given, else ``"up"`` for an open surface over the
         horizontal plane (terrain, roofs), the same along its own axis for an
         open surface over another plane, and ``"outward"`` for anything else
-        (:func:`heatcurv.orient.orientation.auto_policy`;
+        (:func:`heatcurv.orient.auto.auto_policy`;
         ``info["orientation"].reason`` says which).
     area_solver : {"auto", "cg", "bicgstab", "direct"}
         Solver of ``H A = 1``.

@@ -108,16 +108,24 @@ class Tuning:
     conflict_in_plane: float = _knob(0.5, "|n . e| / |e| of a neighbour compared for a conflict (30 degrees)")
     conflict_aligned: float = _knob(0.7, "|n_i . n_j| of a neighbour compared for a conflict (45 degrees)")
     conflict_share: float = _knob(0.3, "share of compared neighbours facing the other way that flags a point")
-    #: 2000-point samples: the LiDAR tile 92-93 %, a face range map from +z 66 %, the tile turned 7-9 %, spheres 30 %.
-    auto_share: float = _knob(0.5, "share of near-vertical sample normals from which orient='auto' may say up")
+    #: 2000-point samples: the LiDAR tile 92-93 %, a face range map from +z 66 %, street canyons 13-48 %, a
+    #: tube 0 %; closed surfaces fail by facing down instead (auto_down_share).
+    auto_share: float = _knob(0.1, "share of near-vertical sample normals from which orient='auto' may say up")
+    #: Below it a face range map turned on its side passed along z on its few up-facing points (its sheet then
+    #: 4.3 % in two minds) rather than along its own axis (0.15 %).
+    auto_level_share: float = _knob(0.5, "near-vertical share from which z is preferred to the cloud's own axis")
     auto_vertical_cosine: float = _knob(math.sqrt(0.5), "|n_z| of a near-vertical normal (45 degrees)")
     #: Terrain and a face range map upright 0.0-0.2 %; a tilted face 1.1 %; closed surfaces 24-50 %.
     auto_down_share: float = _knob(0.005, "largest share of flat sample n_z facing down that still says up")
+    #: Facades with 2 cm of noise: sample n_z within 0.05; a tilted face's chin, which must count, -0.1 to -0.3.
+    auto_wall_cosine: float = _knob(0.1, "|n_z| of a flat sample normal from which its side counts as up or down")
     auto_flatness: float = _knob(0.15, "lambda_0 / lambda_1 of a flat sample point; tree crowns are not flat")
     #: A thin closed object lying flat is two sheets one over the other, which the sample's tree orients alike.
     auto_layered_share: float = _knob(0.1, "largest share of flat sample points with a sheet over them that says up")
     auto_layer_height: float = _knob(0.5, "least height of such a second sheet, in sample spacings")
     auto_layer_noise: float = _knob(3.0, "least height of such a second sheet, in units of the cloud's noise")
+    #: Plates 1 x 1 x c: the faces 5 (c = 0.08) to 10 (c = 0.15) spacings apart; facades across a street 20 m wide 40.
+    auto_layer_reach: float = _knob(12.0, "most height of such a second sheet, in sample spacings")
     #: Plates under about two spacings thick 42-77 %; noisy saddles, the LiDAR tile and a face range map 0-5 %.
     auto_split_share: float = _knob(0.25, "largest share of layered sample balls that still says up")
     auto_split_neighbours: int = _knob(30, "sample points in the balls auto_split_share reads (16 are too few)")

@@ -15,7 +15,7 @@ at their seams:
   centres over the whole cloud (:func:`heatcurv.choice.scale.select_scale`; a tiled
   run measures the centres tile by tile, :mod:`heatcurv.choice.survey`);
 * the **orientation policy** of ``orient="auto"`` without a viewpoint
-  (:func:`heatcurv.orient.orientation.auto_policy`: "up" for an open surface over
+  (:func:`heatcurv.orient.auto.auto_policy`: "up" for an open surface over
   the horizontal plane, else "outward"), decided on the same sample centres;
 * the **medians** the reliability flags compare against (the misfit baselines
   and the resolution check, :mod:`heatcurv.estimator`), taken over every point

@@ -422,7 +422,7 @@ def centre_noise(points, tree, normals, areas, *, base_k: int = 60, alpha: float
     """The cloud's noise as the kernel choice measures it (``ScaleChoice.sigma``), without the choice.
 
     The median residual of the denoised fit at ``base_k`` over the same sample
-    centres :func:`select_scale` uses (:func:`heatcurv.orient.orientation.auto_policy`
+    centres :func:`select_scale` uses (:func:`heatcurv.orient.auto.auto_policy`
     needs it before the choice is made).
 
     Parameters

@@ -51,8 +51,8 @@ from ..geometry.sampling import geometric_keys, shifted_keys
 from ..operators.areas import fit_areas
 from ..operators.operator import HeatKernelOperator
 from ..options import Options, resolve_options
+from ..orient.auto import auto_policy
 from ..orient.normals import pca_normals
-from ..orient.orientation import auto_policy
 from .choices import CloudChoices, CloudFrame
 from .scale import CentreFits, CentreFitter, _ladder, decide_scale, level_sizes
 
@@ -284,7 +284,7 @@ def merge_surveys(surveys: list, frame: CloudFrame, **options) -> CloudChoices:
 
 
 def _decide(fits, positions: np.ndarray, frame: CloudFrame, opts) -> CloudChoices:
-    """:func:`heatcurv.choice.scale.decide_scale` and :func:`heatcurv.orient.orientation.auto_policy` once for the
+    """:func:`heatcurv.choice.scale.decide_scale` and :func:`heatcurv.orient.auto.auto_policy` once for the
     cloud, at its sample centres (``positions``)."""
     tuning = opts.scale_tuning
     choice = decide_scale(

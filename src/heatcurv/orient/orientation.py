@@ -21,7 +21,7 @@ sign depends on which way along it the normal points. Three policies
     Range scans: towards the scanner, one position or one per point.
 
 ``orient="auto"`` (the default) picks ``"viewpoint"`` when a viewpoint is
-given; otherwise :func:`auto_policy` looks at a sample of the cloud (the
+given; otherwise :func:`heatcurv.orient.auto.auto_policy` looks at a sample of the cloud (the
 scale choice's sample centres, :func:`heatcurv.geometry.sampling.key_sample`, so
 that a tiled run decides alike): an open surface spread over the horizontal
 plane (terrain, roofs, a range scan from above: most normals within 45
@@ -76,32 +76,28 @@ number of a closed cloud contradicts), the points are flagged
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import NamedTuple
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
-from scipy.spatial import cKDTree
 
 from .._kernels import graph as graph_kernels
 from .._kernels import segment as kernels
 from ..errors import HeatcurvError
-from ..geometry.neighbourhood import Neighbourhood, knn_neighbourhood
+from ..geometry.neighbourhood import Neighbourhood
 from ..tuning import TUNING
 from .enclosure import enclose, patches, sampled_sources
 
 __all__ = [
     "ORIENT_MODES", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
-    "local_sides", "as_viewpoint", "AutoPolicy", "auto_policy", "axisless_balls",
+    "local_sides", "as_viewpoint", "axisless_balls", "AutoPolicy", "tree_sides",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
 ORIENT_MODES = ("outward", "up", "viewpoint")
 #: Nearest neighbours per point in the orientation's spanning-tree graph.
 GRAPH_NEIGHBOURS = 10
-#: Nearest sample points each sample normal and the sample's spanning tree use.
-AUTO_NEIGHBOURS = 16
 
 
 @dataclass(frozen=True)
@@ -241,7 +237,7 @@ def as_viewpoint(viewpoint, n: int | None = None) -> np.ndarray:
 
 @dataclass(frozen=True)
 class AutoPolicy:
-    """What ``orient="auto"`` chose for a cloud without a viewpoint (:func:`auto_policy`).
+    """What ``orient="auto"`` chose for a cloud without a viewpoint (:func:`heatcurv.orient.auto.auto_policy`).
 
     Attributes
     ----------
@@ -270,7 +266,7 @@ class AutoPolicy:
         ``+z``.
     convex : bool
         With ``towards``: whether its side is the surface's convex side
-        (:func:`_convex_side`), which turns with the cloud, rather than a
+        (:func:`heatcurv.orient.auto.convex_side`), which turns with the cloud, rather than a
         convention on the coordinates (a nearly flat surface).
     """
 
@@ -298,210 +294,6 @@ class AutoPolicy:
             return (f"auto: an open surface over the plane across its normals' axis, oriented along ({direction}), "
                     f"{side} ({measured})")
         return f"auto: not a surface over a plane ({measured})"
-
-
-def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
-    """``orient="auto"`` without a viewpoint: ``"up"`` for an open surface over the ground plane, else ``"outward"``.
-
-    A surface whose consistent orientation puts every normal's ``n_z`` on the
-    same side is a graph over the horizontal plane (terrain, roofs, a scan
-    from above), where "up" is the side everyone expects; a closed surface has
-    ``sum_i A_i n_z,i = 0`` (divergence theorem), as much facing down as up,
-    whichever way it is turned. So the sample's PCA normals (each point's
-    :data:`AUTO_NEIGHBOURS` nearest) are oriented consistently by the spanning
-    tree of :func:`orient`, and the cloud is oriented ``"up"`` when at least
-    ``TUNING.auto_share`` of them lie within 45 degrees of vertical and at most
-    ``TUNING.auto_down_share`` of the ``sum |n_z|`` of the flat ones
-    (``TUNING.auto_flatness``: not a tree crown's scatter) faces down, and at
-    most ``TUNING.auto_layered_share`` of those flat points lie straight over or
-    under another sheet (:func:`_layered_share`: a thin closed object lying
-    flat, whose two sides the tree can orient alike) and at most
-    ``TUNING.auto_split_share`` have balls whose residuals split in two layers
-    (:func:`_split_share`: the same object thinner still).
-
-    A cloud that fails this test along ``z`` is tested again along the axis of
-    its flat sample normals (the top eigenvector of ``sum_i n_i n_i^T``): a
-    surface over a plane that is not horizontal (a terrain tile turned in a
-    scanner's frame, a range scan seen from the side, a facade) is then
-    oriented ``"up"`` along that axis (:attr:`AutoPolicy.towards`), towards
-    its convex side (:func:`_convex_side`), so that its sheets get one side
-    each point by point, as terrain does, instead of the spanning tree's
-    sides, which a tree crown's scatter carries at random. A closed surface
-    fails along every axis (its outward normals face every way alike).
-
-    Parameters
-    ----------
-    centres : ndarray, shape (q, 3)
-        A sample of the cloud's distinct points spread over it, any order (they
-        are sorted first, so that the same set decides alike): the scale
-        choice's ``n_sub`` centres.
-    noise : float, optional
-        The cloud's noise, length units (:func:`heatcurv.choice.scale.centre_noise`,
-        the scale choice's ``sigma``).
-
-    Returns
-    -------
-    AutoPolicy
-    """
-    centres = np.asarray(centres, dtype=np.float64)
-    centres = centres[np.lexsort(centres.T[::-1])]
-    q = centres.shape[0]
-    if q < 4:
-        return AutoPolicy("outward", 0.0, 0.0)
-    k = min(AUTO_NEIGHBOURS, q - 1)
-    tree = cKDTree(centres)
-    nbhd = knn_neighbourhood(centres, k, tree=tree, workers=1)
-    # plain PCA of each point and its k nearest: the eigenvector of the smallest eigenvalue
-    near = centres[tree.query(centres, k + 1)[1]]
-    spread = near - near.mean(axis=1, keepdims=True)
-    eigenvalues, eigenvectors = np.linalg.eigh(np.einsum("nki,nkj->nij", spread, spread))
-    normals = eigenvectors[:, :, 0]
-    flat = eigenvalues[:, 0] <= TUNING.auto_flatness * eigenvalues[:, 1]
-    oriented, _, labels = _tree_sides(centres, normals, nbhd)
-    spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
-    sample = _Sample(centres, normals, flat, oriented, labels, tree, spacing, noise)
-    vertical = _over_plane(sample, np.array([0.0, 0.0, 1.0]))
-    if vertical.mode == "up" or not flat.any():
-        return vertical
-    # the same test along the flat normals' own axis: a surface over a plane turned away from horizontal
-    axis = np.linalg.eigh(np.einsum("ni,nj->ij", normals[flat], normals[flat]))[1][:, -1]
-    tilted = _over_plane(sample, axis)
-    if tilted.mode != "up":
-        return vertical
-    towards, convex = _convex_side(centres, oriented, axis)
-    return replace(tilted, towards=tuple(float(c) for c in towards), convex=convex)
-
-
-class _Sample(NamedTuple):
-    """What :func:`auto_policy` measured on its sample (q points)."""
-
-    centres: np.ndarray  # (q, 3), sorted
-    normals: np.ndarray  # (q, 3), unoriented PCA normals
-    flat: np.ndarray  # (q,), bool: TUNING.auto_flatness
-    oriented: np.ndarray  # (q, 3), the normals oriented by the spanning tree
-    labels: np.ndarray  # (q,), the tree's components
-    tree: cKDTree
-    spacing: float  # median distance to the nearest sample point
-    noise: float  # the cloud's noise, length units
-
-
-def _over_plane(sample: _Sample, up: np.ndarray) -> AutoPolicy:
-    """:func:`auto_policy`'s test with the unit vector ``up``, shape (3,), as the vertical.
-
-    The sample is turned so that ``up`` is ``+z`` (with a new tree).
-    """
-    centres, normals, flat, oriented, labels, tree, spacing, noise = sample
-    if not np.array_equal(up, (0.0, 0.0, 1.0)):
-        basis = _frame(up)
-        centres, normals, oriented = centres @ basis.T, normals @ basis.T, oriented @ basis.T
-        tree = cKDTree(centres)
-    nz, n_comp = oriented[:, 2], int(labels.max()) + 1
-    # per component, the smaller of the upward and downward sums of n_z over its flat points (either
-    # side: the tree's root chose it)
-    upward = np.bincount(labels, weights=np.clip(nz, 0.0, None) * flat, minlength=n_comp)
-    downward = np.bincount(labels, weights=np.clip(-nz, 0.0, None) * flat, minlength=n_comp)
-    total = float((upward + downward).sum())
-    down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
-    share = float(np.mean(np.abs(nz) >= TUNING.auto_vertical_cosine))
-    level = flat & (np.abs(normals[:, 2]) >= TUNING.auto_vertical_cosine)
-    layered = _layered_share(centres, normals, level, noise, tree, spacing)
-    split = _split_share(centres, normals, tree, spacing)
-    terrain = share >= TUNING.auto_share and down <= TUNING.auto_down_share
-    mode = "up" if terrain and layered <= TUNING.auto_layered_share and split <= TUNING.auto_split_share else "outward"
-    return AutoPolicy(mode, share, down, layered, split)
-
-
-def _frame(up: np.ndarray) -> np.ndarray:
-    """A right-handed orthonormal basis, shape (3, 3), rows x, y, z, whose third row is the unit vector ``up``."""
-    helper = np.eye(3)[np.argmin(np.abs(up))]
-    x = np.cross(helper, up)
-    x /= np.linalg.norm(x)
-    return np.stack([x, np.cross(up, x), up])
-
-
-def _convex_side(centres: np.ndarray, oriented: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, bool]:
-    """``axis`` or ``-axis``: the side a surface over the plane across ``axis`` bulges out to; whether it could tell.
-
-    The sample's normals within 45 degrees of the axis, each turned to face
-    it, vote as the outward vote does (``sum_i n_i . (x_i - c)``, 0 on a
-    plane). A curved surface (a face, a scan of a round object) votes clearly;
-    a vote below ``TUNING.convex_vote`` of its strength (a terrain tile, whose
-    sheet is nearly flat, a saddle) could turn over between a cloud and its
-    random half, so the axis's largest coordinate is made positive instead,
-    a convention on the coordinates.
-    """
-    facing = oriented @ axis
-    steep = np.abs(facing) >= TUNING.auto_vertical_cosine
-    radial = np.where(facing < 0, -1.0, 1.0) * np.einsum("ij,ij->i", oriented, centres - centres.mean(axis=0))
-    vote, strength = radial[steep].sum(), np.abs(radial[steep]).sum()
-    if not abs(vote) >= TUNING.convex_vote * strength:
-        return axis * np.sign(axis[np.argmax(np.abs(axis))]), False
-    return (axis if vote > 0 else -axis), True
-
-
-def _split_share(centres: np.ndarray, normals: np.ndarray, tree: cKDTree, spacing: float) -> float:
-    """Share of the sample whose balls' residuals split in two layers (``TUNING.auto_split_share``).
-
-    The ball is the point's ``TUNING.auto_split_neighbours`` nearest sample points, read as
-    :func:`heatcurv.flags.sheets.layered_balls` reads a point's ball, with the median sample spacing as the spacing.
-
-    Parameters
-    ----------
-    centres, normals : ndarray, shape (q, 3)
-        The sample and its unoriented PCA normals.
-    tree : cKDTree
-        Of ``centres``.
-    spacing : float
-        The median distance from a sample point to its nearest.
-
-    Returns
-    -------
-    float
-    """
-    k = min(TUNING.auto_split_neighbours, centres.shape[0] - 1)
-    if k < 6:
-        return 0.0
-    ball = knn_neighbourhood(centres, k, tree=tree, workers=1)
-    moments = kernels.quadric_residual_moments(centres, normals, ball.indptr, ball.indices,
-                                               np.full(centres.shape[0], spacing))
-    split = (moments[:, 0] > TUNING.layer_residual * spacing) & (moments[:, 1] < TUNING.layer_kurtosis)
-    return float(np.count_nonzero(split) / centres.shape[0])
-
-
-def _layered_share(centres: np.ndarray, normals: np.ndarray, flat: np.ndarray, noise: float, tree: cKDTree,
-                   spacing: float) -> float:
-    """Share of the ``flat`` sample points with another straight over or under them (``TUNING.auto_layered_share``).
-
-    Parameters
-    ----------
-    centres, normals : ndarray, shape (q, 3)
-        The sample and its unoriented PCA normals.
-    flat : ndarray, shape (q,), bool
-        Flat sample points whose normal lies within 45 degrees of vertical.
-    noise : float
-        The cloud's noise, length units.
-    tree : cKDTree
-        Of ``centres``.
-    spacing : float
-        The median distance from a sample point to its nearest.
-
-    Returns
-    -------
-    float
-        0 when fewer than two points are flat.
-    """
-    rows = np.flatnonzero(flat)
-    if rows.size < 2:
-        return 0.0
-    # pairs within one spacing of each other seen from above, at any height
-    pairs = cKDTree(centres[rows, :2]).query_pairs(spacing, output_type="ndarray")
-    # ordered both ways: a point over another is layered, and so is the one under it
-    first, second = rows[np.concatenate([pairs[:, 0], pairs[:, 1]])], rows[np.concatenate([pairs[:, 1], pairs[:, 0]])]
-    offset = centres[second] - centres[first]
-    height = np.abs(np.einsum("ij,ij->i", offset, normals[first]))
-    lateral = np.sqrt(np.maximum(np.einsum("ij,ij->i", offset, offset) - height**2, 0.0))
-    over = (height > lateral) & (height > max(TUNING.auto_layer_height * spacing, TUNING.auto_layer_noise * noise))
-    return float(np.unique(first[over]).size / rows.size)
 
 
 def orient(
@@ -584,7 +376,7 @@ def orient(
     if reference is not None:
         return _orient_locally(points, normals, graph, reference, mode, excluded, roundness)
 
-    oriented, tree, labels = _tree_sides(points, normals, graph)
+    oriented, tree, labels = tree_sides(points, normals, graph)
     n_comp = int(labels.max()) + 1
 
     # the sign of each component: outward vote, else the flat convention
@@ -830,7 +622,7 @@ def _spanning_forest(points: np.ndarray, normals: np.ndarray, graph: Neighbourho
     return (tree + tree.T).tocsr()
 
 
-def _tree_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood):
+def tree_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood):
     """One side carried over the minimum spanning forest of ``graph``, from the first point of each tree.
 
     Returns

@@ -372,7 +372,7 @@ def describe(context: SurveyContext, options: dict) -> dict:
         "kernel": plan.label, "sigma": scale.sigma * frame.unit, "relative_noise": scale.relative_noise,
     }
     policy = getattr(choices, "orientation", None)
-    if policy is not None:  # what orient="auto" without a viewpoint chose (heatcurv.orient.orientation.auto_policy)
+    if policy is not None:  # what orient="auto" without a viewpoint chose (heatcurv.orient.auto.auto_policy)
         out["auto_orientation"] = policy.mode
         if policy.towards is not None:  # "up" along the cloud's own axis
             out["auto_towards"] = [float(c) for c in policy.towards]
