@@ -50,8 +50,8 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
 
     A cloud that fails this test along ``z``, or passes it with fewer than
     ``TUNING.auto_level_share`` of its normals within 45 degrees of vertical,
-    is tested again along the axis of
-    its flat sample normals (the top eigenvector of ``sum_i n_i n_i^T``): a
+    is tested again along the axis of its flat sample normals (the top
+    eigenvector of ``sum_i n_i n_i^T``): a
     surface over a plane that is not horizontal (a terrain tile turned in a
     scanner's frame, a range scan seen from the side, a facade) is then
     oriented ``"up"`` along that axis (:attr:`AutoPolicy.towards`), towards
@@ -91,7 +91,8 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     flat = eigenvalues[:, 0] <= TUNING.auto_flatness * eigenvalues[:, 1]
     oriented, _, labels = tree_sides(centres, normals, nbhd)
     spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
-    sample = _Sample(centres, normals, flat, oriented, labels, tree, spacing, noise)
+    split = _split_share(centres, normals, tree, spacing)  # the balls' split needs no vertical: read once
+    sample = _Sample(centres, normals, flat, oriented, labels, spacing, noise, split)
     # the flat normals' own axis: a surface over a plane turned away from horizontal, a plate's normal
     axis = np.linalg.eigh(np.einsum("ni,nj->ij", normals[flat], normals[flat]))[1][:, -1] if flat.any() else None
     vertical = _over_plane(sample, np.array([0.0, 0.0, 1.0]), axis)
@@ -114,21 +115,21 @@ class _Sample(NamedTuple):
     flat: np.ndarray  # (q,), bool: TUNING.auto_flatness
     oriented: np.ndarray  # (q, 3), the normals oriented by the spanning tree
     labels: np.ndarray  # (q,), the tree's components
-    tree: cKDTree
     spacing: float  # median distance to the nearest sample point
     noise: float  # the cloud's noise, length units
+    split: float  # _split_share
 
 
 def _over_plane(sample: _Sample, up: np.ndarray, axis: np.ndarray | None) -> AutoPolicy:
     """:func:`auto_policy`'s test with the unit vector ``up``, shape (3,), as the vertical.
 
-    The sample is turned so that ``up`` is ``+z`` (with a new tree). The
-    layered share is the larger of the one seen along ``up`` and the one seen
-    along the flat normals' own ``axis``, shape (3,) (a thin plate turned away
-    from ``up`` lies one face over the other along its own normal only).
+    The sample is turned so that ``up`` is ``+z``. The layered share is the
+    larger of the one seen along ``up`` and the one seen along the flat
+    normals' own ``axis``, shape (3,) (a thin plate turned away from ``up``
+    lies one face over the other along its own normal only).
     """
-    centres, normals, oriented, tree = _in_frame(sample, up)
-    flat, labels, spacing, noise = sample.flat, sample.labels, sample.spacing, sample.noise
+    centres, normals, oriented = _in_frame(sample, up)
+    flat, labels, spacing, noise, split = sample.flat, sample.labels, sample.spacing, sample.noise, sample.split
     nz, n_comp = oriented[:, 2], int(labels.max()) + 1
     # per component, the smaller of the upward and downward sums of n_z over its flat points that are not walls
     # (a wall's n_z is noise; either side: the tree's root chose it)
@@ -140,21 +141,19 @@ def _over_plane(sample: _Sample, up: np.ndarray, axis: np.ndarray | None) -> Aut
     share = float(np.mean(np.abs(nz) >= TUNING.auto_vertical_cosine))
     layered = _layered_share(centres, normals, flat, noise, spacing)
     if axis is not None and not np.array_equal(axis, up):
-        along, turned, _, _ = _in_frame(sample, axis)
+        along, turned, _ = _in_frame(sample, axis)
         layered = max(layered, _layered_share(along, turned, flat, noise, spacing))
-    split = _split_share(centres, normals, tree, spacing)
     terrain = share >= TUNING.auto_share and down <= TUNING.auto_down_share
     mode = "up" if terrain and layered <= TUNING.auto_layered_share and split <= TUNING.auto_split_share else "outward"
     return AutoPolicy(mode, share, down, layered, split)
 
 
 def _in_frame(sample: _Sample, up: np.ndarray) -> tuple:
-    """The sample's centres, normals and oriented normals turned so that ``up`` is ``+z``, and their tree."""
+    """The sample's centres, normals and oriented normals, each shape (q, 3), turned so that ``up`` is ``+z``."""
     if np.array_equal(up, (0.0, 0.0, 1.0)):
-        return sample.centres, sample.normals, sample.oriented, sample.tree
+        return sample.centres, sample.normals, sample.oriented
     basis = _frame(up)
-    centres = sample.centres @ basis.T
-    return centres, sample.normals @ basis.T, sample.oriented @ basis.T, cKDTree(centres)
+    return sample.centres @ basis.T, sample.normals @ basis.T, sample.oriented @ basis.T
 
 
 def _frame(up: np.ndarray) -> np.ndarray:
