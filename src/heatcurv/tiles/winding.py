@@ -226,8 +226,9 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
     are its exact duplicates; any other point when more than half of the
     sources within its operator ball do (none when no source is that near):
     the ball of radius ``alpha h`` (``h`` the point's ``spacing``), which holds
-    the point's neighbours of the in-memory operator (more where
-    ``min_neighbours`` widened a ball of the equations-2.6/2.7 spacings).
+    the point's neighbours of the in-memory operator (fewer where
+    ``min_neighbours`` widened that ball, with the spacings of equations 2.6
+    and 2.7).
     When the field is ``undecided``, every point but the outliers is.
 
     Parameters
