@@ -201,9 +201,7 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
         log.info("normals oriented up (+z): the cloud is an open surface over the horizontal plane "
                  "(--orient outward for a closed object, --viewpoint X,Y,Z for a scanner position)")
     elif policy is not None and policy.mode == "up":
-        side = "its convex side" if policy.convex else "the axis's largest coordinate positive, a convention"
-        axis = ", ".join(f"{c:.3f}" for c in policy.towards)
-        log.info(f"normals oriented along ({axis}), {side}: the cloud is an open surface over the plane across that "
+        log.info(f"normals oriented {policy.along}: the cloud is an open surface over the plane across that "
                  "axis (--orient outward for a closed object, --viewpoint X,Y,Z for a scanner position)")
     elif policy is not None and orientation.closed is False:
         log.info("normals oriented outward of each piece (its convex side): the cloud is open and not a surface over "

@@ -289,11 +289,16 @@ class AutoPolicy:
         if self.mode == "up" and self.towards is None:
             return f"auto: an open surface over the horizontal plane, oriented up (+z) ({measured})"
         if self.mode == "up":
-            direction = ", ".join(f"{c:.3f}" for c in self.towards)
-            side = "its convex side" if self.convex else "the axis's largest coordinate positive (nearly flat)"
-            return (f"auto: an open surface over the plane across its normals' axis, oriented along ({direction}), "
-                    f"{side} ({measured})")
+            return f"auto: an open surface over the plane across its normals' axis, oriented {self.along} ({measured})"
         return f"auto: not a surface over a plane ({measured})"
+
+    @property
+    def along(self) -> str | None:
+        """``"up"`` along the cloud's own axis: which way, in words; None otherwise."""
+        if self.towards is None:
+            return None
+        side = "its convex side" if self.convex else "the axis's largest coordinate positive, a convention"
+        return f"along ({', '.join(f'{c:.3f}' for c in self.towards)}), {side}"
 
 
 def orient(
