@@ -48,6 +48,7 @@ from .fit_stages import (
     kernel_choice,
     paper_fit_stages,
     point_fit_stages,
+    turned_over,
 )
 from .fits.uncertainty import StandardErrors, standard_errors
 from .flags.outliers import Outliers, find_outliers
@@ -69,6 +70,7 @@ from .operators.operator import HeatKernelOperator
 from .options import resolve_options
 from .orient.enclosure import warn_undecided
 from .orient.orientation import Orientation, as_viewpoint, axisless_balls
+from .orient.visibility import escaping_turns
 from .progress import StageClock
 from .results import CurvatureResult
 from .tuning import TUNING
@@ -368,6 +370,11 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     if whole_cloud:
         reliable, resolution = cloud_flags(inputs, stacklevel=3)
         extra = {}
+        if orientation.sources is not None:  # closed or undecided: the points not vouched for face where rays escape
+            with StageClock(timings=timings).stage("orientation", report=False):
+                fitted, errors, orientation = _turned_to_escape(op, fitted, errors, orientation,
+                                                                ~reliable & ~outliers.mask)
+            pc = fitted.principal
     else:
         reliable, resolution = inputs.local, float("nan")
         first = np.zeros(prepared.n_input, dtype=bool)
@@ -417,6 +424,22 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
         fit_radius=back(nbhd.radius if fitted.radius is None else fitted.radius) * unit,
         **_standard_error_fields(errors, back, unit),
     )
+
+
+def _turned_to_escape(op: HeatKernelOperator, fitted: Fitted, errors: StandardErrors | None,
+                      orientation: Orientation, tested: np.ndarray):
+    """``fitted``, ``errors`` and ``orientation`` with the ``tested`` points turned to where their rays escape.
+
+    The occluders are the winding number's sources, discs across their
+    oriented spanning-tree normals (:mod:`heatcurv.orient.visibility`); the
+    count goes to the report's ``escaped``.
+    """
+    source = orientation.sources
+    turn = escaping_turns(op.points, fitted.normals, tested, op.points[source], fitted.normals[source])
+    if errors is not None:  # k1 and k2 trade places where the side turns
+        errors = replace(errors, k1=np.where(turn, errors.k2, errors.k1), k2=np.where(turn, errors.k1, errors.k2))
+    report = replace(orientation.report, escaped=int(turn.sum()))
+    return turned_over(fitted, turn), errors, replace(orientation, report=report)
 
 
 def _standard_error_fields(errors: StandardErrors | None, back, unit: float) -> dict:

@@ -55,14 +55,18 @@ class Fitted:
 
 def facing_viewpoint(fitted: Fitted, points: np.ndarray, towards: np.ndarray) -> Fitted:
     """``fitted`` with every normal facing ``towards`` (flipped with its curvatures where it did not)."""
-    away = np.einsum("ij,ij->i", fitted.normals, towards - points) < 0
-    if not away.any():
+    return turned_over(fitted, np.einsum("ij,ij->i", fitted.normals, towards - points) < 0)
+
+
+def turned_over(fitted: Fitted, mask: np.ndarray) -> Fitted:
+    """``fitted`` seen from the other side where ``mask`` (shape (m,), bool): normals and curvatures flipped."""
+    if not mask.any():
         return fitted
-    normals = np.where(away[:, None], -fitted.normals, fitted.normals)
-    pc = fitted.principal.flipped(away)
+    normals = np.where(mask[:, None], -fitted.normals, fitted.normals)
+    pc = fitted.principal.flipped(mask)
     factors = fitted.noise_factors
     if factors is not None:  # k1 and k2 trade places where the side turns
-        factors = np.where(away[:, None], factors[:, [0, 2, 1, 3, 4]], factors)
+        factors = np.where(mask[:, None], factors[:, [0, 2, 1, 3, 4]], factors)
     return replace(fitted, normals=normals, mean=pc.mean, principal=pc, noise_factors=factors)
 
 

@@ -30,6 +30,7 @@ def test_thin_parts_in_tiles_are_turned_or_flagged(name, cgal_meshes, tmp_path, 
     wrong = np.einsum("ij,ij->i", out.normals, truth) < 0
     assert report.orientation["closed"] is True
     assert report.orientation["turned"] > 0 and report.orientation["unsupported"] > 0
+    assert report.orientation["escaped"] > 0
     silent = 100 * (wrong & reliable).mean()
     assert silent < TREE_ALONE[name] / 4
     records.check(f"real_tiled_orientation/{name}", wrong=100 * wrong.mean(), wrong_reliable=silent,

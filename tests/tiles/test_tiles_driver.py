@@ -188,6 +188,24 @@ def test_noisy_cloud_with_duplicates_equals_in_memory(tmp_path):
     assert differ == dict.fromkeys(differ, (0, 0.0))
 
 
+def test_points_turned_to_where_their_rays_escape_are_the_in_memory_runs(tmp_path):
+    """An ellipsoid 1 x 0.3 x 0.12 at 1200 points in 6 tiles: the 5 points of its rim the in-memory run turns
+    (heatcurv.orient.visibility), turned in tiles too, with their curvatures."""
+    rng = np.random.default_rng(7)
+    u = rng.normal(size=(1200, 3))
+    points = u / np.linalg.norm(u, axis=1, keepdims=True) * [1.0, 0.3, 0.12]
+    src, out = tmp_path / "ellipsoid.npy", tmp_path / "ellipsoid.ply"
+    np.save(src, points)
+    memory = heatcurv.estimate(points)
+    report = compute_file(src, out, tile_size=300, scheduler="serial", dtype="float64", progress=False,
+                          fields=("nx", "ny", "nz", "mean", "reliable"))
+    assert report.tiles >= 4
+    assert report.orientation["escaped"] == memory.info["orientation"].escaped == 5
+    tiled = read_fields(out)
+    np.testing.assert_allclose(np.column_stack([tiled["nx"], tiled["ny"], tiled["nz"]]), memory.normals, atol=1e-9)
+    np.testing.assert_allclose(tiled["mean"], memory.mean, rtol=1e-9)
+
+
 def test_a_point_is_judged_by_the_sources_in_its_operator_ball_as_in_memory():
     """Over 6000 points the winding number samples its sources, and a point that is not one is flagged when
     most sources in its operator ball disagree (heatcurv.orient.enclosure). The tiles judge within the same

@@ -209,6 +209,9 @@ def run_estimate(points, normals, options: dict, log: Log, source=None):
     if orientation is not None and orientation.turned:
         log.info(f"{orientation.turned} point(s) of parts the spanning tree had turned inside out were turned "
                  "outward by the winding number")
+    if orientation is not None and orientation.escaped:
+        log.info(f"{orientation.escaped} point(s) not reliable were turned to the side their rays escape from "
+                 "(outward of the closed object; still flagged unreliable)")
     if orientation is not None and orientation.ambiguous:
         why = ", or a side the winding number contradicts" if orientation.unsupported else ""
         log.info(f"{orientation.ambiguous} point(s) have no consistent side for their normal (two sheets closer "

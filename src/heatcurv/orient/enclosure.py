@@ -131,6 +131,8 @@ class Enclosure:
         Neither closed nor open for sure (:class:`PatchSides`).
     outside_share : float
         Share of the area whose outside level is near 0 (:class:`PatchSides`).
+    sources : ndarray, shape (n,), bool or None
+        The points the winding sums ran over; None unless ``closed`` or ``undecided``.
     """
 
     normals: np.ndarray
@@ -140,6 +142,7 @@ class Enclosure:
     flipped: int
     undecided: bool = False
     outside_share: float = 0.0
+    sources: np.ndarray | None = None
 
 
 def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, areas: np.ndarray,
@@ -183,8 +186,10 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     flip[excluded] = False
     unsupported = ~excluded if sides.undecided else _unsupported(source, sides.bad, neighbourhood, excluded)
     oriented = np.where(flip[:, None], -normals, normals)
+    is_source = np.zeros(n, dtype=bool)
+    is_source[source] = True
     return Enclosure(oriented, unsupported, sides.closed, sides.agreement, int(flip.sum()), sides.undecided,
-                     sides.outside_share)
+                     sides.outside_share, is_source)
 
 
 @dataclass(frozen=True)

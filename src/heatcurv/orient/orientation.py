@@ -127,6 +127,9 @@ class OrientationReport:
         for a tile's piece of a cloud.
     turned : int
         Points whose side the winding number turned over (closed clouds).
+    escaped : int
+        Points not reliable turned over, after the fit, to the side their rays
+        escape from (closed and undecided clouds; :mod:`heatcurv.orient.visibility`).
     unsupported : int
         Points whose side the winding number contradicts (closed clouds;
         counted in ``ambiguous`` too).
@@ -164,6 +167,7 @@ class OrientationReport:
     on_anchors: int = 0
     closed: bool | None = None
     turned: int = 0
+    escaped: int = 0
     unsupported: int = 0
     agreement: float | None = None
     outside_share: float | None = None
@@ -203,7 +207,9 @@ class Orientation:
         (:func:`heatcurv.orient.enclosure.patches`; -1 for excluded points). None otherwise.
     sources : ndarray, shape (n,), bool, optional
         With ``patch``: the part's share of the winding number's sources
-        (:func:`heatcurv.orient.enclosure.sampled_sources`).
+        (:func:`heatcurv.orient.enclosure.sampled_sources`). On a whole cloud
+        the winding number found closed or undecided: the sources its sums ran
+        over (the occluders of :mod:`heatcurv.orient.visibility`). None otherwise.
     weights : ndarray, shape (n,), optional
         With ``patch``: the sources' dipole strengths (the areas, 0 for excluded points).
     fine : ndarray, shape (n,), int, optional
@@ -400,6 +406,7 @@ def orient(
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded)
         oriented, unsupported, closed, undecided, turned = (
             enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.undecided, enclosure.flipped)
+        part = {"sources": enclosure.sources}
         agreement, outside_share = enclosure.agreement, enclosure.outside_share
     ambiguous = _conflicting(points, oriented, graph) | unsupported
     report = OrientationReport(

@@ -112,7 +112,7 @@ class TiledReport:
     orientation : dict or None
         The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`),
         with the winding step's: ``closed``, ``undecided``, ``agreement``, ``outside_share`` and, for a
-        closed or undecided cloud, ``turned`` and ``unsupported`` (:func:`.winding.flag_unsupported`).
+        closed or undecided cloud, ``turned``, ``unsupported`` and ``escaped`` (:func:`.winding.flag_unsupported`).
     parameters : dict
         Everything written into the output's VLR / PLY comment.
     scratch : str

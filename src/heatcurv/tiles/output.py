@@ -41,7 +41,7 @@ from .sources import CHUNK_POINTS, Source
 
 __all__ = [
     "RECORD", "DEFAULT_FIELDS", "EXTRA_FIELDS", "ERROR_FIELDS", "TILED_FIELDS", "TILED_WRITE", "create_results",
-    "keyed_flips", "store_tile", "write_records",
+    "chunk_flips", "keyed_flips", "store_tile", "write_records",
     "read_results", "output_columns", "write_output",
 ]
 
@@ -248,19 +248,26 @@ def keyed_flips(key: np.ndarray, keys: np.ndarray, flip: np.ndarray) -> np.ndarr
     return (keys[at] == key) & flip[at]
 
 
-def _results_chunks(results_path, count: int, flips, size: int = CHUNK_POINTS):
-    """``(start, records)`` in input order, each record turned over where an odd number of ``flips`` say so.
+def chunk_flips(block: np.ndarray, start: int, flips) -> np.ndarray:
+    """Whether each record of a chunk is turned over: an odd number of ``flips`` say so, shape (len(block),), bool.
 
     ``flips``: ``(column, keys, flipped)`` triples (the seam flips by ``patch``,
-    the winding step's by ``winding`` and ``winding_fine``), or None.
+    the winding step's by ``winding`` and ``winding_fine``, single rows by
+    ``row``: the input row numbers), or None. ``start``: the chunk's first row.
     """
+    flip = np.zeros(len(block), dtype=bool)
+    for column, keys, flipped in flips or ():
+        key = np.arange(start, start + len(block), dtype=np.int64) if column == "row" else block[column]
+        flip ^= keyed_flips(key, keys, flipped)
+    return flip & (block["computed"] == 1)
+
+
+def _results_chunks(results_path, count: int, flips, size: int = CHUNK_POINTS):
+    """``(start, records)`` in input order, each record turned over where :func:`chunk_flips` says so."""
     for start in range(0, count, size):
         stop = min(count, start + size)
         block = read_results(results_path, start, stop)
-        flip = np.zeros(len(block), dtype=bool)
-        for column, keys, flipped in flips or ():
-            flip ^= keyed_flips(block[column], keys, flipped)
-        yield start, _flipped(block, flip & (block["computed"] == 1))
+        yield start, _flipped(block, chunk_flips(block, start, flips))
 
 
 def write_output(stream, dst, source: Source, stats, results_path, wanted, dtype, flips, parameters: dict) -> None:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from ..orient.enclosure import warn_undecided
 from . import compute
 from .context import SurveyContext
@@ -44,6 +46,8 @@ def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict
         flips.append((sides.column, sides.keys, sides.flip))
         flips.append(("winding_fine", sides.fine_keys, sides.fine_flip))
         alpha = compute.resolved_options(run.options).alpha
-        orientation.update(flag_unsupported(results_path, run.source, context.choices.frame, sides, alpha))
+        report, escaping = flag_unsupported(results_path, run.source, context.choices.frame, sides, alpha, flips)
+        orientation.update(report)
+        flips.append(("row", escaping, np.ones(escaping.size, dtype=bool)))
     timings["orientation"] = time.perf_counter() - tic
     return flips, orientation

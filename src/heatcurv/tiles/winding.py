@@ -39,8 +39,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..geometry.validation import row_hashes
 from ..orient.enclosure import patch_sides, sampled_sources, source_keys
-from .output import PATCH_SHIFT, SOURCE_KEYS, keyed_flips, read_results, write_records
+from ..orient.visibility import MAX_TESTED, escaping_turns, lowest_keys
+from .output import PATCH_SHIFT, RECORD, SOURCE_KEYS, chunk_flips, keyed_flips, read_results, write_records
 
 __all__ = ["MAX_TILED_PATCHES", "WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
 
@@ -219,8 +221,10 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
                         sides.undecided, sides.outside_share)
 
 
-def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: float, chunk: int = 1 << 20) -> dict:
-    """Clear ``reliable`` in ``results.rec`` where the winding number contradicts a point's side (closed clouds).
+def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: float, flips,
+                     chunk: int = 1 << 20) -> tuple[dict, np.ndarray]:
+    """Clear ``reliable`` in ``results.rec`` where the winding number contradicts a point's side (closed clouds),
+    and find the points not reliable that face away from where their rays escape.
 
     A source is flagged when it disagrees (:attr:`WindingSides.bad`), and so
     are its exact duplicates; any other point when more than half of the
@@ -230,6 +234,11 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
     ``min_neighbours`` widened that ball, with the spacings of equations 2.6
     and 2.7).
     When the field is ``undecided``, every point but the outliers is.
+    Every point then not reliable (and no outlier) is tested as in memory
+    (:func:`heatcurv.orient.visibility.escaping_turns`: the sources are the
+    occluders, discs across their fitted normals; past
+    :data:`heatcurv.orient.visibility.MAX_TESTED` tested points, those of
+    lowest coordinate rank).
 
     Parameters
     ----------
@@ -242,15 +251,23 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
     sides : WindingSides
     alpha : float
         The run's ``alpha``: ball radius in spacings.
+    flips : list
+        The seam and winding flips so far (:func:`.output.chunk_flips`): a
+        point's side is its record's turned by them.
 
     Returns
     -------
-    dict
-        ``turned`` (points the patch flips turn over) and ``unsupported`` (points flagged).
+    report : dict
+        ``turned`` (points the patch flips turn over), ``unsupported`` (points
+        flagged) and ``escaped`` (points to turn to where their rays escape).
+    rows : ndarray, shape (escaped,), int64
+        Those points' input rows, sorted.
     """
     turned = unsupported = 0
     tree = cKDTree(sides.x)
     bad_tree = cKDTree(sides.x[sides.bad]) if sides.bad.any() and not sides.undecided else None
+    tested = {"key": np.zeros(0, dtype=np.uint64), "row": np.zeros(0, dtype=np.int64), "x": np.zeros((0, 3)),
+              "normals": np.zeros((0, 3))}
     for start, points, _ in source.chunks(chunk):
         block = read_results(results_path, start, start + len(points))
         computed = block["computed"] == 1
@@ -259,7 +276,7 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
         if sides.undecided:
             flagged = computed & ~(block["outlier"] == 1)
         elif bad_tree is None:
-            continue
+            flagged = np.zeros(len(points), dtype=bool)
         else:
             flagged = _contradicted(block, points, start, frame, sides, tree, bad_tree, alpha)
         unsupported += int(flagged.sum())
@@ -268,7 +285,24 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
             changed = block[rows].copy()
             changed["reliable"] = 0
             write_records(results_path, changed, rows + start)
-    return {"turned": turned, "unsupported": unsupported}
+        rows = np.flatnonzero(computed & ~(block["outlier"] == 1) & ((block["reliable"] == 0) | flagged))
+        x = frame.to_stage(points[rows])
+        normals = block["normals"][rows]
+        normals = np.where(chunk_flips(block, start, flips)[rows, None], -normals, normals)
+        tested = _lowest({"key": row_hashes(x), "row": rows + start, "x": x, "normals": normals}, tested)
+    occluder_normals = np.memmap(results_path, dtype=RECORD, mode="r")[sides.rows]["normals"]
+    turn = escaping_turns(tested["x"], tested["normals"], np.ones(tested["row"].size, dtype=bool), sides.x,
+                          occluder_normals)
+    rows = np.sort(tested["row"][turn])
+    return {"turned": turned, "unsupported": unsupported, "escaped": int(rows.size)}, rows
+
+
+def _lowest(new: dict, kept: dict) -> dict:
+    """The entries of both sets (same keys of arrays, one ``key`` each) with the lowest
+    :data:`heatcurv.orient.visibility.MAX_TESTED` keys."""
+    both = {name: np.concatenate([kept[name], new[name]]) for name in kept}
+    chosen = lowest_keys(both["key"], MAX_TESTED)
+    return {name: value[chosen] for name, value in both.items()}
 
 
 def _contradicted(block, points, start: int, frame, sides: WindingSides, tree: cKDTree, bad_tree: cKDTree,

@@ -1,0 +1,131 @@
+"""The side a point's rays escape from: outward for the points the winding number cannot vouch for.
+
+On a closed surface every ray leaving a point inwards hits the surface again,
+while some of the rays leaving it outwards reach the open space around the
+object. This needs no orientation of the surface at all: each occluder is an
+unoriented disc (a point, its normal's axis, a radius), so the test holds
+where the winding number's field does not: on a part whose patch the
+spanning tree turned over together with its neighbours, or one that straddles
+both sides of a leg (the field around such a spot is made by the same wrong
+normals, and its levels disagree with every side; :mod:`.enclosure` flags
+it).
+
+For each tested point, :data:`CONE` rays fan out around ``+n`` and as many
+around ``-n``; a ray *escapes* when it leaves the cloud's bounding box without
+crossing a disc farther than :data:`REACH` spacings from its point (nearer ones
+are the point's own surface). The point's vote is the share of its rays along
+``+n`` that escape minus the share along ``-n``; a vote below
+``-TUNING.escape_margin`` turns the point over. Points in a closed pocket (an
+armpit, the gap between two legs) see no escape either way (vote 0) and keep
+their side.
+
+The occluders are the winding number's sources (every point of a small cloud,
+a sample of a large one: the same sample in a tiled run), their discs as wide as
+the distance to their :data:`DISC_NEIGHBOURS`-th nearest source, so that a
+sampled cloud has no holes for a ray to slip through.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .._kernels.visibility import escaping_rays
+from ..geometry.validation import row_hashes
+from ..tuning import TUNING
+
+__all__ = ["CONE", "DISC_NEIGHBOURS", "MAX_TESTED", "REACH", "escape_votes", "escaping_turns", "lowest_keys"]
+
+#: The rays around each side of a normal: (angle from the normal in degrees, rays at that angle).
+CONE = ((0.0, 1), (30.0, 6), (60.0, 8))
+#: An occluder's disc reaches its this-many-th nearest occluder.
+DISC_NEIGHBOURS = 6
+#: Hits nearer than this many median occluder spacings are the point's own surface.
+REACH = 1.5
+#: Most points tested in one cloud (those of lowest coordinate rank, :func:`lowest_keys`).
+MAX_TESTED = 100_000
+
+
+def escape_votes(points: np.ndarray, normals: np.ndarray, occluders: np.ndarray,
+                 occluder_normals: np.ndarray) -> np.ndarray:
+    """The share of each point's rays that escape along its normal minus the share that escape against it.
+
+    Parameters
+    ----------
+    points : ndarray, shape (m, 3)
+        The tested points.
+    normals : ndarray, shape (m, 3)
+        Their unit normals.
+    occluders : ndarray, shape (s, 3)
+        The discs' centres (``s >= DISC_NEIGHBOURS + 1``).
+    occluder_normals : ndarray, shape (s, 3)
+        The discs' unit axes (either sign).
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        Votes in ``[-1, 1]``: 1 when every ray along the normal escapes and
+        none against it.
+    """
+    m = points.shape[0]
+    if m == 0:
+        return np.zeros(0)
+    distance = cKDTree(occluders).query(occluders, k=DISC_NEIGHBOURS + 1)[0]
+    spacing = float(np.median(distance[:, 1]))
+    radius = distance[:, DISC_NEIGHBOURS]
+    # a sparse spot's disc is no wider than twice the median's (the grid's cells are as wide as the widest)
+    radius = np.clip(radius, 1e-3 * spacing, 2.0 * np.median(radius))
+    rays = sum(count for _, count in CONE)
+    along = escaping_rays(points, _fan(normals), REACH * spacing, occluders, occluder_normals, radius)
+    against = escaping_rays(points, _fan(-normals), REACH * spacing, occluders, occluder_normals, radius)
+    return (along - against) / rays
+
+
+def escaping_turns(points: np.ndarray, normals: np.ndarray, tested: np.ndarray, occluders: np.ndarray,
+                   occluder_normals: np.ndarray) -> np.ndarray:
+    """The tested points whose rays escape clearly more against their normal than along it.
+
+    Parameters
+    ----------
+    points, normals : ndarray, shape (n, 3)
+    tested : ndarray, shape (n,), bool
+        The points to test; past :data:`MAX_TESTED`, those of lowest coordinate
+        rank (:func:`heatcurv.geometry.validation.row_hashes`, the same in any
+        tile).
+    occluders, occluder_normals : ndarray, shape (s, 3)
+        As :func:`escape_votes`.
+
+    Returns
+    -------
+    ndarray, shape (n,), bool
+        Points to turn over: a vote below ``-TUNING.escape_margin``.
+    """
+    rows = np.flatnonzero(tested)
+    rows = rows[lowest_keys(row_hashes(points[rows]))]
+    turn = np.zeros(points.shape[0], dtype=bool)
+    votes = escape_votes(points[rows], normals[rows], occluders, occluder_normals)
+    turn[rows[votes < -TUNING.escape_margin]] = True
+    return turn
+
+
+def lowest_keys(keys: np.ndarray, limit: int = MAX_TESTED) -> np.ndarray:
+    """Positions of the ``limit`` lowest ``keys`` (all when fewer), sorted, shape (min(len(keys), limit),)."""
+    if keys.size <= limit:
+        return np.arange(keys.size)
+    return np.sort(np.argpartition(keys, limit)[:limit])
+
+
+def _fan(normals: np.ndarray) -> np.ndarray:
+    """The :data:`CONE` directions around each normal, shape (m, rays, 3)."""
+    helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    u = np.cross(normals, helper)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(normals, u)
+    directions = []
+    for ring, (angle, count) in enumerate(CONE):
+        polar = np.radians(angle)
+        for k in range(count):
+            turn = 2.0 * np.pi * (k + 0.5 * (ring % 2 == 0)) / count  # the rings' rays staggered
+            tangent = np.cos(turn) * u + np.sin(turn) * v
+            directions.append(np.cos(polar) * normals + np.sin(polar) * tangent)
+    return np.stack(directions, axis=1)
