@@ -16,6 +16,10 @@ a numba kernel, with no per-pair temporaries:
                method's gradient and divergence (:mod:`heatcurv.operators.geodesic`)
 ``neighbours`` a tiled run's stored neighbour lists read back as a tile's
                neighbourhood (:mod:`heatcurv.tiles.neighbours`)
+``winding``    generalised winding numbers of labelled dipoles
+               (:mod:`heatcurv.orient.enclosure`)
+``visibility`` rays walked through a grid of discs: which escape
+               (:mod:`heatcurv.orient.visibility`)
 =============  ==============================================================
 
 The kernels take and return plain arrays and import nothing from the rest of
