@@ -370,11 +370,9 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     if whole_cloud:
         reliable, resolution = cloud_flags(inputs, stacklevel=3)
         extra = {}
-        if orientation.sources is not None:  # closed or undecided: the points not vouched for face where rays escape
-            with StageClock(timings=timings).stage("orientation", report=False):
-                fitted, errors, orientation = _turned_to_escape(op, fitted, errors, orientation,
-                                                                ~reliable & ~outliers.mask)
-            pc = fitted.principal
+        fitted, errors, orientation = _turned_to_escape(op, fitted, errors, orientation, ~reliable & ~outliers.mask,
+                                                        timings)
+        pc = fitted.principal
     else:
         reliable, resolution = inputs.local, float("nan")
         first = np.zeros(prepared.n_input, dtype=bool)
@@ -427,15 +425,19 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
 
 
 def _turned_to_escape(op: HeatKernelOperator, fitted: Fitted, errors: StandardErrors | None,
-                      orientation: Orientation, tested: np.ndarray):
+                      orientation: Orientation, tested: np.ndarray, timings: dict):
     """``fitted``, ``errors`` and ``orientation`` with the ``tested`` points turned to where their rays escape.
 
+    Only on a closed or undecided cloud (which has ``orientation.sources``).
     The occluders are the winding number's sources, discs across their
-    oriented spanning-tree normals (:mod:`heatcurv.orient.visibility`); the
-    count goes to the report's ``escaped``.
+    fitted normals (:mod:`heatcurv.orient.visibility`); the count goes to
+    the report's ``escaped``, the time to the ``orientation`` stage.
     """
     source = orientation.sources
-    turn = escaping_turns(op.points, fitted.normals, tested, op.points[source], fitted.normals[source])
+    if source is None:
+        return fitted, errors, orientation
+    with StageClock(timings=timings).stage("orientation", report=False):
+        turn = escaping_turns(op.points, fitted.normals, tested, op.points[source], fitted.normals[source])
     if errors is not None:  # k1 and k2 trade places where the side turns
         errors = replace(errors, k1=np.where(turn, errors.k2, errors.k1), k2=np.where(turn, errors.k1, errors.k2))
     report = replace(orientation.report, escaped=int(turn.sum()))
