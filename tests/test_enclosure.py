@@ -11,7 +11,15 @@ import heatcurv
 from heatcurv import surfaces
 from heatcurv._kernels.winding import winding_numbers
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
-from heatcurv.orient.enclosure import Enclosure, _recut, enclose, patch_fields, patch_sides, patches
+from heatcurv.orient.enclosure import (
+    Enclosure,
+    _recut,
+    enclose,
+    patch_fields,
+    patch_sides,
+    patches,
+    source_roundness,
+)
 from heatcurv.orient.orientation import _spanning_forest
 from heatcurv.tuning import TUNING
 
@@ -180,6 +188,27 @@ def test_an_open_scan_of_a_closed_surface_is_not_undecided():
     assert report.closed is False and not report.undecided and report.agreement < 0.1
     assert report.outside_share >= 0.5
     assert res.reliable.mean() > 0.9
+
+
+def test_a_coarse_object_is_undecided_however_little_its_levels_agree(monkeypatch):
+    # the thin torus above with the undecided band's floor raised over its 29.6 %: its sources' balls are
+    # round (a coarse object), so it stays undecided; the one-sided torus scan's are flat, so it stays open
+    monkeypatch.setattr("heatcurv.orient.enclosure.TUNING", dataclasses.replace(TUNING, undecided_share=0.35))
+    s = surfaces.Torus(0.1, 1.0).sample(1000, "random", seed=0)
+    with pytest.warns(heatcurv.HeatcurvWarning, match="cannot tell whether the cloud encloses a volume"):
+        res = heatcurv.estimate(s.points)
+    assert res.info["orientation"].undecided and res.info["orientation"].agreement < 0.35
+    assert not res.reliable.any()
+    scan = surfaces.Torus(0.4, 1.0).scan(20000, [(5.0, 0.0, 0.0)], seed=0)
+    report = heatcurv.estimate(scan.points, orient="outward").info["orientation"]
+    assert report.closed is False and not report.undecided and report.outside_share >= 0.5
+
+
+def test_the_sources_roundness_is_their_median_where_known():
+    roundness = np.array([0.1, np.nan, 0.5, 0.3, 0.9])
+    assert source_roundness(roundness, np.array([0, 1, 2, 3])) == pytest.approx(0.3)
+    assert np.isnan(source_roundness(None, np.arange(3)))
+    assert np.isnan(source_roundness(roundness, np.array([1])))
 
 
 def _chain_forest(costs):

@@ -390,7 +390,9 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
             source[prepared.first[orientation.sources]] = True
             weight[prepared.first] = orientation.weights * unit**2
             extra["winding"] = {"patch": back(orientation.patch), "fine": back(orientation.fine), "source": source,
-                                "normals": back(orientation.normals), "weight": weight}
+                                "normals": back(orientation.normals), "weight": weight,
+                                "roundness": back(np.full(op.points.shape[0], np.nan) if orientation.roundness is None
+                                                  else orientation.roundness)}
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count, "second_sheet": int(np.count_nonzero(sheets)), "resolution": resolution,

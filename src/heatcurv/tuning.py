@@ -154,6 +154,10 @@ class Tuning:
     closed_tolerance: float = _knob(0.25, "distance of a clean winding level from 0 or 1")
     #: Closed models a few points across their legs 0.12-0.26; open scans and turned tiles 0.06-0.19.
     undecided_share: float = _knob(0.1, "clean-level share from which, below closed_share, a cloud is undecided")
+    #: Median PCA roundness of the sources' balls: CGAL's coarse models (elk, dino, elephant at a quarter to a
+    #: half of their vertices) 0.27-0.47; open clouds (terrain, a LiDAR tile, a face, graphs, an arch) 0.00-0.01.
+    coarse_roundness: float = _knob(0.2, "median roundness of the winding sources' balls from which a cloud is "
+                                         "coarse: undecided under undecided_share too")
     outside_share: float = _knob(0.5, "share of the area with outside levels near 0 that makes such a cloud "
                                       "undecided rather than open")
 

@@ -89,7 +89,7 @@ from ..tuning import TUNING
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys",
-    "MAX_SOURCES", "MAX_UNKNOWNS", "warn_undecided",
+    "source_roundness", "MAX_SOURCES", "MAX_UNKNOWNS", "warn_undecided",
 ]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
@@ -146,7 +146,8 @@ class Enclosure:
 
 
 def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, areas: np.ndarray,
-            neighbourhood: Neighbourhood, excluded: np.ndarray | None = None) -> Enclosure:
+            neighbourhood: Neighbourhood, excluded: np.ndarray | None = None,
+            roundness: np.ndarray | None = None) -> Enclosure:
     """Choose the side of every patch of the spanning forest by the winding number, and flag what it contradicts.
 
     Parameters
@@ -164,6 +165,9 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
         of the sources in its ball are.
     excluded : ndarray, shape (n,), bool, optional
         Points that are neither sources nor flagged (outliers).
+    roundness : ndarray, shape (n,), optional
+        The balls' PCA roundness ``lambda_0 / lambda_1``: a cloud whose
+        sources' balls are round is coarse (:func:`patch_sides`).
 
     Returns
     -------
@@ -178,7 +182,7 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     source = _sources(points, patch, excluded)
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
     sides = patch_sides(points[source], normals[source], weight, patch[source], int(patch.max()) + 1,
-                        fine[source], int(fine.max()) + 1)
+                        fine[source], int(fine.max()) + 1, source_roundness(roundness, source))
     if not (sides.closed or sides.undecided):
         return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0,
                          outside_share=sides.outside_share)
@@ -210,8 +214,10 @@ class PatchSides:
     closed : bool
         ``agreement >= TUNING.closed_share``: the sources enclose a volume.
     undecided : bool
-        ``TUNING.undecided_share <= agreement < TUNING.closed_share`` and ``outside_share >=
-        TUNING.outside_share``: they may or may not.
+        ``agreement < TUNING.closed_share`` and ``outside_share >= TUNING.outside_share``,
+        with ``agreement >= TUNING.undecided_share`` or the sources' balls round
+        (median roundness at least ``TUNING.coarse_roundness``: a coarse object): they may
+        or may not.
     outside_share : float
         Share of the sources' weight whose outside level is within
         ``TUNING.closed_tolerance`` of 0.
@@ -230,7 +236,7 @@ class PatchSides:
 
 
 def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int,
-                fine: np.ndarray | None = None, n_fine: int = 0) -> PatchSides:
+                fine: np.ndarray | None = None, n_fine: int = 0, roundness: float = float("nan")) -> PatchSides:
     """Each patch's side and each source's verdict, from the winding number of the sources (module docstring).
 
     With finer patches (:func:`patches`' pieces), a closed cloud's patches of
@@ -254,12 +260,16 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     fine : ndarray, shape (m,), int, optional
         Their finer patches, ``0 <= fine < n_fine``, each inside one patch.
     n_fine : int, optional
+    roundness : float, optional
+        The median PCA roundness of their balls (:func:`source_roundness`; NaN
+        when unknown): a cloud at ``TUNING.coarse_roundness`` or more is
+        coarse, and undecided below ``TUNING.undecided_share`` too.
 
     Returns
     -------
     PatchSides
     """
-    sides = _solved_sides(x, nrm, weight, label, n_patch)
+    sides = _solved_sides(x, nrm, weight, label, n_patch, roundness)
     fine_sign = np.ones(n_fine)
     if fine is None or not sides.closed:
         return dataclasses.replace(sides, fine_sign=fine_sign)
@@ -297,7 +307,8 @@ def _recut(share: np.ndarray, label: np.ndarray, fine: np.ndarray, n_patch: int)
     return recut
 
 
-def _solved_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int) -> PatchSides:
+def _solved_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int,
+                  roundness: float = float("nan")) -> PatchSides:
     """One solve of the winding energy over the patches ``label`` (:func:`patch_sides`, without re-cutting)."""
     along, against, (disc_rows, disc_members) = patch_fields(x, nrm, weight, label, n_patch)
     G, c = _energy(along, against, label, weight)
@@ -320,8 +331,19 @@ def _solved_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.
     # a patch has one side: where much of it disagrees, that side is in doubt at its agreeing points too
     patch_bad = np.bincount(label, weights=weight * bad, minlength=n_patch)
     bad |= patch_bad[label] > TUNING.patch_share * np.bincount(label, weights=weight, minlength=n_patch)[label]
-    undecided = TUNING.undecided_share <= agreement < TUNING.closed_share and outside_share >= TUNING.outside_share
+    # a coarse object's levels can agree on almost none of it; an open scene's balls are flat
+    unsure = agreement >= TUNING.undecided_share or roundness >= TUNING.coarse_roundness
+    undecided = unsure and agreement < TUNING.closed_share and outside_share >= TUNING.outside_share
     return PatchSides(sign, bad, agreement, agreement >= TUNING.closed_share, undecided, outside_share)
+
+
+def source_roundness(roundness: np.ndarray | None, source: np.ndarray) -> float:
+    """The median PCA roundness of the sources' balls (:func:`patch_sides`), NaN when unknown."""
+    if roundness is None:
+        return float("nan")
+    values = np.asarray(roundness, dtype=float)[source]
+    values = values[np.isfinite(values)]
+    return float(np.median(values)) if values.size else float("nan")
 
 
 def warn_undecided(agreement: float, outside_share: float, stacklevel: int = 2) -> None:

@@ -215,6 +215,9 @@ class Orientation:
     fine : ndarray, shape (n,), int, optional
         With ``patch``: each patch cut finer (:func:`heatcurv.orient.enclosure.patches`), the
         pieces the winding number solves for where a patch's one side is contradicted.
+    roundness : ndarray, shape (n,), optional
+        With ``patch``: the balls' PCA roundness ``lambda_0 / lambda_1``, which
+        the winding number reads at its sources (:func:`heatcurv.orient.enclosure.patch_sides`).
     """
 
     normals: np.ndarray
@@ -225,6 +228,7 @@ class Orientation:
     sources: np.ndarray | None = None
     weights: np.ndarray | None = None
     fine: np.ndarray | None = None
+    roundness: np.ndarray | None = None
 
 
 def as_viewpoint(viewpoint, n: int | None = None) -> np.ndarray:
@@ -400,10 +404,10 @@ def orient(
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
         patch, fine = patches(points, tree, cut, cloud_points)
-        part = {"patch": patch, "fine": fine, "weights": w,
+        part = {"patch": patch, "fine": fine, "weights": w, "roundness": roundness,
                 "sources": sampled_sources(points, cut, n if cloud_points is None else cloud_points)}
     else:
-        enclosure = enclose(points, oriented, tree, w, nbhd, excluded)
+        enclosure = enclose(points, oriented, tree, w, nbhd, excluded, roundness)
         oriented, unsupported, closed, undecided, turned = (
             enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.undecided, enclosure.flipped)
         part = {"sources": enclosure.sources}

@@ -91,7 +91,7 @@ def create_results(path, count: int, *, keep: bool = False) -> bool:
 STORED_KEYS = ("volume_labels", "volumes", "halo_rows", "halo_normals", "halo_patch")
 #: What a tile oriented ``outward`` keeps for the winding step (:func:`heatcurv.tiles.winding.tile_sources`).
 SOURCE_KEYS = ("winding_rows", "winding_x", "winding_normals", "winding_area", "winding_label", "winding_fine_label",
-               "winding_seam", "winding_total")
+               "winding_seam", "winding_roundness", "winding_total")
 
 
 def is_stored(tile_file) -> bool:

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..geometry.validation import row_hashes
-from ..orient.enclosure import patch_sides, sampled_sources, source_keys
+from ..orient.enclosure import patch_sides, sampled_sources, source_keys, source_roundness
 from ..orient.visibility import MAX_TESTED, escaping_turns, lowest_keys
 from .output import PATCH_SHIFT, RECORD, SOURCE_KEYS, chunk_flips, keyed_flips, read_results, write_records
 
@@ -70,7 +70,7 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         Their result fields (``normals``, ``area``, ``outlier``).
     winding : dict or None
         The core rows of the estimate's ``info["winding"]`` (``patch``,
-        ``fine``, ``source``, ``normals``, ``weight``). None (normals oriented on
+        ``fine``, ``source``, ``normals``, ``weight``, ``roundness``). None (normals oriented on
         anchors): the seam pieces are the patches, and the sources are drawn
         from the results alike.
 
@@ -82,7 +82,8 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         the tile; the sources' ``winding_rows``, ``winding_x`` (the frame's
         coordinates), ``winding_normals`` (as the tile oriented them),
         ``winding_area`` (the frame's unit), ``winding_label``,
-        ``winding_fine_label``, ``winding_seam``; ``winding_total``: the summed area of the core rows
+        ``winding_fine_label``, ``winding_seam``, ``winding_roundness`` (their balls' PCA roundness,
+        NaN without ``winding``); ``winding_total``: the summed area of the core rows
         (excluded ones weigh 0), to which the sources' areas are scaled.
     """
     if winding is None:
@@ -90,6 +91,7 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         label = fine = np.unique(seam, return_inverse=True)[1].ravel()
         source = sampled_sources(frame.to_stage(points), excluded, frame.n_points)
         normals, weight = results["normals"], np.where(excluded, 0.0, np.abs(results["area"]))
+        roundness = np.full(len(points), np.nan)
     else:
         pieces = np.column_stack([seam, np.asarray(winding["patch"], dtype=np.int64)])
         label = np.unique(pieces, axis=0, return_inverse=True)[1].ravel()
@@ -97,6 +99,7 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         fine = np.unique(pieces, axis=0, return_inverse=True)[1].ravel()
         source, normals, weight = np.asarray(winding["source"], dtype=bool), winding["normals"], winding["weight"]
         excluded = np.asarray(results["outlier"], dtype=bool)
+        roundness = winding["roundness"]
     # every patch holds a source, as in memory (heatcurv.orient.enclosure's sample plus one a patch): a patch of the
     # core without one (a patch cut by the core's edge) would keep the tile's side whatever the field says
     source = _one_a_patch(source, label, excluded, frame.to_stage(points))
@@ -105,7 +108,8 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         "winding": label.astype(np.int64), "winding_fine": fine.astype(np.int64), "winding_rows": rows[source],
         "winding_x": frame.to_stage(points[source]), "winding_normals": normals[source],
         "winding_area": weight[source], "winding_label": label[source], "winding_fine_label": fine[source],
-        "winding_seam": seam[source], "winding_total": np.array(weight.sum()),
+        "winding_seam": seam[source], "winding_roundness": np.asarray(roundness, dtype=float)[source],
+        "winding_total": np.array(weight.sum()),
     }
 
 
@@ -213,7 +217,8 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
         keys, index = np.unique(seam, return_inverse=True)
         fine_keys, fine = np.zeros(0, dtype=np.int64), None
     weight = area * (arrays["winding_total"].sum() / area.sum())
-    sides = patch_sides(x, nrm, weight, index, keys.size, fine, fine_keys.size)
+    sides = patch_sides(x, nrm, weight, index, keys.size, fine, fine_keys.size,
+                        source_roundness(arrays["winding_roundness"][order], np.arange(rows.size)))
     decided = sides.closed or sides.undecided
     flip = (sides.sign < 0) if decided else np.zeros(keys.size, dtype=bool)
     fine_flip = (sides.fine_sign < 0) if decided else np.zeros(fine_keys.size, dtype=bool)
