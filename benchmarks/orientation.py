@@ -531,7 +531,8 @@ def main(argv=None) -> int:
                          PLATE_HEAD, plates(), args.markdown))
     if decisions:
         print(text_table("heatcurv: closed, undecided or open (the winding number's two shares; closed from 30 % "
-                         "agreeing, undecided from 10 % with the outside near 0 on at least 50 %)",
+                         "agreeing, undecided from 10 % (from 0 where the sources' median roundness is at least "
+                         "0.2) with the outside near 0 on at least 50 %)",
                          DECISION_HEAD, decisions, args.markdown))
     if args.coarse_tori:
         print(text_table("coarse thin tori (closed; truth: the torus's outward normals; roundness: the median "

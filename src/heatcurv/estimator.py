@@ -385,14 +385,7 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
         reach = _value_reach(op, fitted, orientation) if errors is None else errors.reach
         extra["reach"] = back(reach) * unit
         if orientation.patch is not None:  # "outward": what the winding number needs over the whole cloud
-            # one row per set of duplicates is a source and carries the area
-            source, weight = np.zeros(prepared.n_input, dtype=bool), np.zeros(prepared.n_input)
-            source[prepared.first[orientation.sources]] = True
-            weight[prepared.first] = orientation.weights * unit**2
-            extra["winding"] = {"patch": back(orientation.patch), "fine": back(orientation.fine), "source": source,
-                                "normals": back(orientation.normals), "weight": weight,
-                                "roundness": back(np.full(op.points.shape[0], np.nan) if orientation.roundness is None
-                                                  else orientation.roundness)}
+            extra["winding"] = _winding_inputs(prepared, orientation)
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count, "second_sheet": int(np.count_nonzero(sheets)), "resolution": resolution,
@@ -424,6 +417,21 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
         fit_radius=back(nbhd.radius if fitted.radius is None else fitted.radius) * unit,
         **_standard_error_fields(errors, back, unit),
     )
+
+
+def _winding_inputs(prepared, orientation: Orientation) -> dict:
+    """A part of a cloud's ``info["winding"]``, input order and unit: what the winding number needs over the whole
+    cloud (:func:`heatcurv.tiles.winding.tile_sources`)."""
+    back, unit = prepared.to_input_order, prepared.unit
+    # one row per set of duplicates is a source and carries the area
+    source, weight = np.zeros(prepared.n_input, dtype=bool), np.zeros(prepared.n_input)
+    source[prepared.first[orientation.sources]] = True
+    weight[prepared.first] = orientation.weights * unit**2
+    roundness = orientation.roundness
+    if roundness is None:  # not measured: no rescue of a coarse cloud (heatcurv.orient.enclosure)
+        roundness = np.full(orientation.normals.shape[0], np.nan)
+    return {"patch": back(orientation.patch), "fine": back(orientation.fine), "source": source,
+            "normals": back(orientation.normals), "weight": weight, "roundness": back(roundness)}
 
 
 def _turned_to_escape(op: HeatKernelOperator, fitted: Fitted, errors: StandardErrors | None,

@@ -63,6 +63,9 @@ field is about ``-1/2`` on one side of its sheets) is an object too coarse
 for its levels to be sure (legs a few spacings thick): it is *undecided*;
 its patches take the field's sides, which are right more often than the
 tree's there, and every point is flagged, since no side can be vouched for.
+Below ``TUNING.undecided_share`` too when the sources' balls are round
+(median PCA roundness ``TUNING.coarse_roundness`` or more: they wrap around
+legs), where an open scan's are flat.
 
 The sums are exact over at most :data:`MAX_SOURCES` source points (all of a
 smaller cloud; above that, a subsample chosen by the coordinates alone, its
