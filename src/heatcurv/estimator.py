@@ -428,7 +428,7 @@ def _winding_inputs(prepared, orientation: Orientation) -> dict:
     source[prepared.first[orientation.sources]] = True
     weight[prepared.first] = orientation.weights * unit**2
     roundness = orientation.roundness
-    if roundness is None:  # not measured: no rescue of a coarse cloud (heatcurv.orient.enclosure)
+    if roundness is None:  # unknown, so no coarse cloud is rescued (heatcurv.orient.enclosure)
         roundness = np.full(orientation.normals.shape[0], np.nan)
     return {"patch": back(orientation.patch), "fine": back(orientation.fine), "source": source,
             "normals": back(orientation.normals), "weight": weight, "roundness": back(roundness)}
