@@ -75,10 +75,10 @@ def escape_votes(points: np.ndarray, normals: np.ndarray, occluders: np.ndarray,
     radius = distance[:, DISC_NEIGHBOURS]
     # a sparse spot's disc is no wider than twice the median's (the grid's cells are as wide as the widest)
     radius = np.clip(radius, 1e-3 * spacing, 2.0 * np.median(radius))
-    rays = sum(count for _, count in CONE)
-    along = escaping_rays(points, _fan(normals), REACH * spacing, occluders, occluder_normals, radius)
-    against = escaping_rays(points, _fan(-normals), REACH * spacing, occluders, occluder_normals, radius)
-    return (along - against) / rays
+    # one grid for both fans: the points twice, along their normals, then against them
+    escaped = escaping_rays(np.concatenate([points, points]), np.concatenate([_fan(normals), _fan(-normals)]),
+                            REACH * spacing, occluders, occluder_normals, radius)
+    return (escaped[:m] - escaped[m:]) / sum(count for _, count in CONE)
 
 
 def escaping_turns(points: np.ndarray, normals: np.ndarray, tested: np.ndarray, occluders: np.ndarray,
