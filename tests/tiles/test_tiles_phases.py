@@ -85,3 +85,17 @@ def test_cleanup_removes_stray_temporaries_and_keeps_finished_tiles(tmp_path):
     assert "1 finished tile(s) are kept" in message
     assert done.exists() and lists.exists() and not any(path.exists() for path in strays)
     assert _cleanup(tmp_path, keep_done=False) == "" and not tmp_path.exists()
+
+
+def test_a_few_halo_points_of_another_object_do_not_join_it_to_the_tiles_piece():
+    """A tile's seam pieces (connected components): five halo points of a far object have a spacing as long as
+    the way to this tile's grid, so an edge must be short for both its ends to join them."""
+    from heatcurv.tiles.compute import _patches
+
+    grid = np.stack(np.meshgrid(np.arange(20.0), np.arange(20.0), [0.0]), axis=-1).reshape(-1, 3)
+    far = np.array([[40.0, 0, 0], [40.5, 0, 0], [41.0, 0, 0], [40.0, 0.5, 0], [40.5, 0.5, 0]])
+    points = np.vstack([grid, far])
+    # each point's spacing as the tile measures it: the grid's 1; the far group's from its 10 nearest, mostly grid
+    spacing = np.concatenate([np.ones(len(grid)), np.full(len(far), 15.0)])
+    label = _patches(points, spacing, {})
+    assert np.unique(label[:400]).size == 1 and np.unique(label[400:]).size == 1 and label[0] != label[400]

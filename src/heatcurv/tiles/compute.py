@@ -395,14 +395,19 @@ def orients_outward(options: dict, choices) -> bool:
 
 
 def _patches(points: np.ndarray, spacing: np.ndarray, options: dict) -> np.ndarray:
-    """Connected components of the 10-nearest-neighbour graph (edges up to 4 x the spacing)."""
+    """Connected components of the 10-nearest-neighbour graph (edges up to 4 x the spacing of either end).
+
+    A few halo points of another object have a spacing as long as the way to this tile's points, so an
+    edge is kept only within 4 spacings of both its ends (at least the tile's median spacing).
+    """
     import scipy.sparse as sp
     from scipy.sparse import csgraph
     from scipy.spatial import cKDTree
 
     k = min(11, len(points))
     dist, idx = cKDTree(points).query(points, k=k, workers=options.get("workers", 1))
-    keep = dist[:, 1:] <= 4.0 * np.maximum(spacing, np.median(spacing))[:, None]
+    spacing = np.asarray(spacing, dtype=float)
+    keep = dist[:, 1:] <= 4.0 * np.maximum(np.minimum(spacing[:, None], spacing[idx[:, 1:]]), np.median(spacing))
     rows = np.repeat(np.arange(len(points)), k - 1).reshape(len(points), k - 1)[keep]
     graph = sp.csr_matrix((np.ones(rows.size), (rows, idx[:, 1:][keep])), shape=(len(points),) * 2)
     return csgraph.connected_components(graph, directed=False)[1].astype(np.int64)
