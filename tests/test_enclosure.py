@@ -1,6 +1,7 @@
 """heatcurv.orient.enclosure: the winding number turns parts of a closed cloud outward and flags what it contradicts."""
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from heatcurv.orient.enclosure import (
     patch_fields,
     patch_sides,
     patches,
+    source_objects,
     source_roundness,
 )
 from heatcurv.orient.orientation import _spanning_forest
@@ -293,3 +295,75 @@ def test_the_re_cut_stays_within_its_unknowns_the_most_contradicted_first(monkey
     assert np.flatnonzero(_recut(share, label, fine, 5)).tolist() == [1, 2, 4]
     monkeypatch.setattr("heatcurv.orient.enclosure.MAX_UNKNOWNS", 5 + 8)  # room for the pieces of two
     assert np.flatnonzero(_recut(share, label, fine, 5)).tolist() == [2, 4]
+
+
+def _torus_and_bowl(seed=0):
+    """A closed torus (6000 points) and, three units beside it, an open bowl ``z = 0.1 r^2`` (6000 points)."""
+    torus = surfaces.get("torus").sample(6000, "random", seed=3)
+    xy = np.random.default_rng(seed).uniform(-1.5, 1.5, (6000, 2))
+    bowl = np.column_stack([xy[:, 0] + 6.0, xy[:, 1], 0.1 * (xy**2).sum(axis=1)])
+    return torus, bowl
+
+
+def test_an_open_sheet_beside_a_closed_object_is_judged_on_its_own(records):
+    # the bowl's field (about -+1/2 on its sides) contradicted every one of its levels: the whole bowl was
+    # flagged (0 of 6000 points reliable), and a larger one turned the cloud open; alone, it is open: it
+    # keeps its outward vote (its convex side, down) and is flagged by nothing of the winding number
+    torus, bowl = _torus_and_bowl()
+    res = heatcurv.estimate(np.vstack([torus.points, bowl]))
+    report = res.info["orientation"]
+    assert report.closed and report.open_components == 1 and report.components == 2
+    assert report.turned == 0 and report.unsupported == 0
+    assert "1 object(s) open on their own" in report.reason
+    assert np.all(np.einsum("ij,ij->i", res.normals[:6000], torus.normals) > 0)
+    assert np.all(res.normals[6000:, 2] < 0)  # one side for the whole sheet
+    centre = np.hypot(bowl[:, 0] - 6.0, bowl[:, 1]) < 0.3
+    # k1 = k2 = 0.2 / (1 + 0.04 r^2)^(3/2) near the bottom: mean within 1 % of 0.2 up to r = 0.3
+    assert np.all(np.abs(res.mean[6000:][centre] / 0.2 - 1.0) < 0.011)
+    assert res.reliable[:6000].mean() > 0.99
+    records.check("enclosure/torus-and-bowl", bowl_unreliable=100 * (1 - res.reliable[6000:].mean()),
+                  torus_unreliable=100 * (1 - res.reliable[:6000].mean()))
+
+
+def test_components_that_agree_stay_together_and_open_ones_keep_their_sides():
+    # sources of the torus and the bowl (two objects: their sources' graph has no edge between them; the
+    # bowl's normals as the tree left them, half its patches turned): the bowl is open on its own, none of its
+    # sources bad, its patches kept
+    torus, bowl = _torus_and_bowl()
+    bowl_normals = np.tile([0.0, 0.0, -1.0], (6000, 1))
+    x = np.vstack([torus.points, bowl])[::4]
+    normals = np.vstack([torus.normals, bowl_normals])[::4]
+    label = np.concatenate([np.arange(6000) // 500, 12 + np.arange(6000) // 500])[::4]
+    normals[label >= 18] *= -1  # the bowl's last patches on the other side: no field may turn them
+    in_bowl = label >= 12
+    area = np.where(in_bowl, 9.0 / 1500, torus.total_area / 1500)
+    assert np.unique(source_objects(x, label)[in_bowl]).size == 1
+    assert np.intersect1d(source_objects(x, label)[in_bowl], source_objects(x, label)[~in_bowl]).size == 0
+    sides = patch_sides(x, normals, area, label, 24)
+    assert sides.closed and np.array_equal(sides.open, in_bowl) and sides.open_components == 1
+    assert np.array_equal(sides.open_patches(label, 24), np.arange(24) >= 12)
+    assert not sides.bad[in_bowl].any() and np.all(sides.sign[12:] == 1)
+    assert sides.agreement > 0.99  # the torus's levels alone
+    # judged as one object, as before: the bowl's levels contradict it
+    whole = patch_sides(x, normals, area, label, 24, objects=False)
+    assert whole.open is None and whole.bad[in_bowl].mean() > 0.9
+
+
+def test_rays_leave_the_sides_of_an_open_component_alone():
+    # a bowl z = 0.4 r^2 (r <= 1.5) beside a torus is open on its own: it keeps its outward vote (normals out of
+    # its convex side); its rim's rays escape up out of the bowl, which turned 6 of its unreliable points into it
+    rng = np.random.default_rng(0)
+    torus = surfaces.get("torus").sample(6000, "random", seed=3)
+    xy = rng.uniform(-1.5, 1.5, (32000, 2))
+    xy = xy[(xy**2).sum(axis=1) <= 2.25]
+    stretch = np.sqrt(1 + 0.64 * (xy**2).sum(axis=1))  # the area element of z = 0.4 r^2
+    xy = xy[rng.uniform(0, stretch.max(), len(xy)) < stretch][:8000]
+    bowl = np.column_stack([xy[:, 0] + 6.0, xy[:, 1], 0.4 * (xy**2).sum(axis=1)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", heatcurv.HeatcurvWarning)
+        res = heatcurv.estimate(np.vstack([torus.points, bowl]))
+    report = res.info["orientation"]
+    assert report.closed and report.open_components == 1 and report.escaped == 0
+    into_bowl = np.einsum("ij,ij->i", res.normals[6000:], np.column_stack([-0.8 * xy, np.ones(len(xy))])) > 0
+    # 2 rim points the tree itself left facing in (measured), flagged: none reliable
+    assert into_bowl.sum() <= 2 and not res.reliable[6000:][into_bowl].any()

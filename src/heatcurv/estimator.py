@@ -438,7 +438,8 @@ def _turned_to_escape(op: HeatKernelOperator, fitted: Fitted, errors: StandardEr
                       orientation: Orientation, tested: np.ndarray, timings: dict):
     """``fitted``, ``errors`` and ``orientation`` with the ``tested`` points turned to where their rays escape.
 
-    Only on a closed or undecided cloud (which has ``orientation.sources``).
+    Only on a closed or undecided cloud (which has ``orientation.sources``), and not on its objects
+    that are open on their own (``orientation.open``: they keep their sides).
     The occluders are the winding number's sources, discs across their
     fitted normals (:mod:`heatcurv.orient.visibility`); the count goes to
     the report's ``escaped``, the time to the ``orientation`` stage.
@@ -446,6 +447,8 @@ def _turned_to_escape(op: HeatKernelOperator, fitted: Fitted, errors: StandardEr
     source = orientation.sources
     if source is None:
         return fitted, errors, orientation
+    if orientation.open is not None:
+        tested = tested & ~orientation.open
     with StageClock(timings=timings).stage("orientation", report=False):
         turn = escaping_turns(op.points, fitted.normals, tested, op.points[source], fitted.normals[source])
     if errors is not None:  # k1 and k2 trade places where the side turns

@@ -98,6 +98,9 @@ def explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> O
         why = "open: each component's outward vote, its convex side out"
         if report.by_convention:
             why += "; nearly flat components by the least-variance-axis convention"
+    if (report.closed or report.undecided) and report.open_components:
+        why += (f"; {report.open_components} object(s) open on their own (a sheet beside the object): "
+                "each its outward vote, its convex side out")
     return replace(report, reason=why if policy is None else f"{policy.reason}; {why}", policy=policy)
 
 

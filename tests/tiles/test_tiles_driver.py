@@ -54,6 +54,25 @@ def test_outward_sphere(tmp_path):
     assert abs(np.median(columns["mean"]) - 0.5) < 0.01
 
 
+def test_an_open_sheet_beside_a_closed_object_is_judged_on_its_own_in_tiles(tmp_path):
+    """A torus and an open bowl beside it: the driver judges each object on its own, as in memory (every
+    point of the bowl flagged before, since the bowl's field contradicted its levels)."""
+    torus = heatcurv.surfaces.get("torus").sample(6000, "random", seed=3)
+    xy = np.random.default_rng(0).uniform(-1.5, 1.5, (6000, 2))
+    points = np.vstack([torus.points, np.column_stack([xy[:, 0] + 6.0, xy[:, 1], 0.1 * (xy**2).sum(axis=1)])])
+    np.save(tmp_path / "cloud.npy", points)
+    report = compute_file(tmp_path / "cloud.npy", tmp_path / "out.ply", tile_size=3000, scheduler="serial",
+                          dtype="float64", progress=False)
+    assert report.tiles >= 4 and report.orientation["objects"] == 2
+    assert report.orientation["closed"] is True and report.orientation["open_components"] == 1
+    assert report.orientation["unsupported"] == 0 and report.orientation["turned"] == 0
+    memory = heatcurv.estimate(points)
+    assert memory.info["orientation"].open_components == 1
+    agreement = tiled_agreement(tmp_path / "out.ply", memory, rtol=1e-9)
+    assert agreement["normals"]["bad"] == 0 and agreement["reliable"]["bad"] == 0 and agreement["mean"]["bad"] == 0
+    assert memory.reliable[6000:].mean() > 0.9
+
+
 def test_a_failing_tile_fails_the_run_without_output(torus_file, torus_threads, tmp_path, monkeypatch):
     out = tmp_path / "failed.ply"
     monkeypatch.setenv(FAULT_VARIABLE, "fail:2")

@@ -81,6 +81,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from .._kernels.graph import merged_components, undirected_edges
@@ -97,6 +98,10 @@ __all__ = [
 
 #: Most points the winding sums run over (each is a source and carries two queries).
 MAX_SOURCES = 6000
+#: Fewest sources the winding number judges a cloud, or one object of a cloud, by.
+FEWEST_SOURCES = 16
+#: Nearest sources each source is joined to in the graph whose components are a cloud's objects.
+OBJECT_NEIGHBOURS = 8
 #: Fewest points a patch aims at, and the most patches a cloud is cut into.
 PATCH_POINTS, MAX_PATCHES = 30, 300
 #: Most unknowns of the solve over re-cut patches: its two fields hold 2 x 6000 x 3000 x 8 bytes (288 MB).
@@ -136,6 +141,12 @@ class Enclosure:
         Share of the area whose outside level is near 0 (:class:`PatchSides`).
     sources : ndarray, shape (n,), bool or None
         The points the winding sums ran over; None unless ``closed`` or ``undecided``.
+    open : ndarray, shape (n,), bool or None
+        With ``sources``: the points of objects open on their own
+        (:func:`patch_sides`), which keep the tree's sides and are never
+        ``unsupported``; None when there are none.
+    open_components : int
+        How many such objects.
     """
 
     normals: np.ndarray
@@ -146,6 +157,8 @@ class Enclosure:
     undecided: bool = False
     outside_share: float = 0.0
     sources: np.ndarray | None = None
+    open: np.ndarray | None = None
+    open_components: int = 0
 
 
 def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, areas: np.ndarray,
@@ -184,19 +197,24 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     patch, fine = patches(points, forest, excluded)
     source = _sources(points, patch, excluded)
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
-    sides = patch_sides(points[source], normals[source], weight, patch[source], int(patch.max()) + 1,
-                        fine[source], int(fine.max()) + 1, source_roundness(roundness, source))
+    n_patch = int(patch.max()) + 1
+    sides = patch_sides(points[source], normals[source], weight, patch[source], n_patch,
+                        fine[source], int(fine.max()) + 1, None if roundness is None else roundness[source])
     if not (sides.closed or sides.undecided):
         return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0,
                          outside_share=sides.outside_share)
     flip = sides.sign[patch] * sides.fine_sign[fine] < 0
     flip[excluded] = False
-    unsupported = ~excluded if sides.undecided else _unsupported(source, sides.bad, neighbourhood, excluded)
+    is_open = None
+    if sides.open_components:
+        is_open = sides.open_patches(patch[source], n_patch)[patch] & ~excluded
+    unsupported = (~excluded if is_open is None else ~excluded & ~is_open) if sides.undecided else \
+        _unsupported(source, sides.bad, neighbourhood, excluded)
     oriented = np.where(flip[:, None], -normals, normals)
     is_source = np.zeros(n, dtype=bool)
     is_source[source] = True
     return Enclosure(oriented, unsupported, sides.closed, sides.agreement, int(flip.sum()), sides.undecided,
-                     sides.outside_share, is_source)
+                     sides.outside_share, is_source, is_open, sides.open_components)
 
 
 @dataclass(frozen=True)
@@ -227,6 +245,15 @@ class PatchSides:
     fine_sign : ndarray, shape (n_fine,), optional
         With finer patches: ``+1`` or ``-1`` for each, on top of its patch's
         ``sign`` (all ``+1`` where no patch was re-cut).
+    sure : ndarray, shape (m,), bool, optional
+        Sources whose levels are within ``TUNING.closed_tolerance`` of their targets
+        (those ``agreement`` counts).
+    open : ndarray, shape (m,), bool, optional
+        Sources of objects that are open on their own (:func:`patch_sides`): their
+        patches keep the tree's sides, and none of them is ``bad``. The verdict above is
+        that of the other sources.
+    open_components : int
+        How many such objects.
     """
 
     sign: np.ndarray
@@ -236,10 +263,21 @@ class PatchSides:
     undecided: bool = False
     outside_share: float = 0.0
     fine_sign: np.ndarray | None = None
+    sure: np.ndarray | None = None
+    open: np.ndarray | None = None
+    open_components: int = 0
+
+    def open_patches(self, label: np.ndarray, n_patch: int) -> np.ndarray:
+        """The patches of :attr:`open` sources (``label``: the sources' patches), shape (n_patch,), bool."""
+        out = np.zeros(n_patch, dtype=bool)
+        if self.open is not None:
+            out[label[self.open]] = True
+        return out
 
 
 def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int,
-                fine: np.ndarray | None = None, n_fine: int = 0, roundness: float = float("nan")) -> PatchSides:
+                fine: np.ndarray | None = None, n_fine: int = 0, roundness: np.ndarray | None = None,
+                objects: bool = True) -> PatchSides:
     """Each patch's side and each source's verdict, from the winding number of the sources (module docstring).
 
     With finer patches (:func:`patches`' pieces), a closed cloud's patches of
@@ -250,6 +288,18 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     crossed between the two sides of a thin part inside a patch, one sign
     for the patch cannot be right, one for each of its pieces can. A source
     is flagged when either solve contradicts it.
+
+    A cloud of several objects is judged per object as well (``objects``):
+    the objects are the connected components of the sources' graph
+    (:func:`source_objects`), so that a run in tiles finds the same ones as
+    in memory. An object of at least :data:`FEWEST_SOURCES` sources whose
+    levels agree on less than ``TUNING.closed_share`` of it in the solve
+    over all sources, and which on its own is neither closed nor undecided
+    (an open sheet beside a closed object, whose field of about ``-+1/2``
+    contradicts the object's levels and its own), is open: its patches keep
+    the tree's sides, none of its sources is flagged, and the others are
+    solved again without it. Objects that agree stay together, so that the
+    field still sees a cavity inside an object and an object sampled in pieces.
 
     Parameters
     ----------
@@ -263,17 +313,23 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     fine : ndarray, shape (m,), int, optional
         Their finer patches, ``0 <= fine < n_fine``, each inside one patch.
     n_fine : int, optional
-    roundness : float, optional
-        The median PCA roundness of their balls (:func:`source_roundness`; NaN
-        when unknown): a cloud at ``TUNING.coarse_roundness`` or more is
-        coarse, and undecided below ``TUNING.undecided_share`` too.
+    roundness : ndarray, shape (m,), optional
+        The PCA roundness of their balls (NaN or None when unknown): a cloud
+        whose median (:func:`source_roundness`) is ``TUNING.coarse_roundness``
+        or more is coarse, and undecided below ``TUNING.undecided_share`` too.
+    objects : bool, optional
+        Whether to judge each object on its own too (the solve over the other objects does not).
 
     Returns
     -------
     PatchSides
     """
-    sides = _solved_sides(x, nrm, weight, label, n_patch, roundness)
+    sides = _solved_sides(x, nrm, weight, label, n_patch, source_roundness(roundness))
     fine_sign = np.ones(n_fine)
+    if objects:
+        is_open, count = _open_objects(x, nrm, weight, label, roundness, sides.sure)
+        if count:
+            return _without(is_open, count, x, nrm, weight, label, n_patch, fine, n_fine, roundness, sides)
     if fine is None or not sides.closed:
         return dataclasses.replace(sides, fine_sign=fine_sign)
     share = np.bincount(label, weights=weight * sides.bad, minlength=n_patch) / np.maximum(
@@ -337,10 +393,57 @@ def _solved_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.
     # a coarse object's levels can agree on almost none of it; an open scene's balls are flat
     unsure = agreement >= TUNING.undecided_share or roundness >= TUNING.coarse_roundness
     undecided = unsure and agreement < TUNING.closed_share and outside_share >= TUNING.outside_share
-    return PatchSides(sign, bad, agreement, agreement >= TUNING.closed_share, undecided, outside_share)
+    return PatchSides(sign, bad, agreement, agreement >= TUNING.closed_share, undecided, outside_share, sure=sure)
 
 
-def source_roundness(roundness: np.ndarray | None, source: np.ndarray) -> float:
+def source_objects(x: np.ndarray, label: np.ndarray) -> np.ndarray:
+    """The object of every source, shape (m,), int: connected components of its :data:`OBJECT_NEIGHBOURS`
+    nearest sources and of its patch (``label``), so that a patch lies in one object."""
+    m = x.shape[0]
+    k = min(OBJECT_NEIGHBOURS, m - 1)
+    if k < 1:
+        return np.zeros(m, dtype=np.int64)
+    nearest = cKDTree(x).query(x, k + 1)[1][:, 1:].ravel()
+    first = np.unique(label, return_index=True)[1]
+    patch_first = first[np.searchsorted(np.unique(label), label)]
+    rows = np.concatenate([np.repeat(np.arange(m), k), np.arange(m)])
+    graph = sp.csr_matrix((np.ones(rows.size), (rows, np.concatenate([nearest, patch_first]))), shape=(m, m))
+    return csgraph.connected_components(graph, directed=False)[1]
+
+
+def _open_objects(x, nrm, weight, label, roundness, sure) -> tuple[np.ndarray, int]:
+    """The sources of objects open on their own (:func:`patch_sides`), shape (m,), bool, and how many objects."""
+    is_open = np.zeros(x.shape[0], dtype=bool)
+    ids, inverse, counts = np.unique(source_objects(x, label), return_inverse=True, return_counts=True)
+    judged = counts >= FEWEST_SOURCES
+    if np.count_nonzero(judged) < 2:
+        return is_open, 0
+    agreeing = np.bincount(inverse, weights=weight * sure) / np.bincount(inverse, weights=weight)
+    for c in np.flatnonzero(judged & (agreeing < TUNING.closed_share)):  # one solve per object, not per point
+        members = inverse == c
+        own, own_label = np.unique(label[members], return_inverse=True)
+        alone = _solved_sides(x[members], nrm[members], weight[members], own_label, own.size,
+                              source_roundness(None if roundness is None else roundness[members]))
+        is_open[members] = not (alone.closed or alone.undecided)
+    return is_open, int(np.unique(inverse[is_open]).size)
+
+
+def _without(is_open, count, x, nrm, weight, label, n_patch, fine, n_fine, roundness, sides) -> PatchSides:
+    """:func:`patch_sides` over the sources not ``is_open`` (of ``count`` objects), whose patches keep their
+    sides (all, when too few are left)."""
+    rest = ~is_open
+    if np.count_nonzero(rest) < FEWEST_SOURCES:
+        return PatchSides(np.ones(n_patch), np.zeros(x.shape[0], dtype=bool), sides.agreement, False, False,
+                          sides.outside_share, np.ones(n_fine), sides.sure, is_open, count)
+    inner = patch_sides(x[rest], nrm[rest], weight[rest], label[rest], n_patch,
+                        None if fine is None else fine[rest], n_fine, None if roundness is None else roundness[rest],
+                        objects=False)
+    bad, sure = np.zeros(x.shape[0], dtype=bool), np.zeros(x.shape[0], dtype=bool)
+    bad[rest], sure[rest] = inner.bad, inner.sure
+    return dataclasses.replace(inner, bad=bad, sure=sure, open=is_open, open_components=count)
+
+
+def source_roundness(roundness: np.ndarray | None, source=slice(None)) -> float:
     """The median PCA roundness of the sources' balls (:func:`patch_sides`), NaN when unknown."""
     if roundness is None:
         return float("nan")
@@ -570,8 +673,9 @@ def _patch_signs(G: np.ndarray, c: np.ndarray, label: np.ndarray, weight: np.nda
     orientation.
     """
     relaxed = np.linalg.lstsq(G, c, rcond=None)[0]
-    sign = np.where(relaxed < 0, -1.0, 1.0)
-    margin = TUNING.flip_margin * 2.0 * np.bincount(label, weights=weight, minlength=sign.size)
+    margin = TUNING.flip_margin * 2.0 * np.bincount(label, weights=weight, minlength=c.size)
+    # a patch without sources has a zero row of G: the rounding of its 0 must not turn it
+    sign = np.where((relaxed < 0) & (margin > 0), -1.0, 1.0)
     diag = np.diag(G)
     for _ in range(4 * sign.size):
         change = 4.0 * (diag - sign * (G @ sign) + c * sign)

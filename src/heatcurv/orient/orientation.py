@@ -144,6 +144,11 @@ class OrientationReport:
         ``"outward"``: the winding number could not tell whether the cloud
         encloses a volume (``TUNING.undecided_share``): its
         sides are the field's and every point is flagged (``unsupported``).
+    open_components : int
+        ``"outward"``, a cloud ``closed`` or ``undecided``: its objects that are
+        open on their own (an open sheet beside a closed object), which keep
+        their outward vote (or the flat convention) and whose sides the winding
+        number neither turns nor flags (:func:`heatcurv.orient.enclosure.patch_sides`).
     reason : str
         Which rule chose the sides, in words (``orient="auto"``: why this mode).
     policy : AutoPolicy or None
@@ -172,6 +177,7 @@ class OrientationReport:
     agreement: float | None = None
     outside_share: float | None = None
     undecided: bool = False
+    open_components: int = 0
     axisless: int = 0
     reason: str = ""
     policy: AutoPolicy | None = None
@@ -218,6 +224,9 @@ class Orientation:
     roundness : ndarray, shape (n,), optional
         With ``patch``: the balls' PCA roundness ``lambda_0 / lambda_1``, which
         the winding number reads at its sources (:func:`heatcurv.orient.enclosure.patch_sides`).
+    open : ndarray, shape (n,), bool, optional
+        With ``sources`` on a whole cloud: the points of objects open on their own
+        (:attr:`OrientationReport.open_components`), which keep their sides; None when there are none.
     """
 
     normals: np.ndarray
@@ -229,6 +238,7 @@ class Orientation:
     weights: np.ndarray | None = None
     fine: np.ndarray | None = None
     roundness: np.ndarray | None = None
+    open: np.ndarray | None = None
 
 
 def as_viewpoint(viewpoint, n: int | None = None) -> np.ndarray:
@@ -401,6 +411,7 @@ def orient(
     # the winding number decides inside from outside, part by part, and flags what it contradicts
     unsupported, closed, undecided, turned, part = np.zeros(n, dtype=bool), None, False, 0, {}
     agreement = outside_share = None
+    left_open, open_components = np.zeros(n, dtype=bool), 0  # objects of a closed cloud open on their own
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
         patch, fine = patches(points, tree, cut, cloud_points)
@@ -410,14 +421,17 @@ def orient(
         enclosure = enclose(points, oriented, tree, w, nbhd, excluded, roundness)
         oriented, unsupported, closed, undecided, turned = (
             enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.undecided, enclosure.flipped)
-        part = {"sources": enclosure.sources}
+        part = {"sources": enclosure.sources, "open": enclosure.open}
         agreement, outside_share = enclosure.agreement, enclosure.outside_share
+        if enclosure.open is not None:
+            left_open, open_components = enclosure.open, enclosure.open_components
     ambiguous = _conflicting(points, oriented, graph) | unsupported
     report = OrientationReport(
         mode=mode, components=_surface_components(labels, excluded),
-        by_convention=0 if closed or undecided else int(convention[labels].sum()), ambiguous=int(ambiguous.sum()),
+        by_convention=int(np.sum(convention[labels] & left_open)) if closed or undecided else int(
+            convention[labels].sum()), ambiguous=int(ambiguous.sum()),
         closed=closed, turned=turned, unsupported=int(unsupported.sum()), agreement=agreement,
-        outside_share=outside_share, undecided=undecided,
+        outside_share=outside_share, undecided=undecided, open_components=open_components,
     )
     return Orientation(oriented, ambiguous, report, **part)
 

@@ -38,6 +38,7 @@ def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict
     sides = winding_sides(tile_files, keys, flip)
     orientation["closed"] = bool(sides is not None and sides.closed)
     orientation["undecided"] = bool(sides is not None and sides.undecided)
+    orientation["open_components"] = 0 if sides is None else sides.open_components
     if sides is not None:
         orientation["agreement"], orientation["outside_share"] = sides.agreement, sides.outside_share
     if sides is not None and sides.undecided:

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..geometry.validation import row_hashes
-from ..orient.enclosure import patch_sides, sampled_sources, source_keys, source_roundness
+from ..orient.enclosure import patch_sides, sampled_sources, source_keys
 from ..orient.visibility import MAX_TESTED, escaping_turns, lowest_keys
 from .output import PATCH_SHIFT, RECORD, SOURCE_KEYS, chunk_flips, keyed_flips, read_results, write_records
 
@@ -158,9 +158,15 @@ class WindingSides:
         Whether the cloud encloses a volume (:class:`heatcurv.orient.enclosure.PatchSides`).
     agreement : float
     undecided : bool
-        Whether the field cannot tell (:class:`heatcurv.orient.enclosure.PatchSides`): every point is flagged.
+        Whether the field cannot tell (:class:`heatcurv.orient.enclosure.PatchSides`): every point is flagged
+        but those of ``open``.
     outside_share : float
         (:class:`heatcurv.orient.enclosure.PatchSides`)
+    open : ndarray, shape (p,), bool
+        The patches of objects open on their own (:attr:`heatcurv.orient.enclosure.PatchSides.open`):
+        neither turned nor flagged; all False when neither ``closed`` nor ``undecided``.
+    open_components : int
+        How many such objects.
     """
 
     column: str
@@ -175,6 +181,8 @@ class WindingSides:
     agreement: float
     undecided: bool = False
     outside_share: float = 0.0
+    open: np.ndarray | None = None
+    open_components: int = 0
 
 
 def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray) -> WindingSides | None:
@@ -217,13 +225,13 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
         keys, index = np.unique(seam, return_inverse=True)
         fine_keys, fine = np.zeros(0, dtype=np.int64), None
     weight = area * (arrays["winding_total"].sum() / area.sum())
-    sides = patch_sides(x, nrm, weight, index, keys.size, fine, fine_keys.size,
-                        source_roundness(arrays["winding_roundness"][order], np.arange(rows.size)))
+    sides = patch_sides(x, nrm, weight, index, keys.size, fine, fine_keys.size, arrays["winding_roundness"][order])
     decided = sides.closed or sides.undecided
     flip = (sides.sign < 0) if decided else np.zeros(keys.size, dtype=bool)
     fine_flip = (sides.fine_sign < 0) if decided else np.zeros(fine_keys.size, dtype=bool)
+    is_open = sides.open_patches(index, keys.size) if decided else np.zeros(keys.size, dtype=bool)
     return WindingSides(column, keys, flip, fine_keys, fine_flip, rows, x, sides.bad, sides.closed, sides.agreement,
-                        sides.undecided, sides.outside_share)
+                        sides.undecided, sides.outside_share, is_open, sides.open_components if decided else 0)
 
 
 def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: float, flips,
@@ -239,7 +247,7 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
     ``min_neighbours`` widened that ball, with the spacings of equations 2.6
     and 2.7).
     When the field is ``undecided``, every point but the outliers is.
-    Every point then not reliable (and no outlier) is tested as in memory
+    Every point then not reliable (no outlier, not of an object open on its own) is tested as in memory
     (:func:`heatcurv.orient.visibility.escaping_turns`: the sources are the
     occluders, discs across their fitted normals; past
     :data:`heatcurv.orient.visibility.MAX_TESTED` tested points, those of
@@ -278,8 +286,9 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
         computed = block["computed"] == 1
         turned += int(np.sum(computed & (keyed_flips(block[sides.column], sides.keys, sides.flip)
                                          ^ keyed_flips(block["winding_fine"], sides.fine_keys, sides.fine_flip))))
+        kept = keyed_flips(block[sides.column], sides.keys, sides.open)  # open objects keep their sides
         if sides.undecided:
-            flagged = computed & ~(block["outlier"] == 1)
+            flagged = computed & ~(block["outlier"] == 1) & ~kept
         elif bad_tree is None:
             flagged = np.zeros(len(points), dtype=bool)
         else:
@@ -290,7 +299,7 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
             changed = block[rows].copy()
             changed["reliable"] = 0
             write_records(results_path, changed, rows + start)
-        rows = np.flatnonzero(computed & ~(block["outlier"] == 1) & ((block["reliable"] == 0) | flagged))
+        rows = np.flatnonzero(computed & ~(block["outlier"] == 1) & ((block["reliable"] == 0) | flagged) & ~kept)
         x = frame.to_stage(points[rows])
         normals = block["normals"][rows]
         normals = np.where(chunk_flips(block, start, flips)[rows, None], -normals, normals)
