@@ -58,7 +58,7 @@ Usage::
 
     python benchmarks/orientation.py                        # every model, variant and method
     python benchmarks/orientation.py --models camel,cow --variants clean --methods heatcurv
-    python benchmarks/orientation.py --markdown --coarse-tori --plates
+    python benchmarks/orientation.py --markdown --coarse-tori --plates --beside-sheet
 
 ``--data DIR`` picks the cache directory of the models (default
 :func:`support.scans.cgal_cache_dir`). A full run takes about 3
@@ -234,6 +234,8 @@ def run_heatcurv(points: np.ndarray):
 
 #: the in-memory runs' orientation reports, in run order (the decision tables)
 DECISIONS: list = []
+#: the tiled runs' orientation reports (dicts), in run order
+TILED_REPORTS: list = []
 
 
 def decision(report) -> str:
@@ -306,6 +308,52 @@ def plates() -> list[list[str]]:
     return cells
 
 
+SHEET_HEAD = ["model", "sheet points", "decision", "open components", "model wrong on thick %",
+              "model wrong & reliable %", "model flagged %", "sheet on one side %", "sheet reliable %",
+              "tiled open components", "tiled normals equal %", "tiled reliable equal %"]
+
+
+def beside_sheet(model: dict, multiple: float, seed: int = 1) -> np.ndarray:
+    """An open sheet of ``multiple`` x the model's points beside it (half a diagonal away), shape (k, 3).
+
+    Uniform random points over a square at about the model's spacing, bent into a shallow bowl
+    (``z = 0.1 r^2 / side``, ``r`` from the square's centre): a scan's background, apart from the object.
+    """
+    points, spacing, diagonal = model["points"], model["spacing"], model["diagonal"]
+    k = int(multiple * len(points))
+    side = np.sqrt(k) * spacing * 1.1
+    xy = np.random.default_rng(seed).uniform(0.0, side, (k, 2))
+    z = 0.1 * ((xy - side / 2) ** 2).sum(axis=1) / side
+    low, high = points.min(axis=0), points.max(axis=0)
+    return np.column_stack([xy[:, 0] + high[0] + 0.5 * diagonal, xy[:, 1] + low[1], z + low[2]])
+
+
+def sheets_beside(models: list[dict]) -> list[list[str]]:
+    """Each model with an open sheet of 0, 0.5, 1 and 3 x its points beside it: in memory and in 4 tiles."""
+    cells = []
+    for model in models:
+        n = len(model["points"])
+        for multiple in (0.0, 0.5, 1.0, 3.0):
+            points = np.vstack([model["points"], beside_sheet(model, multiple)])
+            normals, reliable, _ = run_heatcurv(points)
+            report = DECISIONS.pop()
+            wrong = np.einsum("ij,ij->i", normals[:n], model["truth"]) < 0
+            sheet_up = normals[n:, 2] > 0
+            cells_row = [model["name"], f"{len(points) - n}",
+                         decision(report) if report.mode == "outward" else report.mode,
+                         f"{getattr(report, 'open_components', 0)}",
+                         f"{100 * wrong[model['thick']].mean():.2f}", f"{100 * (wrong & reliable[:n]).mean():.2f}",
+                         f"{100 * (~reliable[:n]).mean():.1f}",
+                         f"{100 * max(sheet_up.mean(), 1 - sheet_up.mean()):.1f}" if len(points) > n else "-",
+                         f"{100 * reliable[n:].mean():.1f}" if len(points) > n else "-"]
+            tiled_normals, tiled_reliable, _ = run_tiled(points)
+            cells_row += [f"{TILED_REPORTS[-1].get('open_components', 0)}",
+                          f"{100 * np.mean(np.einsum('ij,ij->i', tiled_normals, normals) > 0.999):.2f}",
+                          f"{100 * np.mean(tiled_reliable == reliable):.2f}"]
+            cells.append(cells_row)
+    return cells
+
+
 def run_tiled(points: np.ndarray):
     import tempfile
 
@@ -315,9 +363,10 @@ def run_tiled(points: np.ndarray):
         src, dst = Path(work) / "cloud.npy", Path(work) / "out.ply"
         np.save(src, points)
         tic = time.perf_counter()
-        heatcurv.compute_file(src, dst, tile_size=max(len(points) // 4, 500), scheduler="serial", dtype="float64",
-                              progress=False, fields=("nx", "ny", "nz", "reliable"))
+        report = heatcurv.compute_file(src, dst, tile_size=max(len(points) // 4, 500), scheduler="serial",
+                                       dtype="float64", progress=False, fields=("nx", "ny", "nz", "reliable"))
         seconds = time.perf_counter() - tic
+        TILED_REPORTS.append(report.orientation or {})
         out = read_points(dst)
     return out.normals, out.fields["reliable"].astype(bool), seconds
 
@@ -453,6 +502,8 @@ def parse_args(argv=None):
                         help="also run tori with a tube a few spacings across (the decision table)")
     parser.add_argument("--plates", action="store_true",
                         help="also run thin closed plates lying flat and turned (auto's choice, second sheets)")
+    parser.add_argument("--beside-sheet", action="store_true",
+                        help="also run each model with an open sheet beside it (each object judged on its own)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return parser.parse_args(argv)
 
@@ -534,6 +585,11 @@ def main(argv=None) -> int:
                          "agreeing, undecided from 10 % (from 0 where the sources' median roundness is at least "
                          "0.2) with the outside near 0 on at least 50 %)",
                          DECISION_HEAD, decisions, args.markdown))
+    if args.beside_sheet:
+        print(text_table("each model (clean) with an open sheet beside it: a shallow bowl of 0.5-3 x its points, half "
+                         "a diagonal away (sheet on one side: the share of its normals on their majority side; tiled: "
+                         "4 tiles or more, against the in-memory run)", SHEET_HEAD, sheets_beside(models),
+                         args.markdown))
     if args.coarse_tori:
         print(text_table("coarse thin tori (closed; truth: the torus's outward normals; roundness: the median "
                          "ball's lambda_0 / lambda_1, too coarse from 0.65 on half of the balls)", DECISION_HEAD,
