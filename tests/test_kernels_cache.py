@@ -41,14 +41,16 @@ ROW_CORES = {
     "_assemble_full_model", "_residual_full_model", "_solve_normal_equations", "_neighbour_medians",
     "_counts_below", "_same_label_counts", "_orientation_conflicts", "_two_height_residuals",
     "_two_residuals_full_model", "_opposite_sheet_counts", "_flagged_within", "_quadric_residual_moments",
+    "_over_under_counts", "_over_under_fill",
 }
 #: The chord fit's general cores, for fits without the tilt or the cubic terms: the estimator runs
 #: the full model's cores only, so these compile only when such a fit is asked for.
 OTHER_MODELS = {"_assemble_normal_equations", "_weighted_height_residual", "_two_height_residuals"}
 #: Run only by the low-noise refit, for clouds in the very-low-noise band (heatcurv.fits.chordfit, low_noise=True).
 LOW_NOISE = {"_two_residuals_full_model"}
-#: Run only for the points the outliers' counts leave undecided (heatcurv.flags.outliers.exceeds_neighbour_median).
-SOMETIMES = {"_neighbour_medians"}
+#: Run only for the points the outliers' counts leave undecided (heatcurv.flags.outliers.exceeds_neighbour_median),
+#: and by the tiles of a run oriented outward (heatcurv.flags.sheets.over_under_pairs).
+SOMETIMES = {"_neighbour_medians", "_over_under_counts", "_over_under_fill"}
 
 
 def test_row_cores_are_the_kernels_dispatchers():

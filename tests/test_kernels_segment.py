@@ -22,7 +22,7 @@ from heatcurv import surfaces
 from heatcurv.fits.chordfit import chord_fit
 from heatcurv.flags.border import centroid_offset
 from heatcurv.flags.outliers import find_outliers, neighbour_medians
-from heatcurv.flags.sheets import second_sheet
+from heatcurv.flags.sheets import facing_pairs, second_sheet
 from heatcurv.geometry.neighbourhood import Neighbourhood, knn_neighbourhood
 from heatcurv.operators.areas import density_areas, taper_sums
 from heatcurv.operators.kernel import TAPER_START, ball_taper, heat_kernel_weights, tapered_heat_weights
@@ -172,6 +172,7 @@ def test_stages_give_the_same_with_the_references(torus_cloud, monkeypatch):
             medians=neighbour_medians(areas, nb),  # (find_outliers needs medians only for rows it cannot count)
             offset_centres=centroid_offset(pts, nb.rows_slice(10, 60), normals[10:60], centres=pts[10:60] + 0.01),
             sheets=second_sheet(shell, shell_normals, shell_nb, shell_nb.radius / 2),
+            pairs=facing_pairs(shell, shell_normals, shell_nb, shell_nb.radius / 2),
         )
 
     b = stages()
@@ -188,6 +189,8 @@ def test_stages_give_the_same_with_the_references(torus_cloud, monkeypatch):
     np.testing.assert_allclose(a["fit_weights"], expected, rtol=1e-13)
     assert np.array_equal(a["oriented"], b["oriented"]) and np.array_equal(a["sheets"], b["sheets"])
     assert a["sheets"].mean() > 0.5
+    for got, want in zip(b["pairs"], a["pairs"]):
+        np.testing.assert_allclose(got, want, rtol=1e-12)
     assert np.array_equal(a["outliers"], b["outliers"]) and np.array_equal(a["medians"], b["medians"])
     for key in ("K", "K_given", "offset", "offset_centres", "fit_weights"):
         np.testing.assert_allclose(b[key], a[key], rtol=1e-10, atol=1e-12 * np.abs(a[key]).max())
@@ -216,8 +219,8 @@ def test_estimate_same_with_the_references(noise, monkeypatch):
         calls = with_references(patch, fit=True)
         a = heatcurv.estimate(pts)
     # the default estimate runs every kernel, and the chord fit (neighbour_medians only where the
-    # outliers' counts leave a point undecided, which may be none)
-    assert set(calls) | {"neighbour_medians"} == set(compiled.__all__) | {"chord_fit"}, calls
+    # outliers' counts leave a point undecided, which may be none; over_under_pairs only in a tile)
+    assert set(calls) | {"neighbour_medians", "over_under_pairs"} == set(compiled.__all__) | {"chord_fit"}, calls
     assert a.info["scale"].fit == b.info["scale"].fit
     for name in ("mean", "gaussian", "k1", "k2", "area", "spacing", "mean_curvature_normal"):
         ref = getattr(a, name)
@@ -279,6 +282,23 @@ def test_opposite_sheet_counts(cloud, request):
     got = compiled.opposite_sheet_counts(*args)
     assert got.dtype == np.int64
     np.testing.assert_array_equal(got, reference.opposite_sheet_counts(*args))
+
+
+@pytest.mark.parametrize("cloud, found", [("torus_cloud", False), ("ball_cloud", True)])
+def test_over_under_pairs(cloud, found, request):
+    pts, normals, nb = request.getfixturevalue(cloud)
+    signs = np.where(np.arange(len(pts)) % 3 == 0, -1.0, 1.0)[:, None]
+    reach = 0.8 * nb.radius
+    args = pts, normals * signs, nb.indptr, nb.indices, nb.distances, reach, 0.05 * nb.radius, 0.5
+    got = compiled.over_under_pairs(*args)
+    want = reference.over_under_pairs(*args)
+    for a, b in zip(got, want):
+        np.testing.assert_allclose(a, b, rtol=1e-12)
+    # a smooth surface has none; the ball's points lie over and under each other, facing either way
+    assert (got[0].size > 0 and (got[2] < 0).any() and (got[2] > 0).any()) == found
+    # the opposite ones are those opposite_sheet_counts counts
+    counts = np.bincount(got[0][got[2] < -0.5], minlength=len(pts))
+    np.testing.assert_array_equal(counts, compiled.opposite_sheet_counts(*args))
 
 
 @pytest.mark.parametrize("cloud", ["torus_cloud", "ball_cloud"])

@@ -62,7 +62,7 @@ from .flags.reliability import (
     rounding_height_variance,
     rounding_uncertainty,
 )
-from .flags.sheets import second_sheet
+from .flags.sheets import facing_pairs, layered_sheet, second_sheet
 from .geometry.sampling import geometric_keys
 from .normal_stages import explained, normal_stages, orientation_mode, viewpoint_reference
 from .operators.areas import fit_areas
@@ -362,7 +362,7 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     unit = prepared.unit
     # a ball holding both sides of a thin part is no one sheet's neighbourhood: no area, and so not reliable
-    sheets = second_sheet(op.points, fitted.normals, nbhd, op.h) & ~outliers.mask
+    sheets, pairs = _second_sheets(op, fitted, orientation, outliers, whole_cloud)
     areas = np.where(outliers.mask | sheets, 0.0, fitted.areas)
     coarse, precision = _precision(op, fitted, rounding, half_step)
     inputs = _reliability_inputs(op, fitted, ball_shape, orientation, outliers, areas, coarse)
@@ -386,6 +386,7 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
         extra["reach"] = back(reach) * unit
         if orientation.patch is not None:  # "outward": what the winding number needs over the whole cloud
             extra["winding"] = _winding_inputs(prepared, orientation)
+            extra["sheet_pairs"] = pairs
     info = {
         "n_distinct": prepared.n_distinct, "area_solve": op.area_solve, "orientation": orientation.report,
         "outliers": outliers.count, "second_sheet": int(np.count_nonzero(sheets)), "resolution": resolution,
@@ -432,6 +433,29 @@ def _winding_inputs(prepared, orientation: Orientation) -> dict:
         roundness = np.full(orientation.normals.shape[0], np.nan)
     return {"patch": back(orientation.patch), "fine": back(orientation.fine), "source": source,
             "normals": back(orientation.normals), "weight": weight, "roundness": back(roundness)}
+
+
+def _second_sheets(op: HeatKernelOperator, fitted: Fitted, orientation: Orientation, outliers: Outliers,
+                   whole_cloud: bool):
+    """The points whose ball holds two sheets (:func:`heatcurv.flags.sheets.second_sheet`), shape (m,), bool,
+    and, for a part of a cloud oriented ``"outward"`` (a tile, whose normals' signs the driver settles), the
+    pairs whose facing decides the rest (:func:`heatcurv.flags.sheets.facing_pairs`), else None.
+
+    The pairs are input rows ``(p, q)`` with ``n_p . n_q`` as the part orients them, one per input row of
+    ``p`` (duplicates alike) and the first input row of ``q``; the mask then holds the layered balls alone.
+    """
+    nbhd, prepared = op.neighbourhood, op.prepared
+    if whole_cloud or orientation.patch is None:
+        return second_sheet(op.points, fitted.normals, nbhd, op.h) & ~outliers.mask, None
+    rows, columns, dots = facing_pairs(op.points, fitted.normals, nbhd, op.h)
+    kept = ~outliers.mask[rows]
+    rows, columns, dots = rows[kept], columns[kept], dots[kept]
+    # every input row of p takes p's pairs
+    counts = np.bincount(rows, minlength=prepared.n_distinct)[prepared.inverse]
+    start = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=prepared.n_distinct))])[prepared.inverse]
+    taken = np.repeat(start - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
+    pairs = (np.repeat(np.arange(prepared.n_input), counts), prepared.first[columns[taken]], dots[taken])
+    return layered_sheet(op.points, fitted.normals, nbhd, op.h) & ~outliers.mask, pairs
 
 
 def _turned_to_escape(op: HeatKernelOperator, fitted: Fitted, errors: StandardErrors | None,

@@ -150,6 +150,16 @@ def opposite_sheet_counts(points, normals, indptr, indices, distances, reach, mi
     return _segment_sum(indptr, counted.astype(float)).astype(np.int64)
 
 
+def over_under_pairs(points, normals, indptr, indices, distances, reach, min_height, aligned):
+    """Neighbours within reach, over or under the row's point, facing either way within ``aligned``, as pairs."""
+    rows = _rows(indptr)
+    dot = np.einsum("ij,ij->i", normals[rows], normals[indices])
+    height = np.einsum("ij,ij->i", normals[rows], points[indices] - points[rows])
+    kept = ((distances <= reach[rows]) & (np.abs(dot) > aligned) & (np.abs(height) > min_height[rows])
+            & (2.0 * height**2 > distances**2))
+    return rows[kept], np.asarray(indices)[kept], dot[kept]
+
+
 def flagged_within(flags, indptr, indices, distances, reach):
     """Neighbours within reach, and how many of them are flagged, per row."""
     rows = _rows(indptr)

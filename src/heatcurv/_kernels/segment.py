@@ -36,7 +36,7 @@ __all__ = [
     "counts_below",
     "same_label_counts",
     "orientation_conflicts",
-    "opposite_sheet_counts",
+    "opposite_sheet_counts", "over_under_pairs",
     "quadric_residual_moments",
     "flagged_within",
 ]
@@ -475,7 +475,7 @@ def opposite_sheet_counts(points, normals, indptr, indices, distances, reach, mi
 
     Neighbour ``j`` within ``reach[i]`` of ``i`` counts when its height
     ``h = n_i . (xj - xi)`` exceeds both its distance from ``i``'s normal line
-    and ``min_height[i]``, and ``n_i . n_j < -opposite``.
+    and ``min_height[i]`` (:func:`_over_or_under`), and ``n_i . n_j < -opposite``.
     """
     points, normals = as_floats(points), as_floats(normals)
     indptr, distances = as_pointers(indptr), as_floats(distances)
@@ -486,25 +486,86 @@ def opposite_sheet_counts(points, normals, indptr, indices, distances, reach, mi
     return out
 
 
+def over_under_pairs(points, normals, indptr, indices, distances, reach, min_height, aligned):
+    """Each row's neighbours over or under it whose normals are near parallel either way, as pairs.
+
+    As :func:`opposite_sheet_counts`, with ``|n_i . n_j| > aligned`` instead of
+    ``n_i . n_j < -aligned``: the pairs whose facing decides whether they are
+    two sides of a thin part once their normals' signs are known.
+
+    Returns
+    -------
+    rows, columns : ndarray, shape (k,), int64
+        The pairs ``(i, j)``, by row.
+    dots : ndarray, shape (k,)
+        ``n_i . n_j``.
+    """
+    points, normals = as_floats(points), as_floats(normals)
+    indptr, distances = as_pointers(indptr), as_floats(distances)
+    indices = as_indices(indices, normals.shape[0])
+    args = (points, normals, indptr, indices, distances, as_floats(reach), as_floats(min_height), float(aligned))
+    n = indptr.shape[0] - 1
+    counts = np.zeros(n, dtype=np.int64)
+    parallel_rows(_over_under_counts, n, *args, counts)
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=start[1:])
+    columns, dots = np.empty(start[-1], dtype=np.int64), np.empty(start[-1])
+    parallel_rows(_over_under_fill, n, *args, start, columns, dots)
+    return np.repeat(np.arange(n, dtype=np.int64), counts), columns, dots
+
+
+@njit(inline="always", cache=True)
+def _over_or_under(points, normals, i, j, distance, min_height):
+    """Whether ``j`` lies over or under ``i``: more than 45 degrees out of its tangent plane, above ``min_height``."""
+    height = 0.0
+    for a in range(3):
+        height += normals[i, a] * (points[j, a] - points[i, a])
+    # h^2 > |d|^2 - h^2
+    return abs(height) > min_height and 2.0 * height * height > distance * distance
+
+
+@njit(inline="always", cache=True)
+def _normal_dot(normals, i, j):
+    return normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
+
+
 @njit(**ROW_CORE)
 def _opposite_sheet_counts(row0, row1, points, normals, indptr, indices, distances, reach, min_height, opposite,
                            out):
     for i in range(row0, row1):
         count = 0
         for p in range(indptr[i], indptr[i + 1]):
-            if distances[p] > reach[i]:
-                continue
-            j = indices[p]
-            dot = normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2]
-            if not dot < -opposite:  # most neighbours: their position is not read
-                continue
-            height = 0.0
-            for a in range(3):
-                height += normals[i, a] * (points[j, a] - points[i, a])
-            # over or under i (more than 45 degrees out of its tangent plane): h^2 > |d|^2 - h^2
-            if abs(height) > min_height[i] and 2.0 * height * height > distances[p] * distances[p]:
+            # most neighbours fail the facing: their position is not read
+            if distances[p] <= reach[i] and _normal_dot(normals, i, indices[p]) < -opposite and \
+                    _over_or_under(points, normals, i, indices[p], distances[p], min_height[i]):
                 count += 1
         out[i] = count
+
+
+@njit(**ROW_CORE)
+def _over_under_counts(row0, row1, points, normals, indptr, indices, distances, reach, min_height, aligned, out):
+    for i in range(row0, row1):
+        count = 0
+        for p in range(indptr[i], indptr[i + 1]):
+            if distances[p] <= reach[i] and abs(_normal_dot(normals, i, indices[p])) > aligned and \
+                    _over_or_under(points, normals, i, indices[p], distances[p], min_height[i]):
+                count += 1
+        out[i] = count
+
+
+@njit(**ROW_CORE)
+def _over_under_fill(row0, row1, points, normals, indptr, indices, distances, reach, min_height, aligned, start,
+                     columns, dots):
+    for i in range(row0, row1):
+        k = start[i]
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            dot = _normal_dot(normals, i, j)
+            if distances[p] <= reach[i] and abs(dot) > aligned and \
+                    _over_or_under(points, normals, i, j, distances[p], min_height[i]):
+                columns[k] = j
+                dots[k] = dot
+                k += 1
 
 
 def flagged_within(flags, indptr, indices, distances, reach):

@@ -19,6 +19,10 @@ lies on the other side when it is
   of a thin part face away from each other, and both turn together when the
   part is inside out, so the test holds whichever side they were given).
 
+A tile of a run oriented ``outward`` does not know its normals' final signs,
+so it keeps the pairs whose facing decides the test (:func:`facing_pairs`)
+for the driver (:mod:`heatcurv.tiles.sheets`).
+
 Noise scatters one sheet's points over and under each other, but leaves their
 normals alike, so it does not trip the test; nor does a sheet right over a
 point facing the same way (a part whose one side alone is inside out), which
@@ -46,7 +50,7 @@ from ..geometry.neighbourhood import Neighbourhood
 from ..tuning import TUNING
 
 __all__ = [
-    "layered_balls", "second_sheet",
+    "layered_balls", "second_sheet", "layered_sheet", "facing_pairs",
 ]
 
 
@@ -76,9 +80,40 @@ def second_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, s
     reach = nbhd.kth_distance(TUNING.sheet_neighbours)
     found = kernels.opposite_sheet_counts(points, normals, nbhd.indptr, nbhd.indices, nbhd.distances, reach,
                                           TUNING.sheet_height * spacing, TUNING.sheet_aligned)
-    layered = layered_balls(points, normals, nbhd, spacing)
+    return (found > 0) | layered_sheet(points, normals, nbhd, spacing)
+
+
+def layered_sheet(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, spacing: np.ndarray) -> np.ndarray:
+    """Points more than ``TUNING.layer_vote`` of whose ``TUNING.sheet_neighbours`` nearest have layered balls,
+    shape (n,), bool: the part of :func:`second_sheet` that no normal's sign changes.
+
+    Parameters are those of :func:`second_sheet`.
+    """
+    reach = nbhd.kth_distance(TUNING.sheet_neighbours)
+    layered = layered_balls(points, normals, nbhd, np.asarray(spacing, dtype=np.float64))
     counts = kernels.flagged_within(layered, nbhd.indptr, nbhd.indices, nbhd.distances, reach)
-    return (found > 0) | (counts[:, 1] > TUNING.layer_vote * counts[:, 0])
+    return counts[:, 1] > TUNING.layer_vote * counts[:, 0]
+
+
+def facing_pairs(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood,
+                 spacing: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The neighbours :func:`second_sheet` reads whose facing decides it: over or under the point, with normals
+    within ``TUNING.sheet_aligned`` of parallel or of opposite (``|n_p . n_q| >`` it).
+
+    Where the normals' signs are settled only later (a tile of a run oriented outward, whose pieces the
+    driver turns), the point is a second sheet when one of its pairs ends up facing away
+    (``n_p . n_q < -TUNING.sheet_aligned`` with the final signs).
+
+    Returns
+    -------
+    rows, columns : ndarray, shape (k,), int64
+        The pairs ``(p, q)``.
+    dots : ndarray, shape (k,)
+        ``n_p . n_q`` with the given normals.
+    """
+    reach = nbhd.kth_distance(TUNING.sheet_neighbours)
+    return kernels.over_under_pairs(points, normals, nbhd.indptr, nbhd.indices, nbhd.distances, reach,
+                                    TUNING.sheet_height * np.asarray(spacing, dtype=np.float64), TUNING.sheet_aligned)
 
 
 def layered_balls(points: np.ndarray, normals: np.ndarray, nbhd: Neighbourhood, spacing: np.ndarray) -> np.ndarray:

@@ -320,7 +320,33 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, o
     outward = orients_outward(options, context.choices)
     out["patch"] = _patches(points, res.spacing, options) if outward else np.zeros(len(points), np.int64)
     out["winding"] = res.info.get("winding") if outward else None
+    out["sheet_pairs"] = None
+    if outward and res.info.get("sheet_pairs") is not None:
+        out["sheet_pairs"] = _unsettled_sheets(res.info["sheet_pairs"], core, out, res.info["winding"])
     return out
+
+
+def _unsettled_sheets(pairs, core: np.ndarray, out: dict, winding: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Settle the second-sheet pairs (:func:`heatcurv.flags.sheets.facing_pairs`) the tile can; the others.
+
+    A pair of core points in one seam piece, one winding patch and one finer piece turns over together, so
+    the tile's facing is the final one: where it faces away, the point gets area 0 and is not reliable
+    (in ``out``, core rows). The pairs with an end in the halo or in another piece are returned, tile rows
+    ``(p, q)`` with ``p`` in the core, for the driver (:mod:`.sheets`).
+    """
+    from ..tuning import TUNING
+
+    p, q, dot = pairs
+    piece = np.column_stack([out["patch"], winding["patch"], winding["fine"]])
+    settled = core[q] & np.all(piece[p] == piece[q], axis=1)
+    mine = core[p]
+    away = np.zeros(len(core), dtype=bool)
+    away[p[mine & settled & (dot < -TUNING.sheet_aligned)]] = True
+    at = np.flatnonzero(away[core])  # core-row positions
+    out["area"][at] = 0.0
+    out["reliable"][at] = False
+    keep = mine & ~settled
+    return p[keep], q[keep]
 
 
 def finish_reliability(columns, medians=None) -> tuple[np.ndarray, float]:

@@ -13,7 +13,8 @@ one loop for every executor):
    ``results.rec`` as it finishes.
 4. ``reliability`` (:func:`.phase_tiles.cloud_flags`): the flags against the whole cloud's medians.
 5. ``orientation`` (:mod:`.phase_orient`): for ``outward``, the seams' flips, then
-   a closed cloud's inside and outside by the winding number.
+   a closed cloud's inside and outside by the winding number, and the second sheets
+   the tiles could not settle (:mod:`.sheets`).
 6. ``write`` (:mod:`.phase_write`): the output in input order, atomically (:mod:`.output`).
 
 Scratch and resume
@@ -26,7 +27,7 @@ halos), ``context.json`` (the survey's
 ``rows.i8``, ``knn/knn_NNNNN.npy`` (the survey's neighbour lists, :mod:`.neighbours`),
 ``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
 tile: its done marker; once its rows are copied into ``results.rec`` it keeps
-only the seam vote's and the winding step's inputs, :data:`.output.STORED_KEYS`
+only the seam vote's, the second sheets' and the winding step's inputs, :data:`.output.STORED_KEYS`
 and :data:`.output.SOURCE_KEYS`). A run whose scratch
 directory holds a plan with the same source file (path, size, modification
 time), options and tile size resumes: finished tiles are not recomputed
@@ -111,8 +112,10 @@ class TiledReport:
         The global choices every tile got, in plain numbers (:func:`.compute.describe`).
     orientation : dict or None
         The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`),
-        with the winding step's: ``closed``, ``undecided``, ``agreement``, ``outside_share`` and, for a
-        closed or undecided cloud, ``turned``, ``unsupported`` and ``escaped`` (:func:`.winding.flag_unsupported`).
+        with the winding step's: ``closed``, ``undecided``, ``open_components``, ``agreement``,
+        ``outside_share`` and, for a closed or undecided cloud, ``turned``, ``unsupported`` and ``escaped``
+        (:func:`.winding.flag_unsupported`); ``second_sheet``: the points the driver found holding both sides
+        of a thin part (:func:`.sheets.flag_second_sheets`; those a tile settled alone are not counted).
     parameters : dict
         Everything written into the output's VLR / PLY comment.
     scratch : str

@@ -88,7 +88,7 @@ def create_results(path, count: int, *, keep: bool = False) -> bool:
 #: What a tile's result file keeps once its rows are in ``results.rec``: the seam vote's inputs
 #: (:func:`heatcurv.tiles.orient.seam_flips`) and the ``stored`` mark. The per-point fields, about
 #: 170 bytes a core point, would double the scratch (at 100M points 17 of 39 GB).
-STORED_KEYS = ("volume_labels", "volumes", "halo_rows", "halo_normals", "halo_patch")
+STORED_KEYS = ("volume_labels", "volumes", "halo_rows", "halo_normals", "halo_patch", "sheet_rows", "sheet_columns")
 #: What a tile oriented ``outward`` keeps for the winding step (:func:`heatcurv.tiles.winding.tile_sources`).
 SOURCE_KEYS = ("winding_rows", "winding_x", "winding_normals", "winding_area", "winding_label", "winding_fine_label",
                "winding_seam", "winding_roundness", "winding_total")
@@ -248,16 +248,19 @@ def keyed_flips(key: np.ndarray, keys: np.ndarray, flip: np.ndarray) -> np.ndarr
     return (keys[at] == key) & flip[at]
 
 
-def chunk_flips(block: np.ndarray, start: int, flips) -> np.ndarray:
+def chunk_flips(block: np.ndarray, start: int, flips, rows: np.ndarray | None = None) -> np.ndarray:
     """Whether each record of a chunk is turned over: an odd number of ``flips`` say so, shape (len(block),), bool.
 
     ``flips``: ``(column, keys, flipped)`` triples (the seam flips by ``patch``,
     the winding step's by ``winding`` and ``winding_fine``, single rows by
-    ``row``: the input row numbers), or None. ``start``: the chunk's first row.
+    ``row``: the input row numbers), or None. ``start``: the chunk's first row;
+    ``rows``: instead, the records' input rows (records gathered from anywhere).
     """
     flip = np.zeros(len(block), dtype=bool)
+    if rows is None:
+        rows = np.arange(start, start + len(block), dtype=np.int64)
     for column, keys, flipped in flips or ():
-        key = np.arange(start, start + len(block), dtype=np.int64) if column == "row" else block[column]
+        key = rows if column == "row" else block[column]
         flip ^= keyed_flips(key, keys, flipped)
     return flip & (block["computed"] == 1)
 

@@ -3,7 +3,8 @@
 The pieces' sides are made to agree across the seams (:mod:`.orient`), then the
 winding number over every tile's sources decides a closed cloud's inside and
 outside and flags what it contradicts (:mod:`.winding`), as
-:mod:`heatcurv.orient.enclosure` does in memory.
+:mod:`heatcurv.orient.enclosure` does in memory; the second sheets the tiles
+could not settle are judged with those signs (:mod:`.sheets`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from .context import SurveyContext
 from .job import Job
 from .orient import seam_flips
 from .plan import TilePlan
+from .sheets import flag_second_sheets
 from .tasks import tile_path
 from .winding import flag_unsupported, winding_sides
 
@@ -46,6 +48,9 @@ def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict
     if sides is not None and (sides.closed or sides.undecided):
         flips.append((sides.column, sides.keys, sides.flip))
         flips.append(("winding_fine", sides.fine_keys, sides.fine_flip))
+    # the two sides of a thin part, once the normals' signs are final (before the rays, as in memory)
+    orientation["second_sheet"] = flag_second_sheets(results_path, tile_files, flips)
+    if sides is not None and (sides.closed or sides.undecided):
         alpha = compute.resolved_options(run.options).alpha
         report, escaping = flag_unsupported(results_path, run.source, context.choices.frame, sides, alpha, flips)
         orientation.update(report)

@@ -400,6 +400,9 @@ def run_tile(spec: TileTask) -> dict:
                                    None if out["winding"] is None else {k: v[core] for k, v in out["winding"].items()}))
     else:
         arrays["winding"] = arrays["winding_fine"] = np.zeros(c, dtype=np.int64)
+    # the second-sheet pairs the driver settles (heatcurv.tiles.sheets), input rows
+    sheet_rows, sheet_columns = out.get("sheet_pairs") or (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    arrays["sheet_rows"], arrays["sheet_columns"] = rows[sheet_rows], rows[sheet_columns]
     path = tile_path(scratch, tile)
     temporary = f"{path}.{os.getpid()}.tmp.npz"
     try:
