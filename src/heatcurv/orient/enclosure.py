@@ -414,7 +414,7 @@ def source_objects(x: np.ndarray, label: np.ndarray) -> np.ndarray:
 def _open_objects(x, nrm, weight, label, roundness, sure) -> tuple[np.ndarray, int]:
     """The sources of objects open on their own (:func:`patch_sides`), shape (m,), bool, and how many objects."""
     is_open = np.zeros(x.shape[0], dtype=bool)
-    ids, inverse, counts = np.unique(source_objects(x, label), return_inverse=True, return_counts=True)
+    _, inverse, counts = np.unique(source_objects(x, label), return_inverse=True, return_counts=True)
     judged = counts >= FEWEST_SOURCES
     if np.count_nonzero(judged) < 2:
         return is_open, 0

@@ -31,6 +31,7 @@ from ..flags.reliability import ReliabilityInputs, cloud_flags
 from ..geometry.validation import bounding_box_frame
 from ..operators.operator import HeatKernelOperator
 from ..options import Options, resolve_options
+from ..tuning import TUNING
 from .context import SurveyContext
 
 __all__ = [
@@ -334,8 +335,6 @@ def _unsettled_sheets(pairs, core: np.ndarray, out: dict, winding: dict) -> tupl
     (in ``out``, core rows). The pairs with an end in the halo or in another piece are returned, tile rows
     ``(p, q)`` with ``p`` in the core, for the driver (:mod:`.sheets`).
     """
-    from ..tuning import TUNING
-
     p, q, dot = pairs
     piece = np.column_stack([out["patch"], winding["patch"], winding["fine"]])
     settled = core[q] & np.all(piece[p] == piece[q], axis=1)
