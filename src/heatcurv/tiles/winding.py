@@ -41,7 +41,8 @@ from scipy.spatial import cKDTree
 
 from ..geometry.validation import row_hashes
 from ..orient.enclosure import patch_sides, sampled_sources, source_keys
-from ..orient.visibility import MAX_TESTED, escaping_turns, lowest_keys
+from ..orient.visibility import MAX_TESTED, escape_votes, lowest_keys
+from ..tuning import TUNING
 from .output import PATCH_SHIFT, RECORD, SOURCE_KEYS, chunk_flips, keyed_flips, read_results, write_records
 
 __all__ = ["MAX_TILED_PATCHES", "WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
@@ -305,8 +306,8 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
         normals = np.where(chunk_flips(block, start, flips)[rows, None], -normals, normals)
         tested = _lowest({"key": row_hashes(x), "row": rows + start, "x": x, "normals": normals}, tested)
     occluder_normals = np.memmap(results_path, dtype=RECORD, mode="r")[sides.rows]["normals"]
-    turn = escaping_turns(tested["x"], tested["normals"], np.ones(tested["row"].size, dtype=bool), sides.x,
-                          occluder_normals)
+    # the tested points are already those of lowest rank: their votes as escaping_turns reads them
+    turn = escape_votes(tested["x"], tested["normals"], sides.x, occluder_normals) < -TUNING.escape_margin
     rows = np.sort(tested["row"][turn])
     return {"turned": turned, "unsupported": unsupported, "escaped": int(rows.size)}, rows
 
