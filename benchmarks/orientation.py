@@ -37,6 +37,14 @@ Columns
 ``s``                    seconds of the call alone (heatcurv's numba kernels
                          compiled by a warm-up beforehand).
 
+A second table, **sides on resolved parts**, reads only the points a sample
+at the mesh's spacing can decide: on parts at least 3 spacings thick *and*
+with at least 3 spacings of open space along their outward normal before the
+next part of the mesh (a hand against a hip, an arm against the torso, two
+legs together put both surfaces in one ball as a thin part does), the share
+whose normal is within 60 degrees of the inward truth: the side turned over,
+not an axis off at a crease (``wrong %`` counts both).
+
 Methods
 
 ``heatcurv``  ``heatcurv.estimate(points)``, the default options (normals
@@ -53,6 +61,12 @@ Methods
               global signs (chosen on all points of the cloud). Needs
               ``pip install open3d`` (the ``peers`` extra); skipped with a note
               when missing.
+``wnnc``      a winding-number orientation: the iteration of WNNC (Lin, Shi
+              and Liu 2024), re-implemented in ``benchmarks/wnnc.py`` (the
+              authors' code needs a PyTorch extension), 40 iterations, the
+              width preset of :data:`WNNC_PRESET`. Its normals are the
+              winding field's gradient, outward by construction; it flags
+              nothing.
 
 Usage::
 
@@ -94,9 +108,12 @@ from support.scans import CGAL_MESHES, fetch_cgal_meshes, read_mesh  # noqa: E40
 
 MODELS = tuple(name.removesuffix(".off") for name in CGAL_MESHES)
 VARIANTS = ("clean", "noisy", "half")
-METHODS = ("heatcurv", "tiled", "open3d")
+METHODS = ("heatcurv", "tiled", "open3d", "wnnc")
 #: the methods that flag points (their "wrong & reliable" and "flagged" columns)
 FLAGGING = ("heatcurv", "tiled")
+#: the WNNC width preset of each variant (benchmarks/wnnc.py): the authors' presets measured on these
+#: models, l0, l1 and l2, the best pooled share inside out chosen for each variant
+WNNC_PRESET = {"clean": "l1", "noisy": "l1", "half": "l1"}
 #: parts thinner than this many spacings are "thin"
 THIN_SPACINGS = 3.0
 #: noise of the noisy variant, a fraction of the bounding-box diagonal
@@ -175,9 +192,11 @@ def load_model(directory: Path, name: str) -> dict:
     used = mesh.used
     spacing = float(np.median(cKDTree(mesh.vertices).query(mesh.vertices, k=2)[0][:, 1]))
     thick = np.isinf(thickness(mesh, normals, THIN_SPACINGS * spacing))
+    # the gap outside: along the outward normal to the next part (an arm against the torso, two legs together)
+    clear = np.isinf(thickness(mesh, -normals, THIN_SPACINGS * spacing))
     return {"name": name, "points": mesh.vertices[used], "truth": normals[used], "thick": thick[used],
-            "spacing": spacing, "diagonal": float(np.linalg.norm(np.ptp(mesh.vertices, axis=0))),
-            "closed": mesh.closed, "mesh": mesh}
+            "resolved": (thick & clear)[used], "spacing": spacing,
+            "diagonal": float(np.linalg.norm(np.ptp(mesh.vertices, axis=0))), "closed": mesh.closed, "mesh": mesh}
 
 
 def mesh_winding(mesh, queries: np.ndarray, chunk: int = 64) -> np.ndarray:
@@ -212,9 +231,20 @@ def variant(model: dict, kind: str, seed: int = 0):
     if kind == "noisy":
         return points + rng.normal(scale=NOISE * model["diagonal"], size=points.shape), truth, thick
     if kind == "half":
-        keep = np.sort(rng.permutation(len(points))[: len(points) // 2])
+        keep = half_rows(len(points), rng)
         return points[keep], truth[keep], thick[keep]
     return points, truth, thick
+
+
+def half_rows(n: int, rng) -> np.ndarray:
+    """The sorted rows of the ``half`` variant, shape (n // 2,)."""
+    return np.sort(rng.permutation(n)[: n // 2])
+
+
+def variant_resolved(model: dict, kind: str, seed: int = 0) -> np.ndarray:
+    """The ``resolved`` mask (parts and the gaps outside them at least 3 spacings) of one variant's points."""
+    resolved = model["resolved"]
+    return resolved[half_rows(len(resolved), np.random.default_rng(seed))] if kind == "half" else resolved
 
 
 # ---------------------------------------------------------------------------
@@ -382,6 +412,14 @@ def run_open3d(points: np.ndarray):
     return normals, None, time.perf_counter() - tic
 
 
+def run_wnnc(points: np.ndarray, kind: str):
+    from wnnc import wnnc_normals  # benchmarks/wnnc.py
+
+    tic = time.perf_counter()
+    normals = wnnc_normals(points, WNNC_PRESET[kind])
+    return normals, None, time.perf_counter() - tic
+
+
 def warm_up() -> None:
     """Compile heatcurv's numba kernels (clean and noisy clouds) before any clock starts."""
     torus = hs.Torus().sample(3000, "random", seed=1).points
@@ -389,8 +427,13 @@ def warm_up() -> None:
         heatcurv.estimate(points)
 
 
-def measure(normals: np.ndarray, reliable, truth: np.ndarray, thick: np.ndarray, either_sign: bool) -> dict:
-    """The wrong-side shares (%) of one method's normals; a normal without value (NaN) counts as wrong."""
+def measure(normals: np.ndarray, reliable, truth: np.ndarray, thick: np.ndarray, either_sign: bool,
+            resolved: np.ndarray | None = None) -> dict:
+    """The wrong-side shares (%) of one method's normals; a normal without value (NaN) counts as wrong.
+
+    ``inward_resolved``: the share of the ``resolved`` points whose normal is within 60 degrees of the
+    inward truth (the side turned over, not an axis off at a crease).
+    """
     dot = np.einsum("ij,ij->i", normals, truth)
     wrong = ~(dot >= 0)  # NaN: wrong
     flipped = False
@@ -398,9 +441,11 @@ def measure(normals: np.ndarray, reliable, truth: np.ndarray, thick: np.ndarray,
         wrong, flipped = ~(dot <= 0), True
     out = {"wrong": 100.0 * wrong.mean(), "wrong_thick": 100.0 * wrong[thick].mean() if thick.any() else np.nan,
            "flipped": flipped, "nan": int(np.count_nonzero(~np.isfinite(dot)))}
+    inward = (dot > 0.5) if flipped else (dot < -0.5)
+    if resolved is not None:
+        out["inward_resolved"] = 100.0 * np.mean(inward[resolved])
     if reliable is not None:
         out["wrong_reliable"] = 100.0 * np.mean(wrong & reliable)
-        inward = (dot > 0.5) if flipped else (dot < -0.5)
         out["inward_reliable"] = 100.0 * np.mean(inward & reliable)
         out["flagged"] = 100.0 * np.mean(~reliable)
     return out
@@ -455,6 +500,25 @@ def pooled(rows: list[dict], methods) -> dict:
     return out
 
 
+def resolved_table(models: list[dict], by_kind: dict, methods) -> list[list[str]]:
+    """One row per model and the pooled one: each variant's and method's ``inward_resolved``."""
+    cells = []
+    for i, model in enumerate(models + [None]):
+        name = "all" if model is None else model["name"]
+        share = 100.0 * np.mean(np.concatenate([m["resolved"] for m in models]) if model is None else model["resolved"])
+        cells.append([name, f"{share:.1f}"])
+        for rows in by_kind.values():
+            for m in methods:
+                picked = rows if model is None else [rows[i]]
+                if not all(m in r["results"] for r in picked):
+                    cells[-1].append("-")
+                    continue
+                weight = np.array([r["nresolved"] for r in picked], dtype=float)
+                value = np.sum(weight * [r["results"][m]["inward_resolved"] for r in picked]) / weight.sum()
+                cells[-1].append(f"{value:.2f}")
+    return cells
+
+
 def machine_lines() -> list[str]:
     lines = [
         f"date (UTC)   {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}",
@@ -495,7 +559,7 @@ def parse_args(argv=None):
 
     parser.add_argument("--models", type=names(MODELS), default=list(MODELS), help="comma-separated model names")
     parser.add_argument("--variants", type=names(VARIANTS), default=list(VARIANTS), help="clean,noisy,half")
-    parser.add_argument("--methods", type=names(METHODS), default=list(METHODS), help="heatcurv,tiled,open3d")
+    parser.add_argument("--methods", type=names(METHODS), default=list(METHODS), help="heatcurv,tiled,open3d,wnnc")
     parser.add_argument("--data", default=None, help="cache directory of the models (default: cgal_cache_dir())")
     parser.add_argument("--markdown", action="store_true", help="print the tables as Markdown")
     parser.add_argument("--coarse-tori", action="store_true",
@@ -536,7 +600,12 @@ def main(argv=None) -> int:
         log(f"{name}: {len(m['points'])} points, spacing {m['spacing']:.4g}, thin {100 * (~m['thick']).mean():.2f} %"
             f" ({time.perf_counter() - tic:.1f} s)")
     runners = {"heatcurv": run_heatcurv, "tiled": run_tiled, "open3d": run_open3d}
+    if "wnnc" in methods:
+        from wnnc import wnnc_normals
+
+        wnnc_normals(hs.Torus().sample(500, "random", seed=1).points, iterations=2)  # compile before any clock
     decisions = []
+    resolved_rows = {}
     for kind in args.variants:
         rows = []
         own_solid = []
@@ -544,8 +613,12 @@ def main(argv=None) -> int:
             points, truth, thick = variant(model, kind)
             results = {}
             for method in methods:
-                normals, reliable, seconds = runners[method](points)
-                r = measure(normals, reliable, truth, thick, either_sign=(method == "open3d"))
+                if method == "wnnc":
+                    normals, reliable, seconds = run_wnnc(points, kind)
+                else:
+                    normals, reliable, seconds = runners[method](points)
+                r = measure(normals, reliable, truth, thick, either_sign=(method == "open3d"),
+                            resolved=variant_resolved(model, kind))
                 r["seconds"] = seconds
                 results[method] = r
                 if method == "heatcurv":
@@ -561,12 +634,14 @@ def main(argv=None) -> int:
                     notes.append(f"{kind} {model['name']}: {method} left {r['nan']} normals without value (wrong)")
                 log(f"{kind} {model['name']}: {method} wrong {r['wrong']:.2f} %, {seconds:.2f} s")
             rows.append({"name": model["name"], "n": len(points), "thin": 100.0 * (~thick).mean(),
-                         "nthick": int(thick.sum()), "results": results})
+                         "nthick": int(thick.sum()), "nresolved": int(variant_resolved(model, kind).sum()),
+                         "results": results})
         cells = [row(r["name"] + ("" if models[i]["closed"] else " (holes)"), r["n"], r["thin"], r["results"], methods)
                  for i, r in enumerate(rows)]
         n_all = sum(r["n"] for r in rows)
         thin_all = sum(r["thin"] * r["n"] for r in rows) / n_all
         cells.append(row("all", n_all, thin_all, pooled(rows, methods), methods))
+        resolved_rows[kind] = rows
         title = f"{kind}: % of points whose normal points into the object"
         if "open3d" in methods:
             title += " (open3d: the better of its two global signs)"
@@ -574,6 +649,10 @@ def main(argv=None) -> int:
         if own_solid:
             notes.append(f"{kind}: heatcurv's inside out and reliable points that lie inside the mesh's own solid (the "
                          f"mesh intersects itself there; outward is not defined): {', '.join(own_solid)}")
+    print(text_table("sides on resolved parts: % of the points of parts at least 3 spacings thick, with a gap of at "
+                     "least 3 spacings outside them, whose normal is within 60 degrees of the inward truth",
+                     ["model", "resolved %"] + [f"{kind} {m}" for kind in resolved_rows for m in methods],
+                     resolved_table(models, resolved_rows, methods), args.markdown))
     if args.plates:
         print(text_table("thin plates lying flat: ellipsoids 1 x 1 x c, 20 000 random points (truth: the ellipsoid's "
                          "outward normals; h: heatcurv's median spacing, res.spacing; layered: the share auto's sample "
