@@ -73,10 +73,12 @@ Usage::
     python benchmarks/orientation.py                        # every model, variant and method
     python benchmarks/orientation.py --models camel,cow --variants clean --methods heatcurv
     python benchmarks/orientation.py --markdown --coarse-tori --plates --beside-sheet
+    python benchmarks/orientation.py --markdown --methods wnnc --wnnc-presets   # WNNC's three presets
 
 ``--data DIR`` picks the cache directory of the models (default
-:func:`support.scans.cgal_cache_dir`). A full run takes about 3
-minutes on the 2-core machine; the wall time is printed at the end.
+:func:`support.scans.cgal_cache_dir`). A full run takes about 11
+minutes on the 2-core machine (WNNC's N-body sums about 3 of them); the wall time is printed at the
+end.
 """
 
 from __future__ import annotations
@@ -420,6 +422,27 @@ def run_wnnc(points: np.ndarray, kind: str):
     return normals, None, time.perf_counter() - tic
 
 
+def wnnc_presets(models: list[dict], kinds) -> list[list[str]]:
+    """Every variant under each of WNNC's presets: the pooled shares (the choice of :data:`WNNC_PRESET`)."""
+    from wnnc import PRESETS, wnnc_normals
+
+    cells = []
+    for kind in kinds:
+        for preset in PRESETS:
+            counts, seconds = np.zeros(6), 0.0
+            for model in models:
+                points, truth, thick = variant(model, kind)
+                resolved = variant_resolved(model, kind)
+                tic = time.perf_counter()
+                dot = np.einsum("ij,ij->i", wnnc_normals(points, preset), truth)
+                seconds += time.perf_counter() - tic
+                counts += [len(dot), np.sum(dot < 0), thick.sum(), np.sum(dot[thick] < 0), resolved.sum(),
+                           np.sum(dot[resolved] < -0.5)]
+            cells.append([kind, preset, f"{100 * counts[1] / counts[0]:.2f}", f"{100 * counts[3] / counts[2]:.2f}",
+                          f"{100 * counts[5] / counts[4]:.2f}", f"{seconds:.0f}"])
+    return cells
+
+
 def warm_up() -> None:
     """Compile heatcurv's numba kernels (clean and noisy clouds) before any clock starts."""
     torus = hs.Torus().sample(3000, "random", seed=1).points
@@ -566,6 +589,8 @@ def parse_args(argv=None):
                         help="also run tori with a tube a few spacings across (the decision table)")
     parser.add_argument("--plates", action="store_true",
                         help="also run thin closed plates lying flat and turned (auto's choice, second sheets)")
+    parser.add_argument("--wnnc-presets", action="store_true",
+                        help="also a table of WNNC's three width presets, pooled over the models (about 10 minutes)")
     parser.add_argument("--beside-sheet", action="store_true",
                         help="also run each model with an open sheet beside it (each object judged on its own)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
@@ -669,6 +694,11 @@ def main(argv=None) -> int:
                          "a diagonal away (sheet on one side: the share of its normals on their majority side; tiled: "
                          "4 tiles or more, against the in-memory run)", SHEET_HEAD, sheets_beside(models),
                          args.markdown))
+    if args.wnnc_presets:
+        print(text_table("WNNC's width presets (benchmarks/wnnc.py), pooled over the models: % inside out, on thick "
+                         "parts, and turned over on resolved parts", ["variant", "preset", "wrong %",
+                                                                      "wrong on thick %", "inward on resolved %", "s"],
+                         wnnc_presets(models, args.variants), args.markdown))
     if args.coarse_tori:
         print(text_table("coarse thin tori (closed; truth: the torus's outward normals; roundness: the median "
                          "ball's lambda_0 / lambda_1, too coarse from 0.65 on half of the balls)", DECISION_HEAD,
