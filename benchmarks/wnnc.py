@@ -29,6 +29,8 @@ import numpy as np
 PRESETS = {"l0": (0.002, 0.016), "l1": (0.01, 0.04), "l2": (0.02, 0.08)}
 #: points a grid cell aims at
 CELL_POINTS = 32
+#: the three sums: ``A mu``, ``A^T s``, ``G mu``
+WINDING, TRANSPOSED, CONSISTENCY = 0, 1, 2
 
 
 def wnnc_normals(points: np.ndarray, preset: str = "l0", iterations: int = 40) -> np.ndarray:
@@ -64,26 +66,27 @@ class _Grid:
         self.x = np.ascontiguousarray(x[self.order])
         self.side = side
 
-    def _apply(self, kernel, values: np.ndarray, width: float, out_dim: int) -> np.ndarray:
-        v = np.ascontiguousarray(values[self.order].reshape(len(self.x), -1))
+    def _apply(self, kind: int, values: np.ndarray, width: float) -> np.ndarray:
+        v = np.zeros((len(self.x), 3))
+        v[:, : values.reshape(len(self.x), -1).shape[1]] = values[self.order].reshape(len(self.x), -1)
         centre, total = _cell_sums(self.x, v, self.start)
-        out = np.empty((len(self.x), out_dim))
-        kernel(self.x, v, self.start, centre, total, 2.0 * self.side, width, out)
+        out = np.empty((len(self.x), 3))
+        _sums(kind, self.x, v, self.start, centre, total, 2.0 * self.side, width, out)
         result = np.empty_like(out)
         result[self.order] = out
-        return result if out_dim > 1 else result[:, 0]
+        return result
 
     def winding(self, mu: np.ndarray, width: float) -> np.ndarray:
         """``A mu``: the winding number at every point, shape (n,)."""
-        return self._apply(_winding, mu, width, 1)
+        return self._apply(WINDING, mu, width)[:, 0]
 
     def transposed(self, s: np.ndarray, width: float) -> np.ndarray:
         """``A^T s``, shape (n, 3)."""
-        return self._apply(_transposed, s, width, 3)
+        return self._apply(TRANSPOSED, s, width)
 
     def consistency(self, mu: np.ndarray, width: float) -> np.ndarray:
         """``G mu``: minus the winding number's gradient at every point, shape (n, 3)."""
-        return self._apply(_consistency, mu, width, 3)
+        return self._apply(CONSISTENCY, mu, width)
 
 
 @numba.njit(cache=True)
@@ -116,70 +119,31 @@ def _offset(x, i, y):  # pragma: no cover
     return dx, dy, dz, dx * dx + dy * dy + dz * dz
 
 
+@numba.njit(inline="always")
+def _pair(kind, dx, dy, dz, d2, v0, v1, v2):  # pragma: no cover
+    """One source's term at an offset ``(dx, dy, dz) = x_i - x_j`` (``|.|^2 = d2``) of value ``v``."""
+    d3 = np.sqrt(d2) * d2
+    if kind == WINDING:
+        return -(dx * v0 + dy * v1 + dz * v2) / d3, 0.0, 0.0
+    if kind == TRANSPOSED:  # v0 is the scalar
+        return dx * v0 / d3, dy * v0 / d3, dz * v0 / d3
+    dot, d5 = dx * v0 + dy * v1 + dz * v2, d3 * d2
+    return v0 / d3 - 3.0 * dx * dot / d5, v1 / d3 - 3.0 * dy * dot / d5, v2 / d3 - 3.0 * dz * dot / d5
+
+
 @numba.njit(parallel=True, cache=True)
-def _winding(x, mu, start, centre, total, far, width, out):  # pragma: no cover
+def _sums(kind, x, v, start, centre, total, far, width, out):  # pragma: no cover
     for i in numba.prange(x.shape[0]):
-        acc = 0.0
+        a0 = a1 = a2 = 0.0
         for c in range(start.size - 1):
             dx, dy, dz, d2 = _offset(x, i, centre[c])
-            if d2 > far * far:
-                d = np.sqrt(d2)
-                acc -= (dx * total[c, 0] + dy * total[c, 1] + dz * total[c, 2]) / (d * d2)
+            if d2 > far * far:  # the cell as one source at its centre
+                t0, t1, t2 = _pair(kind, dx, dy, dz, d2, total[c, 0], total[c, 1], total[c, 2])
+                a0, a1, a2 = a0 + t0, a1 + t1, a2 + t2
                 continue
             for j in range(start[c], start[c + 1]):
                 dx, dy, dz, d2 = _offset(x, i, x[j])
-                d = np.sqrt(d2)
-                if d >= width:
-                    acc -= (dx * mu[j, 0] + dy * mu[j, 1] + dz * mu[j, 2]) / (d * d2)
-        out[i, 0] = acc
-
-
-@numba.njit(parallel=True, cache=True)
-def _transposed(x, s, start, centre, total, far, width, out):  # pragma: no cover
-    for i in numba.prange(x.shape[0]):
-        ax = ay = az = 0.0
-        for c in range(start.size - 1):
-            dx, dy, dz, d2 = _offset(x, i, centre[c])
-            if d2 > far * far:
-                f = total[c, 0] / (np.sqrt(d2) * d2)
-                ax += dx * f
-                ay += dy * f
-                az += dz * f
-                continue
-            for j in range(start[c], start[c + 1]):
-                dx, dy, dz, d2 = _offset(x, i, x[j])
-                d = np.sqrt(d2)
-                if d >= width:
-                    f = s[j, 0] / (d * d2)
-                    ax += dx * f
-                    ay += dy * f
-                    az += dz * f
-        out[i, 0], out[i, 1], out[i, 2] = ax, ay, az
-
-
-@numba.njit(parallel=True, cache=True)
-def _consistency(x, mu, start, centre, total, far, width, out):  # pragma: no cover
-    for i in numba.prange(x.shape[0]):
-        ax = ay = az = 0.0
-        for c in range(start.size - 1):
-            dx, dy, dz, d2 = _offset(x, i, centre[c])
-            if d2 > far * far:
-                d = np.sqrt(d2)
-                m0, m1, m2 = total[c, 0], total[c, 1], total[c, 2]
-            else:
-                for j in range(start[c], start[c + 1]):
-                    dx, dy, dz, d2 = _offset(x, i, x[j])
-                    d = np.sqrt(d2)
-                    if d >= width:
-                        dot = dx * mu[j, 0] + dy * mu[j, 1] + dz * mu[j, 2]
-                        d3, d5 = d * d2, d * d2 * d2
-                        ax += mu[j, 0] / d3 - 3.0 * dx * dot / d5
-                        ay += mu[j, 1] / d3 - 3.0 * dy * dot / d5
-                        az += mu[j, 2] / d3 - 3.0 * dz * dot / d5
-                continue
-            dot = dx * m0 + dy * m1 + dz * m2
-            d3, d5 = d * d2, d * d2 * d2
-            ax += m0 / d3 - 3.0 * dx * dot / d5
-            ay += m1 / d3 - 3.0 * dy * dot / d5
-            az += m2 / d3 - 3.0 * dz * dot / d5
-        out[i, 0], out[i, 1], out[i, 2] = ax, ay, az
+                if d2 >= width * width:
+                    t0, t1, t2 = _pair(kind, dx, dy, dz, d2, v[j, 0], v[j, 1], v[j, 2])
+                    a0, a1, a2 = a0 + t0, a1 + t1, a2 + t2
+        out[i, 0], out[i, 1], out[i, 2] = a0, a1, a2
