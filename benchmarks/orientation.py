@@ -85,6 +85,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import functools
 import importlib.util
 import os
 import platform
@@ -632,16 +633,14 @@ def main(argv=None) -> int:
     decisions = []
     resolved_rows = {}
     for kind in args.variants:
+        runners["wnnc"] = functools.partial(run_wnnc, kind=kind)  # its width preset is chosen per variant
         rows = []
         own_solid = []
         for model in models:
             points, truth, thick = variant(model, kind)
             results = {}
             for method in methods:
-                if method == "wnnc":
-                    normals, reliable, seconds = run_wnnc(points, kind)
-                else:
-                    normals, reliable, seconds = runners[method](points)
+                normals, reliable, seconds = runners[method](points)
                 r = measure(normals, reliable, truth, thick, either_sign=(method == "open3d"),
                             resolved=variant_resolved(model, kind))
                 r["seconds"] = seconds
