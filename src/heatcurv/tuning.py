@@ -160,6 +160,16 @@ class Tuning:
                                          "coarse: undecided under undecided_share too")
     outside_share: float = _knob(0.5, "share of the area with outside levels near 0 that makes such a cloud "
                                       "undecided rather than open")
+    #: CGAL's closed models, inside out and reliable, clean / noisy / half: 0.16 / 0.20 / 0.22 % without it;
+    #: 0.0: 0.14 / 0.16 / 0.15; 0.3: 0.13 / 0.14 / 0.15; 0.6: 0.12 / 0.14 / 0.14 %, but 26 sources at a CAD
+    #: part's sharp edges have cosines of 0.14-0.6 (none below 0): the normal's axis is off there, not its side.
+    field_agreement: float = _knob(0.0, "cosine between a closed cloud's normal and the winding field's own below "
+                                        "which its side is in doubt")
+    #: Before the widths followed the roughness: 20 steps flagged within 0.01 points of 10, in twice the time.
+    field_iterations: int = _knob(10, "steps of the winding field's own normals (heatcurv.orient.consistency)")
+    #: Tori and spheres with noise of 0.12-0.6 % of their diagonal: 4 leaves 0.02-0.27 % of the field's normals
+    #: over 53 degrees off, 6 none; CGAL's models flag as many at 8.
+    field_roughness: float = _knob(6.0, "least narrowest width of the winding field's normals, in roughnesses")
 
     # --- reliability flags (heatcurv.flags.reliability, sheets, outliers, border, kernel_check, areas) ---
     planarity_min: float = _knob(0.05, "PCA planarity of a ball below which it is no surface patch")

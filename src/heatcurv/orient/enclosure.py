@@ -7,7 +7,7 @@ edge turns a whole part inside out, and nothing local reveals it. The
 generalised winding number (:mod:`heatcurv._kernels.winding`) is global: for a
 closed surface oriented outward it is about 1 just inside and 0 just outside;
 inside a part turned inside out it is about -1, and next to it (outside or
-inside) out of ``[0, 1]``. This module uses that field twice.
+inside) out of ``[0, 1]``. This module uses that field three times.
 
 1. **Patch signs.** The spanning tree is cut into patches (its subtrees inside
    the cells of a grid, small pieces merged into a neighbour): orientation is
@@ -44,6 +44,10 @@ inside) out of ``[0, 1]``. This module uses that field twice.
    and the energy is solved once more over those pieces and the other
    patches, with the first solve's sides as the tree's; a source is flagged
    when either solve contradicts it.
+4. **A second opinion.** The winding field's own normals, solved over the
+   sources from no orientation at all (:mod:`heatcurv.orient.consistency`),
+   flag a source whose chosen normal points against them
+   (``TUNING.field_agreement``).
 
 Each query's value is summed over point dipoles (Barill et al. 2018, "Fast
 winding numbers for soups and clouds"), except near its own point: the sources
@@ -90,6 +94,7 @@ from ..errors import HeatcurvWarning
 from ..geometry.neighbourhood import Neighbourhood
 from ..geometry.validation import row_hashes
 from ..tuning import TUNING
+from .consistency import field_normals
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys",
@@ -301,6 +306,13 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     solved again without it. Objects that agree stay together, so that the
     field still sees a cavity inside an object and an object sampled in pieces.
 
+    A closed cloud's sources then get a second opinion that shares nothing with
+    the spanning tree: the winding field's own normals, solved from no
+    orientation (:func:`heatcurv.orient.consistency.field_normals`, over the
+    sources not open). A source whose chosen normal makes a cosine below
+    ``TUNING.field_agreement`` with the field's is flagged too: where two
+    methods disagree about a side, neither is vouched for.
+
     Parameters
     ----------
     x, nrm : ndarray, shape (m, 3)
@@ -324,6 +336,21 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     -------
     PatchSides
     """
+    sides = _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, objects)
+    if not sides.closed:
+        return sides
+    # a second opinion from no orientation at all: the winding field's own normals
+    own = nrm * (sides.sign[label] * (1.0 if fine is None else sides.fine_sign[fine]))[:, None]
+    judged = np.ones(x.shape[0], dtype=bool) if sides.open is None else ~sides.open
+    doubt = np.zeros(x.shape[0], dtype=bool)
+    if np.count_nonzero(judged) >= FEWEST_SOURCES:
+        field = field_normals(x[judged], axes=own[judged])
+        doubt[judged] = np.einsum("ij,ij->i", own[judged], field) < TUNING.field_agreement
+    return dataclasses.replace(sides, bad=sides.bad | doubt)
+
+
+def _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, objects) -> PatchSides:
+    """:func:`patch_sides` from the winding energy alone, without the field's own normals."""
     sides = _solved_sides(x, nrm, weight, label, n_patch, source_roundness(roundness))
     fine_sign = np.ones(n_fine)
     if objects:
@@ -435,9 +462,9 @@ def _without(is_open, count, x, nrm, weight, label, n_patch, fine, n_fine, round
     if np.count_nonzero(rest) < FEWEST_SOURCES:
         return PatchSides(np.ones(n_patch), np.zeros(x.shape[0], dtype=bool), sides.agreement, False, False,
                           sides.outside_share, np.ones(n_fine), sides.sure, is_open, count)
-    inner = patch_sides(x[rest], nrm[rest], weight[rest], label[rest], n_patch,
-                        None if fine is None else fine[rest], n_fine, None if roundness is None else roundness[rest],
-                        objects=False)
+    inner = _winding_sides(x[rest], nrm[rest], weight[rest], label[rest], n_patch,
+                           None if fine is None else fine[rest], n_fine,
+                           None if roundness is None else roundness[rest], objects=False)
     bad, sure = np.zeros(x.shape[0], dtype=bool), np.zeros(x.shape[0], dtype=bool)
     bad[rest], sure[rest] = inner.bad, inner.sure
     return dataclasses.replace(inner, bad=bad, sure=sure, open=is_open, open_components=count)
