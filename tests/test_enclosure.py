@@ -13,6 +13,7 @@ from heatcurv import surfaces
 from heatcurv._kernels.dipoles import GRADIENT, TRANSPOSED, WINDING, dipole_sums
 from heatcurv._kernels.winding import winding_numbers
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
+from heatcurv.orient.consistency import DipoleGrid, field_normals
 from heatcurv.orient.enclosure import (
     Enclosure,
     _recut,
@@ -23,7 +24,6 @@ from heatcurv.orient.enclosure import (
     source_objects,
     source_roundness,
 )
-from heatcurv.orient.consistency import DipoleGrid, field_normals
 from heatcurv.orient.orientation import _spanning_forest
 from heatcurv.tuning import TUNING
 
