@@ -21,6 +21,6 @@ PRESETS = {"l0": (0.002, 0.016), "l1": (0.01, 0.04), "l2": (0.02, 0.08)}
 ITERATIONS = 40
 
 
-def wnnc_normals(points: np.ndarray, preset: str = "l0") -> np.ndarray:
+def wnnc_normals(points: np.ndarray, preset: str = "l0", iterations: int = ITERATIONS) -> np.ndarray:
     """Unit normals of ``points`` (shape (n, 3)) by the WNNC iteration, shape (n, 3), oriented outward."""
-    return field_normals(points, PRESETS[preset], ITERATIONS)
+    return field_normals(points, PRESETS[preset], iterations)

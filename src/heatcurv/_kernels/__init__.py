@@ -18,6 +18,8 @@ a numba kernel, with no per-pair temporaries:
                neighbourhood (:mod:`heatcurv.tiles.neighbours`)
 ``winding``    generalised winding numbers of labelled dipoles
                (:mod:`heatcurv.orient.enclosure`)
+``dipoles``    the winding number of one dipole a point, its transpose and its
+               gradient over a one-level grid (:mod:`heatcurv.orient.consistency`)
 ``visibility`` rays walked through a grid of discs: which escape
                (:mod:`heatcurv.orient.visibility`)
 =============  ==============================================================

@@ -96,7 +96,7 @@ def _cell_rows(row0, row1, x, values, start, centre, total):
                     centre[c, k] += x[i, k] / members
 
 
-@njit(inline="always")
+@njit(inline="always", fastmath=True)
 def _term(kind, dx, dy, dz, d2, v0, v1, v2):
     """One source's term at the offset ``(dx, dy, dz) = x_i - x_j`` (``|.|^2 = d2``) of value ``v``."""
     d3 = np.sqrt(d2) * d2
@@ -108,7 +108,7 @@ def _term(kind, dx, dy, dz, d2, v0, v1, v2):
     return v0 / d3 - 3.0 * dx * dot / d5, v1 / d3 - 3.0 * dy * dot / d5, v2 / d3 - 3.0 * dz * dot / d5
 
 
-@njit(**ROW_CORE)
+@njit(**ROW_CORE, fastmath=True)
 def _sum_rows(row0, row1, kind, x, values, start, cells, far2, width2, out):
     centre, total = cells
     for i in range(row0, row1):

@@ -6,6 +6,8 @@
                  towards a viewpoint; ``"auto"`` picks one per cloud
 ``enclosure``    the winding number's patch signs and the points it
                  contradicts on a closed cloud
+``consistency``  the winding field's own normals, solved from no
+                 orientation: a second opinion on the sides
 ===============  ============================================================
 
 Imports :mod:`heatcurv.geometry` and :mod:`heatcurv.operators` only;
