@@ -298,6 +298,11 @@ def test_the_winding_fields_own_normals_point_out_of_smooth_clouds_noisy_or_not(
         assert np.median(cosine) > 0.99, name
 
 
+def test_the_winding_fields_iteration_refuses_fewer_than_two_steps():
+    with pytest.raises(ValueError, match="at least 2 steps"):
+        field_normals(np.random.default_rng(0).normal(size=(50, 3)), iterations=1)
+
+
 def test_dipole_sums_match_the_pair_sums_written_out():
     rng = np.random.default_rng(0)
     x = rng.normal(size=(300, 3))

@@ -18,10 +18,9 @@ normal consistency", ACM ToG 43(6)), which knows no normal at the start:
 * the points are first scaled into the box ``[-1/1.1, 1/1.1]`` along their
   longest side, and the widths are the authors' preset for real scans
   (:data:`WIDTHS`), both widened together where the points are rougher than
-  the narrowest allows: below the noise, the field's normals follow each
-  point's scatter (a torus with noise of 0.6 % of its diagonal, 6000 points:
-  34 % of them more than 53 degrees off at the preset's widths, none at
-  widths from six times the roughness).
+  the narrowest allows: at widths below the noise, the field's normals follow
+  each point's scatter instead of the surface (docs/how_it_works.md,
+  thresholds).
 
 The directions ``G mu`` after the last step are the field's normals. Where a
 tree-oriented normal points against them, two methods that share nothing but
@@ -72,6 +71,8 @@ def field_normals(points: np.ndarray, widths: tuple[float, float] = WIDTHS,
         Unit vectors, pointing out of what the points enclose.
     """
     iterations = TUNING.field_iterations if iterations is None else int(iterations)
+    if iterations < 2:
+        raise ValueError(f"the winding field's iteration needs at least 2 steps, got {iterations}")
     low, high = points.min(axis=0), points.max(axis=0)
     scaled = (points - (low + high) / 2.0) * (2.0 / (np.max(high - low) * 1.1))
     grid = DipoleGrid(scaled)
