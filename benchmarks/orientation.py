@@ -62,8 +62,10 @@ Methods
               ``pip install open3d`` (the ``peers`` extra); skipped with a note
               when missing.
 ``wnnc``      a winding-number orientation: the iteration of WNNC (Lin, Shi
-              and Liu 2024), re-implemented in ``benchmarks/wnnc.py`` (the
-              authors' code needs a PyTorch extension), 40 iterations, the
+              and Liu 2024), heatcurv's re-implementation
+              (:mod:`heatcurv.orient.consistency`, run on every point by
+              ``benchmarks/wnnc.py``; the authors' code needs a PyTorch
+              extension), 40 iterations, the
               width preset of :data:`WNNC_PRESET`. Its normals are the
               winding field's gradient, outward by construction; it flags
               nothing.
