@@ -45,6 +45,19 @@ def test_a_closed_surface_faces_down_as_much_as_up(name, turn):
     assert policy.down >= 0.4
 
 
+def test_a_sphere_sampled_in_two_caps_is_joined_and_closed():
+    # a sample without its equator (as keys that vary with latitude alone leave a lattice sphere): its
+    # spanning forest is two caps 0.3 apart (5.6 sample spacings), each a graph over the plane; joined,
+    # the sphere faces down as much as up (measured: 50 % of the sum |n_z|; unjoined, "up" with 0 %)
+    points = surfaces.Sphere().sample(4000, "fibonacci").points
+    caps = points[np.abs(points[:, 2]) > 0.15]
+    policy = auto_policy(caps)
+    assert policy.mode == "outward" and policy.down >= 0.4
+    # further apart than TUNING.auto_join_reach sample spacings (here 43), two trees stay apart
+    far = np.concatenate([caps[caps[:, 2] > 0], caps[caps[:, 2] < 0] - np.array([0.0, 0.0, 2.0])])
+    assert auto_policy(far).mode == "up"
+
+
 @pytest.mark.parametrize("name", sorted(OVER_THE_GROUND))
 def test_an_open_surface_over_the_ground_faces_up(name):
     # measured: nothing facing down on any of them; 58 % (the cap) to 93 % (the tile) within 45 degrees of vertical

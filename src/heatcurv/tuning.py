@@ -129,6 +129,9 @@ class Tuning:
     #: Plates under about two spacings thick 42-77 %; noisy saddles, the LiDAR tile and a face range map 0-5 %.
     auto_split_share: float = _knob(0.25, "largest share of layered sample balls that still says up")
     auto_split_neighbours: int = _knob(30, "sample points in the balls auto_split_share reads (16 are too few)")
+    #: A 4000-point lattice sphere whose sample keys left its equator empty: two hemispheres 6.1 spacings apart.
+    auto_join_reach: float = _knob(10.0, "largest gap, in sample spacings, across which two sample trees are joined")
+    auto_join_share: float = _knob(0.05, "least share of the sample in each of two trees that are joined")
     #: The switch between outward and the flat-patch convention is where a cloud and its half can differ:
     #: a turned LiDAR tile votes 0.12, its random half 0.07.
     weak_vote: float = _knob(0.03, "outward vote below which a component is too flat to tell inside from outside")

@@ -72,8 +72,14 @@ def geometric_keys(points: np.ndarray, nbhd: Neighbourhood, frame=None) -> np.nd
         local = nbhd.radius + np.where(counts > 0, nbhd.distances[np.minimum(nbhd.indptr[:-1], nbhd.n_pairs - 1)], 0.0)
         local = local / max(scale, np.finfo(float).tiny)
     else:
-        # one radius for all (radius=): how many neighbours the ball holds (a number: no unit to divide)
-        local = counts * 1e-3
+        # one radius for all: how many neighbours the ball holds (a number: no unit to divide) and its nearest
+        # one's distance (the count alone takes a few values, and on a sphere, whose points all have the same r,
+        # the smallest keys would crowd into the bands of one count)
+        nearest = np.zeros(counts.shape[0])
+        filled = counts > 0
+        if filled.any():
+            nearest[filled] = np.minimum.reduceat(nbhd.distances, nbhd.indptr[:-1][filled])
+        local = counts * 1e-3 + nearest / max(scale, np.finfo(float).tiny)
     feature = _GOLDEN * r / max(scale, np.finfo(float).tiny) + _SILVER * local
     return np.modf(feature * key_spread(n_cloud))[0]
 

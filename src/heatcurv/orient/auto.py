@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 from .._kernels import segment as kernels
 from ..geometry.neighbourhood import knn_neighbourhood
 from ..tuning import TUNING
-from .orientation import AutoPolicy, tree_sides
+from .orientation import AutoPolicy, _edge_agreement, tree_sides
 
 __all__ = ["AUTO_NEIGHBOURS", "auto_policy", "convex_side"]
 
@@ -35,7 +35,8 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     ``sum_i A_i n_z,i = 0`` (divergence theorem), as much facing down as up,
     whichever way it is turned. So the sample's PCA normals (each point's
     :data:`AUTO_NEIGHBOURS` nearest) are oriented consistently by the spanning
-    tree of :func:`heatcurv.orient.orientation.orient`, and the cloud is
+    tree of :func:`heatcurv.orient.orientation.orient` (its trees joined
+    across narrow gaps, :func:`_joined_trees`), and the cloud is
     oriented ``"up"`` when at least ``TUNING.auto_share`` of them lie within 45
     degrees of vertical (some ground: a street between tall facades has a
     seventh) and at most ``TUNING.auto_down_share`` of the ``sum |n_z|`` of the
@@ -91,6 +92,7 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     flat = eigenvalues[:, 0] <= TUNING.auto_flatness * eigenvalues[:, 1]
     oriented, _, labels = tree_sides(centres, normals, nbhd)
     spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
+    oriented, labels = _joined_trees(centres, oriented, labels, spacing)
     split = _split_share(centres, normals, tree, spacing)  # the balls' split needs no vertical: read once
     sample = _Sample(centres, normals, flat, oriented, labels, spacing, noise, split)
     # the flat normals' own axis: a surface over a plane turned away from horizontal, a plate's normal
@@ -105,6 +107,54 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
         return vertical
     towards, convex = convex_side(centres, oriented, axis)
     return replace(tilted, towards=tuple(float(c) for c in towards), convex=convex)
+
+
+def _joined_trees(centres: np.ndarray, oriented: np.ndarray, labels: np.ndarray, spacing: float) -> tuple:
+    """The sample's spanning trees joined across narrow gaps: ``oriented`` and ``labels``, shapes as given.
+
+    Keys that vary smoothly over a symmetric cloud (a lattice on a sphere,
+    whose points all lie at one distance from the centroid) can leave bands
+    of it without a sample point; the sample's forest then falls into
+    pieces, each of which is a graph over some plane, and a closed surface
+    would pass for an open one. So the two largest-enough trees (at least
+    ``TUNING.auto_join_share`` of the sample each) whose nearest points are
+    closest are joined, repeatedly, while those points are at most
+    ``TUNING.auto_join_reach`` sample spacings apart and their normals'
+    agreement (:func:`heatcurv.orient.orientation._edge_agreement`) is clear
+    (``|s| >= 0.5``): the smaller tree is flipped to agree with the larger.
+    Separate objects further apart keep their own trees.
+
+    Parameters
+    ----------
+    centres, oriented : ndarray, shape (q, 3)
+        The sample and its normals oriented tree by tree.
+    labels : ndarray, shape (q,)
+        Each point's tree.
+    spacing : float
+        The median distance from a sample point to its nearest.
+    """
+    oriented, labels = oriented.copy(), labels.copy()
+    while True:
+        sizes = np.bincount(labels)
+        large = np.flatnonzero(sizes >= TUNING.auto_join_share * labels.size)
+        if large.size < 2:
+            break
+        in_large = np.isin(labels, large)
+        gap, a, b = np.inf, -1, -1
+        for tree in large:
+            mine, others = np.flatnonzero(labels == tree), np.flatnonzero(in_large & (labels != tree))
+            distance, nearest = cKDTree(centres[others]).query(centres[mine])
+            k = int(np.argmin(distance))
+            if distance[k] < gap:
+                gap, a, b = float(distance[k]), int(mine[k]), int(others[nearest[k]])
+        agreement = float(_edge_agreement(centres, oriented, np.array([a]), np.array([b]))[0])
+        if gap > TUNING.auto_join_reach * spacing or abs(agreement) < 0.5:
+            break
+        smaller, larger = sorted((labels[a], labels[b]), key=lambda tree: sizes[tree])
+        if agreement < 0:
+            oriented[labels == smaller] *= -1.0
+        labels[labels == smaller] = larger
+    return oriented, np.unique(labels, return_inverse=True)[1]
 
 
 class _Sample(NamedTuple):
