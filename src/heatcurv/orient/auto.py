@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 from .._kernels import segment as kernels
 from ..geometry.neighbourhood import knn_neighbourhood
 from ..tuning import TUNING
-from .orientation import AutoPolicy, _edge_agreement, tree_sides
+from .orientation import AutoPolicy, edge_agreement, tree_sides
 
 __all__ = ["AUTO_NEIGHBOURS", "auto_policy", "convex_side"]
 
@@ -120,7 +120,7 @@ def _joined_trees(centres: np.ndarray, oriented: np.ndarray, labels: np.ndarray,
     ``TUNING.auto_join_share`` of the sample each) whose nearest points are
     closest are joined, repeatedly, while those points are at most
     ``TUNING.auto_join_reach`` sample spacings apart and their normals'
-    agreement (:func:`heatcurv.orient.orientation._edge_agreement`) is clear
+    agreement (:func:`heatcurv.orient.orientation.edge_agreement`) is clear
     (``|s| >= 0.5``): the smaller tree is flipped to agree with the larger.
     Separate objects further apart keep their own trees.
 
@@ -147,7 +147,7 @@ def _joined_trees(centres: np.ndarray, oriented: np.ndarray, labels: np.ndarray,
             k = int(np.argmin(distance))
             if distance[k] < gap:
                 gap, a, b = float(distance[k]), int(mine[k]), int(others[nearest[k]])
-        agreement = float(_edge_agreement(centres, oriented, np.array([a]), np.array([b]))[0])
+        agreement = float(edge_agreement(centres, oriented, np.array([a]), np.array([b]))[0])
         if gap > TUNING.auto_join_reach * spacing or abs(agreement) < 0.5:
             break
         smaller, larger = sorted((labels[a], labels[b]), key=lambda tree: sizes[tree])

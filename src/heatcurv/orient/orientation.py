@@ -91,7 +91,7 @@ from .enclosure import enclose, patches, sampled_sources
 
 __all__ = [
     "ORIENT_MODES", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
-    "local_sides", "as_viewpoint", "axisless_balls", "AutoPolicy", "tree_sides",
+    "local_sides", "as_viewpoint", "axisless_balls", "AutoPolicy", "tree_sides", "edge_agreement",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
@@ -475,7 +475,7 @@ def local_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood, s
     ``v_i = sum_j s_ij (1 - max(|n_i . e_ij|, |n_j . e_ij|))_+ side_j``,
 
     ``s_ij`` the normals' agreement with the edge component removed
-    (:func:`_edge_agreement`: 0.5 across a right-angled edge such as a wall's
+    (:func:`edge_agreement`: 0.5 across a right-angled edge such as a wall's
     eave or foot, so a roof or the ground carries its side onto the wall) and
     the second factor 0 for an edge along the normals (across a thin part,
     between two sides of a sheet); it takes the side ``sign(v_i)`` when
@@ -517,7 +517,7 @@ def local_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood, s
     lo, counts = graph.indptr[todo], graph.counts[todo]
     pair = np.repeat(lo - (np.cumsum(counts) - counts), counts) + np.arange(counts.sum())
     row, col, dist = np.repeat(todo, counts), graph.indices[pair], graph.distances[pair]
-    weight = _edge_agreement(points, normals, row, col) * np.clip(1.0 - _edge_tilt(points, normals, row, col), 0, None)
+    weight = edge_agreement(points, normals, row, col) * np.clip(1.0 - _edge_tilt(points, normals, row, col), 0, None)
     for done in range(int(hops)):
         # synchronous: every undecided point's state (side, or still none) follows from its row's
         # states in the round before, so its reach grows by one edge per round
@@ -658,7 +658,7 @@ def tree_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood):
     Returns
     -------
     oriented : ndarray, shape (n, 3)
-        ``normals``, each flipped or not to agree with its tree's root (:func:`_edge_agreement` along the edges).
+        ``normals``, each flipped or not to agree with its tree's root (:func:`edge_agreement` along the edges).
     forest : scipy.sparse.csr_matrix, shape (n, n)
         The symmetric forest (:func:`_spanning_forest`).
     labels : ndarray, shape (n,)
@@ -672,7 +672,7 @@ def tree_sides(points: np.ndarray, normals: np.ndarray, graph: Neighbourhood):
     return normals * np.where(parity, -1.0, 1.0)[:, None], forest, labels
 
 
-def _edge_agreement(points, normals, i, j) -> np.ndarray:
+def edge_agreement(points, normals, i, j) -> np.ndarray:
     """``s_ij = n_i . n_j - (n_i . e)(n_j . e)``, ``e`` the unit edge ``xi -> xj``, shape (len(i),).
 
     The normals' dot product once their components along the edge are
@@ -680,6 +680,13 @@ def _edge_agreement(points, normals, i, j) -> np.ndarray:
     still clearly positive for consistent normals across a sharp edge (0.5 at
     a right-angled one, convex or concave), where ``n_i . n_j`` is about 0 and
     its sign is noise. Negative: one of the two normals must flip.
+
+    Parameters
+    ----------
+    points, normals : ndarray, shape (n, 3)
+        The points and their unit normals.
+    i, j : ndarray of int, shape (m,)
+        The edges' ends.
     """
     edge = points[j] - points[i]
     length = np.linalg.norm(edge, axis=1)
