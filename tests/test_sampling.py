@@ -8,6 +8,7 @@ by up to 16 % at single points (measured, 20k points, 0.6 % noise, kernel of 192
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 import heatcurv
@@ -47,7 +48,6 @@ def test_ball_keys_spread_a_sample_over_a_sphere():
     sample = pts[key_sample(keys, 2000)]
     # no hole: every point lies within 2.5 mean sample spacings (sqrt(4 pi / 2000) = 0.079) of the sample
     # (measured: 0.15; 0.60 from the radii and counts alone)
-    from scipy.spatial import cKDTree
     assert cKDTree(sample).query(pts)[0].max() < 0.2
 
 
