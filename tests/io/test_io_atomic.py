@@ -161,7 +161,10 @@ def slow(stream):
     stream.write(b"x" * (16 << 20))  # 16 MB written, then the writer waits to be killed
     stream.flush()
     print("writing", flush=True)
-    time.sleep(120)
+    # short sleeps: a signal that lands between the print and a long sleep's system call would wait for the
+    # whole sleep (Python runs its handler between bytecodes); here it runs within 0.1 s
+    for _ in range(1200):
+        time.sleep(0.1)
 
 try:
     with signals_as_interrupts():
