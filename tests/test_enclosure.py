@@ -364,12 +364,13 @@ def _torus_and_bowl(seed=0):
 
 def test_an_open_sheet_beside_a_closed_object_is_judged_on_its_own(records):
     # the bowl's field (about -+1/2 on its sides) contradicted every one of its levels: the whole bowl was
-    # flagged (0 of 6000 points reliable), and a larger one turned the cloud open; alone, it is open: it
-    # keeps its outward vote (its convex side, down) and is flagged by nothing of the winding number
+    # flagged (0 of 6000 points reliable), and a larger one turned the cloud open; alone, it is open: under
+    # "outward" it keeps its outward vote (its convex side, down) and is flagged by nothing of the winding number
     torus, bowl = _torus_and_bowl()
-    res = heatcurv.estimate(np.vstack([torus.points, bowl]))
+    res = heatcurv.estimate(np.vstack([torus.points, bowl]), orient="outward")
     report = res.info["orientation"]
     assert report.closed and report.open_components == 1 and report.components == 2
+    assert report.upward_components == 0 and report.by_convention == 0
     assert report.turned == 0 and report.unsupported == 0
     assert "1 object(s) open on their own" in report.reason
     assert np.all(np.einsum("ij,ij->i", res.normals[:6000], torus.normals) > 0)
@@ -407,8 +408,9 @@ def test_components_that_agree_stay_together_and_open_ones_keep_their_sides():
 
 
 def test_rays_leave_the_sides_of_an_open_component_alone():
-    # a bowl z = 0.4 r^2 (r <= 1.5) beside a torus is open on its own: it keeps its outward vote (normals out of
-    # its convex side); its rim's rays escape up out of the bowl, which turned 6 of its unreliable points into it
+    # a bowl z = 0.4 r^2 (r <= 1.5) beside a torus is open on its own: under "outward" it keeps its outward vote
+    # (normals out of its convex side); its rim's rays escape up out of the bowl, which turned 6 of its
+    # unreliable points into it
     rng = np.random.default_rng(0)
     torus = surfaces.get("torus").sample(6000, "random", seed=3)
     xy = rng.uniform(-1.5, 1.5, (32000, 2))
@@ -418,7 +420,7 @@ def test_rays_leave_the_sides_of_an_open_component_alone():
     bowl = np.column_stack([xy[:, 0] + 6.0, xy[:, 1], 0.4 * (xy**2).sum(axis=1)])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", heatcurv.HeatcurvWarning)
-        res = heatcurv.estimate(np.vstack([torus.points, bowl]))
+        res = heatcurv.estimate(np.vstack([torus.points, bowl]), orient="outward")
     report = res.info["orientation"]
     assert report.closed and report.open_components == 1 and report.escaped == 0
     into_bowl = np.einsum("ij,ij->i", res.normals[6000:], np.column_stack([-0.8 * xy, np.ones(len(xy))])) > 0

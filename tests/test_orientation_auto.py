@@ -7,6 +7,7 @@ from scipy.spatial.transform import Rotation
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.orient.auto import auto_policy
+from heatcurv.orient.enclosure import upward_side
 from heatcurv.tuning import TUNING
 
 
@@ -343,3 +344,67 @@ def test_a_tiled_run_takes_a_thin_plate_for_closed_too(tmp_path):
     assert not np.any(inward & out.fields["reliable"].astype(bool))
     in_memory = heatcurv.estimate(sample.points)
     assert np.mean(np.einsum("ij,ij->i", out.normals, in_memory.normals) > 0) >= 0.999
+
+
+def _valley_and_boulder(seed=0):
+    """A valley ``z = 0.1 (x^2 + y^2)`` over ``[-2, 2]^2`` (20 000 random points) and a sphere of radius 0.3
+    (4000 points) 1.5 over its bottom: terrain and a closed object apart from it."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-2.0, 2.0, (20000, 2))
+    ground = np.column_stack([xy, 0.1 * (xy**2).sum(axis=1)])
+    sphere = surfaces.Sphere(radius=0.3).sample(4000, "random", seed=seed)
+    return ground, sphere.points + [0.0, 0.0, 1.5], sphere.normals
+
+
+def test_the_ground_beside_a_closed_object_faces_up_as_it_does_alone():
+    # the cloud is closed (the sphere), the valley an object open on its own: it kept its outward vote, its
+    # convex side, down, and every one of its 20 000 points was reliable with the sign of its curvature
+    # turned; alone it faces up. Each component is now decided as it would be alone
+    ground, boulder, outward = _valley_and_boulder()
+    res = heatcurv.estimate(np.vstack([ground, boulder]))
+    report = res.info["orientation"]
+    assert report.closed and report.open_components == 1 and report.upward_components == 1
+    assert report.by_convention == len(ground) and report.turned == 0
+    assert "1 over the horizontal plane (terrain, ground): up (+z)" in report.reason
+    assert np.all(res.normals[:20000, 2] > 0)
+    assert np.all(np.einsum("ij,ij->i", res.normals[20000:], outward) > 0)
+    alone = heatcurv.estimate(ground)
+    assert alone.info["orientation"].mode == "up"
+    assert np.all(np.einsum("ij,ij->i", res.normals[:20000], alone.normals) > 0)
+    # k1 = k2 = 0.2 / (1 + 0.04 r^2)^(3/2) near the bottom, the normal up into the valley: mean -0.2 within 1 %
+    bottom = np.hypot(ground[:, 0], ground[:, 1]) < 0.3
+    assert np.all(np.abs(res.mean[:20000][bottom] / -0.2 - 1.0) < 0.011)
+    # orient="outward" asked for by name keeps the outward vote
+    named = heatcurv.estimate(np.vstack([ground, boulder]), orient="outward")
+    assert named.info["orientation"].upward_components == 0 and np.all(named.normals[:20000, 2] < 0)
+
+
+def test_an_open_object_over_no_plane_beside_a_closed_one_keeps_its_convex_side():
+    # a standing half cylinder (its normals horizontal) beside a sphere: not over the horizontal plane, so it
+    # keeps its outward vote, out of its convex side, as an open surface over no plane does alone
+    rng = np.random.default_rng(1)
+    theta, z = rng.uniform(0.0, np.pi, 8000), rng.uniform(0.0, 2.0, 8000)
+    shell = np.column_stack([np.cos(theta), np.sin(theta), z])
+    sphere = surfaces.Sphere(radius=0.5).sample(4000, "random", seed=1)
+    res = heatcurv.estimate(np.vstack([shell, sphere.points + [4.0, 0.0, 1.0]]))
+    report = res.info["orientation"]
+    assert report.closed and report.open_components == 1 and report.upward_components == 0
+    radial = np.column_stack([np.cos(theta), np.sin(theta), np.zeros(8000)])
+    assert np.all(np.einsum("ij,ij->i", res.normals[:8000], radial) > 0)
+
+
+def test_the_upward_side_reads_one_consistent_side_over_the_plane():
+    # an open object's consistently oriented sources: facing down, it is turned; facing both ways it is over no
+    # plane; with too few near-vertical normals (walls) it is over no plane either
+    rng = np.random.default_rng(2)
+    tilt = rng.uniform(0.0, 0.6, 400)
+    down = np.column_stack([np.sin(tilt), np.zeros(400), -np.cos(tilt)])
+    weight, flat = rng.uniform(0.5, 1.5, 400), np.ones(400, dtype=bool)
+    assert upward_side(down, weight, flat) == -1.0 and upward_side(-down, weight, flat) == 1.0
+    mixed = down.copy()
+    mixed[:8] *= -1  # 2 % of the sum |n_z| the other way
+    assert upward_side(mixed, weight, flat) == 0.0
+    assert upward_side(mixed, weight, np.arange(400) >= 8) == -1.0  # those 2 % not flat: not counted
+    wall = np.column_stack([np.ones(400), np.zeros(400), np.full(400, -0.05)]) / np.sqrt(1.0025)
+    wall[: int(0.09 * 400)] = down[: int(0.09 * 400)]  # 9 % of the weight-ish near vertical
+    assert upward_side(wall, np.ones(400), flat) == 0.0

@@ -101,6 +101,8 @@ def explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> O
     if (report.closed or report.undecided) and report.open_components:
         why += (f"; {report.open_components} object(s) open on their own (a sheet beside the object): "
                 "each its outward vote, its convex side out")
+        if report.upward_components:
+            why += f", but {report.upward_components} over the horizontal plane (terrain, ground): up (+z)"
     return replace(report, reason=why if policy is None else f"{policy.reason}; {why}", policy=policy)
 
 
@@ -146,6 +148,7 @@ def normal_stages(op: HeatKernelOperator, given, mode: str, towards, outlier: np
             towards = policy.towards
         orientation = orient(X, nrm, nbhd, op.areas, mode=mode if policy is None else policy.mode, towards=towards,
                              excluded=outlier, whole_cloud=choices is None,
-                             cloud_points=None if choices is None else choices.frame.n_points, roundness=roundness)
+                             cloud_points=None if choices is None else choices.frame.n_points, roundness=roundness,
+                             open_up=policy is not None)
     return orientation.normals, (planarity, roundness), orientation, policy
 

@@ -56,7 +56,8 @@ def test_outward_sphere(tmp_path):
 
 def test_an_open_sheet_beside_a_closed_object_is_judged_on_its_own_in_tiles(tmp_path):
     """A torus and an open bowl beside it: the driver judges each object on its own, as in memory (every
-    point of the bowl flagged before, since the bowl's field contradicted its levels)."""
+    point of the bowl flagged before, since the bowl's field contradicted its levels), and turns the bowl,
+    over the horizontal plane, to face up as in memory."""
     torus = heatcurv.surfaces.get("torus").sample(6000, "random", seed=3)
     xy = np.random.default_rng(0).uniform(-1.5, 1.5, (6000, 2))
     points = np.vstack([torus.points, np.column_stack([xy[:, 0] + 6.0, xy[:, 1], 0.1 * (xy**2).sum(axis=1)])])
@@ -65,9 +66,11 @@ def test_an_open_sheet_beside_a_closed_object_is_judged_on_its_own_in_tiles(tmp_
                           dtype="float64", progress=False)
     assert report.tiles >= 4 and report.orientation["objects"] == 2
     assert report.orientation["closed"] is True and report.orientation["open_components"] == 1
+    assert report.orientation["upward_components"] == 1
     assert report.orientation["unsupported"] == 0 and report.orientation["turned"] == 0
     memory = heatcurv.estimate(points)
-    assert memory.info["orientation"].open_components == 1
+    assert memory.info["orientation"].open_components == 1 and memory.info["orientation"].upward_components == 1
+    assert np.all(memory.normals[6000:, 2] > 0)
     agreement = tiled_agreement(tmp_path / "out.ply", memory, rtol=1e-9)
     assert agreement["normals"]["bad"] == 0 and agreement["reliable"]["bad"] == 0 and agreement["mean"]["bad"] == 0
     assert memory.reliable[6000:].mean() > 0.9

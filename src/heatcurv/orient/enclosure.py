@@ -97,7 +97,7 @@ from ..tuning import TUNING
 from .consistency import field_normals
 
 __all__ = [
-    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys",
+    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "upward_side",
     "source_roundness", "MAX_SOURCES", "MAX_UNKNOWNS", "warn_undecided",
 ]
 
@@ -152,6 +152,11 @@ class Enclosure:
         ``unsupported``; None when there are none.
     open_components : int
         How many such objects.
+    upward : ndarray, shape (n,), bool or None
+        The points of those objects that lie over the horizontal plane and were
+        made to face ``+z`` (``open_up``); None when there are none.
+    upward_components : int
+        How many such objects.
     """
 
     normals: np.ndarray
@@ -164,11 +169,13 @@ class Enclosure:
     sources: np.ndarray | None = None
     open: np.ndarray | None = None
     open_components: int = 0
+    upward: np.ndarray | None = None
+    upward_components: int = 0
 
 
 def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, areas: np.ndarray,
             neighbourhood: Neighbourhood, excluded: np.ndarray | None = None,
-            roundness: np.ndarray | None = None) -> Enclosure:
+            roundness: np.ndarray | None = None, open_up: bool = False) -> Enclosure:
     """Choose the side of every patch of the spanning forest by the winding number, and flag what it contradicts.
 
     Parameters
@@ -189,6 +196,9 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     roundness : ndarray, shape (n,), optional
         The balls' PCA roundness ``lambda_0 / lambda_1``: a cloud whose
         sources' balls are round is coarse (:func:`patch_sides`).
+    open_up : bool, optional
+        Whether objects open on their own that lie over the horizontal plane
+        face ``+z`` instead of keeping the tree's sides (:func:`patch_sides`).
 
     Returns
     -------
@@ -204,22 +214,26 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     weight = np.abs(areas[source]) * (np.abs(areas[~excluded]).sum() / np.abs(areas[source]).sum())
     n_patch = int(patch.max()) + 1
     sides = patch_sides(points[source], normals[source], weight, patch[source], n_patch,
-                        fine[source], int(fine.max()) + 1, None if roundness is None else roundness[source])
+                        fine[source], int(fine.max()) + 1, None if roundness is None else roundness[source],
+                        open_up=open_up)
     if not (sides.closed or sides.undecided):
         return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0,
                          outside_share=sides.outside_share)
     flip = sides.sign[patch] * sides.fine_sign[fine] < 0
     flip[excluded] = False
-    is_open = None
+    is_open = upward = None
     if sides.open_components:
         is_open = sides.open_patches(patch[source], n_patch)[patch] & ~excluded
+    if sides.upward_components:
+        upward = sides.upward_patches(patch[source], n_patch)[patch] & ~excluded
     unsupported = (~excluded if is_open is None else ~excluded & ~is_open) if sides.undecided else \
         _unsupported(source, sides.bad, neighbourhood, excluded)
     oriented = np.where(flip[:, None], -normals, normals)
     is_source = np.zeros(n, dtype=bool)
     is_source[source] = True
-    return Enclosure(oriented, unsupported, sides.closed, sides.agreement, int(flip.sum()), sides.undecided,
-                     sides.outside_share, is_source, is_open, sides.open_components)
+    turned = flip if is_open is None else flip & ~is_open  # an open object turned up is not the field's doing
+    return Enclosure(oriented, unsupported, sides.closed, sides.agreement, int(turned.sum()), sides.undecided,
+                     sides.outside_share, is_source, is_open, sides.open_components, upward, sides.upward_components)
 
 
 @dataclass(frozen=True)
@@ -255,9 +269,14 @@ class PatchSides:
         (those ``agreement`` counts).
     open : ndarray, shape (m,), bool, optional
         Sources of objects that are open on their own (:func:`patch_sides`): their
-        patches keep the tree's sides, and none of them is ``bad``. The verdict above is
-        that of the other sources.
+        patches keep the tree's sides (or face up, below), and none of them is ``bad``.
+        The verdict above is that of the other sources.
     open_components : int
+        How many such objects.
+    upward : ndarray, shape (m,), bool, optional
+        With ``open_up``: the sources of the open objects over the horizontal
+        plane (:func:`upward_side`), whose patches' ``sign`` makes them face ``+z``.
+    upward_components : int
         How many such objects.
     """
 
@@ -271,18 +290,29 @@ class PatchSides:
     sure: np.ndarray | None = None
     open: np.ndarray | None = None
     open_components: int = 0
+    upward: np.ndarray | None = None
+    upward_components: int = 0
 
     def open_patches(self, label: np.ndarray, n_patch: int) -> np.ndarray:
         """The patches of :attr:`open` sources (``label``: the sources' patches), shape (n_patch,), bool."""
-        out = np.zeros(n_patch, dtype=bool)
-        if self.open is not None:
-            out[label[self.open]] = True
-        return out
+        return _patches_of(self.open, label, n_patch)
+
+    def upward_patches(self, label: np.ndarray, n_patch: int) -> np.ndarray:
+        """The patches of :attr:`upward` sources (``label``: the sources' patches), shape (n_patch,), bool."""
+        return _patches_of(self.upward, label, n_patch)
+
+
+def _patches_of(sources: np.ndarray | None, label: np.ndarray, n_patch: int) -> np.ndarray:
+    """The patches holding any of ``sources`` (a mask over ``label``, or None: none), shape (n_patch,), bool."""
+    out = np.zeros(n_patch, dtype=bool)
+    if sources is not None:
+        out[label[sources]] = True
+    return out
 
 
 def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.ndarray, n_patch: int,
                 fine: np.ndarray | None = None, n_fine: int = 0, roundness: np.ndarray | None = None,
-                objects: bool = True) -> PatchSides:
+                objects: bool = True, open_up: bool = False) -> PatchSides:
     """Each patch's side and each source's verdict, from the winding number of the sources (module docstring).
 
     With finer patches (:func:`patches`' pieces), a closed cloud's patches of
@@ -305,6 +335,9 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     the tree's sides, none of its sources is flagged, and the others are
     solved again without it. Objects that agree stay together, so that the
     field still sees a cavity inside an object and an object sampled in pieces.
+    With ``open_up`` (``orient="auto"``), an open object over the horizontal
+    plane (:func:`upward_side`: the ground beside a boulder, terrain around a
+    building) faces ``+z``, as the same object alone would (:mod:`heatcurv.orient.auto`).
 
     A closed cloud's sources then get a second opinion that shares nothing with
     the spanning tree: the winding field's own normals, solved from no
@@ -331,12 +364,14 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
         or more is coarse, and undecided below ``TUNING.undecided_share`` too.
     objects : bool, optional
         Whether to judge each object on its own too (the solve over the other objects does not).
+    open_up : bool, optional
+        Whether the open objects over the horizontal plane face ``+z`` (else they keep the tree's sides).
 
     Returns
     -------
     PatchSides
     """
-    sides = _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, objects)
+    sides = _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, objects, open_up)
     if not sides.closed:
         return sides
     # a second opinion from no orientation at all: the winding field's own normals
@@ -349,14 +384,15 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     return dataclasses.replace(sides, bad=sides.bad | doubt)
 
 
-def _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, objects) -> PatchSides:
+def _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, objects, open_up=False) -> PatchSides:
     """:func:`patch_sides` from the winding energy alone, without the field's own normals."""
     sides = _solved_sides(x, nrm, weight, label, n_patch, source_roundness(roundness))
     fine_sign = np.ones(n_fine)
     if objects:
-        is_open, count = _open_objects(x, nrm, weight, label, roundness, sides.sure)
-        if count:
-            return _without(is_open, count, x, nrm, weight, label, n_patch, fine, n_fine, roundness, sides)
+        is_open, owner = _open_objects(x, nrm, weight, label, roundness, sides.sure)
+        if is_open.any():
+            inner = _without(is_open, owner, x, nrm, weight, label, n_patch, fine, n_fine, roundness, sides)
+            return _turned_up(inner, owner, nrm, weight, label, roundness) if open_up else inner
     if fine is None or not sides.closed:
         return dataclasses.replace(sides, fine_sign=fine_sign)
     share = np.bincount(label, weights=weight * sides.bad, minlength=n_patch) / np.maximum(
@@ -438,13 +474,14 @@ def source_objects(x: np.ndarray, label: np.ndarray) -> np.ndarray:
     return csgraph.connected_components(graph, directed=False)[1]
 
 
-def _open_objects(x, nrm, weight, label, roundness, sure) -> tuple[np.ndarray, int]:
-    """The sources of objects open on their own (:func:`patch_sides`), shape (m,), bool, and how many objects."""
+def _open_objects(x, nrm, weight, label, roundness, sure) -> tuple[np.ndarray, np.ndarray]:
+    """The sources of objects open on their own (:func:`patch_sides`), shape (m,), bool, and every source's
+    object (:func:`source_objects`, numbered from 0), shape (m,), int."""
     is_open = np.zeros(x.shape[0], dtype=bool)
     _, inverse, counts = np.unique(source_objects(x, label), return_inverse=True, return_counts=True)
     judged = counts >= FEWEST_SOURCES
     if np.count_nonzero(judged) < 2:
-        return is_open, 0
+        return is_open, inverse
     agreeing = np.bincount(inverse, weights=weight * sure) / np.bincount(inverse, weights=weight)
     for c in np.flatnonzero(judged & (agreeing < TUNING.closed_share)):  # one solve per object, not per point
         members = inverse == c
@@ -452,12 +489,13 @@ def _open_objects(x, nrm, weight, label, roundness, sure) -> tuple[np.ndarray, i
         alone = _solved_sides(x[members], nrm[members], weight[members], own_label, own.size,
                               source_roundness(None if roundness is None else roundness[members]))
         is_open[members] = not (alone.closed or alone.undecided)
-    return is_open, int(np.unique(inverse[is_open]).size)
+    return is_open, inverse
 
 
-def _without(is_open, count, x, nrm, weight, label, n_patch, fine, n_fine, roundness, sides) -> PatchSides:
-    """:func:`patch_sides` over the sources not ``is_open`` (of ``count`` objects), whose patches keep their
+def _without(is_open, owner, x, nrm, weight, label, n_patch, fine, n_fine, roundness, sides) -> PatchSides:
+    """:func:`patch_sides` over the sources not ``is_open`` (their objects: ``owner``), whose patches keep their
     sides (all, when too few are left)."""
+    count = int(np.unique(owner[is_open]).size)
     rest = ~is_open
     if np.count_nonzero(rest) < FEWEST_SOURCES:
         return PatchSides(np.ones(n_patch), np.zeros(x.shape[0], dtype=bool), sides.agreement, False, False,
@@ -468,6 +506,62 @@ def _without(is_open, count, x, nrm, weight, label, n_patch, fine, n_fine, round
     bad, sure = np.zeros(x.shape[0], dtype=bool), np.zeros(x.shape[0], dtype=bool)
     bad[rest], sure[rest] = inner.bad, inner.sure
     return dataclasses.replace(inner, bad=bad, sure=sure, open=is_open, open_components=count)
+
+
+def _turned_up(sides: PatchSides, owner, nrm, weight, label, roundness) -> PatchSides:
+    """``sides`` with the open objects over the horizontal plane (:func:`upward_side`) facing ``+z``.
+
+    A closed cloud's other patches are as the winding number chose them; a cloud
+    left open (too few sources besides its open objects) keeps every side.
+    """
+    if not (sides.closed or sides.undecided):
+        return sides
+    sign, upward = sides.sign.copy(), np.zeros(owner.size, dtype=bool)
+    flat = np.ones(owner.size, dtype=bool) if roundness is None else ~(
+        np.asarray(roundness, dtype=float) > TUNING.auto_flatness)
+    for c in np.unique(owner[sides.open]):
+        members = owner == c
+        side = upward_side(nrm[members], weight[members], flat[members])
+        if side:
+            upward |= members
+            sign[np.unique(label[members])] = side  # the object's patches: they hold no other object's sources
+    count = int(np.unique(owner[upward]).size)
+    return dataclasses.replace(sides, sign=sign, upward=upward if count else None, upward_components=count)
+
+
+def upward_side(nrm: np.ndarray, weight: np.ndarray, flat: np.ndarray) -> float:
+    """The sign that makes an open object over the horizontal plane face ``+z``; 0 when it is not over it.
+
+    The test of :func:`heatcurv.orient.auto.auto_policy` along ``z`` on the
+    object's own consistently oriented sources: at least ``TUNING.auto_share``
+    of their weight within 45 degrees of vertical, and at most
+    ``TUNING.auto_down_share`` of ``sum |n_z|`` over the flat ones that are not
+    walls (``|n_z| >= TUNING.auto_wall_cosine``) on the side that faces the
+    other way.
+
+    Parameters
+    ----------
+    nrm : ndarray, shape (m, 3)
+        The object's sources' unit normals, consistent along the tree.
+    weight : ndarray, shape (m,)
+        Their areas.
+    flat : ndarray, shape (m,), bool
+        Sources whose balls are flat (``lambda_0 / lambda_1`` at most ``TUNING.auto_flatness``).
+
+    Returns
+    -------
+    float
+        ``+1`` (it faces up already), ``-1`` (turn it over) or ``0``.
+    """
+    nz = nrm[:, 2]
+    if weight[np.abs(nz) >= TUNING.auto_vertical_cosine].sum() < TUNING.auto_share * weight.sum():
+        return 0.0
+    counted = flat & (np.abs(nz) >= TUNING.auto_wall_cosine)
+    upward = float(np.sum(weight[counted] * np.clip(nz[counted], 0.0, None)))
+    downward = float(np.sum(weight[counted] * np.clip(-nz[counted], 0.0, None)))
+    if upward + downward <= 0.0 or min(upward, downward) > TUNING.auto_down_share * (upward + downward):
+        return 0.0
+    return 1.0 if upward >= downward else -1.0
 
 
 def source_roundness(roundness: np.ndarray | None, source=slice(None)) -> float:

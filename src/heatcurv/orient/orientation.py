@@ -149,6 +149,10 @@ class OrientationReport:
         open on their own (an open sheet beside a closed object), which keep
         their outward vote (or the flat convention) and whose sides the winding
         number neither turns nor flags (:func:`heatcurv.orient.enclosure.patch_sides`).
+    upward_components : int
+        Of those, the objects over the horizontal plane that ``orient="auto"``
+        made face ``+z`` (terrain beside a building, the ground a boulder lies
+        on), as it orients such an object alone; their points count in ``by_convention``.
     reason : str
         Which rule chose the sides, in words (``orient="auto"``: why this mode).
     policy : AutoPolicy or None
@@ -178,6 +182,7 @@ class OrientationReport:
     outside_share: float | None = None
     undecided: bool = False
     open_components: int = 0
+    upward_components: int = 0
     axisless: int = 0
     reason: str = ""
     policy: AutoPolicy | None = None
@@ -334,6 +339,7 @@ def orient(
     whole_cloud: bool = True,
     cloud_points: int | None = None,
     roundness: np.ndarray | None = None,
+    open_up: bool = False,
 ) -> Orientation:
     """Orient unoriented normals by one of :data:`ORIENT_MODES`.
 
@@ -383,6 +389,11 @@ def orient(
         scatter, a wire): its normal becomes the reference direction itself,
         so that no sample decides it (the estimator flags it unless its fit
         finds a surface there).
+    open_up : bool, optional
+        ``"outward"`` chosen by ``orient="auto"``: a closed cloud's objects open
+        on their own that lie over the horizontal plane face ``+z``
+        (:func:`heatcurv.orient.enclosure.patch_sides`) instead of keeping their
+        outward vote.
 
     Returns
     -------
@@ -412,26 +423,30 @@ def orient(
     unsupported, closed, undecided, turned, part = np.zeros(n, dtype=bool), None, False, 0, {}
     agreement = outside_share = None
     left_open, open_components = np.zeros(n, dtype=bool), 0  # objects of a closed cloud open on their own
+    upward, upward_components = np.zeros(n, dtype=bool), 0  # of those, the ones made to face +z
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
         patch, fine = patches(points, tree, cut, cloud_points)
         part = {"patch": patch, "fine": fine, "weights": w, "roundness": roundness,
                 "sources": sampled_sources(points, cut, n if cloud_points is None else cloud_points)}
     else:
-        enclosure = enclose(points, oriented, tree, w, nbhd, excluded, roundness)
+        enclosure = enclose(points, oriented, tree, w, nbhd, excluded, roundness, open_up)
         oriented, unsupported, closed, undecided, turned = (
             enclosure.normals, enclosure.unsupported, enclosure.closed, enclosure.undecided, enclosure.flipped)
         part = {"sources": enclosure.sources, "open": enclosure.open}
         agreement, outside_share = enclosure.agreement, enclosure.outside_share
         if enclosure.open is not None:
             left_open, open_components = enclosure.open, enclosure.open_components
+        if enclosure.upward is not None:
+            upward, upward_components = enclosure.upward, enclosure.upward_components
     ambiguous = _conflicting(points, oriented, graph) | unsupported
     report = OrientationReport(
         mode=mode, components=_surface_components(labels, excluded),
-        by_convention=int(np.sum(convention[labels] & left_open)) if closed or undecided else int(
+        by_convention=int(np.sum((convention[labels] & left_open) | upward)) if closed or undecided else int(
             convention[labels].sum()), ambiguous=int(ambiguous.sum()),
         closed=closed, turned=turned, unsupported=int(unsupported.sum()), agreement=agreement,
         outside_share=outside_share, undecided=undecided, open_components=open_components,
+        upward_components=upward_components,
     )
     return Orientation(oriented, ambiguous, report, **part)
 

@@ -37,8 +37,8 @@ from .context import SurveyContext
 __all__ = [
     "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame", "describe",
     "key_halo", "key_tile", "plan_centres", "centre_reach", "gate_levels", "fit_tile_centres", "merge_rounds",
-    "orients_outward", "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS", "DEPTH", "HALO_MARGIN",
-    "SURVEY_MARGIN", "ERRORS_HALO",
+    "orients_outward", "orients_automatically", "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS",
+    "DEPTH", "HALO_MARGIN", "SURVEY_MARGIN", "ERRORS_HALO",
 ]
 
 #: The certificate's dependency radius is DEPTH x what :func:`compute_tile` returns as ``support``;
@@ -412,11 +412,15 @@ def orients_outward(options: dict, choices) -> bool:
 
     ``orient="auto"`` without a viewpoint follows the survey's choice (``choices.orientation``).
     """
-    orient = options.get("orient") or "auto"
-    if orient == "auto" and options.get("viewpoint") is None:
+    if orients_automatically(options):
         policy = getattr(choices, "orientation", None)
         return policy is None or policy.mode == "outward"
-    return orient == "outward"
+    return (options.get("orient") or "auto") == "outward"
+
+
+def orients_automatically(options: dict) -> bool:
+    """Whether the options leave the policy to ``orient="auto"`` (no viewpoint): the survey's sample decides."""
+    return (options.get("orient") or "auto") == "auto" and options.get("viewpoint") is None
 
 
 def _patches(points: np.ndarray, spacing: np.ndarray, options: dict) -> np.ndarray:

@@ -112,7 +112,8 @@ class TiledReport:
         The global choices every tile got, in plain numbers (:func:`.compute.describe`).
     orientation : dict or None
         The seam orientation's report (``outward`` only, :func:`.orient.seam_flips`),
-        with the winding step's: ``closed``, ``undecided``, ``open_components``, ``agreement``,
+        with the winding step's: ``closed``, ``undecided``, ``open_components`` (of which
+        ``upward_components`` face ``+z``, ``orient="auto"``), ``agreement``,
         ``outside_share`` and, for a closed or undecided cloud, ``turned``, ``unsupported`` and ``escaped``
         (:func:`.winding.flag_unsupported`); ``second_sheet``: the points the driver found holding both sides
         of a thin part (:func:`.sheets.flag_second_sheets`; those a tile settled alone are not counted).

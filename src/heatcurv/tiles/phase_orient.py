@@ -37,10 +37,11 @@ def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict
     keys, flip, orientation = seam_flips(tile_files, results_path)
     flips = [("patch", keys, flip)]
     # a closed cloud's inside and outside, by the winding number over every tile's sources
-    sides = winding_sides(tile_files, keys, flip)
+    sides = winding_sides(tile_files, keys, flip, open_up=compute.orients_automatically(run.options))
     orientation["closed"] = bool(sides is not None and sides.closed)
     orientation["undecided"] = bool(sides is not None and sides.undecided)
     orientation["open_components"] = 0 if sides is None else sides.open_components
+    orientation["upward_components"] = 0 if sides is None else sides.upward_components
     if sides is not None:
         orientation["agreement"], orientation["outside_share"] = sides.agreement, sides.outside_share
     if sides is not None and sides.undecided:

@@ -168,6 +168,8 @@ class WindingSides:
         neither turned nor flagged; all False when neither ``closed`` nor ``undecided``.
     open_components : int
         How many such objects.
+    upward_components : int
+        Of those, the objects over the horizontal plane turned to face ``+z`` (``open_up``).
     """
 
     column: str
@@ -184,9 +186,11 @@ class WindingSides:
     outside_share: float = 0.0
     open: np.ndarray | None = None
     open_components: int = 0
+    upward_components: int = 0
 
 
-def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray) -> WindingSides | None:
+def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray,
+                  open_up: bool = False) -> WindingSides | None:
     """Every tile's sources, turned by the seam flips, and the sides of all winding patches.
 
     Parameters
@@ -195,6 +199,9 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
         Each tile's result file, holding :data:`.output.SOURCE_KEYS`.
     seam_keys, seam_flip : ndarray
         :func:`heatcurv.tiles.orient.seam_flips`' patch keys and flips.
+    open_up : bool, optional
+        ``orient="auto"``: objects open on their own that lie over the horizontal plane face ``+z``
+        (:func:`heatcurv.orient.enclosure.patch_sides`), as in memory.
 
     Returns
     -------
@@ -226,13 +233,15 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
         keys, index = np.unique(seam, return_inverse=True)
         fine_keys, fine = np.zeros(0, dtype=np.int64), None
     weight = area * (arrays["winding_total"].sum() / area.sum())
-    sides = patch_sides(x, nrm, weight, index, keys.size, fine, fine_keys.size, arrays["winding_roundness"][order])
+    sides = patch_sides(x, nrm, weight, index, keys.size, fine, fine_keys.size, arrays["winding_roundness"][order],
+                        open_up=open_up)
     decided = sides.closed or sides.undecided
     flip = (sides.sign < 0) if decided else np.zeros(keys.size, dtype=bool)
     fine_flip = (sides.fine_sign < 0) if decided else np.zeros(fine_keys.size, dtype=bool)
     is_open = sides.open_patches(index, keys.size) if decided else np.zeros(keys.size, dtype=bool)
     return WindingSides(column, keys, flip, fine_keys, fine_flip, rows, x, sides.bad, sides.closed, sides.agreement,
-                        sides.undecided, sides.outside_share, is_open, sides.open_components if decided else 0)
+                        sides.undecided, sides.outside_share, is_open, sides.open_components if decided else 0,
+                        sides.upward_components if decided else 0)
 
 
 def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: float, flips,
@@ -285,9 +294,10 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
     for start, points, _ in source.chunks(chunk):
         block = read_results(results_path, start, start + len(points))
         computed = block["computed"] == 1
-        turned += int(np.sum(computed & (keyed_flips(block[sides.column], sides.keys, sides.flip)
-                                         ^ keyed_flips(block["winding_fine"], sides.fine_keys, sides.fine_flip))))
-        kept = keyed_flips(block[sides.column], sides.keys, sides.open)  # open objects keep their sides
+        kept = keyed_flips(block[sides.column], sides.keys, sides.open)  # open objects: not the field's sides
+        flipped = keyed_flips(block[sides.column], sides.keys, sides.flip) ^ keyed_flips(
+            block["winding_fine"], sides.fine_keys, sides.fine_flip)
+        turned += int(np.sum(computed & ~kept & flipped))
         if sides.undecided:
             flagged = computed & ~(block["outlier"] == 1) & ~kept
         elif bad_tree is None:
