@@ -7,8 +7,9 @@ from scipy.spatial.transform import Rotation
 import heatcurv
 from heatcurv import surfaces
 from heatcurv.orient.auto import auto_policy
-from heatcurv.orient.enclosure import upward_side
+from heatcurv.orient.enclosure import upward_sides
 from heatcurv.tuning import TUNING
+from support.scenes import valley_and_boulder, valley_and_dish
 
 
 def _sample(points, size=2000, seed=0):
@@ -346,21 +347,11 @@ def test_a_tiled_run_takes_a_thin_plate_for_closed_too(tmp_path):
     assert np.mean(np.einsum("ij,ij->i", out.normals, in_memory.normals) > 0) >= 0.999
 
 
-def _valley_and_boulder(seed=0):
-    """A valley ``z = 0.1 (x^2 + y^2)`` over ``[-2, 2]^2`` (20 000 random points) and a sphere of radius 0.3
-    (4000 points) 1.5 over its bottom: terrain and a closed object apart from it."""
-    rng = np.random.default_rng(seed)
-    xy = rng.uniform(-2.0, 2.0, (20000, 2))
-    ground = np.column_stack([xy, 0.1 * (xy**2).sum(axis=1)])
-    sphere = surfaces.Sphere(radius=0.3).sample(4000, "random", seed=seed)
-    return ground, sphere.points + [0.0, 0.0, 1.5], sphere.normals
-
-
 def test_the_ground_beside_a_closed_object_faces_up_as_it_does_alone():
     # the cloud is closed (the sphere), the valley an object open on its own: it kept its outward vote, its
     # convex side, down, and every one of its 20 000 points was reliable with the sign of its curvature
     # turned; alone it faces up. Each component is now decided as it would be alone
-    ground, boulder, outward = _valley_and_boulder()
+    ground, boulder, outward = valley_and_boulder()
     res = heatcurv.estimate(np.vstack([ground, boulder]))
     report = res.info["orientation"]
     assert report.closed and report.open_components == 1 and report.upward_components == 1
@@ -379,6 +370,24 @@ def test_the_ground_beside_a_closed_object_faces_up_as_it_does_alone():
     assert named.info["orientation"].upward_components == 0 and np.all(named.normals[:20000, 2] < 0)
 
 
+def test_terrain_in_an_open_cloud_over_no_plane_faces_up():
+    # the cloud fails auto's test along z (the dish), so it is oriented outward, and was open: each component by
+    # its outward vote, the valley down at every point, reliable, its curvature's sign turned. Each component is
+    # now decided as it would be alone: the valley up, the dish out of its convex side (-x)
+    ground, dish = valley_and_dish()
+    res = heatcurv.estimate(np.vstack([ground, dish]))
+    report = res.info["orientation"]
+    assert report.mode == "outward" and report.policy.mode == "outward" and report.closed is False
+    assert report.upward_components == 1 and report.by_convention >= len(ground)
+    assert report.reason.endswith("open: each component's outward vote, its convex side out, but 1 over the "
+                                  "horizontal plane (terrain, ground): up (+z)")
+    assert np.all(res.normals[:20000, 2] > 0)
+    wrong = res.normals[20000:, 0] > 0
+    assert wrong.sum() <= 1 and not res.reliable[20000:][wrong].any()  # measured: 1 point, flagged
+    named = heatcurv.estimate(np.vstack([ground, dish]), orient="outward")
+    assert named.info["orientation"].upward_components == 0 and np.all(named.normals[:20000, 2] < 0)
+
+
 def test_an_open_object_over_no_plane_beside_a_closed_one_keeps_its_convex_side():
     # a standing half cylinder (its normals horizontal) beside a sphere: not over the horizontal plane, so it
     # keeps its outward vote, out of its convex side, as an open surface over no plane does alone
@@ -394,17 +403,21 @@ def test_an_open_object_over_no_plane_beside_a_closed_one_keeps_its_convex_side(
 
 
 def test_the_upward_side_reads_one_consistent_side_over_the_plane():
-    # an open object's consistently oriented sources: facing down, it is turned; facing both ways it is over no
-    # plane; with too few near-vertical normals (walls) it is over no plane either
+    # objects' consistently oriented normals, one call: facing down, an object is turned; facing both ways, or
+    # with too few near-vertical normals (walls), it is over no plane
     rng = np.random.default_rng(2)
     tilt = rng.uniform(0.0, 0.6, 400)
-    down = np.column_stack([np.sin(tilt), np.zeros(400), -np.cos(tilt)])
+    down = np.column_stack([np.sin(tilt), np.zeros(400), -np.cos(tilt)])[:, 2]
     weight, flat = rng.uniform(0.5, 1.5, 400), np.ones(400, dtype=bool)
-    assert upward_side(down, weight, flat) == -1.0 and upward_side(-down, weight, flat) == 1.0
     mixed = down.copy()
-    mixed[:8] *= -1  # 2 % of the sum |n_z| the other way
-    assert upward_side(mixed, weight, flat) == 0.0
-    assert upward_side(mixed, weight, np.arange(400) >= 8) == -1.0  # those 2 % not flat: not counted
-    wall = np.column_stack([np.ones(400), np.zeros(400), np.full(400, -0.05)]) / np.sqrt(1.0025)
-    wall[: int(0.09 * 400)] = down[: int(0.09 * 400)]  # 9 % of the weight-ish near vertical
-    assert upward_side(wall, np.ones(400), flat) == 0.0
+    mixed[:8] *= -1  # about 2 % of the sum |n_z| the other way
+    wall = np.full(400, -0.05)
+    wall[:36] = down[:36]  # 9 % near vertical
+    nz = np.concatenate([down, -down, mixed, wall])
+    labels = np.repeat(np.arange(4), 400)
+    sides = upward_sides(nz, np.tile(weight, 4), np.tile(flat, 4), labels, 4)
+    assert sides.tolist() == [-1.0, 1.0, 0.0, 0.0]
+    # the 2 % not flat: not counted
+    assert upward_sides(mixed, weight, np.arange(400) >= 8, np.zeros(400, dtype=int), 1).tolist() == [-1.0]
+    # weightless normals (another kind of object) decide nothing
+    assert upward_sides(down, np.zeros(400), flat, np.zeros(400, dtype=int), 1).tolist() == [0.0]

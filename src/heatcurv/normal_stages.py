@@ -96,13 +96,13 @@ def explained(report: OrientationReport, policy: AutoPolicy | None, n: int) -> O
         why = "outward: each piece as the tree orients it (a part of a cloud)"
     else:
         why = "open: each component's outward vote, its convex side out"
-        if report.by_convention:
+        if report.by_convention and not report.upward_components:  # else by_convention counts those turned up
             why += "; nearly flat components by the least-variance-axis convention"
     if (report.closed or report.undecided) and report.open_components:
         why += (f"; {report.open_components} object(s) open on their own (a sheet beside the object): "
                 "each its outward vote, its convex side out")
-        if report.upward_components:
-            why += f", but {report.upward_components} over the horizontal plane (terrain, ground): up (+z)"
+    if report.upward_components:
+        why += f", but {report.upward_components} over the horizontal plane (terrain, ground): up (+z)"
     return replace(report, reason=why if policy is None else f"{policy.reason}; {why}", policy=policy)
 
 

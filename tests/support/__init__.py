@@ -30,5 +30,7 @@ demo uses them, so they ship in :mod:`heatcurv.surfaces.accuracy`.
 ``browser``            headless Chromium driven over the DevTools protocol
                        on a pipe: wait for a page, evaluate JavaScript, send
                        mouse input, take screenshots (the viewer's tests)
+``scenes``             clouds of several objects apart (terrain beside a
+                       closed or an open object), for the orientation tests
 =====================  ======================================================
 """

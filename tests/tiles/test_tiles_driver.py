@@ -12,6 +12,7 @@ from heatcurv.errors import HeatcurvError
 from heatcurv.tiles import compute_file
 from heatcurv.tiles.output import SOURCE_KEYS, STORED_KEYS
 from heatcurv.tiles.tasks import FAULT_VARIABLE
+from support.scenes import valley_and_dish
 from support.tiles import compare_fields, result_columns, tiled_agreement
 
 
@@ -74,6 +75,24 @@ def test_an_open_sheet_beside_a_closed_object_is_judged_on_its_own_in_tiles(tmp_
     agreement = tiled_agreement(tmp_path / "out.ply", memory, rtol=1e-9)
     assert agreement["normals"]["bad"] == 0 and agreement["reliable"]["bad"] == 0 and agreement["mean"]["bad"] == 0
     assert memory.reliable[6000:].mean() > 0.9
+
+
+@pytest.mark.parametrize("orient", ["auto", "outward"])
+def test_the_objects_of_an_open_cloud_take_the_sides_they_take_in_memory(orient, tmp_path):
+    """A valley and a dish on its side, apart: an open cloud of two objects in 6 tiles. Each object's outward
+    vote was summed about the whole cloud's centroid, not its own: the dish came out on the other side than in
+    memory (8000 points); "auto" also turns the valley up, in the driver as in memory."""
+    ground, dish = valley_and_dish()
+    points = np.vstack([ground, dish])
+    np.save(tmp_path / "cloud.npy", points)
+    report = compute_file(tmp_path / "cloud.npy", tmp_path / "out.ply", tile_size=7000, scheduler="serial",
+                          dtype="float64", progress=False, orient=orient)
+    assert report.tiles >= 4 and report.orientation["objects"] == 2 and report.orientation["closed"] is False
+    memory = heatcurv.estimate(points, orient=orient)
+    assert report.orientation["upward_components"] == memory.info["orientation"].upward_components == (
+        1 if orient == "auto" else 0)
+    agreement = tiled_agreement(tmp_path / "out.ply", memory, rtol=1e-9)
+    assert all(agreement[field]["bad"] == 0 for field in ("normals", "mean", "k1", "k2", "reliable"))
 
 
 def test_a_failing_tile_fails_the_run_without_output(torus_file, torus_threads, tmp_path, monkeypatch):

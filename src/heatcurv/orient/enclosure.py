@@ -97,7 +97,7 @@ from ..tuning import TUNING
 from .consistency import field_normals
 
 __all__ = [
-    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "upward_side",
+    "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "upward_sides",
     "source_roundness", "MAX_SOURCES", "MAX_UNKNOWNS", "warn_undecided",
 ]
 
@@ -153,8 +153,9 @@ class Enclosure:
     open_components : int
         How many such objects.
     upward : ndarray, shape (n,), bool or None
-        The points of those objects that lie over the horizontal plane and were
-        made to face ``+z`` (``open_up``); None when there are none.
+        The points of the objects open on their own (or, on an open cloud, of
+        any object) that lie over the horizontal plane and were made to face
+        ``+z`` (``open_up``); None when there are none.
     upward_components : int
         How many such objects.
     """
@@ -197,8 +198,9 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
         The balls' PCA roundness ``lambda_0 / lambda_1``: a cloud whose
         sources' balls are round is coarse (:func:`patch_sides`).
     open_up : bool, optional
-        Whether objects open on their own that lie over the horizontal plane
-        face ``+z`` instead of keeping the tree's sides (:func:`patch_sides`).
+        Whether objects open on their own, or the objects of an open cloud, that
+        lie over the horizontal plane face ``+z`` instead of keeping the tree's
+        sides (:func:`patch_sides`).
 
     Returns
     -------
@@ -216,9 +218,15 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     sides = patch_sides(points[source], normals[source], weight, patch[source], n_patch,
                         fine[source], int(fine.max()) + 1, None if roundness is None else roundness[source],
                         open_up=open_up)
-    if not (sides.closed or sides.undecided):
-        return Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0,
-                         outside_share=sides.outside_share)
+    if not (sides.closed or sides.undecided):  # open: the tree's sides, or up for the objects over the ground
+        open_cloud = Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0,
+                               outside_share=sides.outside_share)
+        if not sides.upward_components:
+            return open_cloud
+        upward = sides.upward_patches(patch[source], n_patch)[patch] & ~excluded
+        return dataclasses.replace(
+            open_cloud, normals=np.where((upward & (sides.sign[patch] < 0))[:, None], -normals, normals),
+            upward=upward, upward_components=sides.upward_components)
     flip = sides.sign[patch] * sides.fine_sign[fine] < 0
     flip[excluded] = False
     is_open = upward = None
@@ -274,8 +282,10 @@ class PatchSides:
     open_components : int
         How many such objects.
     upward : ndarray, shape (m,), bool, optional
-        With ``open_up``: the sources of the open objects over the horizontal
-        plane (:func:`upward_side`), whose patches' ``sign`` makes them face ``+z``.
+        With ``open_up``: the sources of the objects open on their own (or,
+        neither ``closed`` nor ``undecided``, of any object) over the horizontal
+        plane (:func:`upward_sides`), whose patches' ``sign`` makes them face
+        ``+z``; an open cloud's other patches then have ``sign`` 1.
     upward_components : int
         How many such objects.
     """
@@ -335,8 +345,9 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     the tree's sides, none of its sources is flagged, and the others are
     solved again without it. Objects that agree stay together, so that the
     field still sees a cavity inside an object and an object sampled in pieces.
-    With ``open_up`` (``orient="auto"``), an open object over the horizontal
-    plane (:func:`upward_side`: the ground beside a boulder, terrain around a
+    With ``open_up`` (``orient="auto"``), an object open on its own, or any
+    object of an open cloud, that lies over the horizontal plane
+    (:func:`upward_sides`: the ground beside a boulder, terrain around a
     building) faces ``+z``, as the same object alone would (:mod:`heatcurv.orient.auto`).
 
     A closed cloud's sources then get a second opinion that shares nothing with
@@ -366,6 +377,7 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
         Whether to judge each object on its own too (the solve over the other objects does not).
     open_up : bool, optional
         Whether the open objects over the horizontal plane face ``+z`` (else they keep the tree's sides).
+        On an open cloud, only then is ``sign`` meant to be applied (:attr:`PatchSides.upward`).
 
     Returns
     -------
@@ -373,6 +385,9 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     """
     sides = _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, objects, open_up)
     if not sides.closed:
+        if open_up and not sides.undecided:  # an open cloud: each of its objects as it would be alone
+            every = np.ones(x.shape[0], dtype=bool)
+            return _turned_up(sides, source_objects(x, label), nrm, weight, label, roundness, every)
         return sides
     # a second opinion from no orientation at all: the winding field's own normals
     own = nrm * (sides.sign[label] * (1.0 if fine is None else sides.fine_sign[fine]))[:, None]
@@ -392,7 +407,9 @@ def _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, obje
         is_open, owner = _open_objects(x, nrm, weight, label, roundness, sides.sure)
         if is_open.any():
             inner = _without(is_open, owner, x, nrm, weight, label, n_patch, fine, n_fine, roundness, sides)
-            return _turned_up(inner, owner, nrm, weight, label, roundness) if open_up else inner
+            if open_up and (inner.closed or inner.undecided):
+                return _turned_up(inner, owner, nrm, weight, label, roundness, inner.open)
+            return inner
     if fine is None or not sides.closed:
         return dataclasses.replace(sides, fine_sign=fine_sign)
     share = np.bincount(label, weights=weight * sides.bad, minlength=n_patch) / np.maximum(
@@ -508,60 +525,63 @@ def _without(is_open, owner, x, nrm, weight, label, n_patch, fine, n_fine, round
     return dataclasses.replace(inner, bad=bad, sure=sure, open=is_open, open_components=count)
 
 
-def _turned_up(sides: PatchSides, owner, nrm, weight, label, roundness) -> PatchSides:
-    """``sides`` with the open objects over the horizontal plane (:func:`upward_side`) facing ``+z``.
+def _turned_up(sides: PatchSides, owner, nrm, weight, label, roundness, judged) -> PatchSides:
+    """``sides`` with the ``judged`` sources' objects (``owner``) that lie over the horizontal plane
+    (:func:`upward_sides`) facing ``+z``.
 
-    A closed cloud's other patches are as the winding number chose them; a cloud
-    left open (too few sources besides its open objects) keeps every side.
+    On a closed or undecided cloud the judged objects are those open on their
+    own and the other patches keep the winding number's signs; on an open
+    cloud every object is judged and the others keep the tree's sides.
     """
-    if not (sides.closed or sides.undecided):
-        return sides
-    sign, upward = sides.sign.copy(), np.zeros(owner.size, dtype=bool)
     flat = np.ones(owner.size, dtype=bool) if roundness is None else ~(
         np.asarray(roundness, dtype=float) > TUNING.auto_flatness)
-    for c in np.unique(owner[sides.open]):
-        members = owner == c
-        side = upward_side(nrm[members], weight[members], flat[members])
-        if side:
-            upward |= members
-            sign[np.unique(label[members])] = side  # the object's patches: they hold no other object's sources
-    count = int(np.unique(owner[upward]).size)
-    return dataclasses.replace(sides, sign=sign, upward=upward if count else None, upward_components=count)
+    side = upward_sides(nrm[:, 2], np.where(judged, weight, 0.0), flat, owner, int(owner.max()) + 1)
+    upward = side[owner] != 0
+    count = int(np.count_nonzero(side))
+    if not count:
+        return sides
+    sign = sides.sign.copy() if sides.closed or sides.undecided else np.ones_like(sides.sign)
+    sign[label[upward]] = side[owner[upward]]  # an object's patches hold no other object's sources
+    return dataclasses.replace(sides, sign=sign, upward=upward, upward_components=count)
 
 
-def upward_side(nrm: np.ndarray, weight: np.ndarray, flat: np.ndarray) -> float:
-    """The sign that makes an open object over the horizontal plane face ``+z``; 0 when it is not over it.
+def upward_sides(nz: np.ndarray, weight: np.ndarray, flat: np.ndarray, labels: np.ndarray,
+                 n_labels: int) -> np.ndarray:
+    """For each object, the sign that makes it face ``+z`` if it lies over the horizontal plane, else 0.
 
-    The test of :func:`heatcurv.orient.auto.auto_policy` along ``z`` on the
-    object's own consistently oriented sources: at least ``TUNING.auto_share``
-    of their weight within 45 degrees of vertical, and at most
-    ``TUNING.auto_down_share`` of ``sum |n_z|`` over the flat ones that are not
-    walls (``|n_z| >= TUNING.auto_wall_cosine``) on the side that faces the
-    other way.
+    The test of :func:`heatcurv.orient.auto.auto_policy` along ``z``, on each
+    object's own consistently oriented normals: at least ``TUNING.auto_share``
+    of its weight within 45 degrees of vertical, and at most
+    ``TUNING.auto_down_share`` of ``sum |n_z|`` over its flat normals that are
+    not walls (``|n_z| >= TUNING.auto_wall_cosine``) on the side that faces
+    the other way.
 
     Parameters
     ----------
-    nrm : ndarray, shape (m, 3)
-        The object's sources' unit normals, consistent along the tree.
+    nz : ndarray, shape (m,)
+        The vertical components of the unit normals, consistent along each object.
     weight : ndarray, shape (m,)
-        Their areas.
+        Their areas (0: not counted).
     flat : ndarray, shape (m,), bool
-        Sources whose balls are flat (``lambda_0 / lambda_1`` at most ``TUNING.auto_flatness``).
+        Normals whose balls are flat (``lambda_0 / lambda_1`` at most ``TUNING.auto_flatness``).
+    labels : ndarray, shape (m,), int
+        Each normal's object, ``0 <= labels < n_labels``.
+    n_labels : int
 
     Returns
     -------
-    float
-        ``+1`` (it faces up already), ``-1`` (turn it over) or ``0``.
+    ndarray, shape (n_labels,)
+        ``+1`` (it faces up already), ``-1`` (turn it over) or ``0`` (not over the horizontal plane).
     """
-    nz = nrm[:, 2]
-    if weight[np.abs(nz) >= TUNING.auto_vertical_cosine].sum() < TUNING.auto_share * weight.sum():
-        return 0.0
-    counted = flat & (np.abs(nz) >= TUNING.auto_wall_cosine)
-    upward = float(np.sum(weight[counted] * np.clip(nz[counted], 0.0, None)))
-    downward = float(np.sum(weight[counted] * np.clip(-nz[counted], 0.0, None)))
-    if upward + downward <= 0.0 or min(upward, downward) > TUNING.auto_down_share * (upward + downward):
-        return 0.0
-    return 1.0 if upward >= downward else -1.0
+    def total(values):
+        return np.bincount(labels, weights=values, minlength=n_labels)
+
+    steep = total(weight * (np.abs(nz) >= TUNING.auto_vertical_cosine)) >= TUNING.auto_share * total(weight)
+    counted = weight * (flat & (np.abs(nz) >= TUNING.auto_wall_cosine))
+    upward, downward = total(counted * np.clip(nz, 0.0, None)), total(counted * np.clip(-nz, 0.0, None))
+    one_side = np.minimum(upward, downward) <= TUNING.auto_down_share * (upward + downward)
+    over = steep & one_side & (upward + downward > 0.0)
+    return np.where(over, np.where(upward >= downward, 1.0, -1.0), 0.0)
 
 
 def source_roundness(roundness: np.ndarray | None, source=slice(None)) -> float:

@@ -150,9 +150,11 @@ class OrientationReport:
         their outward vote (or the flat convention) and whose sides the winding
         number neither turns nor flags (:func:`heatcurv.orient.enclosure.patch_sides`).
     upward_components : int
-        Of those, the objects over the horizontal plane that ``orient="auto"``
-        made face ``+z`` (terrain beside a building, the ground a boulder lies
-        on), as it orients such an object alone; their points count in ``by_convention``.
+        ``"outward"`` chosen by ``orient="auto"``: the objects open on their own
+        (or, on an open cloud, any of its objects) that lie over the horizontal
+        plane and were made to face ``+z`` (terrain beside a building, the
+        ground a boulder lies on), as ``"auto"`` orients such an object alone;
+        their points count in ``by_convention``.
     reason : str
         Which rule chose the sides, in words (``orient="auto"``: why this mode).
     policy : AutoPolicy or None
@@ -391,9 +393,9 @@ def orient(
         finds a surface there).
     open_up : bool, optional
         ``"outward"`` chosen by ``orient="auto"``: a closed cloud's objects open
-        on their own that lie over the horizontal plane face ``+z``
-        (:func:`heatcurv.orient.enclosure.patch_sides`) instead of keeping their
-        outward vote.
+        on their own, and an open cloud's objects, that lie over the horizontal
+        plane face ``+z`` (:func:`heatcurv.orient.enclosure.patch_sides`) instead
+        of keeping their outward vote.
 
     Returns
     -------
@@ -423,7 +425,7 @@ def orient(
     unsupported, closed, undecided, turned, part = np.zeros(n, dtype=bool), None, False, 0, {}
     agreement = outside_share = None
     left_open, open_components = np.zeros(n, dtype=bool), 0  # objects of a closed cloud open on their own
-    upward, upward_components = np.zeros(n, dtype=bool), 0  # of those, the ones made to face +z
+    upward, upward_components = np.zeros(n, dtype=bool), 0  # objects over the ground made to face +z
     if not whole_cloud:
         cut = np.zeros(n, dtype=bool) if excluded is None else excluded
         patch, fine = patches(points, tree, cut, cloud_points)
@@ -442,8 +444,8 @@ def orient(
     ambiguous = _conflicting(points, oriented, graph) | unsupported
     report = OrientationReport(
         mode=mode, components=_surface_components(labels, excluded),
-        by_convention=int(np.sum((convention[labels] & left_open) | upward)) if closed or undecided else int(
-            convention[labels].sum()), ambiguous=int(ambiguous.sum()),
+        by_convention=int(np.sum((convention[labels] & (left_open if closed or undecided else True)) | upward)),
+        ambiguous=int(ambiguous.sum()),
         closed=closed, turned=turned, unsupported=int(unsupported.sum()), agreement=agreement,
         outside_share=outside_share, undecided=undecided, open_components=open_components,
         upward_components=upward_components,

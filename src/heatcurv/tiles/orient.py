@@ -15,8 +15,12 @@ whether the two patches agree (``+1``) or not (``-1``; normals within 60
 degrees of perpendicular do not vote). The bits follow from the votes along a
 maximum spanning forest of the patch graph (Kruskal, heaviest margins first,
 with parity in the union-find), and each connected object then gets the sign
-that makes its signed volume ``sum_i A_i (x_i - c) . n_i`` over core points
-positive (3 x the enclosed volume of a closed surface, whatever ``c``).
+that makes its outward vote ``sum_i A_i (x_i - c) . n_i`` over its core points
+positive, ``c`` its area-weighted centroid, as in memory
+(:func:`heatcurv.orient.orientation.orient`; 3 x the enclosed volume of a
+closed surface, whatever ``c``): each patch's moments (:func:`patch_moments`)
+sum to the object's, so the object's centroid is known only once the patches
+are joined.
 The flips are applied in the final write pass
 (:func:`heatcurv.fits.principal.PrincipalCurvatures.flipped`'s convention: the
 normal and mean curvature negated, ``k1' = -k2``, ``k2' = -k1``, ``d1`` and
@@ -29,10 +33,45 @@ import numpy as np
 
 from .output import PATCH_SHIFT, gather_records
 
-__all__ = ["seam_flips", "VOTE_COSINE"]
+__all__ = ["seam_flips", "patch_moments", "VOTE_COSINE", "MOMENTS"]
 
 #: Shared points whose two normals are closer than this to perpendicular do not vote.
 VOTE_COSINE = 0.5
+#: The columns of :func:`patch_moments`: ``sum A``, ``sum A x`` (3), ``sum A n`` (3), ``sum A n . x``.
+MOMENTS = ("area", "area_x", "area_y", "area_z", "area_nx", "area_ny", "area_nz", "area_n_dot_x")
+
+
+def patch_moments(x: np.ndarray, normals: np.ndarray, area: np.ndarray, label: np.ndarray,
+                  n_labels: int) -> np.ndarray:
+    """Each patch's sums of :data:`MOMENTS`, shape (n_labels, 8): an object's outward vote from its patches'.
+
+    ``sum_i A_i (x_i - c) . n_i = sum A n . x - c . sum A n`` with ``c = sum A x / sum A``,
+    so the vote of a union of patches, each turned or not, follows from these sums.
+
+    Parameters
+    ----------
+    x : ndarray, shape (m, 3)
+        The core points in the cloud's frame (:meth:`heatcurv.choice.choices.CloudFrame.to_stage`).
+    normals : ndarray, shape (m, 3)
+        Their normals as the tile oriented them.
+    area : ndarray, shape (m,)
+        Their weights in the vote (the orientation's areas; 0 for outliers and repeated duplicates).
+    label : ndarray, shape (m,), int
+        Their patches, ``0 <= label < n_labels``.
+    n_labels : int
+    """
+    area = np.nan_to_num(area)
+    columns = [area, *(area[:, None] * x).T, *(area[:, None] * normals).T, area * np.einsum("ij,ij->i", normals, x)]
+    return np.column_stack([np.bincount(label, weights=c, minlength=n_labels) for c in columns])
+
+
+def _outward_votes(moments: np.ndarray, bits: np.ndarray, obj: np.ndarray, n_objects: int) -> np.ndarray:
+    """Each object's outward vote (:func:`patch_moments`) with its patches turned where ``bits``, shape (n_objects,)."""
+    turned = np.where(bits[:, None], -1.0, 1.0) * moments
+    turned[:, :4] = moments[:, :4]  # the areas and the area-weighted positions do not turn
+    total = np.stack([np.bincount(obj, weights=turned[:, k], minlength=n_objects) for k in range(len(MOMENTS))], 1)
+    centroid = total[:, 1:4] / np.maximum(total[:, :1], np.finfo(float).tiny)
+    return total[:, 7] - np.einsum("ij,ij->i", centroid, total[:, 4:7])
 
 
 def _find(parent: dict, parity: dict, a):
@@ -71,12 +110,12 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
         normals still point to opposite sides after the flips: pieces the
         tile's own orientation could not keep consistent) and ``shared``.
     """
-    keys, volumes, pairs, votes = [], [], [], []
+    keys, moments, pairs, votes = [], [], [], []
     for tile, path in sorted(tile_files.items()):
         with np.load(path) as data:
             base = np.int64(tile) << PATCH_SHIFT
-            keys.append(base | data["volume_labels"])
-            volumes.append(data["volumes"])
+            keys.append(base | data["moment_labels"])
+            moments.append(data["moments"])
             halo_rows = data["halo_rows"]
             if not len(halo_rows):
                 continue
@@ -87,9 +126,9 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
             vote = (np.abs(dot) >= VOTE_COSINE) & (owner["computed"] == 1)
             pairs.append(np.column_stack([mine_patch[vote], owner["patch"][vote]]))
             votes.append(np.sign(dot[vote]).astype(np.int64))
-    keys, volumes = np.concatenate(keys), np.concatenate(volumes)
+    keys, moments = np.concatenate(keys), np.concatenate(moments)
     order = np.argsort(keys)
-    keys, volumes = keys[order], volumes[order]
+    keys, moments = keys[order], moments[order]
     edges, margins, against, shared = np.zeros((0, 2), np.int64), np.zeros(0, np.int64), np.zeros(0), 0
     if pairs:
         pairs, votes = np.concatenate(pairs), np.concatenate(votes)
@@ -115,10 +154,8 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
     roots = np.zeros(len(keys), dtype=np.int64)
     for i, k in enumerate(keys):
         roots[i], bits[i] = _find(parent, parity, int(k))
-    signed = np.where(bits, -volumes, volumes)
     objects, obj = np.unique(roots, return_inverse=True)
-    total = np.bincount(obj, weights=signed, minlength=len(objects))
-    flip = bits ^ (total[obj] < 0)
+    flip = bits ^ (_outward_votes(moments, bits, obj, len(objects))[obj] < 0)
     disagreeing = 0
     # a halo piece with no core point of its own tile has no flip bit (a wide halo reaches one)
     known = np.isin(edges, keys).all(axis=1) if len(margins) else np.zeros(0, dtype=bool)

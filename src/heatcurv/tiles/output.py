@@ -88,7 +88,7 @@ def create_results(path, count: int, *, keep: bool = False) -> bool:
 #: What a tile's result file keeps once its rows are in ``results.rec``: the seam vote's inputs
 #: (:func:`heatcurv.tiles.orient.seam_flips`) and the ``stored`` mark. The per-point fields, about
 #: 170 bytes a core point, would double the scratch (at 100M points 17 of 39 GB).
-STORED_KEYS = ("volume_labels", "volumes", "halo_rows", "halo_normals", "halo_patch", "sheet_rows", "sheet_columns")
+STORED_KEYS = ("moment_labels", "moments", "halo_rows", "halo_normals", "halo_patch", "sheet_rows", "sheet_columns")
 #: What a tile oriented ``outward`` keeps for the winding step (:func:`heatcurv.tiles.winding.tile_sources`).
 SOURCE_KEYS = ("winding_rows", "winding_x", "winding_normals", "winding_area", "winding_label", "winding_fine_label",
                "winding_seam", "winding_roundness", "winding_total")

@@ -46,7 +46,7 @@ def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict
         orientation["agreement"], orientation["outside_share"] = sides.agreement, sides.outside_share
     if sides is not None and sides.undecided:
         warn_undecided(sides.agreement, sides.outside_share)
-    if sides is not None and (sides.closed or sides.undecided):
+    if sides is not None and (sides.closed or sides.undecided or sides.upward_components):
         flips.append((sides.column, sides.keys, sides.flip))
         flips.append(("winding_fine", sides.fine_keys, sides.fine_flip))
     # the two sides of a thin part, once the normals' signs are final (before the rays, as in memory)

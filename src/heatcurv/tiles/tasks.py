@@ -33,6 +33,7 @@ from ..errors import HeatcurvError
 from . import compute
 from .context import SurveyContext
 from .neighbours import core_lists, known_neighbours, write_lists
+from .orient import MOMENTS, patch_moments
 from .plan import CloudStats, Tiling, read_rows
 from .winding import tile_sources
 
@@ -366,8 +367,7 @@ def run_tile(spec: TileTask) -> dict:
     -------
     dict
         ``tile``, ``points`` (core), ``halo_points``, ``halo`` (width used),
-        ``widened`` (times), ``volumes`` (patch label -> signed volume term),
-        ``seconds``, ``peak`` (the worker process's peak memory, bytes).
+        ``widened`` (times), ``seconds``, ``peak`` (the worker process's peak memory, bytes).
     """
     tic = time.perf_counter()
     scratch, tile, context, options = spec.scratch, spec.tile, spec.context, spec.options
@@ -375,7 +375,6 @@ def run_tile(spec: TileTask) -> dict:
     plan = load_plan(scratch)
     tiling = Tiling.from_json(plan["tiling"])
     cloud = (np.asarray(plan["stats"]["low"]), np.asarray(plan["stats"]["high"]))
-    centroid = np.asarray(plan["stats"]["centroid"])
     halo = float(context.halo if spec.halo is None else spec.halo)
 
     def tile_values(points, core, positions, _):
@@ -390,14 +389,17 @@ def run_tile(spec: TileTask) -> dict:
     c = int(core.sum())
     patch = np.asarray(out["patch"], dtype=np.int64)
     labels, inverse = np.unique(patch[core], return_inverse=True)
-    terms = out["area"] * np.einsum("ij,ij->i", points[core] - centroid, out["normals"])
-    volumes = np.bincount(inverse, weights=np.nan_to_num(terms), minlength=len(labels))
     arrays = {name: np.asarray(out[name]) for name in compute.RESULT_FIELDS}
+    moments = np.zeros((len(labels), len(MOMENTS)))
     # the winding step's patches (each within one seam piece) and sources (heatcurv.tiles.winding)
     if compute.orients_outward(options, context.choices):
         frame = context.choices.frame
-        arrays.update(tile_sources(frame, points[core], rows[core], patch[core], arrays,
-                                   None if out["winding"] is None else {k: v[core] for k, v in out["winding"].items()}))
+        winding = None if out["winding"] is None else {k: v[core] for k, v in out["winding"].items()}
+        arrays.update(tile_sources(frame, points[core], rows[core], patch[core], arrays, winding))
+        # the pieces' outward votes, summed per object by the driver (heatcurv.tiles.orient)
+        weight = np.where(arrays["outlier"], 0.0, arrays["area"]) if winding is None else winding["weight"]
+        moments = patch_moments(frame.to_stage(points[core]), arrays["normals"], np.abs(weight) / frame.unit**2,
+                                inverse, len(labels))
     else:
         arrays["winding"] = arrays["winding_fine"] = np.zeros(c, dtype=np.int64)
     # the second-sheet pairs the driver settles (heatcurv.tiles.sheets), input rows
@@ -408,7 +410,7 @@ def run_tile(spec: TileTask) -> dict:
     try:
         np.savez(temporary, rows=rows[core], patch=patch[core],
                  halo_rows=rows[~core], halo_normals=np.asarray(out["halo_normals"]), halo_patch=patch[~core],
-                 volume_labels=labels, volumes=volumes, **arrays)
+                 moment_labels=labels, moments=moments, **arrays)
         os.replace(temporary, path)
     except BaseException:
         if os.path.exists(temporary):

@@ -143,7 +143,8 @@ class WindingSides:
     keys : ndarray, shape (p,), int64
         Patch keys (``tile << 32 | label``), sorted.
     flip : ndarray, shape (p,), bool
-        Patches to turn over (after the seam flips); all False when neither ``closed`` nor ``undecided``.
+        Patches to turn over (after the seam flips); when neither ``closed`` nor ``undecided``, only
+        those of the objects turned up (``upward_components``).
     fine_keys : ndarray, shape (f,), int64
         The keys of the patches' finer pieces (``results.rec`` column ``"winding_fine"``) that hold a
         source, sorted (:func:`heatcurv.orient.enclosure.patch_sides`).
@@ -169,7 +170,8 @@ class WindingSides:
     open_components : int
         How many such objects.
     upward_components : int
-        Of those, the objects over the horizontal plane turned to face ``+z`` (``open_up``).
+        The objects open on their own (or, on an open cloud, any object) over the horizontal plane turned
+        to face ``+z`` (``open_up``).
     """
 
     column: str
@@ -236,12 +238,13 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
     sides = patch_sides(x, nrm, weight, index, keys.size, fine, fine_keys.size, arrays["winding_roundness"][order],
                         open_up=open_up)
     decided = sides.closed or sides.undecided
-    flip = (sides.sign < 0) if decided else np.zeros(keys.size, dtype=bool)
+    # an open cloud keeps the seams' sides but for the objects over the ground turned up (open_up)
+    flip = (sides.sign < 0) if decided or sides.upward_components else np.zeros(keys.size, dtype=bool)
     fine_flip = (sides.fine_sign < 0) if decided else np.zeros(fine_keys.size, dtype=bool)
     is_open = sides.open_patches(index, keys.size) if decided else np.zeros(keys.size, dtype=bool)
     return WindingSides(column, keys, flip, fine_keys, fine_flip, rows, x, sides.bad, sides.closed, sides.agreement,
                         sides.undecided, sides.outside_share, is_open, sides.open_components if decided else 0,
-                        sides.upward_components if decided else 0)
+                        sides.upward_components)
 
 
 def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: float, flips,
