@@ -218,22 +218,20 @@ def enclose(points: np.ndarray, normals: np.ndarray, forest: sp.csr_matrix, area
     sides = patch_sides(points[source], normals[source], weight, patch[source], n_patch,
                         fine[source], int(fine.max()) + 1, None if roundness is None else roundness[source],
                         open_up=open_up)
+    upward = sides.upward_patches(patch[source], n_patch)[patch] & ~excluded if sides.upward_components else None
     if not (sides.closed or sides.undecided):  # open: the tree's sides, or up for the objects over the ground
         open_cloud = Enclosure(normals, np.zeros(n, dtype=bool), False, sides.agreement, 0,
                                outside_share=sides.outside_share)
-        if not sides.upward_components:
+        if upward is None:
             return open_cloud
-        upward = sides.upward_patches(patch[source], n_patch)[patch] & ~excluded
         return dataclasses.replace(
             open_cloud, normals=np.where((upward & (sides.sign[patch] < 0))[:, None], -normals, normals),
             upward=upward, upward_components=sides.upward_components)
     flip = sides.sign[patch] * sides.fine_sign[fine] < 0
     flip[excluded] = False
-    is_open = upward = None
+    is_open = None
     if sides.open_components:
         is_open = sides.open_patches(patch[source], n_patch)[patch] & ~excluded
-    if sides.upward_components:
-        upward = sides.upward_patches(patch[source], n_patch)[patch] & ~excluded
     unsupported = (~excluded if is_open is None else ~excluded & ~is_open) if sides.undecided else \
         _unsupported(source, sides.bad, neighbourhood, excluded)
     oriented = np.where(flip[:, None], -normals, normals)

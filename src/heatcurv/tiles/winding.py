@@ -202,8 +202,8 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
     seam_keys, seam_flip : ndarray
         :func:`heatcurv.tiles.orient.seam_flips`' patch keys and flips.
     open_up : bool, optional
-        ``orient="auto"``: objects open on their own that lie over the horizontal plane face ``+z``
-        (:func:`heatcurv.orient.enclosure.patch_sides`), as in memory.
+        ``orient="auto"``: objects open on their own, and the objects of an open cloud, that lie over
+        the horizontal plane face ``+z`` (:func:`heatcurv.orient.enclosure.patch_sides`), as in memory.
 
     Returns
     -------
