@@ -18,6 +18,7 @@ from scipy.spatial import cKDTree
 from .._kernels import segment as kernels
 from ..geometry.neighbourhood import knn_neighbourhood
 from ..tuning import TUNING
+from .enclosure import vertical_sums
 from .orientation import AutoPolicy, edge_agreement, tree_sides
 
 __all__ = ["AUTO_NEIGHBOURS", "auto_policy", "convex_side"]
@@ -182,10 +183,8 @@ def _over_plane(sample: _Sample, up: np.ndarray, axis: np.ndarray | None) -> Aut
     flat, labels, spacing, noise, split = sample.flat, sample.labels, sample.spacing, sample.noise, sample.split
     nz, n_comp = oriented[:, 2], int(labels.max()) + 1
     # per component, the smaller of the upward and downward sums of n_z over its flat points that are not walls
-    # (a wall's n_z is noise; either side: the tree's root chose it)
-    counted = flat & (np.abs(nz) >= TUNING.auto_wall_cosine)
-    upward = np.bincount(labels, weights=np.clip(nz, 0.0, None) * counted, minlength=n_comp)
-    downward = np.bincount(labels, weights=np.clip(-nz, 0.0, None) * counted, minlength=n_comp)
+    # (either side: the tree's root chose it)
+    upward, downward = vertical_sums(nz, np.ones_like(nz), flat, labels, n_comp)
     total = float((upward + downward).sum())
     down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
     share = float(np.mean(np.abs(nz) >= TUNING.auto_vertical_cosine))

@@ -98,7 +98,7 @@ from .consistency import field_normals
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "upward_sides",
-    "source_roundness", "MAX_SOURCES", "MAX_UNKNOWNS", "warn_undecided",
+    "vertical_sums", "source_roundness", "MAX_SOURCES", "MAX_UNKNOWNS", "warn_undecided",
 ]
 
 #: Most points the winding sums run over (each is a source and carries two queries).
@@ -575,11 +575,30 @@ def upward_sides(nz: np.ndarray, weight: np.ndarray, flat: np.ndarray, labels: n
         return np.bincount(labels, weights=values, minlength=n_labels)
 
     steep = total(weight * (np.abs(nz) >= TUNING.auto_vertical_cosine)) >= TUNING.auto_share * total(weight)
-    counted = weight * (flat & (np.abs(nz) >= TUNING.auto_wall_cosine))
-    upward, downward = total(counted * np.clip(nz, 0.0, None)), total(counted * np.clip(-nz, 0.0, None))
+    upward, downward = vertical_sums(nz, weight, flat, labels, n_labels)
     one_side = np.minimum(upward, downward) <= TUNING.auto_down_share * (upward + downward)
     over = steep & one_side & (upward + downward > 0.0)
     return np.where(over, np.where(upward >= downward, 1.0, -1.0), 0.0)
+
+
+def vertical_sums(nz: np.ndarray, weight: np.ndarray, flat: np.ndarray, labels: np.ndarray,
+                  n_labels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per object, ``sum w n_z`` over its flat normals facing up and ``sum w |n_z|`` over those facing down.
+
+    Only the normals that are not walls (``|n_z| >= TUNING.auto_wall_cosine``)
+    count: a wall's ``n_z`` is noise. The smaller of the two sums is what
+    faces the other way on a surface over the horizontal plane.
+
+    Parameters are those of :func:`upward_sides`.
+
+    Returns
+    -------
+    upward, downward : ndarray, shape (n_labels,)
+    """
+    counted = weight * (flat & (np.abs(nz) >= TUNING.auto_wall_cosine))
+    upward = np.bincount(labels, weights=counted * np.clip(nz, 0.0, None), minlength=n_labels)
+    downward = np.bincount(labels, weights=counted * np.clip(-nz, 0.0, None), minlength=n_labels)
+    return upward, downward
 
 
 def source_roundness(roundness: np.ndarray | None, source=slice(None)) -> float:
