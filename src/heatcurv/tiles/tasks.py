@@ -33,7 +33,7 @@ from ..errors import HeatcurvError
 from . import compute
 from .context import SurveyContext
 from .neighbours import core_lists, known_neighbours, write_lists
-from .orient import MOMENTS, patch_moments
+from .orient import MOMENTS
 from .plan import CloudStats, Tiling, read_rows
 from .winding import tile_sources
 
@@ -388,20 +388,16 @@ def run_tile(spec: TileTask) -> dict:
     )
     c = int(core.sum())
     patch = np.asarray(out["patch"], dtype=np.int64)
-    labels, inverse = np.unique(patch[core], return_inverse=True)
     arrays = {name: np.asarray(out[name]) for name in compute.RESULT_FIELDS}
-    moments = np.zeros((len(labels), len(MOMENTS)))
-    # the winding step's patches (each within one seam piece) and sources (heatcurv.tiles.winding)
+    # the winding step's patches (each within one seam piece) and sources, and the pieces' outward votes, which
+    # the driver sums per object (heatcurv.tiles.winding, heatcurv.tiles.orient)
     if compute.orients_outward(options, context.choices):
-        frame = context.choices.frame
         winding = None if out["winding"] is None else {k: v[core] for k, v in out["winding"].items()}
-        arrays.update(tile_sources(frame, points[core], rows[core], patch[core], arrays, winding))
-        # the pieces' outward votes, summed per object by the driver (heatcurv.tiles.orient)
-        weight = np.where(arrays["outlier"], 0.0, arrays["area"]) if winding is None else winding["weight"]
-        moments = patch_moments(frame.to_stage(points[core]), arrays["normals"], np.abs(weight) / frame.unit**2,
-                                inverse, len(labels))
+        arrays.update(tile_sources(context.choices.frame, points[core], rows[core], patch[core], arrays, winding))
     else:
         arrays["winding"] = arrays["winding_fine"] = np.zeros(c, dtype=np.int64)
+        arrays["moment_labels"] = np.unique(patch[core])
+        arrays["moments"] = np.zeros((len(arrays["moment_labels"]), len(MOMENTS)))
     # the second-sheet pairs the driver settles (heatcurv.tiles.sheets), input rows
     sheet_rows, sheet_columns = out.get("sheet_pairs") or (np.zeros(0, np.int64), np.zeros(0, np.int64))
     arrays["sheet_rows"], arrays["sheet_columns"] = rows[sheet_rows], rows[sheet_columns]
@@ -410,7 +406,7 @@ def run_tile(spec: TileTask) -> dict:
     try:
         np.savez(temporary, rows=rows[core], patch=patch[core],
                  halo_rows=rows[~core], halo_normals=np.asarray(out["halo_normals"]), halo_patch=patch[~core],
-                 moment_labels=labels, moments=moments, **arrays)
+                 **arrays)
         os.replace(temporary, path)
     except BaseException:
         if os.path.exists(temporary):

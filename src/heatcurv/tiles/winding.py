@@ -43,6 +43,7 @@ from ..geometry.validation import row_hashes
 from ..orient.enclosure import patch_sides, sampled_sources, source_keys
 from ..orient.visibility import MAX_TESTED, escape_votes, lowest_keys
 from ..tuning import TUNING
+from .orient import patch_moments
 from .output import PATCH_SHIFT, RECORD, SOURCE_KEYS, chunk_flips, keyed_flips, read_results, write_records
 
 __all__ = ["MAX_TILED_PATCHES", "WindingSides", "tile_sources", "winding_sides", "flag_unsupported"]
@@ -85,12 +86,15 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         ``winding_area`` (the frame's unit), ``winding_label``,
         ``winding_fine_label``, ``winding_seam``, ``winding_roundness`` (their balls' PCA roundness,
         NaN without ``winding``); ``winding_total``: the summed area of the core rows
-        (excluded ones weigh 0), to which the sources' areas are scaled.
+        (excluded ones weigh 0), to which the sources' areas are scaled; ``moment_labels``
+        (the seam pieces) and ``moments`` (their :func:`.orient.patch_moments` with the
+        result's normals, which the driver sums into each object's outward vote).
     """
+    stage = frame.to_stage(points)
+    excluded = np.asarray(results["outlier"], dtype=bool)
     if winding is None:
-        excluded = np.asarray(results["outlier"], dtype=bool)
         label = fine = np.unique(seam, return_inverse=True)[1].ravel()
-        source = sampled_sources(frame.to_stage(points), excluded, frame.n_points)
+        source = sampled_sources(stage, excluded, frame.n_points)
         normals, weight = results["normals"], np.where(excluded, 0.0, np.abs(results["area"]))
         roundness = np.full(len(points), np.nan)
     else:
@@ -99,18 +103,20 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         pieces = np.column_stack([pieces, np.asarray(winding["fine"], dtype=np.int64)])
         fine = np.unique(pieces, axis=0, return_inverse=True)[1].ravel()
         source, normals, weight = np.asarray(winding["source"], dtype=bool), winding["normals"], winding["weight"]
-        excluded = np.asarray(results["outlier"], dtype=bool)
         roundness = winding["roundness"]
     # every patch holds a source, as in memory (heatcurv.orient.enclosure's sample plus one a patch): a patch of the
     # core without one (a patch cut by the core's edge) would keep the tile's side whatever the field says
-    source = _one_a_patch(source, label, excluded, frame.to_stage(points))
+    source = _one_a_patch(source, label, excluded, stage)
     weight = np.abs(weight) / frame.unit**2
+    pieces, piece = np.unique(seam, return_inverse=True)
     return {
         "winding": label.astype(np.int64), "winding_fine": fine.astype(np.int64), "winding_rows": rows[source],
-        "winding_x": frame.to_stage(points[source]), "winding_normals": normals[source],
+        "winding_x": stage[source], "winding_normals": normals[source],
         "winding_area": weight[source], "winding_label": label[source], "winding_fine_label": fine[source],
         "winding_seam": seam[source], "winding_roundness": np.asarray(roundness, dtype=float)[source],
         "winding_total": np.array(weight.sum()),
+        "moment_labels": pieces,
+        "moments": patch_moments(stage, results["normals"], weight, piece.ravel(), len(pieces)),
     }
 
 
