@@ -368,6 +368,15 @@ def test_a_cloud_too_coarse_for_its_curvature_is_unreliable_with_a_warning(n):
     assert not res.reliable.any()
 
 
+def test_points_filling_a_volume_are_unreliable_and_the_warning_says_so():
+    # 3000 points uniform in a cube: every ball is round; no value stands for a surface
+    points = np.random.default_rng(3).random((3000, 3))
+    with pytest.warns(heatcurv.HeatcurvWarning, match=r"round, not flat.*fill a volume.*check that it is a surface"):
+        res = heatcurv.estimate(points)
+    assert np.isinf(res.info["resolution"])
+    assert not res.reliable.any()
+
+
 def test_a_resolved_cloud_is_not_called_coarse():
     # a 600-point torus: 0.38 radii of curvature per spacing, mean within 2.9 % (median)
     sample = heatcurv.surfaces.Torus(0.6, 1.4).sample(600, "random", seed=1)

@@ -115,11 +115,12 @@ def resolution(rho: np.ndarray, counted: np.ndarray) -> float:
 def warn_too_coarse(rho: float, stacklevel: int = 2) -> None:
     """Warn that the cloud's resolution ``rho`` (:func:`resolution`) is past ``TUNING.resolution_limit``."""
     measure = ("most of its balls are round, not flat: the surface wraps around within them (a part a few "
-               "spacings across)") if np.isinf(rho) else (
+               "spacings across), or the points fill a volume instead of lining a surface") if np.isinf(rho) else (
         f"a median point's spacing is {rho:.2g} radii of curvature (at most {TUNING.resolution_limit:g}: about 12 "
         "points around a curve), so its neighbourhoods wrap around the surface")
-    warnings.warn(f"the cloud is too coarse for its curvature: {measure}; every value is marked unreliable. Sample "
-                  "it more densely.", HeatcurvWarning, stacklevel=stacklevel + 1)
+    advice = "Sample it more densely" + (", or check that it is a surface" if np.isinf(rho) else "")
+    warnings.warn(f"the cloud is too coarse for its curvature: {measure}; every value is marked unreliable. "
+                  f"{advice}.", HeatcurvWarning, stacklevel=stacklevel + 1)
 
 
 def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolution_value: float | None = None,
