@@ -251,6 +251,12 @@ def test_npy_size_must_match_the_header(tmp_path):
     _refused(tmp_path / "neg.npy", r"shape \(-12, 3\) has a negative dimension")
     (tmp_path / "obj.npy").write_bytes(data.replace(b"'<f8'", b"'|O' "))
     _refused(tmp_path / "obj.npy", r"^the array holds Python objects, not numbers$")
+    np.save(tmp_path / "mask.npy", _points() > 0)
+    _refused(tmp_path / "mask.npy", r"^the array holds booleans \(a mask\?\), not coordinates$")
+    np.save(tmp_path / "complex.npy", _points() * 1j)
+    _refused(tmp_path / "complex.npy", r"^the array holds complex128 values, not numbers$")
+    np.savez(tmp_path / "mask.npz", points=_points() > 0)
+    _refused(tmp_path / "mask.npz", r"^'points' has shape \(\d+, 3\) and dtype bool; expected \(n, 3\) numbers$")
     text = b"{'descr': '<f8', 'fortran_order': False, 'shape': " + b"(" * 3000 + b")" * 3000 + b"}\n"
     (tmp_path / "nest.npy").write_bytes(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(text)) + text)
     _refused(tmp_path / "nest.npy", r"^not a valid NPY file \(")

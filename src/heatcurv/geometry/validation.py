@@ -111,9 +111,17 @@ class PreparedPoints:
 
 
 def _as_float_array(points, name: str) -> np.ndarray:
+    """``points`` as float64; complex numbers (an imaginary part would be dropped) and booleans (a mask) refused."""
     try:
-        arr = np.asarray(points, dtype=np.float64)
+        raw = np.asarray(points)
+        if raw.dtype.kind == "c":
+            raise HeatcurvError(f"{name} must be real coordinates, got complex numbers ({raw.dtype})")
+        if raw.dtype.kind == "b":
+            raise HeatcurvError(f"{name} must be numbers, got booleans (a mask?)")
+        arr = raw.astype(np.float64, copy=False)
     except (TypeError, ValueError) as exc:
+        if isinstance(exc, HeatcurvError):
+            raise
         raise HeatcurvError(f"{name} must be numeric array-like of shape (n, 3): {exc}") from None
     return arr
 

@@ -194,7 +194,9 @@ def _read_npy(path: Path, fmt: str) -> PointCloud:
             name: _native(array[name]) for name in array.dtype.names if array[name].ndim == 1
         }
         return _cloud_from_columns(columns, path, fmt, text_colours=False)
-    if array.dtype.kind not in "biuf":
+    if array.dtype.kind == "b":
+        raise _read_error(path, "the array holds booleans (a mask?), not coordinates")
+    if array.dtype.kind not in "iuf":
         raise _read_error(path, f"the array holds {array.dtype} values, not numbers")
     if array.ndim != 2 or array.shape[1] < 3:
         raise _read_error(
@@ -315,7 +317,7 @@ def _read_npz(path: Path, fmt: str) -> PointCloud:
             path, f"no 'points' or 'xyz' array (arrays: {', '.join(arrays) or 'none'})"
         )
     points = arrays.pop(key)
-    if points.dtype.kind not in "biuf" or points.ndim != 2 or points.shape[1] != 3:
+    if points.dtype.kind not in "iuf" or points.ndim != 2 or points.shape[1] != 3:
         raise _read_error(
             path,
             f"'{key}' has shape {points.shape} and dtype {points.dtype}; expected (n, 3) numbers",
