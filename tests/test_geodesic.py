@@ -146,7 +146,8 @@ def test_a_heat_step_too_short_for_the_cloud_is_lengthened(sphere, monkeypatch):
 
 @pytest.mark.parametrize("sources, message", [
     (-1, r"in \[0, 9999\]"), (10000, r"in \[0, 9999\]"), ([], "a point index"), (1.5, "a point index"),
-    (True, "a point index"), ([[0, 1]], "a point index"), ("0", "a point index"),
+    (True, "got booleans"), (np.arange(10000) < 3, r"got booleans; for a mask pass np\.flatnonzero"),
+    ([[0, 1]], "a point index"), ("0", "a point index"),
 ])
 def test_bad_sources_are_named(sphere, sources, message):
     _, lap = sphere

@@ -233,6 +233,7 @@ def test_heat_from_a_point_against_the_exact_heat_kernel_of_the_sphere(random_sp
         (None, {"neighbours": 3}, "neighbours"),
         (None, {"width": 2.0}, "width"),
         (None, {"order": 3}, "order"),
+        (None, {"workers": 0}, "workers = 0 is outside its range"),
         (None, {"alpha": 4}, "unknown option"),
         ("outliers", {}, "did not converge.*isolated outliers"),
     ],
@@ -259,6 +260,8 @@ def test_duplicates_and_bad_queries_are_heatcurv_errors(random_sphere):
         lap.heat(pts[:, 0], -1.0)
     with pytest.raises(HeatcurvError, match="shape"):
         lap.heat(pts[:10, 0], 1.0)
+    with pytest.raises(HeatcurvError, match="values hold 1 NaN or infinite entries"):
+        lap.heat(np.r_[np.nan, pts[1:, 0]], 1.0)
 
 
 @pytest.mark.parametrize("cholesky", [True, False])

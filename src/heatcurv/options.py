@@ -29,7 +29,7 @@ from .errors import HeatcurvError
 
 __all__ = [
     "Options", "ScaleTuning", "METHODS", "RANGES", "Range", "resolve_options", "option_help", "range_problem",
-    "check_options_for_cloud", "SEED_RANGE",
+    "check_options_for_cloud", "SEED_RANGE", "workers_problem",
 ]
 
 
@@ -162,7 +162,8 @@ def _in_range(name: str):
     return check
 
 
-def _workers(value):
+def workers_problem(value) -> str | None:
+    """What is wrong with a ``workers`` value (-1, all cores, or a thread count in [1, 1024]), or None."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         return f"workers must be -1 (all cores) or a whole thread count in [1, 1024], got {_got(value)}"
     if value == 0:
@@ -448,7 +449,8 @@ class Options:
         check=_in_range("min_neighbours"),
     )
     workers: int = _option(
-        -1, "threads for the k-d tree and the compiled kernels: -1 (all cores) or 1-1024", check=_workers, cli=False
+        -1, "threads for the k-d tree and the compiled kernels: -1 (all cores) or 1-1024", check=workers_problem,
+        cli=False,
     )
     se: bool = _option(True, "standard errors of the curvatures and normals (the chord fit)", choices=(True, False),
                        cli=False)

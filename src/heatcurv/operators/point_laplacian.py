@@ -90,6 +90,7 @@ from .._kernels import segment as segment_kernels
 from ..errors import HeatcurvError
 from ..geometry.neighbourhood import ball_neighbourhood, block_ranges, rows_per_block
 from ..geometry.validation import prepare_points
+from ..options import workers_problem
 from .geodesic import HeatGeodesics
 from .operator import build_operator
 
@@ -351,6 +352,9 @@ class PointCloudLaplacian:
 
     def __post_init__(self):
         self.neighbours, self.width, self.order = _check_options(self.neighbours, self.width, self.order)
+        problem = workers_problem(self.workers)
+        if problem:
+            raise HeatcurvError(problem)
         prepared = prepare_points(self.points, min_points=self.neighbours + 1)
         if prepared.n_distinct != prepared.n_input:
             raise HeatcurvError(
@@ -476,8 +480,10 @@ class PointCloudLaplacian:
         ndarray, same shape as ``values``
         """
         u = np.asarray(values, dtype=np.float64)
-        if u.shape[:1] != (self.n,) or u.ndim > 2 or not np.all(np.isfinite(u)):
-            raise HeatcurvError(f"values must be finite with shape ({self.n},) or ({self.n}, c), got {u.shape}")
+        if u.shape[:1] != (self.n,) or u.ndim > 2:
+            raise HeatcurvError(f"values must have shape ({self.n},) or ({self.n}, c), got {u.shape}")
+        if not np.all(np.isfinite(u)):
+            raise HeatcurvError(f"values hold {np.count_nonzero(~np.isfinite(u))} NaN or infinite entries")
         try:
             time = float(time)
         except (TypeError, ValueError):
@@ -525,7 +531,9 @@ class PointCloudLaplacian:
         True
         """
         index = np.atleast_1d(np.asarray(sources))
-        if index.size == 0 or index.ndim != 1 or not np.issubdtype(index.dtype, np.integer) or index.dtype == bool:
+        if index.dtype == bool:
+            raise HeatcurvError("sources must be point indices, got booleans; for a mask pass np.flatnonzero(mask)")
+        if index.size == 0 or index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
             raise HeatcurvError(f"sources must be a point index or a 1-D list of them, got {sources!r}")
         if index.min() < 0 or index.max() >= self.n:
             raise HeatcurvError(f"sources must be point indices in [0, {self.n - 1}], got {sources!r}")
