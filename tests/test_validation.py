@@ -25,7 +25,7 @@ def test_error_is_a_value_error():
         (np.zeros((4, 3, 1)), "shape (n, 3)"),
         (np.zeros((0, 3)), "empty"),
         ([["a", "b", "c"]] * 10, "numeric"),
-        (np.ones((100, 3), dtype=complex), "real coordinates, got complex"),
+        (np.ones((100, 3), dtype=complex), "real numbers, got complex ones"),
         (np.ones((100, 3), dtype=bool), "booleans"),
     ],
 )

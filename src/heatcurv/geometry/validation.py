@@ -115,7 +115,7 @@ def _as_float_array(points, name: str) -> np.ndarray:
     try:
         raw = np.asarray(points)
         if raw.dtype.kind == "c":
-            raise HeatcurvError(f"{name} must be real coordinates, got complex numbers ({raw.dtype})")
+            raise HeatcurvError(f"{name} must be real numbers, got complex ones ({raw.dtype})")
         if raw.dtype.kind == "b":
             raise HeatcurvError(f"{name} must be numbers, got booleans (a mask?)")
         arr = raw.astype(np.float64, copy=False)
