@@ -112,18 +112,21 @@ class PreparedPoints:
 
 def _as_float_array(points, name: str) -> np.ndarray:
     """``points`` as float64; complex numbers (an imaginary part would be dropped) and booleans (a mask) refused."""
+    def not_numeric(exc):
+        return HeatcurvError(f"{name} must be numeric array-like of shape (n, 3): {exc}")
+
     try:
         raw = np.asarray(points)
-        if raw.dtype.kind == "c":
-            raise HeatcurvError(f"{name} must be real numbers, got complex ones ({raw.dtype})")
-        if raw.dtype.kind == "b":
-            raise HeatcurvError(f"{name} must be numbers, got booleans (a mask?)")
-        arr = raw.astype(np.float64, copy=False)
     except (TypeError, ValueError) as exc:
-        if isinstance(exc, HeatcurvError):
-            raise
-        raise HeatcurvError(f"{name} must be numeric array-like of shape (n, 3): {exc}") from None
-    return arr
+        raise not_numeric(exc) from None
+    if raw.dtype.kind == "c":
+        raise HeatcurvError(f"{name} must be real numbers, got complex ones ({raw.dtype})")
+    if raw.dtype.kind == "b":
+        raise HeatcurvError(f"{name} must be numbers, got booleans (a mask?)")
+    try:
+        return raw.astype(np.float64, copy=False)
+    except (TypeError, ValueError) as exc:
+        raise not_numeric(exc) from None
 
 
 def row_hashes(points: np.ndarray) -> np.ndarray:
