@@ -15,6 +15,7 @@ from tiles_helpers import ALL_FIELDS, read_fields
 from heatcurv.errors import HeatcurvError
 from heatcurv.tiles import compute_file, executors
 from heatcurv.tiles.executors import SerialExecutor, open_executor
+from heatcurv.tiles.job import task_threads
 from heatcurv.tiles.tasks import FAULT_VARIABLE
 
 
@@ -34,6 +35,20 @@ def test_processes_retry_a_killed_worker_and_match_threads(torus_file, torus_thr
                           dtype="float64", fields=ALL_FIELDS, max_memory="4G", log=messages.append)
     assert marker.exists() and report.scheduler == "processes" and report.workers == 2
     assert any("a worker process died; restarting the pool" in m for m in messages)
+    _same_output(out, torus_threads[0])
+
+
+def test_one_worker_process_gets_the_run_s_threads_and_the_same_output(torus_file, torus_threads, tmp_path):
+    # a budget or tile_workers that holds fewer worker processes than cores: each takes a share of the cores
+    assert [task_threads(-1, 4, w) for w in (1, 2, 3, 4, 8)] == [4, 2, 1, 1, 1]
+    assert [task_threads(1, 4, 1), task_threads(2, 8, 1), task_threads(6, 8, 2)] == [1, 2, 3]
+    with executors.thread_environment(3):
+        child = subprocess.run([sys.executable, "-c", "import os; print(os.environ['NUMBA_NUM_THREADS'])"],
+                               capture_output=True, text=True, check=True)
+    assert child.stdout.strip() == "3" and os.environ.get("NUMBA_NUM_THREADS") != "3"
+    out = tmp_path / "one.ply"
+    compute_file(torus_file[0], out, tile_size=1200, tile_workers=1, workers=2, scheduler="processes",
+                 dtype="float64", fields=ALL_FIELDS, max_memory="4G")
     _same_output(out, torus_threads[0])
 
 

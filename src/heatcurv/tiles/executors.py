@@ -34,7 +34,7 @@ from contextlib import contextmanager
 
 from ..errors import HeatcurvError
 
-__all__ = ["SerialExecutor", "SCHEDULERS", "open_executor", "single_threaded_environment"]
+__all__ = ["SerialExecutor", "SCHEDULERS", "open_executor", "thread_environment"]
 
 #: The scheduler names (besides ``tcp://host:port`` addresses and Dask clients).
 SCHEDULERS = ("processes", "threads", "dask", "serial")
@@ -58,10 +58,10 @@ class SerialExecutor(cf.Executor):
 
 
 @contextmanager
-def single_threaded_environment():
-    """Processes started inside the block run one BLAS/OpenMP/numba thread (this process is unchanged)."""
+def thread_environment(threads: int = 1):
+    """Processes started inside the block run ``threads`` BLAS/OpenMP/numba threads (this process is unchanged)."""
     previous = {name: os.environ.get(name) for name in _THREAD_VARIABLES}
-    os.environ.update({name: "1" for name in _THREAD_VARIABLES})
+    os.environ.update({name: str(int(threads)) for name in _THREAD_VARIABLES})
     try:
         yield
     finally:
@@ -88,10 +88,11 @@ def dask_slots(client) -> int:
 
 
 @contextmanager
-def open_executor(scheduler, workers: int, budget: int):
+def open_executor(scheduler, workers: int, budget: int, threads: int = 1):
     """Yield ``(executor, slots, name)`` for ``scheduler`` with ``workers`` local workers and ``budget`` bytes.
 
-    ``slots`` is how many tasks run at once (a remote cluster's thread count).
+    ``slots`` is how many tasks run at once (a remote cluster's thread count);
+    ``threads`` the threads of each local worker process (``"processes"``).
     The executor, and a cluster started here, are shut down on leaving.
     """
     if not isinstance(scheduler, str):  # a dask Client
@@ -104,7 +105,7 @@ def open_executor(scheduler, workers: int, budget: int):
         with cf.ThreadPoolExecutor(max_workers=workers) as executor:
             yield executor, workers, "threads"
     elif scheduler == "processes":
-        with single_threaded_environment():
+        with thread_environment(threads):
             executor = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
         try:
             yield executor, workers, "processes"
@@ -112,7 +113,7 @@ def open_executor(scheduler, workers: int, budget: int):
             executor.shutdown(wait=True, cancel_futures=True)
     elif scheduler == "dask":
         distributed = _dask()
-        with single_threaded_environment():
+        with thread_environment():
             cluster = distributed.LocalCluster(
                 n_workers=workers, threads_per_worker=1, processes=True, memory_limit=max(1, budget // workers),
                 dashboard_address=None,

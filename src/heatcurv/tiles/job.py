@@ -18,7 +18,7 @@ from ..errors import HeatcurvError
 from .executors import SerialExecutor, kill_workers, open_executor
 from .plan import BYTES_PER_POINT, DRIVER_MEMORY, PhaseWorkers, TilePlan, budget_refusal, halo_points, phase_workers
 
-__all__ = ["Job", "Phase", "phase", "submit", "version", "RETRIES"]
+__all__ = ["Job", "Phase", "phase", "submit", "task_threads", "version", "RETRIES"]
 
 #: Times a tile is resubmitted after its worker process died.
 RETRIES = 2
@@ -64,9 +64,25 @@ def phase(run: Job, plan: TilePlan, halo, name: str) -> Phase:
     fit = _phase_workers(plan.tiling, plan.stats, halo, run.budget, run.requested, run.cpus, plan.tile_size, name,
                          run.in_process)
     serial = fit.in_process or (n_tiles == 1 and isinstance(run.scheduler, str))
-    executor = partial(open_executor, "serial" if serial else run.scheduler, budget=max(run.budget - DRIVER_MEMORY, 1))
-    threads = serial or n_tiles == 1 or run.scheduler == "serial"
-    return Phase(executor, max(1, min(n_tiles, fit.count)), dict(run.options, workers=run.threads if threads else 1))
+    workers = max(1, min(n_tiles, fit.count))
+    if serial or n_tiles == 1 or run.scheduler == "serial":
+        threads = run.threads  # the tiles run in this process
+    elif isinstance(run.scheduler, str) and run.scheduler == "processes":
+        threads = task_threads(run.threads, run.cpus, workers)
+    else:  # a Dask worker's threads are its own; a thread pool's tasks share this process
+        threads = 1
+    executor = partial(open_executor, "serial" if serial else run.scheduler, budget=max(run.budget - DRIVER_MEMORY, 1),
+                       threads=threads)
+    return Phase(executor, workers, dict(run.options, workers=threads))
+
+
+def task_threads(threads: int, cpus: int, workers: int) -> int:
+    """The threads of each of ``workers`` local worker processes: the run's ``threads`` (-1: the ``cpus``) shared.
+
+    A budget that holds fewer workers than there are cores leaves the others to the workers' own threads
+    (the k-d tree's queries and the compiled kernels) instead of idle.
+    """
+    return max(1, (cpus if threads == -1 else threads) // workers)
 
 
 def _phase_workers(tiling, stats, halo, budget: int, requested: int, cpus: int, tile_size: int, phase: str,
