@@ -1,10 +1,12 @@
 """The executors: a process pool (with a killed worker), a Dask cluster in process, and `dask scheduler` + workers."""
 
+import multiprocessing
 import os
 import socket
 import subprocess
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 import distributed  # the test extra installs dask[distributed]: these tests never skip
@@ -13,7 +15,7 @@ import pytest
 from tiles_helpers import ALL_FIELDS, read_fields
 
 from heatcurv.errors import HeatcurvError
-from heatcurv.tiles import compute_file, executors
+from heatcurv.tiles import compute_file, executors, job
 from heatcurv.tiles.executors import SerialExecutor, open_executor
 from heatcurv.tiles.job import task_threads
 from heatcurv.tiles.tasks import FAULT_VARIABLE
@@ -99,6 +101,40 @@ def test_dask_scheduler_and_two_workers(torus_file, torus_threads, tmp_path):
             except subprocess.TimeoutExpired:
                 process.kill()
         logs.close()
+
+
+def _worker_pid(barrier):
+    barrier.wait(timeout=60)  # every task of the phase running at once: each in a worker of its own
+    return os.getpid()
+
+
+def _pids(pools, workers, threads=1):
+    """The worker processes of one phase of ``workers`` tasks (the phase's executor from ``pools``)."""
+    found = {}
+    with multiprocessing.Manager() as manager:
+        barrier = manager.Barrier(workers)
+        job.submit(partial(pools.open, "processes", budget=1 << 30, threads=threads), workers, _worker_pid,
+                   dict.fromkeys(range(workers), barrier), found.__setitem__, print, "task", workers)
+    assert len(set(found.values())) == workers
+    return set(found.values())
+
+
+def test_phases_asking_for_the_same_workers_share_their_processes():
+    pools = executors.Pools()
+    try:
+        survey = _pids(pools, 2)
+        assert _pids(pools, 2) == survey and os.getpid() not in survey  # the next phase: the same processes
+        fewer = _pids(pools, 1)  # other workers: a new pool, the old one shut down
+        assert fewer.isdisjoint(survey)
+        assert _pids(pools, 1, threads=2).isdisjoint(fewer)  # other threads: new processes (their environment)
+        kept = _pids(pools, 2)
+        with pytest.raises(RuntimeError, match="a tile failed"):
+            with pools.open("processes", 2, 1 << 30):
+                raise RuntimeError("a tile failed")  # a failed phase (a broken pool, a task) closes its executor
+        assert _pids(pools, 2).isdisjoint(kept)
+    finally:
+        pools.close()
+    pools.close()  # closing twice is nothing
 
 
 def test_serial_executor_and_errors(monkeypatch):

@@ -62,7 +62,7 @@ import numpy as np
 from ..errors import HeatcurvError
 from . import compute
 from .context import SurveyContext
-from .executors import SCHEDULERS
+from .executors import SCHEDULERS, Pools
 from .job import Job
 from .output import DEFAULT_FIELDS, ERROR_FIELDS, TILED_FIELDS, TILED_WRITE
 from .phase_orient import orient_cloud
@@ -239,10 +239,12 @@ def compute_file(
             plan = make_plan(run, identity, tile_size, skip_nonfinite, timings, store.bar)
         context = survey(run, plan, timings, store.bar)
         name, workers, resumed = compute_tiles(run, plan, context, store, timings)
+        run.pools.close()  # the last phase with workers: theirs is memory the phases left need
         medians = cloud_flags(run, plan, timings)
         flips, orientation = orient_cloud(run, plan, context, timings, store.bar)
         parameters = write(run, plan, context, medians, flips, timings, store.bar)
     except BaseException as exc:
+        run.pools.close()
         store.abandon()
         if isinstance(exc, (HeatcurvError, KeyboardInterrupt, SystemExit)):
             raise
@@ -296,7 +298,7 @@ def _settle(src, dst, method, viewpoint, max_memory, tile_workers, scheduler, sc
         threads=threads, budget=budget, requested=requested, cpus=cpus, scheduler=scheduler,
         # a Dask cluster's workers are its own: only a local scheduler falls back to this process
         in_process=isinstance(scheduler, str) and scheduler in ("processes", "threads", "serial"),
-        fields=wanted, dtype=dtype or "float32",
+        pools=Pools(), fields=wanted, dtype=dtype or "float32",
         progress=sys.stderr.isatty() if progress is None else bool(progress), say=log or _quiet,
     )
 

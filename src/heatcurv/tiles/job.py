@@ -15,7 +15,7 @@ from functools import partial
 from pathlib import Path
 
 from ..errors import HeatcurvError
-from .executors import SerialExecutor, kill_workers, open_executor
+from .executors import SerialExecutor, kill_workers
 from .plan import BYTES_PER_POINT, DRIVER_MEMORY, PhaseWorkers, TilePlan, budget_refusal, halo_points, phase_workers
 
 __all__ = ["Job", "Phase", "phase", "submit", "task_threads", "version", "RETRIES"]
@@ -40,6 +40,7 @@ class Job:
     cpus: int
     scheduler: object  # a name or a Dask client
     in_process: bool  # a tile may run in this process when no worker fits
+    pools: object  # .executors.Pools: the executor the phases share
     fields: tuple
     dtype: str
     progress: bool
@@ -71,7 +72,7 @@ def phase(run: Job, plan: TilePlan, halo, name: str) -> Phase:
         threads = task_threads(run.threads, run.cpus, workers)
     else:  # a Dask worker's threads are its own; a thread pool's tasks share this process
         threads = 1
-    executor = partial(open_executor, "serial" if serial else run.scheduler, budget=max(run.budget - DRIVER_MEMORY, 1),
+    executor = partial(run.pools.open, "serial" if serial else run.scheduler, budget=max(run.budget - DRIVER_MEMORY, 1),
                        threads=threads)
     return Phase(executor, workers, dict(run.options, workers=threads))
 
