@@ -6,6 +6,8 @@ LAZ file in a temporary directory, a chunk at a time, and prints tables:
 
 1. in memory: :func:`heatcurv.estimate` on the 1M-point file (the clouds up to ``--memory-up-to``
    points), one thread and all cores, and each tiled run's time over the in-memory one of its size;
+   also the whole in-memory job on all cores, ``heatcurv compute`` (read, estimate, write the same
+   fields to a LAZ file: what a tiled run does), and each tiled run's time over that;
 2. tiled within a budget (default 3 GB), 1 and 2 process workers, 1M and 12M points;
 3. the same with ``--scheduler dask`` (a local cluster of 2 workers): Dask's overhead per tile;
 4. ``--huge``: 100M points, generated on the fly (about 45 GB of scratch and files).
@@ -145,6 +147,12 @@ if __name__ == "__main__":
         cloud = read_points(src)
         res = heatcurv.estimate(cloud.points, orient="up", workers=arg["workers"])
         out = {"seconds": time.perf_counter() - tic, "points": len(res)}
+    elif kind == "compute":
+        from heatcurv.cli.main import main
+        status = main(["compute", src, "-o", dst, "-q", "-j", str(arg["workers"])])
+        if status != 0:
+            sys.exit(status)
+        out = {"seconds": time.perf_counter() - tic}
     else:
         from heatcurv.tiles import compute_file
         print("START " + repr(time.time()), flush=True)
@@ -263,6 +271,12 @@ def main(argv=None) -> None:
                 r = measure("memory", src, "-", {"workers": threads})
                 rows.append(("in memory", n, f"{threads if threads > 0 else os.cpu_count()} thr", "-", r))
                 _print_row(*rows[-1])
+            if args.cloud == "lidar":  # the command line writes what it read: a LAZ, as the tiled runs
+                dst = work / f"out_{n}_memory.laz"
+                r = measure("compute", src, dst, {"workers": -1})
+                rows.append(("compute", n, f"{os.cpu_count()} thr", "-", r))
+                _print_row(*rows[-1])
+                dst.unlink(missing_ok=True)
         for w in (args.workers if n < 100_000_000 else [max(args.workers)]):
             dst = work / f"out_{n}_{w}.laz"
             arg = {"max_memory": args.budget, "tile_workers": w, "scratch": str(work), **orient}
@@ -307,11 +321,15 @@ def _summary(rows):
         if one:
             for r in one:
                 print(f"in-memory time per point (1 thread, {r[1]:,d} points): {r[4]['seconds'] / r[1] * 1e6:.1f} us")
+    jobs = {r[1]: r for r in rows if r[0] == "compute"}
     for (n, w), r in sorted(tiled.items()):
         same = [m for m in memory if m[1] == n and not m[2].startswith("1 ")]
         if same:
             print(f"{n:,d} points: tiled ({w}) / in memory ({same[0][2]}): "
                   f"{r['seconds'] / same[0][4]['seconds']:.2f}x")
+        if n in jobs:
+            print(f"{n:,d} points: tiled ({w}) / heatcurv compute in memory ({jobs[n][2]}, read, estimate, write): "
+                  f"{r['seconds'] / jobs[n][4]['seconds']:.2f}x")
     for (n, w), r in sorted(tiled.items()):
         base = tiled.get((n, "1 proc"))
         if base is not None and w != "1 proc":
