@@ -59,6 +59,26 @@ def test_features_are_refused_in_tiles(tmp_path):
     assert out.returncode == 2 and "expected a memory size such as 3G" in out.stderr
 
 
+def test_j_caps_the_cores_of_a_tiled_run(monkeypatch, tmp_path):
+    """-j 1: one tile at a time on one thread, not one worker process with every core's threads."""
+    from heatcurv.cli.main import main
+    from heatcurv.tiles import job
+
+    shares = []
+
+    def spy(threads, cpus, workers):
+        shares.append((threads, workers, job_threads(threads, cpus, workers)))
+        return shares[-1][-1]
+
+    job_threads = job.task_threads
+    monkeypatch.setattr(job, "task_threads", spy)
+    np.save(tmp_path / "c.npy", heatcurv.surfaces.Sphere().sample(3000, "random", seed=1).points)
+    assert main(["compute", str(tmp_path / "c.npy"), "-o", str(tmp_path / "o.ply"), "--tile-size", "1000", "-j", "1",
+                 "-q"]) == 0
+    assert shares == [(1, 1, 1)] * 2  # the survey's and the tiles' one worker process: one thread, not -1 (all)
+    assert read_points(tmp_path / "o.ply").fields["mean"].shape == (3000,)
+
+
 def test_tiles_when_the_cloud_does_not_fit(monkeypatch, tmp_path):
     from heatcurv.tiles import plan
 

@@ -4,8 +4,9 @@
 (``--max-memory``, default 60 % of the memory available), and whenever one of
 ``--tile-size``, ``--scheduler``, ``--scratch`` or ``--resume`` is given;
 otherwise the in-memory path runs as before. ``-j/--workers`` is the cores to
-use either way: threads of one in-memory estimate, or tiles computed at once
-(each on one thread) in a tiled run. See :func:`heatcurv.tiles.compute_file`.
+use either way: threads of one in-memory estimate, or in a tiled run at most N
+tiles computed at once, the N cores shared among them (one thread each when
+the budget holds N workers). See :func:`heatcurv.tiles.compute_file`.
 """
 
 from __future__ import annotations
@@ -95,7 +96,8 @@ def run_tiled(args, log: Log, output, wanted) -> None:
     options = estimator_kwargs(args)
     threads = options.pop("workers")
     report = compute_file(
-        args.input, output, max_memory=args.max_memory, tile_size=args.tile_size, tile_workers=threads,
+        # -j caps the cores: the tiles at once, and the threads the workers share (heatcurv.tiles.job.task_threads)
+        args.input, output, max_memory=args.max_memory, tile_size=args.tile_size, tile_workers=threads, workers=threads,
         scheduler=args.scheduler or "processes", scratch=args.scratch, resume=True if args.resume else None,
         fields=wanted, dtype="float64" if args.float64 else None, skip_nonfinite=args.skip_nonfinite,
         progress=not log.quiet and sys.stderr.isatty(), log=log.info, **options,
