@@ -20,9 +20,11 @@ a Dask ``Client``   that client's cluster
 Dask is optional (``pip install "heatcurv[dask]"``) and imported only for the
 last three. Dask's executor is ``Client.get_executor(pure=False)``; a worker
 killed while computing a tile is replaced and the tile retried by Dask itself
-(``distributed.scheduler.allowed-failures``, 3 by default). Every worker runs
+(``distributed.scheduler.allowed-failures``, 3 by default). A Dask worker runs
 single-threaded kernels (``workers=1`` in the estimator options; the BLAS and
-OpenMP thread variables set to 1 in the processes started here).
+OpenMP thread variables set to 1 in the processes started here); a local worker
+process runs its share of the run's cores (:func:`heatcurv.tiles.job.task_threads`:
+``threads`` here).
 
 A run keeps its executor across its phases (:class:`Pools`): the survey's worker
 processes, or local Dask cluster, compute the tiles too when the two phases ask
