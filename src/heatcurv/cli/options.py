@@ -110,8 +110,8 @@ def add_estimator_options(parser, *, viewpoint: bool = True) -> None:
                              help="use the input file's normals (nx ny nz) instead of estimating them; "
                              "curvature signs follow them")
     group.add_argument("-j", "--workers", type=_workers, default=-1, metavar="N",
-                       help="cores: -1 (all) or 1-1024; the threads of an in-memory run, or in a tiled run "
-                       "at most N tiles at once sharing N cores (default: %(default)s)")
+                       help="cores to use: -1 (all cores) or 1-1024; the threads of an in-memory run, or in a "
+                       "tiled run at most N tiles at once sharing N cores (default: %(default)s)")
     group.add_argument("--skip-nonfinite", action="store_true",
                        help="compute on the rows with finite coordinates and give the others NaN "
                        "(default: such rows are an error)")
