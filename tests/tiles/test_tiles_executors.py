@@ -119,13 +119,21 @@ def _pids(pools, workers, threads=1):
     return set(found.values())
 
 
+def _alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def test_phases_asking_for_the_same_workers_share_their_processes():
     pools = executors.Pools()
     try:
         survey = _pids(pools, 2)
         assert _pids(pools, 2) == survey and os.getpid() not in survey  # the next phase: the same processes
         fewer = _pids(pools, 1)  # other workers: a new pool, the old one shut down
-        assert fewer.isdisjoint(survey)
+        assert fewer.isdisjoint(survey) and not any(map(_alive, survey))
         assert _pids(pools, 1, threads=2).isdisjoint(fewer)  # other threads: new processes (their environment)
         kept = _pids(pools, 2)
         with pytest.raises(RuntimeError, match="a tile failed"):
