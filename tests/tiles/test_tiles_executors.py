@@ -108,13 +108,11 @@ def _worker_pid(barrier):
     return os.getpid()
 
 
-def _pids(pools, workers, threads=1):
+def _pids(pools, workers, manager):
     """The worker processes of one phase of ``workers`` tasks (the phase's executor from ``pools``)."""
-    found = {}
-    with multiprocessing.Manager() as manager:
-        barrier = manager.Barrier(workers)
-        job.submit(partial(pools.open, "processes", budget=1 << 30, threads=threads), workers, _worker_pid,
-                   dict.fromkeys(range(workers), barrier), found.__setitem__, print, "task", workers)
+    found, barrier = {}, manager.Barrier(workers)
+    job.submit(partial(pools.open, "processes", budget=1 << 30), workers, _worker_pid,
+               dict.fromkeys(range(workers), barrier), found.__setitem__, print, "task", workers)
     assert len(set(found.values())) == workers
     return set(found.values())
 
@@ -129,19 +127,18 @@ def _alive(pid):
 
 def test_phases_asking_for_the_same_workers_share_their_processes():
     pools = executors.Pools()
-    try:
-        survey = _pids(pools, 2)
-        assert _pids(pools, 2) == survey and os.getpid() not in survey  # the next phase: the same processes
-        fewer = _pids(pools, 1)  # other workers: a new pool, the old one shut down
-        assert fewer.isdisjoint(survey) and not any(map(_alive, survey))
-        assert _pids(pools, 1, threads=2).isdisjoint(fewer)  # other threads: new processes (their environment)
-        kept = _pids(pools, 2)
-        with pytest.raises(RuntimeError, match="a tile failed"):
-            with pools.open("processes", 2, 1 << 30):
-                raise RuntimeError("a tile failed")  # a failed phase (a broken pool, a task) closes its executor
-        assert _pids(pools, 2).isdisjoint(kept)
-    finally:
-        pools.close()
+    with multiprocessing.Manager() as manager:
+        try:
+            survey = _pids(pools, 2, manager)
+            assert _pids(pools, 2, manager) == survey and os.getpid() not in survey  # the next phase: the same
+            fewer = _pids(pools, 1, manager)  # other workers: a new pool, the old one shut down
+            assert fewer.isdisjoint(survey) and not any(map(_alive, survey))
+            with pytest.raises(RuntimeError, match="a tile failed"):
+                with pools.open("processes", 1, 1 << 30):
+                    raise RuntimeError("a tile failed")  # a failed phase (a broken pool, a task) closes its executor
+            assert _pids(pools, 1, manager).isdisjoint(fewer) and not any(map(_alive, fewer))
+        finally:
+            pools.close()
     pools.close()  # closing twice is nothing
 
 
