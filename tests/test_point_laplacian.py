@@ -266,7 +266,7 @@ def test_duplicates_and_bad_queries_are_heatcurv_errors(random_sphere):
 
 @pytest.mark.parametrize("cholesky", [True, False])
 def test_spd_factor_solves_the_shifted_stiffness_as_a_pivoting_factorisation_does(random_sphere, cholesky, monkeypatch):
-    # CHOLMOD's Cholesky, or SuperLU without row pivoting (no cholespy, complex matrices): a positive definite
+    # CHOLMOD's Cholesky, or SuperLU without row pivoting (no cvxopt, complex matrices): a positive definite
     # matrix needs no pivoting, so both give the solution of SuperLU's default, to rounding
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
@@ -274,9 +274,9 @@ def test_spd_factor_solves_the_shifted_stiffness_as_a_pivoting_factorisation_doe
     from heatcurv.operators import point_laplacian
 
     if cholesky:
-        pytest.importorskip("cholespy", reason="cholespy has no wheel for this platform")
+        pytest.importorskip("cvxopt", reason="cvxopt has no wheel for this platform")
     else:
-        monkeypatch.setattr(point_laplacian, "cholespy", None)
+        monkeypatch.setattr(point_laplacian, "cholmod", None)
     pts, lap = random_sphere
     shifted = lap.first_order + 0.05 * sp.diags(lap.area)
     rhs = np.column_stack([pts[:, 2], np.random.default_rng(0).normal(size=len(pts))])
@@ -294,7 +294,7 @@ def test_spd_factor_solves_the_shifted_stiffness_as_a_pivoting_factorisation_doe
             point_laplacian.spd_factor(lap.first_order - 0.05 * sp.diags(lap.area))
 
 
-def test_without_cholespy_the_spectral_tools_give_the_same_numbers(random_sphere, monkeypatch):
+def test_without_cvxopt_the_spectral_tools_give_the_same_numbers(random_sphere, monkeypatch):
     from heatcurv.operators import point_laplacian
 
     pts, _ = random_sphere
@@ -302,7 +302,7 @@ def test_without_cholespy_the_spectral_tools_give_the_same_numbers(random_sphere
     values, vectors = fast.eigenpairs(8)
     heat = fast.heat(pts[:, 2], time=0.05)
     distance = fast.geodesic_distance(7)
-    monkeypatch.setattr(point_laplacian, "cholespy", None)
+    monkeypatch.setattr(point_laplacian, "cholmod", None)
     plain = PointCloudLaplacian(pts)
     plain_values, plain_vectors = plain.eigenpairs(8)
     np.testing.assert_allclose(plain_values, values, rtol=1e-9, atol=1e-9)
