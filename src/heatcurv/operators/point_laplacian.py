@@ -578,10 +578,10 @@ class PointCloudLaplacian:
 class CholeskyFactor:
     """CHOLMOD's supernodal Cholesky factor of a real symmetric positive definite matrix (cvxopt).
 
-    It stores ``L`` alone where an LU stores ``L`` and ``U``, factorises with
-    an optimised BLAS (the one cvxopt ships) several times faster than
-    SuperLU, and solves in about half its time on these stiffness matrices
-    (docs/laplacian.md). ``solve(b)`` takes ``b`` of shape ``(n,)`` or ``(n, c)``.
+    It stores ``L`` alone where an LU stores ``L`` and ``U``; with the
+    optimised BLAS cvxopt ships it factorises and solves these stiffness
+    matrices in about a third of SuperLU's time (docs/laplacian.md).
+    ``solve(b)`` takes ``b`` of shape ``(n,)`` or ``(n, c)``.
     """
 
     def __init__(self, matrix: sp.spmatrix):
