@@ -309,7 +309,10 @@ class PointCloudLaplacian:
     points : array_like, shape (n, 3)
         Distinct point coordinates.
     neighbours, width, order, workers
-        As in :func:`point_cloud_laplacian`.
+        As in :func:`point_cloud_laplacian`. ``workers`` bounds the build's
+        threads, not those of the sparse factorisations of :meth:`eigenpairs`,
+        :meth:`heat` and :meth:`geodesic_distance` (CHOLMOD through cvxopt,
+        with the threads of its own BLAS).
 
     Attributes
     ----------
