@@ -85,6 +85,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg.blas import dsyrk
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
@@ -813,8 +814,12 @@ def _energy(along: np.ndarray, against: np.ndarray, label: np.ndarray, weight: n
     A[rows, label] += 0.5
     A[label.size + rows, label] -= 0.5
     w = np.concatenate([weight, weight])
-    G = A.T @ (A * w[:, None])
     c = 0.5 * (A.T @ w)
+    # G = A' diag(w) A = B' B with B = diag(sqrt(w)) A: the symmetric rank-k update forms one triangle, in
+    # half a general product's work; B' (Fortran order, no copy) is the factor syrk multiplies by its transpose
+    A *= np.sqrt(w)[:, None]
+    upper = dsyrk(1.0, A.T, trans=0)
+    G = np.triu(upper) + np.triu(upper, 1).T
     return G, c
 
 
