@@ -1,9 +1,10 @@
 """heatcurv.cli.main: help, version, exit statuses, one-line errors and warnings, --debug."""
 
+import re
 import subprocess
 
 import pytest
-from cli_helpers import assert_one_line_error, run, run_process
+from cli_helpers import assert_one_line_error, run, run_process, stderr_lines
 
 import heatcurv
 from heatcurv.cli import info, main
@@ -21,6 +22,25 @@ def test_debug_shows_the_traceback():
     # the interpreter prints the traceback of the exception --debug lets through: a process of its own
     out = run_process("--debug", "info", "no_such_file.ply")
     assert out.returncode != 0 and "Traceback" in out.stderr
+
+
+def test_the_in_process_runner_gives_what_a_process_gives(tmp_path, sphere_ply):
+    # the other command-line tests run main() in their own process (cli_helpers.run): it must report the
+    # status, stdout and stderr a separate process reports, a warning (the paper's kernel cut short) and an
+    # error included
+    commands = [("info", sphere_ply), ("demo", "-n", "3"), ("info", tmp_path / "missing.ply"),
+                ("compute", sphere_ply, "-o", tmp_path / "{}.ply", "--method", "paper", "--alpha", "4", "--m", "1")]
+
+    def same(text):  # the output's name and the time taken aside
+        return re.sub(r" in \d+(\.\d+)? s\b", " in ... s", text.replace("in_this_process", "in_a_new_one"))
+
+    for command in commands:
+        here = run(*(str(arg).format("in_this_process") for arg in command))
+        there = run_process(*(str(arg).format("in_a_new_one") for arg in command))
+        assert here.returncode == there.returncode, command
+        assert same(here.stdout) == same(there.stdout), command
+        assert [same(line) for line in stderr_lines(here)] == [same(line) for line in stderr_lines(there)], command
+    assert "heatcurv: warning: " in there.stderr and (tmp_path / "in_a_new_one.ply").exists()
 
 
 def test_help_and_version():
