@@ -21,6 +21,17 @@ positive, ``c`` its area-weighted centroid, as in memory
 closed surface, whatever ``c``): each patch's moments (:func:`patch_moments`)
 sum to the object's, so the object's centroid is known only once the patches
 are joined.
+
+An object too flat for its vote to tell (``|vote| <= TUNING.weak_vote *
+sum_i A_i |(x_i - c) . n_i|``) takes, as in memory, the flat convention: its
+summed normal along the least-variance axis of its points, that axis's largest
+coordinate positive. The strength does not add up from the patches' sums once
+``c`` is known, but its Cauchy-Schwarz bound ``sqrt(sum A sum A |x - c|^2)``
+does: only an object under that bound (an open, nearly flat one; never a
+closed surface, whose vote is three times its volume) costs a pass over the
+results (:func:`_flat_objects`), which sums the strength and the moments of
+the convention exactly.
+
 The flips are applied in the final write pass
 (:func:`heatcurv.fits.principal.PrincipalCurvatures.flipped`'s convention: the
 normal and mean curvature negated, ``k1' = -k2``, ``k2' = -k1``, ``d1`` and
@@ -31,14 +42,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .output import PATCH_SHIFT, gather_records
+from ..tuning import TUNING
+from .output import PATCH_SHIFT, gather_records, keyed_flips, read_results
 
 __all__ = ["seam_flips", "patch_moments", "VOTE_COSINE", "MOMENTS"]
 
 #: Shared points whose two normals are closer than this to perpendicular do not vote.
 VOTE_COSINE = 0.5
-#: The columns of :func:`patch_moments`: ``sum A``, ``sum A x`` (3), ``sum A n`` (3), ``sum A n . x``.
-MOMENTS = ("area", "area_x", "area_y", "area_z", "area_nx", "area_ny", "area_nz", "area_n_dot_x")
+#: The columns of :func:`patch_moments`: ``sum A``, ``sum A x`` (3), ``sum A n`` (3), ``sum A n . x``, ``sum A |x|^2``.
+MOMENTS = ("area", "area_x", "area_y", "area_z", "area_nx", "area_ny", "area_nz", "area_n_dot_x", "area_x_squared")
 
 
 def patch_moments(x: np.ndarray, normals: np.ndarray, area: np.ndarray, label: np.ndarray,
@@ -61,17 +73,82 @@ def patch_moments(x: np.ndarray, normals: np.ndarray, area: np.ndarray, label: n
     n_labels : int
     """
     area = np.nan_to_num(area)
-    columns = [area, *(area[:, None] * x).T, *(area[:, None] * normals).T, area * np.einsum("ij,ij->i", normals, x)]
+    columns = [area, *(area[:, None] * x).T, *(area[:, None] * normals).T, area * np.einsum("ij,ij->i", normals, x),
+               area * np.einsum("ij,ij->i", x, x)]
     return np.column_stack([np.bincount(label, weights=c, minlength=n_labels) for c in columns])
 
 
-def _outward_votes(moments: np.ndarray, bits: np.ndarray, obj: np.ndarray, n_objects: int) -> np.ndarray:
-    """Each object's outward vote (:func:`patch_moments`) with its patches turned where ``bits``, shape (n_objects,)."""
+def _object_votes(moments: np.ndarray, bits: np.ndarray, obj: np.ndarray, n_objects: int):
+    """Each object's outward vote (:func:`patch_moments`) with its patches turned where ``bits``.
+
+    Returns
+    -------
+    vote : ndarray, shape (n_objects,)
+        ``sum A n . (x - c)``.
+    centroid : ndarray, shape (n_objects, 3)
+        ``c``, the area-weighted centroid.
+    bound : ndarray, shape (n_objects,)
+        ``sqrt(sum A sum A |x - c|^2)``, at least the vote's strength ``sum A |n . (x - c)|``.
+    area : ndarray, shape (n_objects,)
+        ``sum A``.
+    """
     turned = np.where(bits[:, None], -1.0, 1.0) * moments
-    turned[:, :4] = moments[:, :4]  # the areas and the area-weighted positions do not turn
+    # the areas, the area-weighted positions and their squares do not turn
+    turned[:, :4], turned[:, 8] = moments[:, :4], moments[:, 8]
     total = np.stack([np.bincount(obj, weights=turned[:, k], minlength=n_objects) for k in range(len(MOMENTS))], 1)
-    centroid = total[:, 1:4] / np.maximum(total[:, :1], np.finfo(float).tiny)
-    return total[:, 7] - np.einsum("ij,ij->i", centroid, total[:, 4:7])
+    area = total[:, 0]
+    centroid = total[:, 1:4] / np.maximum(area, np.finfo(float).tiny)[:, None]
+    vote = total[:, 7] - np.einsum("ij,ij->i", centroid, total[:, 4:7])
+    spread = total[:, 8] - 2.0 * np.einsum("ij,ij->i", centroid, total[:, 1:4]) + area * np.sum(centroid**2, axis=1)
+    return vote, centroid, np.sqrt(area * np.maximum(spread, 0.0)), area
+
+
+def _flat_objects(results_path, source, frame, keys, bits, obj, centroid, candidate, chunk: int = 1 << 20):
+    """The objects among ``candidate`` too flat for their outward vote, and the side the flat convention gives them.
+
+    One pass over the input and ``results.rec`` sums, for each candidate object, the vote's strength
+    ``sum A |n . (x - c)|`` and, over its points of positive weight (in memory: the distinct points that are
+    not outliers), their number, ``sum x``, ``sum x x^T`` and ``sum n`` with its patches turned where
+    ``bits``: the moments of :func:`heatcurv.orient.orientation._component_signs`' convention.
+
+    Returns
+    -------
+    strength : ndarray, shape (n_objects,)
+        0 for the objects not among ``candidate``.
+    convention : ndarray, shape (n_objects,)
+        ``+1`` or ``-1``: the sign that turns the object's normals (as turned by ``bits``) to the convention's
+        side; 0 for the objects not among ``candidate``.
+    """
+    n_objects = len(candidate)
+    strength, count = np.zeros(n_objects), np.zeros(n_objects)
+    first, second, normal = np.zeros((n_objects, 3)), np.zeros((n_objects, 3, 3)), np.zeros((n_objects, 3))
+    for start, points, _ in source.chunks(chunk):
+        block = read_results(results_path, start, start + len(points))
+        at = np.clip(np.searchsorted(keys, block["patch"]), 0, max(len(keys) - 1, 0))
+        mine = (block["computed"] == 1) & (keys[at] == block["patch"]) & candidate[obj[at]]
+        if not mine.any():
+            continue
+        o, x, weight = obj[at[mine]], frame.to_stage(points[mine]), block["vote_weight"][mine]
+        n = np.where(keyed_flips(block["patch"][mine], keys, bits)[:, None], -1.0, 1.0) * block["vote_normal"][mine]
+        strength += np.bincount(o, weights=weight * np.abs(np.einsum("ij,ij->i", n, x - centroid[o])),
+                                minlength=n_objects)
+        member = weight > 0
+        o, x, n = o[member], x[member], n[member]
+        count += np.bincount(o, minlength=n_objects)
+        for k in range(3):
+            first[:, k] += np.bincount(o, weights=x[:, k], minlength=n_objects)
+            normal[:, k] += np.bincount(o, weights=n[:, k], minlength=n_objects)
+            for j in range(3):
+                second[:, k, j] += np.bincount(o, weights=x[:, k] * x[:, j], minlength=n_objects)
+    convention = np.zeros(n_objects)
+    for c in np.flatnonzero(candidate & (count > 0)):
+        # the points' scatter about the area-weighted centroid, whose least-variance axis is memory's last SVD axis
+        scatter = second[c] - np.outer(centroid[c], first[c]) - np.outer(first[c], centroid[c])
+        scatter += count[c] * np.outer(centroid[c], centroid[c])
+        axis = np.linalg.eigh(scatter)[1][:, 0]
+        axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
+        convention[c] = -1.0 if normal[c] @ axis < 0 else 1.0
+    return strength, convention
 
 
 def _find(parent: dict, parity: dict, a):
@@ -88,7 +165,7 @@ def _find(parent: dict, parity: dict, a):
     return root, (parity[path[0]] if path else 0)
 
 
-def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, dict]:
+def seam_flips(tile_files: dict, results_path, source, frame) -> tuple[np.ndarray, np.ndarray, dict]:
     """The flip bit of every patch of a tiled run oriented ``outward``.
 
     Parameters
@@ -97,6 +174,10 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
         Each tile's result file (:func:`.tasks.tile_path`).
     results_path : str
         The index-addressed ``results.rec`` holding every core row.
+    source : heatcurv.tiles.sources.Source
+        The input, read for the coordinates where an object may be too flat for its vote.
+    frame : heatcurv.choice.choices.CloudFrame
+        The whole cloud's frame (the tiles' moments are in its coordinates).
 
     Returns
     -------
@@ -108,7 +189,8 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
         ``patches``, ``seams`` (patch pairs sharing points), ``objects``
         (connected groups of patches), ``disagreeing`` (shared points whose
         normals still point to opposite sides after the flips: pieces the
-        tile's own orientation could not keep consistent) and ``shared``.
+        tile's own orientation could not keep consistent), ``shared`` and
+        ``flat_objects`` (objects that took the flat convention).
     """
     keys, moments, pairs, votes = [], [], [], []
     for tile, path in sorted(tile_files.items()):
@@ -155,7 +237,14 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
     for i, k in enumerate(keys):
         roots[i], bits[i] = _find(parent, parity, int(k))
     objects, obj = np.unique(roots, return_inverse=True)
-    flip = bits ^ (_outward_votes(moments, bits, obj, len(objects))[obj] < 0)
+    vote, centroid, bound, area = _object_votes(moments, bits, obj, len(objects))
+    sign = np.where(vote < 0, -1.0, 1.0)
+    flat = (area > 0) & (np.abs(vote) <= TUNING.weak_vote * bound)  # may be too flat: the bound is not the strength
+    if flat.any():
+        strength, convention = _flat_objects(results_path, source, frame, keys, bits, obj, centroid, flat)
+        flat &= (np.abs(vote) <= TUNING.weak_vote * strength) & (convention != 0)
+        sign[flat] = convention[flat]
+    flip = bits ^ (sign[obj] < 0)
     disagreeing = 0
     # a halo piece with no core point of its own tile has no flip bit (a wide halo reaches one)
     known = np.isin(edges, keys).all(axis=1) if len(margins) else np.zeros(0, dtype=bool)
@@ -166,5 +255,5 @@ def seam_flips(tile_files: dict, results_path) -> tuple[np.ndarray, np.ndarray, 
         # votes against the final bits: on an edge whose patches flip alike, the -1 votes; else the +1 votes
         disagreeing = int(np.sum(np.where(fa == fb, against[known], agree)))
     report = {"patches": int(len(keys)), "seams": int(len(edges)), "objects": int(len(objects)),
-              "disagreeing": disagreeing, "shared": int(shared)}
+              "disagreeing": disagreeing, "shared": int(shared), "flat_objects": int(flat.sum())}
     return keys, flip, report

@@ -46,11 +46,13 @@ __all__ = [
 ]
 
 #: One record per input row of ``results.rec``: every result field, the seam and winding patch keys
-#: (:mod:`.orient`, :mod:`.winding`), whether it was computed.
+#: (:mod:`.orient`, :mod:`.winding`), the row's weight and normal in its object's outward vote (the frame's unit,
+#: the tile's orientation's normal before the fit refines it; 0 unless oriented ``outward``), whether it was computed.
 RECORD = np.dtype(
     [(name, "u1" if dt is np.bool_ else np.dtype(dt).str, (cols,)) if cols > 1
      else (name, "u1" if dt is np.bool_ else np.dtype(dt).str) for name, (cols, dt) in RESULT_FIELDS.items()]
-    + [("patch", "<i8"), ("winding", "<i8"), ("winding_fine", "<i8"), ("computed", "u1")]
+    + [("patch", "<i8"), ("winding", "<i8"), ("winding_fine", "<i8"), ("vote_weight", "<f8"),
+       ("vote_normal", "<f4", (3,)), ("computed", "u1")]
 )
 #: The fields written by default, in the order of ``heatcurv compute`` (heatcurv.cli.fields.DEFAULT_FIELDS).
 DEFAULT_FIELDS = (
@@ -115,6 +117,7 @@ def store_tile(path, tile_file, tile: int) -> int:
         block["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"]
         block["winding"] = (np.int64(tile) << PATCH_SHIFT) | data["winding"]
         block["winding_fine"] = (np.int64(tile) << PATCH_SHIFT) | data["winding_fine"]
+        block["vote_weight"], block["vote_normal"] = data["vote_weight"], data["vote_normal"]
         block["computed"] = 1
     order = np.argsort(rows)
     rows, block = rows[order], block[order]

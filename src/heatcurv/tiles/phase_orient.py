@@ -34,7 +34,7 @@ def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict
     tic = time.perf_counter()
     results_path = run.work / "results.rec"
     tile_files = {t: tile_path(run.work, t) for t in range(len(plan.tiling.counts))}
-    keys, flip, orientation = seam_flips(tile_files, results_path)
+    keys, flip, orientation = seam_flips(tile_files, results_path, run.source, context.choices.frame)
     flips = [("patch", keys, flip)]
     # a closed cloud's inside and outside, by the winding number over every tile's sources
     sides = winding_sides(tile_files, keys, flip, open_up=compute.orients_automatically(run.options))

@@ -396,6 +396,7 @@ def run_tile(spec: TileTask) -> dict:
         arrays.update(tile_sources(context.choices.frame, points[core], rows[core], patch[core], arrays, winding))
     else:
         arrays["winding"] = arrays["winding_fine"] = np.zeros(c, dtype=np.int64)
+        arrays["vote_weight"], arrays["vote_normal"] = np.zeros(c), np.zeros((c, 3), dtype=np.float32)
         arrays["moment_labels"] = np.unique(patch[core])
         arrays["moments"] = np.zeros((len(arrays["moment_labels"]), len(MOMENTS)))
     # the second-sheet pairs the driver settles (heatcurv.tiles.sheets), input rows

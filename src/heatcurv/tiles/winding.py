@@ -88,7 +88,8 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         NaN without ``winding``); ``winding_total``: the summed area of the core rows
         (excluded ones weigh 0), to which the sources' areas are scaled; ``moment_labels``
         (the seam pieces) and ``moments`` (their :func:`.orient.patch_moments` with the
-        result's normals, which the driver sums into each object's outward vote).
+        orientation's normals, which the driver sums into each object's outward vote, as in memory); ``vote_weight``
+        (c,) and ``vote_normal`` (c, 3), float32: each row's weight (the frame's unit) and normal in that vote.
     """
     stage = frame.to_stage(points)
     excluded = np.asarray(results["outlier"], dtype=bool)
@@ -115,8 +116,9 @@ def tile_sources(frame, points: np.ndarray, rows: np.ndarray, seam: np.ndarray, 
         "winding_area": weight[source], "winding_label": label[source], "winding_fine_label": fine[source],
         "winding_seam": seam[source], "winding_roundness": np.asarray(roundness, dtype=float)[source],
         "winding_total": np.array(weight.sum()),
+        "vote_weight": weight, "vote_normal": np.asarray(normals, dtype=np.float32),
         "moment_labels": pieces,
-        "moments": patch_moments(stage, results["normals"], weight, piece.ravel(), len(pieces)),
+        "moments": patch_moments(stage, normals, weight, piece.ravel(), len(pieces)),
     }
 
 
