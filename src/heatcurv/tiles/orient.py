@@ -103,6 +103,24 @@ def _object_votes(moments: np.ndarray, bits: np.ndarray, obj: np.ndarray, n_obje
     return vote, centroid, np.sqrt(area * np.maximum(spread, 0.0)), area
 
 
+def _object_signs(moments, bits, obj, n_objects: int, results) -> tuple[np.ndarray, np.ndarray]:
+    """Each object's sign, ``+1`` or ``-1``, that turns its normals (as turned by ``bits``) outward, or to the
+    flat convention where its vote is too weak (module docstring); and whether it took the convention.
+
+    ``results``: ``(results_path, source, frame, keys)``, read by :func:`_flat_objects` for the objects
+    whose vote is under the strength's bound.
+    """
+    vote, centroid, bound, area = _object_votes(moments, bits, obj, n_objects)
+    sign = np.where(vote < 0, -1.0, 1.0)
+    flat = (area > 0) & (np.abs(vote) <= TUNING.weak_vote * bound)  # may be too flat: the bound is not the strength
+    if flat.any():
+        results_path, source, frame, keys = results
+        strength, convention = _flat_objects(results_path, source, frame, keys, bits, obj, centroid, flat)
+        flat &= (np.abs(vote) <= TUNING.weak_vote * strength) & (convention != 0)
+        sign[flat] = convention[flat]
+    return sign, flat
+
+
 def _flat_objects(results_path, source, frame, keys, bits, obj, centroid, candidate, chunk: int = 1 << 20):
     """The objects among ``candidate`` too flat for their outward vote, and the side the flat convention gives them.
 
@@ -237,13 +255,7 @@ def seam_flips(tile_files: dict, results_path, source, frame) -> tuple[np.ndarra
     for i, k in enumerate(keys):
         roots[i], bits[i] = _find(parent, parity, int(k))
     objects, obj = np.unique(roots, return_inverse=True)
-    vote, centroid, bound, area = _object_votes(moments, bits, obj, len(objects))
-    sign = np.where(vote < 0, -1.0, 1.0)
-    flat = (area > 0) & (np.abs(vote) <= TUNING.weak_vote * bound)  # may be too flat: the bound is not the strength
-    if flat.any():
-        strength, convention = _flat_objects(results_path, source, frame, keys, bits, obj, centroid, flat)
-        flat &= (np.abs(vote) <= TUNING.weak_vote * strength) & (convention != 0)
-        sign[flat] = convention[flat]
+    sign, flat = _object_signs(moments, bits, obj, len(objects), (results_path, source, frame, keys))
     flip = bits ^ (sign[obj] < 0)
     disagreeing = 0
     # a halo piece with no core point of its own tile has no flip bit (a wide halo reaches one)
