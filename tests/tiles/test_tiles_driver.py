@@ -9,7 +9,8 @@ from tiles_helpers import ALL_FIELDS, exact, read_fields
 
 import heatcurv
 from heatcurv.errors import HeatcurvError
-from heatcurv.tiles import compute_file, orient
+from heatcurv.tiles import compute_file
+from heatcurv.tiles import orient as tiles_orient
 from heatcurv.tiles.output import SOURCE_KEYS, STORED_KEYS
 from heatcurv.tiles.tasks import FAULT_VARIABLE
 from support.scenes import valley_and_dish
@@ -121,8 +122,8 @@ def test_an_objects_vote_and_its_bound_add_up_from_its_patches():
     normals = rng.normal(size=(500, 3)) * [0.1, 0.1, 1.0]
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     area, label, bits = rng.uniform(0.5, 1.5, 500), rng.integers(0, 7, 500), np.arange(7) % 3 == 0
-    moments = orient.patch_moments(x, normals, area, label, 7)
-    vote, centroid, bound, total = orient._object_votes(moments, bits, np.zeros(7, dtype=np.int64), 1)
+    moments = tiles_orient.patch_moments(x, normals, area, label, 7)
+    vote, centroid, bound, total = tiles_orient._object_votes(moments, bits, np.zeros(7, dtype=np.int64), 1)
     turned = np.where(bits[label, None], -1.0, 1.0) * normals
     c = (area[:, None] * x).sum(axis=0) / area.sum()
     radial = area * np.einsum("ij,ij->i", turned, x - c)
