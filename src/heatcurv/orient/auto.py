@@ -19,7 +19,7 @@ from .._kernels import segment as kernels
 from ..geometry.neighbourhood import knn_neighbourhood
 from ..tuning import TUNING
 from .enclosure import vertical_sums
-from .orientation import AutoPolicy, edge_agreement, tree_sides
+from .orientation import AutoPolicy, coordinate_convention, edge_agreement, tree_sides
 
 __all__ = ["AUTO_NEIGHBOURS", "auto_policy", "convex_side"]
 
@@ -229,7 +229,7 @@ def convex_side(centres: np.ndarray, oriented: np.ndarray, axis: np.ndarray) -> 
     radial = np.where(facing < 0, -1.0, 1.0) * np.einsum("ij,ij->i", oriented, centres - centres.mean(axis=0))
     vote, strength = radial[steep].sum(), np.abs(radial[steep]).sum()
     if not abs(vote) >= TUNING.convex_vote * strength:
-        return axis * np.sign(axis[np.argmax(np.abs(axis))]), False
+        return coordinate_convention(axis), False
     return (axis if vote > 0 else -axis), True
 
 

@@ -92,6 +92,7 @@ from .enclosure import enclose, patches, sampled_sources
 __all__ = [
     "ORIENT_MODES", "GRAPH_NEIGHBOURS", "Orientation", "OrientationReport", "orient",
     "local_sides", "as_viewpoint", "axisless_balls", "AutoPolicy", "tree_sides", "edge_agreement",
+    "coordinate_convention",
 ]
 
 #: The orientation policies of ``estimate(orient=...)``.
@@ -712,6 +713,12 @@ def edge_agreement(points, normals, i, j) -> np.ndarray:
     return np.einsum("ij,ij->i", ni, nj) - np.einsum("ij,ij->i", ni, edge) * np.einsum("ij,ij->i", nj, edge)
 
 
+def coordinate_convention(axis: np.ndarray) -> np.ndarray:
+    """``axis`` (shape (3,), unit) turned so that its largest coordinate is positive: a side chosen by the
+    coordinates, for a surface too flat (or a vote too weak) to have one of its own."""
+    return axis * np.sign(axis[np.argmax(np.abs(axis))])
+
+
 def _component_signs(points, oriented, labels, n_comp, w):
     """Sign of every component of the ``"outward"`` orientation, shape (n_comp,).
 
@@ -738,8 +745,7 @@ def _component_signs(points, oriented, labels, n_comp, w):
     for c in np.flatnonzero(weak):  # nearly flat patches: few components, small loop
         member = labels == c
         rel = points[member] - centroid[c]
-        axis = np.linalg.svd(rel, full_matrices=False)[2][-1]
-        axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
+        axis = coordinate_convention(np.linalg.svd(rel, full_matrices=False)[2][-1])
         sign[c] = -1.0 if oriented[member].sum(axis=0) @ axis < 0 else 1.0
         convention[c] = True
     return sign, convention

@@ -42,8 +42,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..orient.orientation import coordinate_convention
 from ..tuning import TUNING
-from .output import PATCH_SHIFT, gather_records, keyed_flips, read_results
+from .output import PATCH_SHIFT, gather_records, read_results
 
 __all__ = ["seam_flips", "patch_moments", "VOTE_COSINE", "MOMENTS"]
 
@@ -147,7 +148,7 @@ def _flat_objects(results_path, source, frame, keys, bits, obj, centroid, candid
         if not mine.any():
             continue
         o, x, weight = obj[at[mine]], frame.to_stage(points[mine]), block["vote_weight"][mine]
-        n = np.where(keyed_flips(block["patch"][mine], keys, bits)[:, None], -1.0, 1.0) * block["vote_normal"][mine]
+        n = np.where(bits[at[mine]][:, None], -1.0, 1.0) * block["vote_normal"][mine]
         strength += np.bincount(o, weights=weight * np.abs(np.einsum("ij,ij->i", n, x - centroid[o])),
                                 minlength=n_objects)
         member = weight > 0
@@ -163,8 +164,7 @@ def _flat_objects(results_path, source, frame, keys, bits, obj, centroid, candid
         # the points' scatter about the area-weighted centroid, whose least-variance axis is memory's last SVD axis
         scatter = second[c] - np.outer(centroid[c], first[c]) - np.outer(first[c], centroid[c])
         scatter += count[c] * np.outer(centroid[c], centroid[c])
-        axis = np.linalg.eigh(scatter)[1][:, 0]
-        axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
+        axis = coordinate_convention(np.linalg.eigh(scatter)[1][:, 0])
         convention[c] = -1.0 if normal[c] @ axis < 0 else 1.0
     return strength, convention
 
