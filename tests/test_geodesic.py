@@ -40,7 +40,9 @@ def test_random_sphere_against_the_great_circle(sphere, records):
     points, lap = sphere
     distance = lap.geodesic_distance(0)
     assert distance[0] == 0.0
-    records.check("geodesic/sphere-random-10000", mean=mean_relative_error(distance, great_circle(points, 0)))
+    error = mean_relative_error(distance, great_circle(points, 0))
+    assert error < 0.5  # the accuracy heatcurv promises on random spheres and tori (docs/laplacian.md, table 5)
+    records.check("geodesic/sphere-random-10000", mean=error)
 
 
 def test_several_sources_give_the_distance_to_the_nearest(sphere, records):
@@ -57,7 +59,9 @@ def test_random_torus_against_exact_polyhedral_geodesics(records):
     points = surfaces.Torus().sample(stored["points"].shape[0], "random", seed=0).points
     np.testing.assert_allclose(points, stored["points"], atol=1e-6)  # the cloud the reference was made for
     distance = heatcurv.PointCloudLaplacian(points).geodesic_distance(0)
-    records.check("geodesic/torus-random-10000", mean=mean_relative_error(distance, stored["distance"]))
+    error = mean_relative_error(distance, stored["distance"])
+    assert error < 0.5  # as on the sphere; 0.45 % here (0.46 % at 20 000 points, table 5)
+    records.check("geodesic/torus-random-10000", mean=error)
 
 
 def test_plane_gives_the_straight_line_also_from_a_corner(records):

@@ -93,3 +93,9 @@ def test_heat_method_gradient_and_divergence_match_numpy():
     divergence = -0.5 * np.bincount(rows, weights * np.sum((field[rows] + field[indices]) * d, axis=1), minlength=300)
     np.testing.assert_allclose(kernels.weak_divergence(X, indptr, indices, weights, field), divergence,
                                rtol=1e-12, atol=1e-12)
+
+    normals = rng.normal(size=(300, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    heights = np.sum(normals[rows] * d, axis=1) ** 2 + np.sum(normals[indices] * d, axis=1) ** 2
+    np.testing.assert_allclose(kernels.arc_over_chord(X, indptr, indices, normals),
+                               1.0 + heights / (12.0 * np.sum(d * d, axis=1)), rtol=1e-12)

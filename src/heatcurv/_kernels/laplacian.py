@@ -13,9 +13,10 @@
   weight sum;
 * :func:`moment_weights`: the calibration weights of each pair, the
   isotropic ``|d|^2`` blended into the border-tangential ``2 (d . v_i)^2``;
-* :func:`pair_second_moments`, :func:`tangent_gradient`, :func:`weak_divergence`:
-  the heat method's least-squares gradient and its adjoint divergence over
-  the operator's pair weights (:mod:`heatcurv.operators.geodesic`).
+* :func:`pair_second_moments`, :func:`tangent_gradient`, :func:`weak_divergence`,
+  :func:`arc_over_chord`: the heat method's least-squares gradient, its
+  adjoint divergence over the operator's pair weights and each pair's arc
+  over the surface (:mod:`heatcurv.operators.geodesic`).
 
 Arrays in, arrays out: this module imports nothing from heatcurv but the
 kernel helpers of :mod:`heatcurv._kernels`.
@@ -29,7 +30,7 @@ from numba import njit
 from . import ROW_CORE, as_floats, as_indices, as_pointers, parallel_rows
 
 __all__ = ["knn_covariances", "voronoi_cells", "border_moments", "moment_weights", "pair_second_moments",
-           "tangent_gradient", "weak_divergence"]
+           "tangent_gradient", "weak_divergence", "arc_over_chord"]
 
 
 def knn_covariances(points, neighbours) -> np.ndarray:
@@ -446,3 +447,46 @@ def _weak_divergence(row0, row1, points, indptr, indices, weights, field, out):
                                + (field[i, 1] + field[j, 1]) * (points[j, 1] - points[i, 1])
                                + (field[i, 2] + field[j, 2]) * (points[j, 2] - points[i, 2]))
         out[i] = -0.5 * s
+
+
+def arc_over_chord(points, indptr, indices, normals) -> np.ndarray:
+    """Each pair's arc over the surface per unit of chord, ``1 + (h_i^2 + h_j^2) / (12 |d_ij|^2)``.
+
+    ``h_i = n_i . d_ij`` and ``h_j = n_j . d_ij`` are the heights of each point
+    over the other's tangent plane (``d_ij = x_j - x_i``); over a quadric the
+    arc is ``c + h^2 / (6 c)`` to third order (``c`` the chord), and this
+    averages the two ends. 1 on a plane.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    indptr, indices : ndarray
+        CSR pairs.
+    normals : ndarray, shape (n, 3)
+        Unit normals (either sign).
+
+    Returns
+    -------
+    ndarray, shape (nnz,)
+    """
+    points, indptr = as_floats(points), as_pointers(indptr)
+    indices = as_indices(indices, points.shape[0])
+    out = np.empty(indices.shape[0])
+    parallel_rows(_arc_over_chord, indptr.shape[0] - 1, points, indptr, indices, as_floats(normals), out)
+    return out
+
+
+@njit(**ROW_CORE)
+def _arc_over_chord(row0, row1, points, indptr, indices, normals, out):
+    for i in range(row0, row1):
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            h_i = 0.0
+            h_j = 0.0
+            c2 = 0.0
+            for a in range(3):
+                d = points[j, a] - points[i, a]
+                h_i += normals[i, a] * d
+                h_j += normals[j, a] * d
+                c2 += d * d
+            out[p] = 1.0 + (h_i * h_i + h_j * h_j) / (12.0 * c2) if c2 > 0.0 else 1.0

@@ -20,11 +20,28 @@ of the first-order stiffness ``S1 = diag(W 1) - W`` of
    the pseudo-inverse taken over ``M_i``'s two largest eigenvectors (the
    tangent plane; the third is the normal). Exact on linear functions.
 3. **Divergence and Poisson.** The weak divergence of ``X`` against the same
-   pair energy, ``b_i = sum_j W_ij (X_i + X_j) / 2 . (x_i - x_j)``, is the
-   adjoint of the pair differences: for a linear ``phi`` with gradient ``X``,
-   ``S1 phi = b`` exactly, on any sampling. ``(S1 + eps diag(A)) phi = b``
-   (``eps`` tiny: ``b`` sums to 0 over every connected piece, so the shift
-   only fixes the constant).
+   pair energy, ``b_i = sum_j W_ij (X_i + X_j) / 2 . (x_i - x_j) g_ij``: the
+   trapezoid rule for the rise of the distance from ``x_j`` to ``x_i``, along
+   the arc over the surface rather than the chord, ``g_ij = 1 + (h_i^2 +
+   h_j^2) / (12 |x_i - x_j|^2)`` with ``h`` each point's height over the
+   other's tangent plane (the arc over a quadric to third order, as for the
+   ring below). On a plane ``g_ij = 1`` and ``b`` is the adjoint of the pair
+   differences: for a linear ``phi`` with gradient ``X``, ``S1 phi = b``
+   exactly, on any sampling. ``(S1 + eps diag(A)) phi = b`` (``eps`` tiny:
+   ``b`` sums to 0 over every connected piece, so the shift only fixes the
+   constant).
+
+Where two fronts of heat meet (a cut locus: the far side of a torus's tube,
+behind a bump), their slopes cancel in the least-squares gradient, and its
+unit direction, along the ridge between them, is not the distance's: the
+distance has a kink there, whose weak gradient is the mean of the two
+slopes, shorter than 1. So ``X_i`` is shortened to ``r_i X_i`` where the
+heat's relative slope ``r_i = |grad u_i| / u_i`` over its pair-weighted mean
+on the row is under :data:`CUT_RATIO` (near 1 elsewhere: on a random sphere,
+which has no such line, 99 % of the points lie above 0.84) and beyond the
+sampling's own spread of it (:data:`CUT_SPREADS`), outside the ring (near
+the source the heat falls by orders of magnitude across a ball, and the
+ratio is unsteady).
 
 The constant is fixed last. The heat method rounds the distance's cone at
 the source over a few spacings, so ``phi`` at the source itself sits above
@@ -60,7 +77,7 @@ from scipy.spatial import cKDTree
 from .._kernels import laplacian as lap_kernels
 from ..errors import HeatcurvError
 
-__all__ = ["HeatGeodesics", "HEAT_TIME", "RING", "HEAT_FLOOR", "FLAT_SLOPE"]
+__all__ = ["HeatGeodesics", "HEAT_TIME", "RING", "HEAT_FLOOR", "FLAT_SLOPE", "CUT_RATIO", "CUT_SPREADS"]
 
 #: Heat time in squared mean spacings: longer steps smooth the distance over a torus's cut locus, shorter
 #: ones lose the sphere (the choice is measured in docs/laplacian.md).
@@ -75,6 +92,11 @@ HEAT_FLOOR = 1e-250
 LONGER_STEPS = 8
 #: Most height over the source's tangent plane, per unit of chord, at which its quadric gives the distance.
 FLAT_SLOPE = 0.3
+#: A point beyond the ring whose relative heat slope ``|grad u| / u`` is under this share of its row's mean, and
+#: further under 1 than :data:`CUT_SPREADS` robust standard deviations of that ratio, is on a cut locus.
+CUT_RATIO = 0.6
+#: See :data:`CUT_RATIO`: the sampling's own spread of the ratio (wider on a sparser operator) is not a cut locus.
+CUT_SPREADS = 7.0
 
 
 @dataclass
@@ -112,6 +134,8 @@ class HeatGeodesics:
     spacing: float = field(init=False)
     piece: np.ndarray = field(init=False, repr=False)
     _weights: sp.csr_matrix = field(init=False, repr=False)
+    _row_weight: np.ndarray = field(init=False, repr=False)
+    _arc_weights: np.ndarray = field(init=False, repr=False)
     _slope: np.ndarray = field(init=False, repr=False)
     _normal: np.ndarray = field(init=False, repr=False)
     _heat: object = field(init=False, repr=False)
@@ -127,6 +151,8 @@ class HeatGeodesics:
         if not np.all(value[:, 1] > 1e-12 * value[:, 2]):
             raise HeatcurvError("a point's neighbours lie on a line: it has no tangent plane for a geodesic gradient")
         self._normal = vector[:, :, 0]
+        self._row_weight = np.asarray(W.sum(axis=1)).ravel()
+        self._arc_weights = W.data * lap_kernels.arc_over_chord(self.points, W.indptr, W.indices, self._normal)
         tangent = vector[:, :, 1:]
         self._slope = np.einsum("nik,nk,njk->nij", tangent, 1.0 / value[:, 1:], tangent)  # M_i^+, shape (n, 3, 3)
         self.piece = csgraph.connected_components(W, directed=False)[1]
@@ -146,12 +172,39 @@ class HeatGeodesics:
         return lap_kernels.tangent_gradient(self.points, W.indptr, W.indices, W.data, self._slope, u)
 
     def divergence(self, field: np.ndarray) -> np.ndarray:
-        """Weak divergence of a tangent field, shape (n, 3) -> (n,) (step 3).
+        """Weak divergence of a tangent field along the surface, shape (n, 3) -> (n,) (step 3).
 
-        ``b_i = sum_j W_ij (X_i + X_j) / 2 . (x_i - x_j)``.
+        ``b_i = sum_j W_ij (X_i + X_j) / 2 . (x_i - x_j) g_ij``, ``g_ij`` the arc over the chord.
         """
         W = self._weights
-        return lap_kernels.weak_divergence(self.points, W.indptr, W.indices, W.data, field)
+        return lap_kernels.weak_divergence(self.points, W.indptr, W.indices, self._arc_weights, field)
+
+    def directions(self, u: np.ndarray, near: np.ndarray) -> np.ndarray:
+        """The unit field along which the distance grows, shape (n,) -> (n, 3), shortened on cut loci.
+
+        ``-grad u / |grad u|`` (step 2); 0 where the heat is 0 (a piece the
+        sources do not reach). Beyond the ring (``near``, shape (n,): the
+        distance to the nearest source over its quadric, :meth:`near_distance`),
+        times the relative slope ``r_i`` (module docstring) where it is under
+        both :data:`CUT_RATIO` and ``1 - CUT_SPREADS s``, ``s`` the ratio's
+        robust standard deviation over the cloud.
+        """
+        grad = self.gradient(u)
+        # far from the source the heat and its gradient are tiny (1e-200): squaring them would underflow
+        largest = np.abs(grad).max(axis=1)
+        scaled = -grad / np.where(largest > 0, largest, 1.0)[:, None]
+        length = np.linalg.norm(scaled, axis=1)  # largest component 1: in [1, sqrt 3], or 0
+        unit = scaled / np.maximum(length, 1.0)[:, None]
+        heated = u > 0
+        if not heated.any():
+            return unit
+        slope = np.zeros(u.size)
+        slope[heated] = length[heated] * (largest[heated] / u[heated])  # |grad u| / u
+        mean = (self._weights @ slope) / self._row_weight
+        ratio = np.divide(slope, mean, out=np.ones(u.size), where=mean > 0)
+        spread = 1.4826 * np.median(np.abs(ratio[heated] - np.median(ratio[heated])))
+        cut = (ratio < min(CUT_RATIO, 1.0 - CUT_SPREADS * spread)) & (near > RING[1] * self.spacing)
+        return unit * np.where(cut, ratio, 1.0)[:, None]
 
     def heat(self, sources: np.ndarray) -> np.ndarray:
         """The heat ``u`` of one backward Euler step from the sources, shape (n,) (step 1).
@@ -205,14 +258,8 @@ class HeatGeodesics:
         ndarray, shape (n,)
             0 at the sources, ``inf`` in the connected pieces that hold none.
         """
-        u = self.heat(sources)
-        grad = self.gradient(u)
-        # far from the source the heat and its gradient are tiny (1e-200): squaring them would underflow
-        largest = np.abs(grad).max(axis=1)
-        unit = -grad / np.where(largest > 0, largest, 1.0)[:, None]
-        unit /= np.maximum(np.linalg.norm(unit, axis=1), 1.0)[:, None]  # largest component 1: norm in [1, sqrt 3]
-        phi = self._poisson.solve(self.divergence(unit))
         near, flat = self.near_distance(sources)
+        phi = self._poisson.solve(self.divergence(self.directions(self.heat(sources), near)))
         lo, hi = RING[0] * self.spacing, RING[1] * self.spacing
         distance = np.full(phi.size, np.inf)
         for piece in np.unique(self.piece[sources]):
