@@ -202,7 +202,8 @@ class HeatGeodesics:
         slope[heated] = length[heated] * (largest[heated] / u[heated])  # |grad u| / u
         mean = (self._weights @ slope) / self._row_weight
         ratio = np.divide(slope, mean, out=np.ones(u.size), where=mean > 0)
-        spread = 1.4826 * np.median(np.abs(ratio[heated] - np.median(ratio[heated])))
+        reached = ratio[heated]
+        spread = 1.4826 * np.median(np.abs(reached - np.median(reached)))
         cut = (ratio < min(CUT_RATIO, 1.0 - CUT_SPREADS * spread)) & (near > RING[1] * self.spacing)
         return unit * np.where(cut, ratio, 1.0)[:, None]
 
