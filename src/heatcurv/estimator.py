@@ -122,7 +122,10 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     knn : callable, optional
         With ``choices``: the tile's neighbourhoods where they are known
         already (:meth:`heatcurv.operators.operator.HeatKernelOperator.from_points`,
-        :mod:`heatcurv.tiles.neighbours`). Default: queried.
+        :mod:`heatcurv.tiles.neighbours`), and with them their areas and, if
+        it has a method ``outliers(prepared)`` that returns
+        :class:`~heatcurv.flags.outliers.Outliers` (or None), the outliers.
+        Default: queried and computed.
     coordinate_precision : float or array_like of shape (3,), optional
         The step of the grid the coordinates were rounded to, input units,
         for all axes or one per axis (a LAS file's scale; 0: exact). Points
@@ -190,7 +193,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             check_kernel(op.neighbourhood, op.h, opts, keys)  # refuse a kernel that leaves nothing to fit
             check_ball_counts(op.points, op.tree, op.neighbourhood, op.h, opts, keys, op.prepared.unit)
         with clock.stage("outliers"):
-            outliers = find_outliers(op.points, op.neighbourhood)
+            outliers = _known_outliers(knn, op)
+            outliers = find_outliers(op.points, op.neighbourhood) if outliers is None else outliers
         towards = viewpoint_reference(op, mode, viewpoint)
         nrm, ball_shape, orientation, policy = normal_stages(op, normals, mode, towards, outliers.mask, clock,
                                                              keys, choices)
@@ -300,6 +304,12 @@ def _value_reach(op: HeatKernelOperator, fitted: Fitted, orientation: Orientatio
     support = radius if fitted.support is None else fitted.support
     near = radius if orientation.reach is None else np.maximum(radius, orientation.reach)
     return support + near
+
+
+def _known_outliers(knn, op: HeatKernelOperator) -> Outliers | None:
+    """The outliers ``knn`` knows of the operator's points (:func:`estimate`), None if it knows none."""
+    known = getattr(knn, "outliers", None)
+    return None if known is None or op.options.radius is not None else known(op.prepared)
 
 
 def _stage_rounding(op: HeatKernelOperator, rounding) -> np.ndarray | None:

@@ -1,5 +1,7 @@
 """The tile phase reads back the neighbourhoods its survey queried (heatcurv.tiles.neighbours)."""
 
+import os
+
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -141,3 +143,103 @@ def test_a_survey_reads_the_lists_of_the_tiles_surveyed_before_it(torus_file, tm
     read, asked, core = np.array(calls).T
     assert asked[0] == read[0]  # the first survey finds no list
     assert np.all(asked[1:] >= core[1:]) and asked[1:].sum() < 0.7 * read[1:].sum(), calls
+
+
+def _slab_scratch(tmp_path, seed=2):
+    """A slab in three tiles along x with every tile's lists and values as its survey would store them, the
+    middle tile's points and halo (positions), their prepared points and the whole cloud's operator."""
+    from heatcurv.flags.outliers import find_outliers
+    from heatcurv.operators.areas import density_areas
+
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(size=(6000, 3)) * [6.0, 1.0, 0.2]
+    points[:40] = points[40:80] + [0.0, 0.0, 0.6]  # an island over the middle tile: outliers
+    points = points[np.argsort(points[:, 0])]
+    offsets, k = np.array([0, 2000, 4000, 6000]), 12
+    whole = prepare_points(points)  # the points are distinct: prepared rows are the input rows
+    nbhd = knn_neighbourhood(whole.points, k)
+    areas, outliers = density_areas(nbhd), find_outliers(whole.points, nbhd)
+    assert outliers.mask.any()
+    _scratch_lists(tmp_path, points, offsets, k)
+    for tile in range(3):
+        core = np.zeros(len(points), dtype=bool)
+        core[offsets[tile]:offsets[tile + 1]] = True
+        stored_lists = np.load(neighbours.lists_path(tmp_path, tile))
+        neighbours.write_values(tmp_path, tile, neighbours.core_values(whole, areas, outliers, core, stored_lists))
+    positions = np.flatnonzero((points[:, 0] >= points[2000, 0] - 0.4) & (points[:, 0] <= points[3999, 0] + 0.4))
+    return points, offsets, k, positions, areas, outliers
+
+
+def test_a_tile_reads_its_points_areas_and_outlier_flags(tmp_path):
+    points, offsets, k, positions, areas, outliers = _slab_scratch(tmp_path)
+    prepared = prepare_points(points[positions])
+    stored = neighbours.known_neighbours(tmp_path, offsets, positions)
+    assert stored.areas(prepared) is None and stored.outliers(prepared) is None  # nothing read back yet
+    stored(prepared, cKDTree(prepared.points), k, 1)
+    rows = positions[prepared.first]
+    np.testing.assert_array_equal(stored.areas(prepared), areas[rows])
+    got = stored.outliers(prepared)
+    for name in ("mask", "detached", "isolated", "sparse"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(outliers, name)[rows], err_msg=name)
+    # lists of another width: neither is the tile's
+    stored(prepared, cKDTree(prepared.points), k + 1, 1)
+    assert stored.areas(prepared) is None and stored.outliers(prepared) is None
+
+
+def test_no_stored_values_when_a_tile_lacks_them_or_a_ball_was_not_certain(tmp_path):
+    points, offsets, k, positions, areas, outliers = _slab_scratch(tmp_path)
+    prepared = prepare_points(points[positions])
+    tree = cKDTree(prepared.points)
+    path = neighbours.values_path(tmp_path, 2)
+    values = np.load(path)
+    values["area"][5] = np.nan  # a row whose list was not stored (its ball may reach past what was read)
+    neighbours.write_values(tmp_path, 2, values)
+    stored = neighbours.known_neighbours(tmp_path, offsets, positions)
+    stored(prepared, tree, k, 1)
+    assert stored.areas(prepared) is None and stored.outliers(prepared) is None
+    os.unlink(path)
+    stored = neighbours.known_neighbours(tmp_path, offsets, positions)
+    stored(prepared, tree, k, 1)
+    assert stored.areas(prepared) is None and stored.outliers(prepared) is None
+
+
+def test_the_tile_phase_reads_the_surveys_areas_and_outliers(torus_file, tmp_path, monkeypatch):
+    # a survey in one round stores its core points' areas and outlier flags; the tiles compute neither again,
+    # and every field is the same as when they do
+    from heatcurv import estimator
+    from heatcurv.operators import operator
+
+    options = dict(tile_size=1200, scheduler="serial", dtype="float64", fields=ALL_FIELDS, max_memory="4G")
+    computed = {"outliers": 0, "areas": 0}
+    find, areas = estimator.find_outliers, operator.density_areas
+    in_tile = [False]
+
+    def counted(name, fn):
+        def wrapper(*args, **kwargs):
+            computed[name] += in_tile[0]
+            return fn(*args, **kwargs)
+        return wrapper
+
+    compute_tile = compute.compute_tile
+
+    def tile(*args, **kwargs):
+        in_tile[0] = True
+        try:
+            return compute_tile(*args, **kwargs)
+        finally:
+            in_tile[0] = False
+
+    monkeypatch.setattr(estimator, "find_outliers", counted("outliers", find))
+    monkeypatch.setattr(operator, "density_areas", counted("areas", areas))
+    monkeypatch.setattr(compute, "compute_tile", tile)
+    (tmp_path / "scratch").mkdir()
+    stored = compute_file(torus_file[0], tmp_path / "stored.ply", scratch=tmp_path / "scratch", keep_scratch=True,
+                          **options)
+    assert len(list((tmp_path / "scratch").rglob("values_*.npy"))) == stored.tiles
+    assert computed == {"outliers": 0, "areas": 0}
+    monkeypatch.setattr(tasks, "write_values", lambda *args: None)
+    again = compute_file(torus_file[0], tmp_path / "computed.ply", **options)
+    assert computed["outliers"] == again.tiles and computed["areas"] == again.tiles
+    a, b = read_fields(tmp_path / "stored.ply"), read_fields(tmp_path / "computed.ply")
+    for name in ALL_FIELDS:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)

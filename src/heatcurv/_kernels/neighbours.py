@@ -19,7 +19,7 @@ from . import ROW_CORE, as_floats, parallel_rows
 __all__ = ["stored_neighbours"]
 
 
-def stored_neighbours(points, first, inverse, lists, offsets, base, lookup, index_dtype):
+def stored_neighbours(points, first, lists, offsets, base, lookup, index_dtype):
     """The stored ``k`` nearest of every distinct point, as tile rows, and their distances.
 
     Parameters
@@ -28,8 +28,6 @@ def stored_neighbours(points, first, inverse, lists, offsets, base, lookup, inde
         The tile's distinct points (the operator's coordinates).
     first : ndarray, shape (n,), int64
         The tile row (of the points read) of each distinct point.
-    inverse : ndarray, shape (m,), int64
-        The distinct point of each tile row.
     lists : ndarray, shape (m, k), int32 or int64
         Per tile row, the scratch positions of its ``k`` nearest, nearest
         first; a row starting with -1 is not stored.
@@ -37,9 +35,9 @@ def stored_neighbours(points, first, inverse, lists, offsets, base, lookup, inde
         Where each tile's points start in the scratch files.
     base : ndarray, shape (t,), int64
         Where each tile's slice starts in ``lookup``; -1 for tiles not read.
-    lookup : ndarray, int64
+    lookup : ndarray, int32 or int64
         Per scratch position of the tiles read (their slices end to end), its
-        tile row, -1 if not read.
+        distinct point, -1 if not read.
     index_dtype : numpy dtype
         Of the returned indices.
 
@@ -58,14 +56,14 @@ def stored_neighbours(points, first, inverse, lists, offsets, base, lookup, inde
     distances = np.empty((n, k))
     known = np.empty(n, dtype=np.bool_)
     parallel_rows(_stored_neighbours, n, as_floats(points), np.ascontiguousarray(first, dtype=np.int64),
-                  np.ascontiguousarray(inverse, dtype=np.int64), np.ascontiguousarray(lists),
-                  np.ascontiguousarray(offsets, dtype=np.int64), np.ascontiguousarray(base, dtype=np.int64),
-                  np.ascontiguousarray(lookup, dtype=np.int64), indices, distances, known)
+                  np.ascontiguousarray(lists), np.ascontiguousarray(offsets, dtype=np.int64),
+                  np.ascontiguousarray(base, dtype=np.int64), np.ascontiguousarray(lookup), indices, distances,
+                  known)
     return indices, distances, known
 
 
 @njit(**ROW_CORE)
-def _stored_neighbours(row0, row1, points, first, inverse, lists, offsets, base, lookup, indices, distances, known):
+def _stored_neighbours(row0, row1, points, first, lists, offsets, base, lookup, indices, distances, known):
     n_tiles = offsets.shape[0] - 1
     k = lists.shape[1]
     for i in range(row0, row1):
@@ -87,11 +85,10 @@ def _stored_neighbours(row0, row1, points, first, inverse, lists, offsets, base,
             if base[lo] < 0:
                 ok = False
                 break
-            row = lookup[base[lo] + p - offsets[lo]]
-            if row < 0:
+            e = lookup[base[lo] + p - offsets[lo]]
+            if e < 0:
                 ok = False
                 break
-            e = inverse[row]
             indices[i, j] = e
             s = 0.0
             for a in range(3):

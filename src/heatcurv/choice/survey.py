@@ -159,7 +159,8 @@ def _candidate_rows(keys: np.ndarray, core: np.ndarray, size: int, seed: int, bo
     return rows[order[shifted[order] < bound]]
 
 
-def survey_part(points, core, frame: CloudFrame, operator=None, bounded: bool = True, **options) -> CentreSurvey:
+def survey_part(points, core, frame: CloudFrame, operator=None, outliers=None, bounded: bool = True,
+                **options) -> CentreSurvey:
     """Fit the candidate kernels at a tile's candidate centres (step 1 of the module).
 
     Parameters
@@ -172,6 +173,8 @@ def survey_part(points, core, frame: CloudFrame, operator=None, bounded: bool = 
         The whole cloud's frame.
     operator : HeatKernelOperator, optional
         The operator over ``points`` with these options, if built already.
+    outliers : Outliers, optional
+        Its outliers (:func:`heatcurv.flags.outliers.find_outliers`), if found already.
     bounded : bool, optional
         Fit only the candidates below :func:`key_bound` (default), else the
         tile's ``n_sub`` smallest keys.
@@ -191,7 +194,7 @@ def survey_part(points, core, frame: CloudFrame, operator=None, bounded: bool = 
     core_rows = np.zeros(X.shape[0], dtype=bool)
     core_rows[prepared.inverse[core]] = True
     keys = geometric_keys(X, base, frame)
-    outliers = find_outliers(X, base)
+    outliers = find_outliers(X, base) if outliers is None else outliers
     ladder = _ladder(int(opts.neighbours), tuning.max_k, frame.n_points)
     q = min(tuning.n_sub, frame.n_points)
     sizes = level_sizes(ladder, q)

@@ -73,15 +73,12 @@ class Outliers:
         Much sparser than its ball's neighbours (points off the surface, veils).
     sparse : ndarray, shape (n,), bool
         The ball is much emptier than the point's surroundings.
-    components : int
-        Components of the mutual-neighbour graph.
     """
 
     mask: np.ndarray
     detached: np.ndarray
     isolated: np.ndarray
     sparse: np.ndarray
-    components: int
 
     @property
     def count(self) -> int:
@@ -127,7 +124,7 @@ def find_outliers(points: np.ndarray, nbhd: Neighbourhood) -> Outliers:
     # a point whose ball is mostly strays measures them, not a surface (a short trail in a veil)
     amid = kernels.flagged_within(strays, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius)
     amid_strays = ~strays & (amid[:, 1] > TUNING.own_share * ball_counts)
-    return Outliers(strays | amid_strays, detached, isolated, sparse, int(n_comp))
+    return Outliers(strays | amid_strays, detached, isolated, sparse)
 
 
 def exceeds_neighbour_median(values: np.ndarray, factor: float, nbhd: Neighbourhood) -> np.ndarray:

@@ -104,6 +104,9 @@ class HeatKernelOperator:
             returns them, when they are known already (a tile whose
             neighbourhoods the survey computed, :mod:`heatcurv.tiles.neighbours`).
             Used with ``spacing="density"`` (the default); default: queried.
+            If it has a method ``areas(prepared)`` that returns the density
+            areas of those neighbourhoods (shape (m,), or None), they are not
+            computed again.
         **overrides
             ``method`` and any :class:`~heatcurv.options.Options` field.
 
@@ -128,7 +131,9 @@ class HeatKernelOperator:
             with clock.stage("areas"):
                 if options.area_method == "density":
                     weights = None  # computed on first use (.weights), not stored on large clouds
-                    areas, solve = density_areas(nbhd), AreaSolve("density", 0, 0.0, True)
+                    areas = _known_areas(knn, prepared, options)
+                    areas = density_areas(nbhd) if areas is None else areas
+                    solve = AreaSolve("density", 0, 0.0, True)
                 else:
                     weights = heat_kernel_weights(nbhd, h, options.m)
                     areas, solve = point_areas(
@@ -240,6 +245,14 @@ def _neighbourhood_and_spacing(prepared: PreparedPoints, tree: cKDTree, options:
     if not np.all(h > 0):
         raise HeatcurvError("a point's spacing is zero; this should not happen after merging duplicates")
     return nbhd, h
+
+
+def _known_areas(knn, prepared: PreparedPoints, options: Options) -> np.ndarray | None:
+    """The density areas ``knn`` knows (:meth:`HeatKernelOperator.from_points`), None if it knows none."""
+    known = getattr(knn, "areas", None)
+    if known is None or options.radius is not None or options.spacing != "density":
+        return None
+    return known(prepared)
 
 
 def build_operator(points, options: Options | None = None, progress=None, **overrides) -> HeatKernelOperator:

@@ -27,6 +27,7 @@ from ..choice.plan import plan_fit
 from ..choice.survey import GATE_LEVELS, fit_centres, join_keys, key_part, merge_fits, survey_part, tile_options
 from ..choice.survey import merge_surveys as merge_centre_surveys
 from ..estimator import estimate
+from ..flags.outliers import find_outliers
 from ..flags.reliability import ReliabilityInputs, cloud_flags
 from ..geometry.validation import bounding_box_frame
 from ..operators.operator import HeatKernelOperator
@@ -214,8 +215,9 @@ def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict, keep
     options : dict
         The keyword arguments of :func:`heatcurv.estimate`.
     keep : callable, optional
-        ``keep(operator)``, called with the operator over ``points`` before the
-        fits (a tiled run stores its neighbourhoods for the tile phase, :mod:`.neighbours`).
+        ``keep(operator, outliers)``, called with the operator over ``points``
+        and its outliers before the fits (a tiled run stores its
+        neighbourhoods, areas and outliers for the tile phase, :mod:`.neighbours`).
     bounded : bool, optional
         Only the candidates below the key bound (:func:`heatcurv.choice.survey.key_bound`).
     knn : callable, optional
@@ -227,9 +229,10 @@ def survey_tile(points: np.ndarray, core: np.ndarray, stats, options: dict, keep
     """
     frame, options = cloud_frame(stats), _estimate_options(options)
     op = HeatKernelOperator.from_points(points, tile_options(options), frame=frame, knn=knn)
+    outliers = find_outliers(op.points, op.neighbourhood)
     if keep is not None:
-        keep(op)
-    return survey_part(points, core, frame, operator=op, bounded=bounded, **options)
+        keep(op, outliers)
+    return survey_part(points, core, frame, operator=op, outliers=outliers, bounded=bounded, **options)
 
 
 def survey_reach(survey, stats) -> tuple[np.ndarray, np.ndarray]:

@@ -23,6 +23,14 @@ distance, which the operator's kernels weigh alike; the distances are
 recomputed from the coordinates, as the k-d tree computes them). A survey
 writes a core point's row only when its ball lies inside what the survey read
 (or reaches past it only across the cloud's bounding box), else ``-1``.
+
+A survey in one round also writes what its operator computed from those
+lists at its core points (``knn/values_NNNNN.npy``, :func:`core_values`): each
+one's density area (a function of its own list) and outlier flags (its
+survey's halo holds every ball a flag reads). A tile whose points all have
+them reads them (:meth:`StoredNeighbours.areas`,
+:meth:`StoredNeighbours.outliers`) instead of computing them over its core and
+halo again.
 """
 
 from __future__ import annotations
@@ -32,20 +40,34 @@ import os
 import numpy as np
 
 from .._kernels.neighbours import stored_neighbours
+from ..flags.outliers import Outliers
 from ..geometry.neighbourhood import Neighbourhood, _index_dtype, block_ranges, knn_neighbourhood, rows_per_block
 from ..geometry.validation import PreparedPoints
 
-__all__ = ["core_lists", "write_lists", "known_neighbours", "lists_path", "list_bytes"]
+__all__ = ["core_lists", "core_values", "write_lists", "write_values", "known_neighbours", "StoredNeighbours",
+           "lists_path", "values_path", "list_bytes", "VALUES"]
+
+#: What a one-round survey stores per core point besides its list: its density area (the operator's units) and
+#: its outlier flags as bits (:data:`OUTLIER_BITS`)
+VALUES = np.dtype([("area", np.float64), ("outlier", np.uint8)])
+#: The bit of each of :class:`heatcurv.flags.outliers.Outliers`' masks in ``VALUES["outlier"]``
+OUTLIER_BITS = {"mask": 1, "detached": 2, "isolated": 4, "sparse": 8}
 
 
 def list_bytes(points: int, neighbours: int) -> int:
-    """Bytes of the neighbour files of ``points`` points (int32 positions where they fit, else int64)."""
-    return int(points) * int(neighbours) * (4 if int(points) < np.iinfo(np.int32).max else 8)
+    """Bytes of the neighbour files of ``points`` points (int32 positions where they fit, else int64), with
+    their :data:`VALUES`."""
+    return int(points) * (int(neighbours) * (4 if int(points) < np.iinfo(np.int32).max else 8) + VALUES.itemsize)
 
 
 def lists_path(scratch, tile: int) -> str:
     """The neighbour file of tile ``tile``'s core points."""
     return os.path.join(scratch, "knn", f"knn_{tile:05d}.npy")
+
+
+def values_path(scratch, tile: int) -> str:
+    """The file of tile ``tile``'s core points' :data:`VALUES`."""
+    return os.path.join(scratch, "knn", f"values_{tile:05d}.npy")
 
 
 def core_lists(prepared: PreparedPoints, nbhd: Neighbourhood, core: np.ndarray, positions: np.ndarray,
@@ -82,11 +104,12 @@ def core_lists(prepared: PreparedPoints, nbhd: Neighbourhood, core: np.ndarray, 
     dtype = np.int32 if int(positions.max(initial=0)) < np.iinfo(np.int32).max else np.int64  # as list_bytes
     lists = np.empty((distinct.size, k), dtype=dtype)
     rows = nbhd.indices.reshape(-1, k)
+    scratch_position = positions[prepared.first].astype(dtype)  # of each distinct point
     low, high = halo_box
     open_low, open_high = low > cloud[0], high < cloud[1]
     for lo, hi in block_ranges(distinct.size, rows_per_block(k)):  # a block at a time: the temporaries are int64
         mine = distinct[lo:hi]
-        lists[lo:hi] = positions[prepared.first[rows[mine]]]
+        lists[lo:hi] = scratch_position[rows[mine]]
         # a ball reaching past the box read may miss a nearer point beyond it
         points = prepared.points[mine] * prepared.unit + prepared.offset
         radius = (nbhd.radius[mine] * prepared.unit)[:, None]
@@ -96,20 +119,60 @@ def core_lists(prepared: PreparedPoints, nbhd: Neighbourhood, core: np.ndarray, 
     return lists
 
 
-def write_lists(scratch, tile: int, lists: np.ndarray | None) -> None:
-    """Write a tile's :func:`core_lists` atomically (nothing when None)."""
-    if lists is None:
-        return
-    path = lists_path(scratch, tile)
+def core_values(prepared: PreparedPoints, areas: np.ndarray, outliers, core: np.ndarray,
+                lists: np.ndarray) -> np.ndarray:
+    """Each core point's density area and outlier flags, as a tile would compute them.
+
+    Parameters
+    ----------
+    prepared : PreparedPoints
+        The distinct points of the tile's core and halo (the operator's).
+    areas : ndarray, shape (n,)
+        The operator's density areas of the distinct points.
+    outliers : heatcurv.flags.outliers.Outliers
+        Of the distinct points.
+    core : ndarray, shape (m,), bool
+        The tile's own rows.
+    lists : ndarray, shape (c, k)
+        Their :func:`core_lists`.
+
+    Returns
+    -------
+    ndarray, shape (c,), dtype :data:`VALUES`
+        ``area`` NaN where the list is not stored (:func:`core_lists`): its ball may reach past what was read.
+    """
+    distinct = prepared.inverse[np.flatnonzero(core)]
+    values = np.empty(distinct.size, dtype=VALUES)
+    values["area"] = np.where(lists[:, 0] >= 0, areas[distinct], np.nan)
+    bits = np.zeros(distinct.size, dtype=np.uint8)
+    for name, bit in OUTLIER_BITS.items():
+        bits |= np.where(getattr(outliers, name)[distinct], bit, 0).astype(np.uint8)
+    values["outlier"] = bits
+    return values
+
+
+def _write(path: str, array: np.ndarray) -> None:
+    """``np.save`` atomically."""
     os.makedirs(os.path.dirname(path), exist_ok=True)
     temporary = f"{path}.{os.getpid()}.tmp.npy"
     try:
-        np.save(temporary, lists)
+        np.save(temporary, array)
         os.replace(temporary, path)
     except BaseException:
         if os.path.exists(temporary):
             os.unlink(temporary)
         raise
+
+
+def write_lists(scratch, tile: int, lists: np.ndarray | None) -> None:
+    """Write a tile's :func:`core_lists` atomically (nothing when None)."""
+    if lists is not None:
+        _write(lists_path(scratch, tile), lists)
+
+
+def write_values(scratch, tile: int, values: np.ndarray) -> None:
+    """Write a tile's :func:`core_values` atomically."""
+    _write(values_path(scratch, tile), values)
 
 
 def _read_lists(scratch, tile: int) -> np.ndarray | None:
@@ -120,7 +183,7 @@ def _read_lists(scratch, tile: int) -> np.ndarray | None:
     return np.load(path)
 
 
-def known_neighbours(scratch, offsets: np.ndarray, positions: np.ndarray):
+def known_neighbours(scratch, offsets: np.ndarray, positions: np.ndarray) -> StoredNeighbours:
     """The ``knn`` argument of :func:`heatcurv.estimate` for a tile read from the scratch files.
 
     Parameters
@@ -134,21 +197,35 @@ def known_neighbours(scratch, offsets: np.ndarray, positions: np.ndarray):
 
     Returns
     -------
-    callable
-        ``knn(prepared, tree, k, workers) -> Neighbourhood``: every distinct
-        point's ``k`` nearest, read back where the survey wrote them and all
-        of them are among the tile's points, else queried.
+    StoredNeighbours
     """
-    offsets = np.asarray(offsets, dtype=np.int64)
+    return StoredNeighbours(scratch, np.asarray(offsets, dtype=np.int64), positions)
 
-    def knn(prepared, tree, k: int, workers: int = -1) -> Neighbourhood:
+
+class StoredNeighbours:
+    """What the surveys stored of a tile's points: their neighbourhoods, areas and outlier flags.
+
+    Called as ``knn(prepared, tree, k, workers) -> Neighbourhood``: every
+    distinct point's ``k`` nearest, read back where the survey wrote them and
+    all of them are among the tile's points, else queried
+    (:meth:`heatcurv.operators.operator.HeatKernelOperator.from_points`).
+    """
+
+    def __init__(self, scratch, offsets: np.ndarray, positions: np.ndarray):
+        self.scratch, self.offsets, self.positions = scratch, offsets, positions
+        self._rows = None  # the stored values per point read, once read
+        self._listed = False  # the last call read stored lists of the width asked for
+
+    def __call__(self, prepared, tree, k: int, workers: int = -1) -> Neighbourhood:
         X = prepared.points
         n = X.shape[0]
-        lists, base, lookup = _stored_lists(scratch, offsets, positions)  # read now: held only for this call
-        if lists is None or lists.shape[1] != k:
+        # held only for this call
+        lists, base, lookup = _stored_lists(self.scratch, self.offsets, self.positions, prepared.inverse)
+        self._listed = lists is not None and lists.shape[1] == k
+        if not self._listed:
             return knn_neighbourhood(X, k, tree=tree, workers=workers)
-        indices, distances, known = stored_neighbours(X, prepared.first, prepared.inverse, lists, offsets, base,
-                                                      lookup, _index_dtype(n))
+        indices, distances, known = stored_neighbours(X, prepared.first, lists, self.offsets, base, lookup,
+                                                      _index_dtype(n))
         del lists, lookup
         ask = np.flatnonzero(~known)
         if ask.size:
@@ -161,11 +238,50 @@ def known_neighbours(scratch, offsets: np.ndarray, positions: np.ndarray):
             by_distance=True,
         )
 
-    return knn
+    def _values(self, prepared) -> np.ndarray | None:
+        """The stored :data:`VALUES` of every distinct point, shape (n,); None unless the neighbourhoods were read
+        back (the same lists, the same width) and every point's tile stored them."""
+        if not self._listed:
+            return None
+        if self._rows is None:
+            home = np.searchsorted(self.offsets, self.positions, side="right") - 1
+            tiles = np.unique(home)
+            paths = [values_path(self.scratch, int(tile)) for tile in tiles]
+            if not all(os.path.exists(path) for path in paths):
+                return None
+            values = np.empty(self.positions.shape[0], dtype=VALUES)
+            for tile, path in zip(tiles, paths):
+                mine = np.flatnonzero(home == tile)
+                values[mine] = np.load(path)[self.positions[mine] - self.offsets[tile]]
+            if np.isnan(values["area"]).any():
+                return None
+            self._rows = values
+        return self._rows[prepared.first]
+
+    def areas(self, prepared) -> np.ndarray | None:
+        """The stored density area of every distinct point of ``prepared`` (the operator's units), shape (n,),
+        or None."""
+        values = self._values(prepared)
+        return None if values is None else values["area"].copy()
+
+    def outliers(self, prepared) -> Outliers | None:
+        """The stored outlier flags of every distinct point of ``prepared``, or None."""
+        values = self._values(prepared)
+        if values is None:
+            return None
+        bits = values["outlier"]
+        return Outliers(**{name: (bits & bit) != 0 for name, bit in OUTLIER_BITS.items()})
 
 
-def _stored_lists(scratch, offsets: np.ndarray, positions: np.ndarray):
+def _stored_lists(scratch, offsets: np.ndarray, positions: np.ndarray, inverse: np.ndarray):
     """The stored lists of the points read (-1 rows where none is stored) and the map from scratch positions to them.
+
+    Parameters
+    ----------
+    scratch, offsets, positions
+        As :func:`known_neighbours`.
+    inverse : ndarray, shape (m,), int64
+        The distinct point of each point read.
 
     Returns
     -------
@@ -173,19 +289,20 @@ def _stored_lists(scratch, offsets: np.ndarray, positions: np.ndarray):
         Per point read, its list (:func:`core_lists`); None when no tile read has one.
     base : ndarray, shape (t,), int64
         Where each tile's slice starts in ``lookup`` (-1: no point of it read).
-    lookup : ndarray, int64
-        The tiles' slices end to end: per scratch position, its point's row, -1 if not read.
+    lookup : ndarray, int32 or int64
+        The tiles' slices end to end: per scratch position, its distinct point, -1 if not read.
     """
     m = positions.shape[0]
     home = np.searchsorted(offsets, positions, side="right") - 1
     lists = None
     base = np.full(len(offsets) - 1, -1, dtype=np.int64)
+    dtype = _index_dtype(int(inverse.max(initial=0)) + 1)
     maps, start = [], 0
     for tile in np.unique(home):
         mine = np.flatnonzero(home == tile)
         count = int(offsets[tile + 1] - offsets[tile])
-        local = np.full(count, -1, dtype=np.int64)
-        local[positions[mine] - offsets[tile]] = mine
+        local = np.full(count, -1, dtype=dtype)
+        local[positions[mine] - offsets[tile]] = inverse[mine]
         base[tile], start = start, start + count
         maps.append(local)
         stored = _read_lists(scratch, int(tile))
@@ -195,5 +312,5 @@ def _stored_lists(scratch, offsets: np.ndarray, positions: np.ndarray):
             lists = np.full((m, stored.shape[1]), -1, dtype=stored.dtype)
         if stored.shape[1] == lists.shape[1]:
             lists[mine] = stored[positions[mine] - offsets[tile]]
-    lookup = np.concatenate(maps) if maps else np.zeros(0, dtype=np.int64)
+    lookup = np.concatenate(maps) if maps else np.zeros(0, dtype=dtype)
     return lists, base, lookup

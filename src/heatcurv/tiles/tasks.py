@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import HeatcurvError
 from . import compute
 from .context import SurveyContext
-from .neighbours import core_lists, known_neighbours, write_lists
+from .neighbours import core_lists, core_values, known_neighbours, write_lists, write_values
 from .orient import MOMENTS
 from .plan import CloudStats, Tiling, read_rows
 from .winding import tile_sources
@@ -257,8 +257,11 @@ def run_survey(spec: SurveyTask):
     halo = float(spec.halo) if spec.halo is not None else compute.survey_halo(core_points, stats, options)
 
     def survey(points, core, positions, halo_box):
-        def keep(op):  # the core's neighbourhoods, which the tile phase reads instead of querying them again
-            write_lists(scratch, tile, core_lists(op.prepared, op.neighbourhood, core, positions, halo_box, cloud))
+        def keep(op, outliers):  # what the tile phase reads instead of computing it again
+            lists = core_lists(op.prepared, op.neighbourhood, core, positions, halo_box, cloud)
+            if lists is not None and op.area_solve.solver == "density":
+                write_values(scratch, tile, core_values(op.prepared, op.areas, outliers, core, lists))
+            write_lists(scratch, tile, lists)
 
         # the halo's neighbourhoods where the surveys of the tiles holding it have written them already
         knn = known_neighbours(scratch, offsets, positions)
