@@ -21,6 +21,8 @@ __all__ = ["streaming_medians"]
 #: Bits of the float64 pattern the first pass bins by.
 BIN_BITS = 16
 _SHIFT = np.uint64(64 - BIN_BITS)
+#: The group of the resolution's median among the kernel widths' residual medians (:func:`apply_cloud_flags`).
+RESOLUTION_GROUP = -1
 
 
 def _bins(values: np.ndarray) -> np.ndarray:
@@ -103,16 +105,15 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
             block = read_results(results_path, start, min(count, start + chunk))
             yield start, block, (block["computed"] == 1) & (block["counted"] == 1)
 
-    def residuals():
+    def columns():  # each width's residuals and, as group -1 (widths are positive), the resolution: one read
         for _, block, ok in blocks():
-            yield block["fit_width"][ok], block["misfit_residual"][ok]
+            width = block["fit_width"][ok].astype(np.int64)
+            yield (np.concatenate([width, np.full(width.size, RESOLUTION_GROUP)]),
+                   np.concatenate([block["misfit_residual"][ok], block["resolution_rho"][ok]]))
 
-    def resolutions():
-        for _, block, ok in blocks():
-            yield np.zeros(int(ok.sum()), dtype=np.int64), block["resolution_rho"][ok]
-
-    baselines = {k: max(v, TUNING.misfit_floor) for k, v in streaming_medians(residuals).items()}
-    resolution = streaming_medians(resolutions).get(0, 0.0)
+    medians = streaming_medians(columns)
+    resolution = medians.pop(RESOLUTION_GROUP, 0.0)
+    baselines = {k: max(v, TUNING.misfit_floor) for k, v in medians.items()}
     coarse = resolution > TUNING.resolution_limit
     if coarse:
         warn_too_coarse(resolution, stacklevel=3)
