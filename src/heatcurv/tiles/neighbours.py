@@ -13,8 +13,12 @@ the rows of its core and halo points from the files of the tiles that hold
 them (:func:`known_neighbours`) and queries only the points whose neighbours
 are not all among the points it read (the outer rim of its halo) or that no
 file holds. A one-round survey reads them too, for its halo's points in the
-tiles whose surveys finished before it (the others it queries: what it finds
-depends on the order the tiles ran in, what it computes does not).
+tiles whose surveys finished before it, and writes the rows it queried for
+its halo's points in the tiles not surveyed yet (``knn/halo_NNNNN.npy``,
+:func:`halo_lists`), which those tiles' surveys read for their own cores (the
+rest they query: what a survey finds depends on the order the tiles ran in,
+what it computes does not; tiles surveyed at once run apart,
+:func:`heatcurv.tiles.phase_survey.survey_order`).
 
 A point's ``k`` nearest within the points a tile read are its ``k`` nearest in
 the whole cloud when the whole cloud's are all among them, so a row read back
@@ -44,8 +48,9 @@ from ..flags.outliers import Outliers
 from ..geometry.neighbourhood import Neighbourhood, _index_dtype, block_ranges, knn_neighbourhood, rows_per_block
 from ..geometry.validation import PreparedPoints
 
-__all__ = ["core_lists", "core_values", "write_lists", "write_values", "known_neighbours", "StoredNeighbours",
-           "lists_path", "values_path", "list_bytes", "VALUES"]
+__all__ = ["core_lists", "core_values", "halo_lists", "write_lists", "write_values", "write_halo_lists",
+           "remove_halo_lists", "known_neighbours", "StoredNeighbours", "lists_path", "values_path", "halo_path",
+           "list_bytes", "VALUES"]
 
 #: What a one-round survey stores per core point besides its list: its density area (the operator's units) and
 #: its outlier flags as bits (:data:`OUTLIER_BITS`)
@@ -60,6 +65,11 @@ def list_bytes(points: int, neighbours: int) -> int:
     return int(points) * (int(neighbours) * (4 if int(points) < np.iinfo(np.int32).max else 8) + VALUES.itemsize)
 
 
+def _position_dtype(positions: np.ndarray):
+    """int32 for scratch positions that fit, else int64 (as :func:`list_bytes`)."""
+    return np.int32 if int(positions.max(initial=0)) < np.iinfo(np.int32).max else np.int64
+
+
 def lists_path(scratch, tile: int) -> str:
     """The neighbour file of tile ``tile``'s core points."""
     return os.path.join(scratch, "knn", f"knn_{tile:05d}.npy")
@@ -70,9 +80,17 @@ def values_path(scratch, tile: int) -> str:
     return os.path.join(scratch, "knn", f"values_{tile:05d}.npy")
 
 
+def halo_path(scratch, tile: int) -> str:
+    """The file of the lists tile ``tile``'s survey queried for its halo points (:func:`halo_lists`)."""
+    return os.path.join(scratch, "knn", f"halo_{tile:05d}.npy")
+
+
 def core_lists(prepared: PreparedPoints, nbhd: Neighbourhood, core: np.ndarray, positions: np.ndarray,
                halo_box: tuple, cloud: tuple) -> np.ndarray | None:
     """The scratch positions of each core point's nearest neighbours, from a query over a tile.
+
+    The same for any rows of the tile (``core`` a mask of them): a survey
+    stores its halo's too (:func:`halo_lists`).
 
     Parameters
     ----------
@@ -101,7 +119,7 @@ def core_lists(prepared: PreparedPoints, nbhd: Neighbourhood, core: np.ndarray, 
     if k == 0 or not np.all(nbhd.counts == k):
         return None
     distinct = prepared.inverse[np.flatnonzero(core)]
-    dtype = np.int32 if int(positions.max(initial=0)) < np.iinfo(np.int32).max else np.int64  # as list_bytes
+    dtype = _position_dtype(positions)
     lists = np.empty((distinct.size, k), dtype=dtype)
     rows = nbhd.indices.reshape(-1, k)
     scratch_position = positions[prepared.first].astype(dtype)  # of each distinct point
@@ -173,6 +191,47 @@ def write_lists(scratch, tile: int, lists: np.ndarray | None) -> None:
 def write_values(scratch, tile: int, values: np.ndarray) -> None:
     """Write a tile's :func:`core_values` atomically."""
     _write(values_path(scratch, tile), values)
+
+
+def halo_lists(scratch, offsets: np.ndarray, prepared: PreparedPoints, nbhd: Neighbourhood, core: np.ndarray,
+               positions: np.ndarray, halo_box: tuple, cloud: tuple) -> np.ndarray | None:
+    """The lists a survey queried for its halo points whose own tiles are not surveyed yet.
+
+    Those tiles' surveys read them (:func:`known_neighbours`) instead of
+    querying their cores' lists again; the survey of tiles run at once
+    cannot. Arguments as :func:`core_lists` (``offsets`` as
+    :func:`known_neighbours`).
+
+    Returns
+    -------
+    ndarray, shape (h, k + 1), or None
+        Per halo point whose ball lies inside what was read and whose tile
+        has no list file: its scratch position, then its list. None when
+        there is none.
+    """
+    home = np.searchsorted(offsets, positions, side="right") - 1
+    pending = np.array([not os.path.exists(lists_path(scratch, int(t))) for t in range(len(offsets) - 1)])
+    rows = ~core & pending[home]
+    lists = core_lists(prepared, nbhd, rows, positions, halo_box, cloud) if rows.any() else None
+    if lists is None:
+        return None
+    kept = lists[:, 0] >= 0
+    return np.column_stack([positions[rows][kept].astype(lists.dtype), lists[kept]])
+
+
+def write_halo_lists(scratch, tile: int, lists: np.ndarray | None) -> None:
+    """Write a survey's :func:`halo_lists` atomically (nothing when None)."""
+    if lists is not None:
+        _write(halo_path(scratch, tile), lists)
+
+
+def remove_halo_lists(scratch) -> None:
+    """Delete every survey's halo lists: once every tile is surveyed, each tile's own lists hold them."""
+    directory = os.path.join(scratch, "knn")
+    if os.path.isdir(directory):
+        for name in os.listdir(directory):
+            if name.startswith("halo_"):
+                os.unlink(os.path.join(directory, name))
 
 
 def _read_lists(scratch, tile: int) -> np.ndarray | None:
@@ -294,11 +353,12 @@ def _stored_lists(scratch, offsets: np.ndarray, positions: np.ndarray, inverse: 
     """
     m = positions.shape[0]
     home = np.searchsorted(offsets, positions, side="right") - 1
+    tiles = np.unique(home)
     lists = None
     base = np.full(len(offsets) - 1, -1, dtype=np.int64)
     dtype = _index_dtype(int(inverse.max(initial=0)) + 1)
-    maps, start = [], 0
-    for tile in np.unique(home):
+    maps, start, unlisted = [], 0, []
+    for tile in tiles:
         mine = np.flatnonzero(home == tile)
         count = int(offsets[tile + 1] - offsets[tile])
         local = np.full(count, -1, dtype=dtype)
@@ -307,10 +367,41 @@ def _stored_lists(scratch, offsets: np.ndarray, positions: np.ndarray, inverse: 
         maps.append(local)
         stored = _read_lists(scratch, int(tile))
         if stored is None:
+            unlisted.append(int(tile))
             continue
         if lists is None:
             lists = np.full((m, stored.shape[1]), -1, dtype=stored.dtype)
         if stored.shape[1] == lists.shape[1]:
             lists[mine] = stored[positions[mine] - offsets[tile]]
+    if unlisted:  # the lists other tiles' surveys queried for their halos, over these tiles' points
+        lists = _halo_lists_read(scratch, tiles, positions, unlisted, offsets, lists)
     lookup = np.concatenate(maps) if maps else np.zeros(0, dtype=dtype)
     return lists, base, lookup
+
+
+def _halo_lists_read(scratch, tiles: np.ndarray, positions: np.ndarray, unlisted: list, offsets: np.ndarray,
+                     lists: np.ndarray | None) -> np.ndarray | None:
+    """``lists`` (shape (m, k), or None) with the rows of the ``unlisted`` tiles' points that the halo lists of
+    the ``tiles`` read hold."""
+    order = np.argsort(positions, kind="stable")
+    ranges = [(offsets[t], offsets[t + 1]) for t in unlisted]
+    for tile in tiles.tolist():
+        path = halo_path(scratch, tile)
+        if not os.path.exists(path):
+            continue
+        stored = np.load(path)
+        where = np.zeros(len(stored), dtype=bool)
+        for lo, hi in ranges:
+            where |= (stored[:, 0] >= lo) & (stored[:, 0] < hi)
+        stored = stored[where]
+        at = np.searchsorted(positions, stored[:, 0], sorter=order)
+        found = at < len(order)
+        rows = order[np.minimum(at, len(order) - 1)]
+        found &= positions[rows] == stored[:, 0]
+        if not found.any():
+            continue
+        if lists is None:
+            lists = np.full((len(positions), stored.shape[1] - 1), -1, dtype=stored.dtype)
+        if stored.shape[1] - 1 == lists.shape[1]:
+            lists[rows[found]] = stored[found, 1:]
+    return lists

@@ -14,14 +14,17 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from ..choice.survey import CandidatesShort, FitsNotSurveyed
 from . import compute, job
 from .context import SurveyContext, read_context, write_context
 from .job import Job, Phase
+from .neighbours import remove_halo_lists
 from .plan import TilePlan
 from .tasks import CentresTask, KeysTask, SurveyTask, run_centres, run_keys, run_survey
 
-__all__ = ["survey", "ONE_ROUND_TILES"]
+__all__ = ["survey", "survey_order", "ONE_ROUND_TILES"]
 
 #: A cloud of at most this many tiles is surveyed in one round (:func:`.tasks.run_survey`), others in two
 #: (:func:`.tasks.run_keys`, :func:`.tasks.run_centres`); both choose the same kernel bit for bit. Round 2's
@@ -43,6 +46,7 @@ def survey(run: Job, plan: TilePlan, timings: dict, bar) -> SurveyContext:
     else:
         context = _two_rounds(run, plan, phase)
     write_context(context_file, context)
+    remove_halo_lists(run.work)
     timings["survey"] += time.perf_counter() - tic
     return context
 
@@ -53,7 +57,7 @@ def _one_round(run: Job, plan: TilePlan, phase: Phase, bounded: bool = True) -> 
     fall short of the cloud's centres (:class:`~heatcurv.choice.survey.CandidatesShort`), again without it."""
     n_tiles = len(plan.tiling.counts)
     specs = {t: SurveyTask(str(run.work), t, phase.options, plan.stats, plan.survey_halos[t], bounded)
-             for t in range(n_tiles)}
+             for t in survey_order(plan.tiling, phase.workers)}
     surveys = {}
     job.submit(phase.executor, phase.workers, run_survey, specs, surveys.__setitem__, run.say, "survey of tile",
                n_tiles)
@@ -64,6 +68,23 @@ def _one_round(run: Job, plan: TilePlan, phase: Phase, bounded: bool = True) -> 
             raise
         run.say(f"{short}: surveying again with every tile's candidates")
         return _one_round(run, plan, phase, bounded=False)
+
+
+def survey_order(tiling, workers: int) -> list[int]:
+    """The tiles in the order a one-round survey submits them: each as far from the ``workers - 1`` before it as
+    can be (the largest least distance between box centres; ties: the lower number).
+
+    Tiles surveyed at once cannot read each other's lists (:mod:`.neighbours`): apart, each finds its
+    neighbours' lists, core and halo, written by the surveys before it.
+    """
+    n = len(tiling.counts)
+    centres = np.array([np.add(*tiling.box(t)) / 2.0 for t in range(n)]).reshape(n, -1)
+    order, left = [0] if n else [], list(range(1, n))
+    while left:
+        recent = centres[order[-max(workers - 1, 1):]]
+        gaps = np.linalg.norm(centres[left][:, None, :] - recent[None, :, :], axis=2).min(axis=1)
+        order.append(left.pop(int(np.argmax(gaps))))
+    return order
 
 
 def _two_rounds(run: Job, plan: TilePlan, phase: Phase) -> SurveyContext:

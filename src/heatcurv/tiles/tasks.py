@@ -32,7 +32,15 @@ import numpy as np
 from ..errors import HeatcurvError
 from . import compute
 from .context import SurveyContext
-from .neighbours import core_lists, core_values, known_neighbours, write_lists, write_values
+from .neighbours import (
+    core_lists,
+    core_values,
+    halo_lists,
+    known_neighbours,
+    write_halo_lists,
+    write_lists,
+    write_values,
+)
 from .orient import MOMENTS
 from .plan import CloudStats, Tiling, read_rows
 from .winding import tile_sources
@@ -262,6 +270,9 @@ def run_survey(spec: SurveyTask):
             if lists is not None and op.area_solve.solver == "density":
                 write_values(scratch, tile, core_values(op.prepared, op.areas, outliers, core, lists))
             write_lists(scratch, tile, lists)
+            if lists is not None:  # and the halo's, for the surveys of the tiles not surveyed yet
+                write_halo_lists(scratch, tile, halo_lists(scratch, offsets, op.prepared, op.neighbourhood, core,
+                                                           positions, halo_box, cloud))
 
         # the halo's neighbourhoods where the surveys of the tiles holding it have written them already
         knn = known_neighbours(scratch, offsets, positions)
