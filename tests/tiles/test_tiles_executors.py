@@ -161,3 +161,32 @@ def test_missing_dask_says_how_to_install(monkeypatch):
     with pytest.raises(HeatcurvError, match=r'pip install "heatcurv\[dask\]"'):
         with open_executor("dask", 1, 1 << 30):
             pass
+
+
+def test_the_survey_s_worker_processes_start_while_the_driver_tiles(torus_file, torus_threads, tmp_path, monkeypatch):
+    # the pool the driver starts before tiling (its workers import heatcurv meanwhile) is the one the survey and
+    # the tiles use: one pool for the whole run, the same output
+    opened, started = [], []
+    open_pool, start = executors.open_executor, executors.Pools.start
+
+    def counting(scheduler, workers, *args, **kwargs):
+        opened.append((scheduler, workers))
+        return open_pool(scheduler, workers, *args, **kwargs)
+
+    def starting(self, *args, **kwargs):
+        started.append(args[:2])
+        return start(self, *args, **kwargs)
+
+    monkeypatch.setattr(executors, "open_executor", counting)
+    monkeypatch.setattr(executors.Pools, "start", starting)
+    out = tmp_path / "warm.ply"
+    compute_file(torus_file[0], out, tile_size=1200, tile_workers=2, scheduler="processes", dtype="float64",
+                 fields=ALL_FIELDS, max_memory="4G")
+    assert started == [("processes", 2)] and opened == [("processes", 2)]
+    _same_output(out, torus_threads[0])
+    # nothing to start ahead for threads, the serial scheduler, or a cloud of one tile
+    for scheduler, tile_size in (("threads", 1200), ("serial", 1200), ("processes", 10_000)):
+        started.clear()
+        compute_file(torus_file[0], tmp_path / f"{scheduler}.ply", tile_size=tile_size, tile_workers=2,
+                     scheduler=scheduler, max_memory="4G")
+        assert started == [], scheduler

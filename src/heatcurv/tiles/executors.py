@@ -175,6 +175,12 @@ class Pools:
             self.close()
             raise
 
+    def start(self, scheduler, workers: int, budget: int, threads: int, warm) -> None:
+        """Open the executor a phase will ask for ahead of it, each of its workers running ``warm()`` meanwhile."""
+        with self.open(scheduler, workers, budget, threads) as (executor, slots, _):
+            for _ in range(slots):
+                executor.submit(warm)
+
     def close(self) -> None:
         """Shut the kept executor down (and a cluster started for it); nothing if none is open."""
         opened, self._opened, self._key, self._entry = self._opened, None, None, None

@@ -16,9 +16,18 @@ from pathlib import Path
 
 from ..errors import HeatcurvError
 from .executors import SerialExecutor, kill_workers
-from .plan import BYTES_PER_POINT, DRIVER_MEMORY, PhaseWorkers, TilePlan, budget_refusal, halo_points, phase_workers
+from .plan import (
+    BYTES_PER_POINT,
+    DRIVER_MEMORY,
+    PhaseWorkers,
+    TilePlan,
+    budget_refusal,
+    halo_points,
+    phase_workers,
+    plan_workers,
+)
 
-__all__ = ["Job", "Phase", "phase", "submit", "task_threads", "version", "RETRIES"]
+__all__ = ["Job", "Phase", "phase", "submit", "task_threads", "warm_workers", "version", "RETRIES"]
 
 #: Times a tile is resubmitted after its worker process died.
 RETRIES = 2
@@ -75,6 +84,25 @@ def phase(run: Job, plan: TilePlan, halo, name: str) -> Phase:
     executor = partial(run.pools.open, "serial" if serial else run.scheduler, budget=max(run.budget - DRIVER_MEMORY, 1),
                        threads=threads)
     return Phase(executor, workers, dict(run.options, workers=threads))
+
+
+def warm_workers(run: Job, points: int, tile_size: int, warm) -> None:
+    """Start the worker processes the survey will likely ask for while the driver still plans.
+
+    A spawned worker imports heatcurv before its first task (about a second);
+    started here, it does so while the driver reads and tiles the cloud
+    instead of at the survey's start. Local process pools only, and a cloud of
+    more than one tile: a survey that asks for other workers (the budget with
+    the survey's halo, fewer tiles) closes these (:class:`.executors.Pools`).
+    ``warm``: a function the workers run (:func:`.tasks.warm_up`).
+    """
+    if run.scheduler != "processes" or points <= tile_size:
+        return
+    workers = min(-(-points // tile_size), plan_workers(max(run.budget - DRIVER_MEMORY, 0), run.requested,
+                                                         tile_size, run.cpus))
+    if workers >= 1:
+        run.pools.start(run.scheduler, workers, max(run.budget - DRIVER_MEMORY, 1),
+                        task_threads(run.threads, run.cpus, workers), warm)
 
 
 def task_threads(threads: int, cpus: int, workers: int) -> int:

@@ -39,7 +39,7 @@ from .plan import (
     scatter,
     size_text,
 )
-from .tasks import load_plan
+from .tasks import load_plan, warm_up
 
 __all__ = ["find_plan", "identity_of", "make_plan", "PLAN_VERSION"]
 
@@ -96,6 +96,7 @@ def make_plan(run: Job, identity: dict, tile_size, skip_nonfinite: bool, timings
     if os.stat(run.work).st_dev == os.stat(run.dst.parent).st_dev:
         need += stats.count * 100
     check_disk(run.dst.parent, need if run.dst.parent == run.root else stats.count * 100, f"the output {run.dst.name}")
+    job.warm_workers(run, stats.finite, tile_size, warm_up)  # their imports while this process tiles the cloud
     measure = partial(_tile_cloud, run.source, stats, run.work, run.options, timings, bar)
     tile_size, (tiling, stats, survey_halos, key_halos), _ = fit_tiles(
         measure, tile_size, run.budget, run.requested, run.cpus, in_process=run.in_process, given=given, say=run.say)

@@ -49,8 +49,8 @@ if TYPE_CHECKING:
     from ..choice.survey import CentrePlan
 
 __all__ = [
-    "Task", "SurveyTask", "KeysTask", "CentresTask", "TileTask", "run_survey", "run_keys", "run_centres", "run_tile",
-    "tile_points", "certificate", "tile_path", "WIDENINGS",
+    "Task", "SurveyTask", "KeysTask", "CentresTask", "TileTask", "warm_up", "run_survey", "run_keys", "run_centres",
+    "run_tile", "tile_points", "certificate", "tile_path", "WIDENINGS",
 ]
 
 #: Times a tile may widen its halo before the run fails.
@@ -245,6 +245,10 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
                 f"needed {need:.6g}){advice}"
             )
         halo = need * compute.HALO_MARGIN
+
+
+def warm_up() -> None:
+    """Nothing: a new worker process imports this module (and heatcurv) to run it (:func:`.job.warm_workers`)."""
 
 
 def run_survey(spec: SurveyTask):
