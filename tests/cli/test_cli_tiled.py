@@ -75,7 +75,9 @@ def test_j_caps_the_cores_of_a_tiled_run(monkeypatch, tmp_path):
     np.save(tmp_path / "c.npy", heatcurv.surfaces.Sphere().sample(3000, "random", seed=1).points)
     assert main(["compute", str(tmp_path / "c.npy"), "-o", str(tmp_path / "o.ply"), "--tile-size", "1000", "-j", "1",
                  "-q"]) == 0
-    assert shares == [(1, 1, 1)] * 2  # the survey's and the tiles' one worker process: one thread, not -1 (all)
+    # the worker process started while the driver tiles, which the survey and the tiles then use: one thread,
+    # not -1 (all)
+    assert shares == [(1, 1, 1)] * 3
     assert read_points(tmp_path / "o.ply").fields["mean"].shape == (3000,)
 
 

@@ -300,3 +300,17 @@ def test_a_one_round_survey_runs_tiles_apart_at_once():
     tiling = SimpleNamespace(counts=[1] * 4, box=box)
     assert phase_survey.survey_order(tiling, 2) == [0, 3, 1, 2]
     assert sorted(phase_survey.survey_order(tiling, 4)) == [0, 1, 2, 3]
+
+
+def test_lists_of_int32_and_int64_positions_read_together(tmp_path):
+    # a survey stores int32 positions where its tile's fit, int64 beyond 2^31 points: a reader of both keeps the wider
+    rng = np.random.default_rng(5)
+    points = rng.uniform(size=(3000, 3)) * [3.0, 1.0, 0.2]
+    points = points[np.argsort(points[:, 0])]
+    offsets, k = np.array([0, 1000, 2000, 3000]), 10
+    _scratch_lists(tmp_path, points, offsets, k)
+    neighbours.write_lists(tmp_path, 2, np.load(neighbours.lists_path(tmp_path, 2)).astype(np.int64))
+    prepared = prepare_points(points)
+    tree = cKDTree(prepared.points)
+    stored = neighbours.known_neighbours(tmp_path, offsets, np.arange(3000))(prepared, tree, k, 1)
+    np.testing.assert_array_equal(stored.indices, knn_neighbourhood(prepared.points, k, tree=tree).indices)

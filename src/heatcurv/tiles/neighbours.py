@@ -369,8 +369,7 @@ def _stored_lists(scratch, offsets: np.ndarray, positions: np.ndarray, inverse: 
         if stored is None:
             unlisted.append(int(tile))
             continue
-        if lists is None:
-            lists = np.full((m, stored.shape[1]), -1, dtype=stored.dtype)
+        lists = _room_for(lists, m, stored)
         if stored.shape[1] == lists.shape[1]:
             lists[mine] = stored[positions[mine] - offsets[tile]]
     if unlisted:  # the lists other tiles' surveys queried for their halos, over these tiles' points
@@ -400,8 +399,15 @@ def _halo_lists_read(scratch, tiles: np.ndarray, positions: np.ndarray, unlisted
         found &= positions[rows] == stored[:, 0]
         if not found.any():
             continue
-        if lists is None:
-            lists = np.full((len(positions), stored.shape[1] - 1), -1, dtype=stored.dtype)
+        lists = _room_for(lists, len(positions), stored[:, 1:])
         if stored.shape[1] - 1 == lists.shape[1]:
             lists[rows[found]] = stored[found, 1:]
     return lists
+
+
+def _room_for(lists: np.ndarray | None, m: int, stored: np.ndarray) -> np.ndarray:
+    """``lists`` (shape (m, k), -1 rows; made if None) of a type that holds ``stored``'s positions: a survey stores
+    int32 positions where its tile's fit, int64 where they do not (beyond 2^31 points)."""
+    if lists is None:
+        return np.full((m, stored.shape[1]), -1, dtype=stored.dtype)
+    return lists if lists.dtype.itemsize >= stored.dtype.itemsize else lists.astype(stored.dtype)
