@@ -20,6 +20,13 @@ def _scratch_lists(tmp_path, points, offsets, k, missing=()):
             neighbours.write_lists(tmp_path, tile, rows[offsets[tile]:offsets[tile + 1]].astype(np.int32))
 
 
+def _slab(seed: int, n: int):
+    """``n`` random points of a slab along x, sorted by x, and the offsets of its three tiles of ``n / 3``."""
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(size=(n, 3)) * [n / 1000, 1.0, 0.2]
+    return points[np.argsort(points[:, 0])], np.arange(0, n + 1, n // 3)
+
+
 def _queried_rows(monkeypatch, tile_phase_only=False):
     """Record how many rows the provider leaves to the k-d tree (in the tile phase only, if asked)."""
     asked, in_tile = [], [not tile_phase_only]
@@ -42,12 +49,24 @@ def _queried_rows(monkeypatch, tile_phase_only=False):
     return asked
 
 
+def _whole_cloud_read_back(tmp_path, points, offsets, k, monkeypatch):
+    """Read every point's stored neighbourhood back over the whole cloud: the query's, bit for bit.
+
+    Returns the rows left to the k-d tree, and the prepared points and their tree.
+    """
+    prepared = prepare_points(points)
+    tree = cKDTree(prepared.points)
+    asked = _queried_rows(monkeypatch)
+    stored = neighbours.known_neighbours(tmp_path, offsets, np.arange(len(points)))(prepared, tree, k, 1)
+    queried = knn_neighbourhood(prepared.points, k, tree=tree)
+    np.testing.assert_array_equal(stored.indices, queried.indices)
+    np.testing.assert_array_equal(stored.distances, queried.distances)
+    return asked, prepared, tree
+
+
 def test_stored_neighbourhoods_are_the_query_bit_for_bit(tmp_path, monkeypatch):
     # a slab cut into three tiles along x; the middle tile reads its core and a band of the others
-    rng = np.random.default_rng(0)
-    points = rng.uniform(size=(6000, 3)) * [6.0, 1.0, 0.2]
-    points = points[np.argsort(points[:, 0])]
-    offsets, k = np.array([0, 2000, 4000, 6000]), 12
+    (points, offsets), k = _slab(0, 6000), 12
     _scratch_lists(tmp_path, points, offsets, k)
     low, high = points[2000, 0] - 0.4, points[3999, 0] + 0.4
     positions = np.flatnonzero((points[:, 0] >= low) & (points[:, 0] <= high))
@@ -64,23 +83,13 @@ def test_stored_neighbourhoods_are_the_query_bit_for_bit(tmp_path, monkeypatch):
 
 
 def test_a_tile_without_stored_lists_queries_and_agrees(tmp_path, monkeypatch):
-    rng = np.random.default_rng(1)
-    points = rng.uniform(size=(3000, 3)) * [3.0, 1.0, 0.2]
-    points = points[np.argsort(points[:, 0])]
-    offsets, k = np.array([0, 1000, 2000, 3000]), 10
+    (points, offsets), k = _slab(1, 3000), 10
     _scratch_lists(tmp_path, points, offsets, k, missing=(0,))
-    positions = np.arange(3000)
-    prepared = prepare_points(points)
-    tree = cKDTree(prepared.points)
-    asked = _queried_rows(monkeypatch)
-    stored = neighbours.known_neighbours(tmp_path, offsets, positions)(prepared, tree, k, 1)
-    queried = knn_neighbourhood(prepared.points, k, tree=tree)
-    np.testing.assert_array_equal(stored.indices, queried.indices)
-    np.testing.assert_array_equal(stored.distances, queried.distances)
+    asked, prepared, tree = _whole_cloud_read_back(tmp_path, points, offsets, k, monkeypatch)
     assert asked == [1000]  # tile 0's rows, and only those
     # lists of another width than asked for: every row is queried
     asked.clear()
-    neighbours.known_neighbours(tmp_path, offsets, positions)(prepared, tree, k + 1, 1)
+    neighbours.known_neighbours(tmp_path, offsets, np.arange(3000))(prepared, tree, k + 1, 1)
     assert asked == [3000]
 
 
@@ -259,10 +268,7 @@ def test_the_tile_phase_reads_the_surveys_areas_and_outliers(torus_file, tmp_pat
 def test_a_tile_without_its_own_lists_reads_them_from_another_surveys_halo(tmp_path, monkeypatch):
     # tile 1 not surveyed yet: tile 0's survey stored the lists of tile 1's points in its halo, which the middle
     # tile's reader takes instead of querying them
-    rng = np.random.default_rng(4)
-    points = rng.uniform(size=(6000, 3)) * [6.0, 1.0, 0.2]
-    points = points[np.argsort(points[:, 0])]
-    offsets, k = np.array([0, 2000, 4000, 6000]), 12
+    (points, offsets), k = _slab(4, 6000), 12
     _scratch_lists(tmp_path, points, offsets, k, missing=(1,))
     # tile 0 read its core and a band of tile 1: its survey's operator over those points
     band = np.flatnonzero(points[:, 0] <= points[2000, 0] + 0.6)
@@ -274,14 +280,7 @@ def test_a_tile_without_its_own_lists_reads_them_from_another_surveys_halo(tmp_p
                                  (points.min(axis=0), points.max(axis=0)))
     assert halo is not None and np.all((halo[:, 0] >= 2000) & (halo[:, 0] < 4000))
     neighbours.write_halo_lists(tmp_path, 0, halo)
-    positions = np.arange(6000)
-    prepared = prepare_points(points)
-    tree = cKDTree(prepared.points)
-    asked = _queried_rows(monkeypatch)
-    stored = neighbours.known_neighbours(tmp_path, offsets, positions)(prepared, tree, k, 1)
-    queried = knn_neighbourhood(prepared.points, k, tree=tree)
-    np.testing.assert_array_equal(stored.indices, queried.indices)
-    np.testing.assert_array_equal(stored.distances, queried.distances)
+    asked, _, _ = _whole_cloud_read_back(tmp_path, points, offsets, k, monkeypatch)
     assert asked == [2000 - len(halo)]  # tile 1's points that no halo list holds
     neighbours.remove_halo_lists(tmp_path)
     assert not os.path.exists(neighbours.halo_path(tmp_path, 0))
@@ -302,15 +301,10 @@ def test_a_one_round_survey_runs_tiles_apart_at_once():
     assert sorted(phase_survey.survey_order(tiling, 4)) == [0, 1, 2, 3]
 
 
-def test_lists_of_int32_and_int64_positions_read_together(tmp_path):
+def test_lists_of_int32_and_int64_positions_read_together(tmp_path, monkeypatch):
     # a survey stores int32 positions where its tile's fit, int64 beyond 2^31 points: a reader of both keeps the wider
-    rng = np.random.default_rng(5)
-    points = rng.uniform(size=(3000, 3)) * [3.0, 1.0, 0.2]
-    points = points[np.argsort(points[:, 0])]
-    offsets, k = np.array([0, 1000, 2000, 3000]), 10
+    (points, offsets), k = _slab(5, 3000), 10
     _scratch_lists(tmp_path, points, offsets, k)
     neighbours.write_lists(tmp_path, 2, np.load(neighbours.lists_path(tmp_path, 2)).astype(np.int64))
-    prepared = prepare_points(points)
-    tree = cKDTree(prepared.points)
-    stored = neighbours.known_neighbours(tmp_path, offsets, np.arange(3000))(prepared, tree, k, 1)
-    np.testing.assert_array_equal(stored.indices, knn_neighbourhood(prepared.points, k, tree=tree).indices)
+    asked, _, _ = _whole_cloud_read_back(tmp_path, points, offsets, k, monkeypatch)
+    assert asked == []
