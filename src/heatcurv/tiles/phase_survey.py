@@ -28,9 +28,10 @@ __all__ = ["survey", "survey_order", "ONE_ROUND_TILES"]
 
 #: A cloud of at most this many tiles is surveyed in one round (:func:`.tasks.run_survey`), others in two
 #: (:func:`.tasks.run_keys`, :func:`.tasks.run_centres`); both choose the same kernel bit for bit. Round 2's
-#: cost falls with the centres per tile (2000 / tiles) and round 1 costs about 0.3 of one round, so two rounds
-#: pay from about 64 tiles (31 centres a tile), an estimate (docs/how_it_works.md, thresholds).
-ONE_ROUND_TILES = 63
+#: cost falls with the centres per tile (2000 / tiles); one round's with the lists its surveys share
+#: (:func:`.neighbours.halo_lists`), and its tiles read its areas and outlier flags: one round is the faster
+#: at 16 and at 64 tiles, clean or noisy (docs/how_it_works.md, thresholds); the crossing above is an estimate.
+ONE_ROUND_TILES = 64
 
 
 def survey(run: Job, plan: TilePlan, timings: dict, bar) -> SurveyContext:
