@@ -74,7 +74,7 @@ def test_the_plan_holds_each_tiles_survey_halo_and_the_survey_runs_within_it(tor
         return real_run(executor, workers, fn, specs, on_done, say, what, total)
 
     monkeypatch.setattr(job, "submit", run)
-    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 2)  # the survey in two rounds (the default for 64+ tiles)
+    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 2)  # the survey in two rounds (the default for 65+ tiles)
     out = tmp_path / "torus.ply"
     report = driver.compute_file(torus_file[0], out, tile_size=1200, tile_workers=2, scheduler="threads",
                                  max_memory="4G", keep_scratch=True)

@@ -100,7 +100,7 @@ def test_few_tiles_are_surveyed_in_one_round_many_in_two(torus_file, torus_memor
         return real_run(executor, workers, fn, *args)
 
     monkeypatch.setattr(job, "submit", run)
-    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 2)  # the default (63): one round here
+    monkeypatch.setattr(phase_survey, "ONE_ROUND_TILES", 2)  # the default (64): one round here
     out = tmp_path / "torus.ply"
     report = driver.compute_file(torus_file[0], out, tile_size=tile_size, tile_workers=2, scheduler="threads",
                                  dtype="float64", max_memory="4G")
