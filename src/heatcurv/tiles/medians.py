@@ -105,7 +105,7 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
             block = read_results(results_path, start, min(count, start + chunk))
             yield start, block, (block["computed"] == 1) & (block["counted"] == 1)
 
-    def columns():  # each width's residuals and, as group -1 (widths are positive), the resolution: one read
+    def columns():  # each width's residuals and, as group -1 (widths are not negative), the resolution: one read
         for _, block, ok in blocks():
             width = block["fit_width"][ok].astype(np.int64)
             yield (np.concatenate([width, np.full(width.size, RESOLUTION_GROUP)]),
