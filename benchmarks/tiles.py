@@ -5,9 +5,10 @@ uniform in x and y, 1 cm of height noise, quantised to 1 mm as a LAS file stores
 LAZ file in a temporary directory, a chunk at a time, and prints tables:
 
 1. in memory: :func:`heatcurv.estimate` on the 1M-point file (the clouds up to ``--memory-up-to``
-   points), one thread and all cores, and each tiled run's time over the in-memory one of its size;
-   also the whole in-memory job on all cores, ``heatcurv compute`` (read, estimate, write the same
-   fields to a LAZ file: what a tiled run does), and each tiled run's time over that;
+   points) with ``se=False`` (a tiled run writes no standard errors unless asked), one thread and
+   all cores, and each tiled run's time over the in-memory one of its size; also the whole
+   in-memory job on all cores, ``heatcurv compute`` (read, estimate, write the same fields to a LAZ
+   file: what a tiled run does), and each tiled run's time over that;
 2. tiled within a budget (default 3 GB), 1 and 2 process workers, 1M and 12M points;
 3. the same with ``--scheduler dask`` (a local cluster of 2 workers): Dask's overhead per tile;
 4. ``--huge``: 100M points, generated on the fly (about 45 GB of scratch and files).
@@ -145,7 +146,8 @@ if __name__ == "__main__":
         import heatcurv
         from heatcurv.io import read_points
         cloud = read_points(src)
-        res = heatcurv.estimate(cloud.points, orient="up", workers=arg["workers"])
+        # the fields a tiled run writes by default: no standard errors (se=False changes no other field)
+        res = heatcurv.estimate(cloud.points, orient="up", workers=arg["workers"], se=False)
         out = {"seconds": time.perf_counter() - tic, "points": len(res)}
     elif kind == "compute":
         from heatcurv.cli.main import main

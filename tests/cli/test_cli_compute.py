@@ -379,6 +379,26 @@ def test_compute_writes_the_standard_errors_on_request(workdir, sphere_ply, sphe
         np.testing.assert_allclose(values, getattr(sphere_reference, name), rtol=2e-6, err_msg=name)
 
 
+@pytest.mark.parametrize("fields, computed", [(None, False), ("mean,k1_se", True)])
+def test_compute_computes_the_standard_errors_only_when_written(workdir, sphere_ply, sphere_reference, monkeypatch,
+                                                                fields, computed):
+    """Without an error field the estimate skips them (they change no other field): ``se`` reaches it."""
+    from heatcurv import estimator
+    from heatcurv.cli.main import main
+
+    seen = []
+    real = estimator.estimate
+    monkeypatch.setattr(estimator, "estimate", lambda *a, **k: seen.append(k.get("se", True)) or real(*a, **k))
+    path = workdir / f"sphere_se_{computed}.npz"
+    assert main(["compute", str(sphere_ply), "-o", str(path), "-q"] + (["--fields", fields] if fields else [])) == 0
+    assert seen == [computed]
+    cloud = io.read_points(path)
+    assert ("k1_se" in cloud.fields) == computed
+    for name in ("mean", "k1_se") if computed else ("mean", "k1", "reliable", "area"):
+        np.testing.assert_allclose(cloud.fields[name], getattr(sphere_reference, name).astype(np.float32),
+                                   rtol=2e-6, err_msg=name)
+
+
 def test_standard_errors_with_the_papers_method_are_refused_before_any_work(workdir, sphere_ply):
     path = workdir / "paper_errors.ply"
     out = run("compute", sphere_ply, "-o", path, "--fields", "k1_se", "--method", "paper")

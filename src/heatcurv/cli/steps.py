@@ -110,8 +110,11 @@ def input_normals(cloud, use: bool, rows):
     return cloud.normals if rows is None else cloud.normals[rows]
 
 
-def estimate_input(args, log: Log):
+def estimate_input(args, log: Log, standard_errors: bool = True):
     """Read ``args.input`` and estimate on it with the command line's options (validated first).
+
+    ``standard_errors``: compute the standard errors (False when no error
+    field is written: they cost time and change no other field).
 
     Returns
     -------
@@ -129,6 +132,8 @@ def estimate_input(args, log: Log):
     normals = input_normals(cloud, args.normals_from_input, rows)
     options["orient"] = orientation_for(cloud, options, normals is not None, log)
     options["coordinate_precision"] = coordinate_precision(cloud)
+    if not standard_errors:
+        options["se"] = False
     return cloud, rows, run_estimate(points, normals, options, log, source=args.input)
 
 
