@@ -156,6 +156,23 @@ def test_serial_executor_and_errors(monkeypatch):
             pass
 
 
+def _worker_environment():
+    return {name: os.environ.get(name) for name in ("MALLOC_TRIM_THRESHOLD_", "OMP_NUM_THREADS")}
+
+
+def test_local_dask_workers_keep_the_adaptive_malloc():
+    """Dask's nannies would give each worker a fixed trim threshold (slower numpy temporaries); the rest is kept."""
+    import dask
+
+    key = "distributed.nanny.pre-spawn-environ"
+    assert "MALLOC_TRIM_THRESHOLD_" in dask.config.get(key)  # Dask's default, which the local cluster leaves out
+    with open_executor("dask", 1, 1 << 30) as (executor, slots, name):
+        seen = executor.submit(_worker_environment).result(timeout=60)
+    assert (name, slots) == ("dask", 1)
+    assert seen == {"MALLOC_TRIM_THRESHOLD_": None, "OMP_NUM_THREADS": "1"}
+    assert "MALLOC_TRIM_THRESHOLD_" in dask.config.get(key)  # the configuration is as it was
+
+
 def test_missing_dask_says_how_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
     with pytest.raises(HeatcurvError, match=r'pip install "heatcurv\[dask\]"'):

@@ -11,7 +11,8 @@
 ``"threads"``       :class:`concurrent.futures.ThreadPoolExecutor`
 ``"dask"``          a local Dask cluster: ``LocalCluster(n_workers,
                     threads_per_worker=1, processes=True, memory_limit=budget /
-                    n_workers, dashboard_address=None)``
+                    n_workers, dashboard_address=None)``, its workers without
+                    Dask's fixed ``malloc`` trim threshold
 ``"tcp://h:p"``     an existing Dask scheduler (workers started with ``dask
                     worker``; every worker must see the scratch directory)
 a Dask ``Client``   that client's cluster
@@ -89,6 +90,25 @@ def _dask():
     return distributed
 
 
+@contextmanager
+def _adaptive_malloc():
+    """Workers started inside the block keep glibc's adaptive ``malloc`` (Dask's nannies set a fixed trim threshold).
+
+    Dask's default ``distributed.nanny.pre-spawn-environ`` gives each worker
+    ``MALLOC_TRIM_THRESHOLD_`` (64 kB) to hand freed memory back to the
+    system. Setting it also fixes glibc's mmap threshold, so every large numpy
+    temporary of a tile is mapped and faulted in afresh, CPU time a process
+    pool's workers do not spend. The memory a tile may hold is budgeted by
+    :mod:`heatcurv.tiles.plan`, not by trimming.
+    """
+    import dask
+
+    key = "distributed.nanny.pre-spawn-environ"
+    environ = {name: value for name, value in dask.config.get(key, {}).items() if name != "MALLOC_TRIM_THRESHOLD_"}
+    with dask.config.set({key: environ}):
+        yield
+
+
 def dask_slots(client) -> int:
     """Tasks a Dask cluster runs at once: its workers' threads."""
     return max(1, sum(client.nthreads().values()))
@@ -120,7 +140,7 @@ def open_executor(scheduler, workers: int, budget: int, threads: int = 1):
             executor.shutdown(wait=True, cancel_futures=True)
     elif scheduler == "dask":
         distributed = _dask()
-        with thread_environment():
+        with thread_environment(), _adaptive_malloc():
             cluster = distributed.LocalCluster(
                 n_workers=workers, threads_per_worker=1, processes=True, memory_limit=max(1, budget // workers),
                 dashboard_address=None,
