@@ -15,7 +15,7 @@ import pytest
 from tiles_helpers import ALL_FIELDS, read_fields
 
 from heatcurv.errors import HeatcurvError
-from heatcurv.tiles import compute_file, executors, job
+from heatcurv.tiles import compute_file, executors, job, tasks
 from heatcurv.tiles.executors import SerialExecutor, open_executor
 from heatcurv.tiles.job import task_threads
 from heatcurv.tiles.tasks import FAULT_VARIABLE
@@ -171,6 +171,18 @@ def test_local_dask_workers_keep_the_adaptive_malloc():
     assert (name, slots) == ("dask", 1)
     assert seen == {"MALLOC_TRIM_THRESHOLD_": None, "OMP_NUM_THREADS": "1"}
     assert "MALLOC_TRIM_THRESHOLD_" in dask.config.get(key)  # the configuration is as it was
+
+
+def test_every_task_hands_back_the_memory_it_freed(torus_file, torus_threads, tmp_path, monkeypatch):
+    """Survey and tile tasks end with glibc's ``malloc_trim`` (a worker keeps only what it holds), same output."""
+    tasks._malloc_trim()  # the real one runs (a no-op where there is no glibc)
+    calls = []
+    monkeypatch.setattr(tasks, "_malloc_trim", lambda: calls.append(1))
+    out = tmp_path / "serial.ply"
+    report = compute_file(torus_file[0], out, tile_size=1200, scheduler="serial", tile_workers=1,
+                          dtype="float64", fields=ALL_FIELDS, max_memory="4G")
+    assert report.tiles == 8 and len(calls) == 2 * report.tiles  # one survey and one tile task each
+    _same_output(out, torus_threads[0])
 
 
 def test_missing_dask_says_how_to_install(monkeypatch):

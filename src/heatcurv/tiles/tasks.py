@@ -20,6 +20,8 @@ need (x :data:`.compute.HALO_MARGIN`) and computes again, at most
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import json
 import os
 import resource
@@ -247,10 +249,37 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
         halo = need * compute.HALO_MARGIN
 
 
+def _malloc_trim() -> None:
+    """Hand the memory this process freed back to the system (glibc's ``malloc_trim``; nothing elsewhere)."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
+def releases_memory(task):
+    """Run ``task(spec)`` and then :func:`_malloc_trim`: a worker holds between tasks only what it keeps.
+
+    The workers run glibc's adaptive ``malloc`` (:func:`.executors.open_executor`), which keeps freed
+    memory for the next allocation; a Dask worker whose resident memory stayed above its pause
+    threshold (80 % of its limit) after a task would take no other.
+    """
+
+    @functools.wraps(task)
+    def run(spec):
+        try:
+            return task(spec)
+        finally:
+            _malloc_trim()
+
+    return run
+
+
 def warm_up() -> None:
     """Nothing: a new worker process imports this module (and heatcurv) to run it (:func:`.job.warm_workers`)."""
 
 
+@releases_memory
 def run_survey(spec: SurveyTask):
     """Survey one tile: fit the candidate kernels at its sample centres (:func:`.compute.survey_tile`).
 
@@ -287,6 +316,7 @@ def run_survey(spec: SurveyTask):
     return _certified(scratch, tiling, tile, halo, cloud, survey, f"survey of tile {tile}", LARGER_TILES)[0]
 
 
+@releases_memory
 def run_keys(spec: KeysTask):
     """Round 1 of the survey on one tile: its core's sampling keys and candidate centres (:func:`.compute.key_tile`).
 
@@ -313,6 +343,7 @@ def run_keys(spec: KeysTask):
     return _certified(scratch, tiling, tile, halo, cloud, keys, f"keys of tile {tile}", LARGER_TILES)[0]
 
 
+@releases_memory
 def run_centres(spec: CentresTask):
     """Round 2 of the survey on one tile: the candidates' fits at its centres of the cloud's sample.
 
@@ -378,6 +409,7 @@ def _within(points: np.ndarray, centres: np.ndarray, radius: np.ndarray, workers
     return out
 
 
+@releases_memory
 def run_tile(spec: TileTask) -> dict:
     """Compute one tile, check its certificate (widening the halo if needed) and write its result file.
 
