@@ -50,6 +50,21 @@ def test_render_computes_a_field_a_raw_cloud_lacks(tmp_path):
     assert read_image(tmp_path / "area.png").shape[:2] == (400, 500)
 
 
+@pytest.mark.parametrize("field, computed", [("mean", False), ("mean_se", True)])
+def test_render_computes_the_standard_errors_only_to_draw_one(tmp_path, monkeypatch, field, computed):
+    from heatcurv import estimator
+    from heatcurv.cli.main import main
+
+    sample = surfaces.Sphere().sample(2000, "random", seed=5)
+    io.write_points(tmp_path / "sphere.xyz", sample.points)
+    seen = []
+    real = estimator.estimate
+    monkeypatch.setattr(estimator, "estimate", lambda *a, **k: seen.append(k.get("se", True)) or real(*a, **k))
+    assert main(["render", str(tmp_path / "sphere.xyz"), "-o", str(tmp_path / f"{field}.png"), "--field", field,
+                 "--size", "300x200", "-q"]) == 0
+    assert seen == [computed] and read_image(tmp_path / f"{field}.png").shape[:2] == (200, 300)
+
+
 def test_render_labels_the_colour_bar_with_the_unit_and_colours_one_sign_from_the_data(tmp_path):
     sample = surfaces.Sphere(radius=2.0).sample(2000, "random", seed=5)
     io.write_points(tmp_path / "sphere.xyz", sample.points)
