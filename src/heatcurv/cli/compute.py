@@ -20,8 +20,7 @@ def run(args, log: Log) -> int:
     if wants_tiles(args, log):  # the cloud does not fit the memory budget, or a tile flag was given
         run_tiled(args, log, output, wanted)
         return EXIT_OK
-    # the standard errors only when written, as a tiled run does
-    cloud, rows, res = estimate_input(args, log, standard_errors=any(name in ERROR_FIELDS for name in wanted))
+    cloud, rows, res = estimate_input(args, log, wanted)  # the standard errors only when written, as in tiles
     feat = detect_features(res, args.feature_threshold, 10.0, log) if want_features else None
     fields, out_normals = result_fields(res, feat, wanted, rows, len(cloud))
     write_cloud(output, cloud, fields, out_normals, log, float64=args.float64)

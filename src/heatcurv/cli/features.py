@@ -12,7 +12,7 @@ __all__ = ["run"]
 def run(args, log: Log) -> int:
     """Run ``heatcurv features`` on the parsed arguments."""
     output = check_output_path(args.output, supported_write(), "output", args.input)
-    cloud, rows, res = estimate_input(args, log, standard_errors=False)  # writes none
+    cloud, rows, res = estimate_input(args, log, FEATURE_FIELDS)
     feat = detect_features(res, args.threshold, args.min_angle, log)
     fields, _ = result_fields(res, feat, FEATURE_FIELDS, rows, len(cloud))
     write_cloud(output, cloud, fields, None, log, float64=args.float64)

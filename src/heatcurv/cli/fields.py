@@ -7,6 +7,7 @@ import re
 
 __all__ = [
     "DEFAULT_FIELDS", "FEATURE_FIELDS", "EXTRA_FIELDS", "ERROR_FIELDS", "COMPUTED_FIELDS", "FIELD_GROUPS", "field_list",
+    "needs_errors",
 ]
 
 #: Scalar fields ``compute`` writes by default, in this order (normals as ``nx ny nz``).
@@ -33,6 +34,12 @@ FIELD_GROUPS = {
     "errors": ERROR_FIELDS,
     "all": COMPUTED_FIELDS,
 }
+
+
+def needs_errors(fields) -> bool:
+    """Whether writing or drawing ``fields`` needs the standard errors (the estimate skips them otherwise:
+    they cost time and change no other field)."""
+    return any(name in ERROR_FIELDS for name in fields)
 
 
 def field_list(text: str) -> tuple:

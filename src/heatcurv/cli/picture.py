@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import HeatcurvError
 from .console import EXIT_OK, Log
-from .fields import COMPUTED_FIELDS, DEFAULT_FIELDS, ERROR_FIELDS, FEATURE_FIELDS
+from .fields import COMPUTED_FIELDS, DEFAULT_FIELDS, FEATURE_FIELDS, needs_errors
 from .options import estimator_kwargs
 from .steps import (
     check_output_path,
@@ -87,9 +87,8 @@ def _field_values(args, cloud, options: dict, log: Log):
         rows = finite_rows(cloud, args.skip_nonfinite)
         points = cloud.points if rows is None else cloud.points[rows]
         normals = input_normals(cloud, args.normals_from_input, rows)
-        options = {**options, "orient": orientation_for(cloud, options, normals is not None, log)}
-        if field not in ERROR_FIELDS:
-            options["se"] = False  # they cost time and change no other field
+        options = {**options, "orient": orientation_for(cloud, options, normals is not None, log),
+                   "se": needs_errors((field,))}
         res = run_estimate(points, normals, options, log, source=args.input)
         feat = detect_features(res, args.feature_threshold, 10.0, log) if field in FEATURE_FIELDS else None
         values = full_rows(computed_values(res, feat, field), rows, len(cloud))

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import HeatcurvError
 from .console import Log
-from .fields import COMPUTED_FIELDS, FEATURE_FIELDS
+from .fields import COMPUTED_FIELDS, FEATURE_FIELDS, needs_errors
 from .options import estimator_kwargs
 from .progressbar import StageProgress
 
@@ -110,11 +110,11 @@ def input_normals(cloud, use: bool, rows):
     return cloud.normals if rows is None else cloud.normals[rows]
 
 
-def estimate_input(args, log: Log, standard_errors: bool = True):
+def estimate_input(args, log: Log, fields):
     """Read ``args.input`` and estimate on it with the command line's options (validated first).
 
-    ``standard_errors``: compute the standard errors (False when no error
-    field is written: they cost time and change no other field).
+    ``fields``: the fields the command writes; the standard errors are
+    computed only when one of them is (:func:`.fields.needs_errors`).
 
     Returns
     -------
@@ -132,8 +132,7 @@ def estimate_input(args, log: Log, standard_errors: bool = True):
     normals = input_normals(cloud, args.normals_from_input, rows)
     options["orient"] = orientation_for(cloud, options, normals is not None, log)
     options["coordinate_precision"] = coordinate_precision(cloud)
-    if not standard_errors:
-        options["se"] = False
+    options["se"] = needs_errors(fields)
     return cloud, rows, run_estimate(points, normals, options, log, source=args.input)
 
 

@@ -257,7 +257,7 @@ def _malloc_trim() -> None:
         pass
 
 
-def releases_memory(task):
+def _releases_memory(task):
     """Run ``task(spec)`` and then :func:`_malloc_trim`: a worker holds between tasks only what it keeps.
 
     The workers run glibc's adaptive ``malloc`` (:func:`.executors.open_executor`), which keeps freed
@@ -279,7 +279,7 @@ def warm_up() -> None:
     """Nothing: a new worker process imports this module (and heatcurv) to run it (:func:`.job.warm_workers`)."""
 
 
-@releases_memory
+@_releases_memory
 def run_survey(spec: SurveyTask):
     """Survey one tile: fit the candidate kernels at its sample centres (:func:`.compute.survey_tile`).
 
@@ -316,7 +316,7 @@ def run_survey(spec: SurveyTask):
     return _certified(scratch, tiling, tile, halo, cloud, survey, f"survey of tile {tile}", LARGER_TILES)[0]
 
 
-@releases_memory
+@_releases_memory
 def run_keys(spec: KeysTask):
     """Round 1 of the survey on one tile: its core's sampling keys and candidate centres (:func:`.compute.key_tile`).
 
@@ -343,7 +343,7 @@ def run_keys(spec: KeysTask):
     return _certified(scratch, tiling, tile, halo, cloud, keys, f"keys of tile {tile}", LARGER_TILES)[0]
 
 
-@releases_memory
+@_releases_memory
 def run_centres(spec: CentresTask):
     """Round 2 of the survey on one tile: the candidates' fits at its centres of the cloud's sample.
 
@@ -409,7 +409,7 @@ def _within(points: np.ndarray, centres: np.ndarray, radius: np.ndarray, workers
     return out
 
 
-@releases_memory
+@_releases_memory
 def run_tile(spec: TileTask) -> dict:
     """Compute one tile, check its certificate (widening the halo if needed) and write its result file.
 
