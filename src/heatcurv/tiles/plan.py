@@ -71,7 +71,7 @@ import numpy as np
 
 from ..choice.choices import FrameStats
 from ..errors import HeatcurvError
-from .sources import CHUNK_POINTS, Source
+from .sources import Source
 
 __all__ = [
     "CloudStats", "Tiling", "BYTES_PER_POINT", "WORKER_OVERHEAD", "BUDGET_FRACTION", "FINE_CELLS",
@@ -704,21 +704,6 @@ def default_tile_size(budget: int, workers: int, halo_share: float = 1.0, in_pro
     """
     per = budget if in_process else budget / max(workers, 1) - WORKER_OVERHEAD
     return int(max(10_000, min(2_000_000, per / (BYTES_PER_POINT * (1 + halo_share)))))
-
-
-def n_tiles_text(count: int) -> str:
-    return f"{count} tile{'s' if count != 1 else ''}"
-
-
-def chunk_rows(total: int, size: int = CHUNK_POINTS):
-    """``(start, stop)`` ranges of at most ``size`` rows covering ``[0, total)``."""
-    for start in range(0, total, size):
-        yield start, min(total, start + size)
-
-
-def ceil_div(a: int, b: int) -> int:
-    return -(-a // b) if b else 0
-
 
 
 #: Bytes per point an in-memory ``heatcurv compute`` needs beyond the estimate: the file as read and the written copy.
