@@ -24,7 +24,7 @@ subprocess, so one run's caches do not help the next.
     python benchmarks/tiles.py                # 1M rows of every table
     python benchmarks/tiles.py --sizes 1e6 12e6
     python benchmarks/tiles.py --sizes 4e6 --workers 2 --no-dask --memory-up-to 4e6
-    python benchmarks/tiles.py --huge --dir /big/scratch
+    python benchmarks/tiles.py --huge --dir /big/scratch --out-dir /other/disk
 """
 
 from __future__ import annotations
@@ -245,6 +245,9 @@ def main(argv=None) -> None:
                         help="lidar: LAZ, 1 cm noise, mm rounding (default); clean: the same terrain as a float64 NPY, "
                              "no noise (the narrow clean kernel: the cloud a 100M run can afford)")
     parser.add_argument("--dir", default=None, help="directory for the files and the scratch (default: a temp dir)")
+    parser.add_argument("--out-dir", default=None,
+                        help="directory for the output files (default: --dir), on another file system when one "
+                             "disk cannot hold the scratch and the output of a large run")
     args = parser.parse_args(argv)
 
     import platform
@@ -256,6 +259,8 @@ def main(argv=None) -> None:
 
     work = Path(args.dir or tempfile.mkdtemp(prefix="heatcurv_tiles_bench_"))
     work.mkdir(parents=True, exist_ok=True)
+    out = Path(args.out_dir) if args.out_dir else work
+    out.mkdir(parents=True, exist_ok=True)
     print(f"heatcurv {heatcurv.__version__} (commit {commit()}); {platform.processor() or platform.machine()}, "
           f"{os.cpu_count()} cores; files in {work}", flush=True)
     sizes = [int(s) for s in args.sizes] + ([100_000_000] if args.huge else [])
@@ -274,20 +279,20 @@ def main(argv=None) -> None:
                 rows.append(("in memory", n, f"{threads if threads > 0 else os.cpu_count()} thr", "-", r))
                 _print_row(*rows[-1])
             if args.cloud == "lidar":  # the command line writes what it read: a LAZ, as the tiled runs
-                dst = work / f"out_{n}_memory.laz"
+                dst = out / f"out_{n}_memory.laz"
                 r = measure("compute", src, dst, {"workers": -1})
                 rows.append(("compute", n, f"{os.cpu_count()} thr", "-", r))
                 _print_row(*rows[-1])
                 dst.unlink(missing_ok=True)
         for w in (args.workers if n < 100_000_000 else [max(args.workers)]):
-            dst = work / f"out_{n}_{w}.laz"
+            dst = out / f"out_{n}_{w}.laz"
             arg = {"max_memory": args.budget, "tile_workers": w, "scratch": str(work), **orient}
             r = measure("tiled", src, dst, arg, work / f".{dst.name}.heatcurv-tiles")
             rows.append(("tiled", n, f"{w} proc", args.budget, r))
             _print_row(*rows[-1])
             dst.unlink(missing_ok=True)
         if not args.no_dask and n <= 1_000_000:
-            dst = work / f"out_{n}_dask.laz"
+            dst = out / f"out_{n}_dask.laz"
             r = measure("tiled", src, dst, {"max_memory": args.budget, "tile_workers": 2, "scheduler": "dask",
                                             "scratch": str(work), **orient})
             rows.append(("tiled dask", n, "2 dask", args.budget, r))
