@@ -11,7 +11,8 @@ LAZ file in a temporary directory, a chunk at a time, and prints tables:
    file: what a tiled run does), and each tiled run's time over that;
 2. tiled within a budget (default 3 GB), 1 and 2 process workers, 1M and 12M points;
 3. the same with ``--scheduler dask`` (a local cluster of 2 workers): Dask's overhead per tile;
-4. ``--huge``: 100M points, generated on the fly (about 45 GB of scratch and files).
+4. ``--huge``: 100M points, generated on the fly (scratch and files: about 45 GB for ``--cloud clean``,
+   62 GB for the LiDAR-like LAZ, whose disk check asks 82 GB; ``--out-dir`` puts the output elsewhere).
 
 ``--cloud clean`` runs the same terrain without noise or rounding, as a float64 NPY, oriented up:
 the clean path's narrow kernel makes a 100M run take hours instead of a day on 2 cores.
@@ -262,7 +263,7 @@ def main(argv=None) -> None:
     out = Path(args.out_dir) if args.out_dir else work
     out.mkdir(parents=True, exist_ok=True)
     print(f"heatcurv {heatcurv.__version__} (commit {commit()}); {platform.processor() or platform.machine()}, "
-          f"{os.cpu_count()} cores; files in {work}", flush=True)
+          f"{os.cpu_count()} cores; files in {work}" + (f", outputs in {out}" if out != work else ""), flush=True)
     sizes = [int(s) for s in args.sizes] + ([100_000_000] if args.huge else [])
     rows = []
     orient = {} if args.cloud == "lidar" else {"orient": "up"}  # a LAZ is oriented up by default, an NPY outward
