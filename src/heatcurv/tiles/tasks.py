@@ -249,12 +249,20 @@ def _certified(scratch, tiling, tile: int, halo: float, cloud, evaluate, what: s
         halo = need * compute.HALO_MARGIN
 
 
+@functools.cache
+def _libc_malloc_trim():
+    """glibc's ``malloc_trim``, loaded once per process; None where there is no glibc."""
+    try:
+        return ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
 def _malloc_trim() -> None:
     """Hand the memory this process freed back to the system (glibc's ``malloc_trim``; nothing elsewhere)."""
-    try:
-        ctypes.CDLL("libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):
-        pass
+    trim = _libc_malloc_trim()
+    if trim is not None:
+        trim(0)
 
 
 def _releases_memory(task):
