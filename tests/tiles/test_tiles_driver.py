@@ -1,6 +1,7 @@
 """compute_file end to end: tiles equal the in-memory result, input order, outward across seams, faults, resume."""
 
 import os
+import shutil
 
 import numpy as np
 import pytest
@@ -172,6 +173,21 @@ def test_resume_without_results_recomputes_the_stored_tiles(torus_file, torus_th
     assert all(np.array_equal(a[k], b[k]) for k in b)
 
 
+def test_resume_without_buckets_is_refused(torus_file, tmp_path, monkeypatch):
+    """Tiles marked stored whose rows went missing with the buckets: a clear error naming the scratch, not an
+    output with uncomputed rows."""
+    out = tmp_path / "lost.ply"
+    monkeypatch.setenv(FAULT_VARIABLE, "fail:3")
+    with pytest.raises(HeatcurvError, match="tile 3 of 8 failed"):
+        compute_file(torus_file[0], out, tile_size=1200, scheduler="serial")
+    work = tmp_path / ".lost.ply.heatcurv-tiles"
+    shutil.rmtree(work / "buckets")
+    monkeypatch.delenv(FAULT_VARIABLE)
+    with pytest.raises(HeatcurvError, match=r"holds \d+ computed rows of 6000: scratch files are missing"):
+        compute_file(torus_file[0], out, tile_size=1200, scheduler="serial")
+    assert not out.exists()
+
+
 def test_resume_requires_a_plan(torus_file, tmp_path):
     with pytest.raises(HeatcurvError, match="nothing to resume"):
         compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, resume=True)
@@ -183,9 +199,9 @@ def test_ctrl_c_removes_temporaries_and_keeps_finished_tiles(torus_file, tmp_pat
         compute_file(torus_file[0], tmp_path / "out.ply", tile_size=1200, scheduler="serial")
     work = tmp_path / ".out.ply.heatcurv-tiles"
     assert sorted(os.listdir(work / "tiles")) == ["tile_00000.npz"]
-    # the finished tile's rows are in results.rec, kept for the resume; its file holds the seam vote's and
+    # the finished tile's rows are in the buckets, kept for the resume; its file holds the seam vote's and
     # (a closed torus, oriented outward) the winding step's inputs only
-    assert (work / "results.rec").exists() and not (tmp_path / "out.ply").exists()
+    assert (work / "results.rec").exists() and os.listdir(work / "buckets") and not (tmp_path / "out.ply").exists()
     with np.load(work / "tiles" / "tile_00000.npz") as data:
         assert sorted(data.files) == sorted(STORED_KEYS + SOURCE_KEYS + ("stored",))
     # interrupted before any tile finished: nothing is kept
@@ -327,7 +343,7 @@ def test_estimator_options_of_a_tiled_run():
 
 
 def test_stored_tiles_are_slimmed_in_batches(torus_file, torus_threads, tmp_path, monkeypatch):
-    """results.rec is fsynced and the stored tiles' files slimmed once their core points reach SLIM_POINTS (and at
+    """The buckets are fsynced and the stored tiles' files slimmed once their core points reach SLIM_POINTS (and at
     the end of the tiles), not after every tile; the output is that of a run in one go."""
     from heatcurv.tiles import output, phase_tiles
 

@@ -1,6 +1,7 @@
 """Output of tiled runs: LAS/LAZ keeps every input dimension and the raw integers, PLY keeps the properties."""
 
 import json
+import os
 
 import laspy
 import numpy as np
@@ -111,6 +112,53 @@ def test_las_from_ply_carries_the_properties(tmp_path):
     assert np.abs(read_points(tmp_path / "s.las").points - sample.points).max() <= 1e-6
 
 
+def _tile_file(path, rows: np.ndarray) -> None:
+    """A finished tile's result file holding ``rows`` (each row's ``mean`` half its number, its patch 1)."""
+    from heatcurv.tiles.compute import RESULT_FIELDS
+
+    n = len(rows)
+    data = {name: np.zeros((n, cols) if cols > 1 else n, dtype=dt) for name, (cols, dt) in RESULT_FIELDS.items()}
+    data.update(rows=rows, mean=rows * 0.5, patch=np.ones(n, np.int64), winding=np.zeros(n, np.int64),
+                winding_fine=np.zeros(n, np.int64), vote_weight=np.zeros(n), vote_normal=np.zeros((n, 3), np.float32))
+    np.savez(path, **data)
+
+
+def test_buckets_put_every_stored_row_in_place(tmp_path, monkeypatch):
+    """Tiles appended to buckets of 64 input rows, one tile stored twice (a resume), a record cut short at a
+    bucket's end (a crash mid-append), a second tile stored after a first merge: every row lands at its input row
+    with its tile's patch key, the other rows stay uncomputed, the buckets are gone."""
+    monkeypatch.setattr(tiled_output, "BUCKET_ROWS", 64)
+    path, buckets = tmp_path / "results.rec", tmp_path / "buckets"
+    tiled_output.create_results(path, 1000)
+    tiled_output.prepare_buckets(buckets, keep=False)
+    rows = np.random.default_rng(5).permutation(1000)[:500]
+    first, second = rows[:300], rows[300:]
+    _tile_file(tmp_path / "a.npz", first)
+    _tile_file(tmp_path / "b.npz", second)
+    assert tiled_output.store_tile(buckets, tmp_path / "a.npz", 3) == 300
+    tiled_output.store_tile(buckets, tmp_path / "a.npz", 3)
+    assert len(os.listdir(buckets)) == len(np.unique(first // 64)) > 1
+    torn = tiled_output.bucket_path(buckets, int(first[0] // 64))
+    with open(torn, "ab") as stream:
+        stream.write(b"\x01" * 100)
+    tiled_output.prepare_buckets(buckets, keep=True)
+    assert os.path.getsize(torn) % tiled_output.BUCKET_RECORD.itemsize == 0
+    tiled_output.merge_buckets(path, buckets)
+    assert os.listdir(buckets) == []
+    tiled_output.store_tile(buckets, tmp_path / "b.npz", 4)
+    tiled_output.merge_buckets(path, buckets)  # the first tile's rows stay where the first merge put them
+    records = tiled_output.read_results(path, 0, 1000)
+    assert np.array_equal(records["mean"][rows], rows * 0.5) and records["computed"][rows].all()
+    assert np.array_equal(records["patch"][first], np.full(300, (3 << tiled_output.PATCH_SHIFT) | 1))
+    assert np.array_equal(records["patch"][second], np.full(200, (4 << tiled_output.PATCH_SHIFT) | 1))
+    assert not records["computed"][np.setdiff1d(np.arange(1000), rows)].any()
+    assert os.path.getsize(path) == 1000 * tiled_output.RECORD.itemsize
+    tiled_output.prepare_buckets(buckets, keep=False)  # a run started afresh empties them
+    tiled_output.store_tile(buckets, tmp_path / "b.npz", 4)
+    tiled_output.prepare_buckets(buckets, keep=False)
+    assert os.listdir(buckets) == []
+
+
 def test_records_written_and_gathered_window_by_window(tmp_path, monkeypatch):
     """Rows written and gathered across several windows of results.rec come back as written, the rest zero."""
     monkeypatch.setattr(tiled_output, "WINDOW_ROWS", 64)
@@ -120,7 +168,7 @@ def test_records_written_and_gathered_window_by_window(tmp_path, monkeypatch):
     block = np.zeros(300, dtype=tiled_output.RECORD)
     block["mean"] = rows * 0.5
     block["computed"] = 1
-    for lo in range(0, 300, 64):  # store_tile writes one window at a time
+    for lo in range(0, 300, 64):  # a window at a time
         tiled_output.write_records(path, block[lo:lo + 64], rows[lo:lo + 64])
     gathered = tiled_output.gather_records(path, rows)
     assert np.array_equal(gathered["mean"], rows * 0.5) and gathered["computed"].all()

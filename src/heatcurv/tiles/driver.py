@@ -9,8 +9,8 @@ one loop for every executor):
    the tiles fitted to the budget, a frozen :class:`.plan.TilePlan`.
 2. ``survey`` (:mod:`.phase_survey`): the cloud-wide kernel choice, in one or two
    rounds, merged into the context every tile gets.
-3. ``tiles`` (:mod:`.phase_tiles`): every tile not done yet, stored into
-   ``results.rec`` as it finishes.
+3. ``tiles`` (:mod:`.phase_tiles`): every tile not done yet, its rows appended to
+   bucket files as it finishes, merged into ``results.rec`` at the end.
 4. ``reliability`` (:func:`.phase_tiles.cloud_flags`): the flags against the whole cloud's medians.
 5. ``orientation`` (:mod:`.phase_orient`): for ``outward``, the seams' flips, then
    a closed cloud's inside and outside by the winding number, and the second sheets
@@ -25,8 +25,9 @@ Scratch files live in ``<scratch>/.<output name>.heatcurv-tiles/``
 halos), ``context.json`` (the survey's
 :class:`.context.SurveyContext`), ``points.f8``,
 ``rows.i8``, ``knn/knn_NNNNN.npy`` (the survey's neighbour lists, :mod:`.neighbours`),
+``buckets/bucket_NNNNNNN.rec`` (the finished tiles' rows by input row, :func:`.output.store_tile`),
 ``results.rec`` and ``tiles/tile_NNNNN.npz`` (one per finished
-tile: its done marker; once its rows are copied into ``results.rec`` it keeps
+tile: its done marker; once its rows are in the buckets it keeps
 only the seam vote's, the second sheets' and the winding step's inputs, :data:`.output.STORED_KEYS`
 and :data:`.output.SOURCE_KEYS`). A run whose scratch
 directory holds a plan with the same source file (path, size, modification
@@ -34,7 +35,7 @@ time), options and tile size resumes: finished tiles are not recomputed
 (``resume=None``, the default; ``True`` requires such a plan, ``False`` starts
 afresh); if ``results.rec`` is gone, the tiles stored in it are computed again.
 A successful run removes its scratch directory. A failed run or Ctrl-C removes
-the temporary files; if tiles were finished, it keeps them, ``results.rec``
+the temporary files; if tiles were finished, it keeps them, the buckets, ``results.rec``
 and the plan for a resume (the message says where), otherwise it removes the
 directory.
 

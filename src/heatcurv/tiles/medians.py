@@ -14,6 +14,8 @@ values for an even count).
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 __all__ = ["streaming_medians"]
@@ -78,24 +80,31 @@ def streaming_medians(chunks) -> dict:
     return medians
 
 
-def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
+def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 20) -> dict:
     """Add the cloud-wide reliability flags to ``results.rec`` (its ``reliable`` column holds the local ones).
 
     The medians (each kernel width's residual, the resolution) are taken over
     every computed, counted row (:func:`streaming_medians`), exactly as
     :func:`heatcurv.flags.reliability.cloud_flags` takes them in memory; then each
-    chunk's ``reliable`` is rewritten in place.
+    chunk's ``reliable`` is rewritten in place. ``finite``: the rows every tile
+    together computed; fewer computed rows mean scratch files went missing.
 
     Returns
     -------
     dict
         ``baselines`` (width -> median residual, floored) and ``resolution``.
 
+    Raises
+    ------
+    HeatcurvError
+        When ``results.rec`` holds fewer than ``finite`` computed rows.
+
     Warns
     -----
     HeatcurvWarning
         When the cloud is too coarse for its curvature (every row unreliable).
     """
+    from ..errors import HeatcurvError
     from ..flags.reliability import misfits, warn_too_coarse
     from ..tuning import TUNING
     from .output import read_results, write_records
@@ -105,13 +114,21 @@ def apply_cloud_flags(results_path, count: int, chunk: int = 1 << 20) -> dict:
             block = read_results(results_path, start, min(count, start + chunk))
             yield start, block, (block["computed"] == 1) & (block["counted"] == 1)
 
+    computed = 0
+
     def columns():  # each width's residuals and, as group -1 (widths are not negative), the resolution: one read
+        nonlocal computed
+        computed = 0  # counted in each of the two passes
         for _, block, ok in blocks():
+            computed += int(np.count_nonzero(block["computed"]))
             width = block["fit_width"][ok].astype(np.int64)
             yield (np.concatenate([width, np.full(width.size, RESOLUTION_GROUP)]),
                    np.concatenate([block["misfit_residual"][ok], block["resolution_rho"][ok]]))
 
     medians = streaming_medians(columns)
+    if computed != finite:
+        raise HeatcurvError(f"{results_path} holds {computed} computed rows of {finite}: scratch files are missing; "
+                            f"delete {os.path.dirname(results_path)} and run again")
     resolution = medians.pop(RESOLUTION_GROUP, 0.0)
     baselines = {k: max(v, TUNING.misfit_floor) for k, v in medians.items()}
     coarse = resolution > TUNING.resolution_limit

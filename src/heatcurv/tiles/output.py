@@ -1,8 +1,9 @@
 """Results of a tiled run: an index-addressed scratch file, then the output written in input order.
 
-Each finished tile's core rows are copied into ``results.rec`` at their input
-rows (one record of :data:`RECORD` per input row, a memory map opened for one
-tile at a time). The final pass reads ``results.rec`` and the input together,
+Each finished tile's core rows are appended to the bucket files of their input
+rows (:func:`store_tile`: sequential writes, whatever the input's order); once
+every tile is in, :func:`merge_buckets` puts each bucket into ``results.rec``
+(one record of :data:`RECORD` per input row). The final pass reads ``results.rec`` and the input together,
 a chunk of rows at a time and in input order, applies the orientation flips
 (:mod:`.orient`), and writes the output through
 :func:`heatcurv.io.atomic.atomic_write`: there is never a partial output file.
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 
 import numpy as np
 
@@ -41,7 +43,7 @@ from .sources import CHUNK_POINTS, Source
 
 __all__ = [
     "RECORD", "DEFAULT_FIELDS", "EXTRA_FIELDS", "ERROR_FIELDS", "TILED_FIELDS", "TILED_WRITE", "create_results",
-    "chunk_flips", "keyed_flips", "store_tile", "write_records",
+    "chunk_flips", "keyed_flips", "store_tile", "prepare_buckets", "merge_buckets", "write_records",
     "read_results", "output_columns", "write_output",
 ]
 
@@ -87,7 +89,7 @@ def create_results(path, count: int, *, keep: bool = False) -> bool:
     return False
 
 
-#: What a tile's result file keeps once its rows are in ``results.rec``: the seam vote's inputs
+#: What a tile's result file keeps once its rows are stored (:func:`store_tile`): the seam vote's inputs
 #: (:func:`heatcurv.tiles.orient.seam_flips`) and the ``stored`` mark. The per-point fields, about
 #: 170 bytes a core point, would double the scratch (at 100M points 17 of 39 GB).
 STORED_KEYS = ("moment_labels", "moments", "halo_rows", "halo_normals", "halo_patch", "sheet_rows", "sheet_columns")
@@ -97,52 +99,113 @@ SOURCE_KEYS = ("winding_rows", "winding_x", "winding_normals", "winding_area", "
 
 
 def is_stored(tile_file) -> bool:
-    """Whether ``tile_file``'s rows are already in ``results.rec`` (the file was slimmed by :func:`slim_tiles`)."""
+    """Whether ``tile_file``'s rows are already in the buckets (the file was slimmed by :func:`slim_tiles`)."""
     with np.load(tile_file) as data:
         return "stored" in data.files
 
 
-def store_tile(path, tile_file, tile: int) -> int:
-    """Copy a finished tile's core rows into ``results.rec`` at their input rows; return the row count.
+#: Input rows per bucket file (:func:`store_tile`): a bucket's span of ``results.rec`` is about 130 MB.
+BUCKET_ROWS = 1 << 19
+#: A stored row in a bucket file: its input row and its record.
+BUCKET_RECORD = np.dtype([("row", "<i8"), ("record", RECORD)])
 
-    The rows are written through the page cache, not flushed: the driver's
-    loop does not wait for the disk (at 100M points a flush per tile kept the
-    two workers idle half of the time). :func:`slim_tiles` makes them durable.
+
+def bucket_path(buckets, bucket: int) -> str:
+    """The file of ``bucket`` (input rows ``[bucket * BUCKET_ROWS, (bucket + 1) * BUCKET_ROWS)``) in ``buckets``."""
+    return os.path.join(buckets, f"bucket_{bucket:07d}.rec")
+
+
+def store_tile(buckets, tile_file, tile: int) -> int:
+    """Append a finished tile's core rows to the bucket files of their input rows; return the row count.
+
+    A tile's rows are spread over the whole input (in any order a file may
+    have). Written at their rows into ``results.rec`` they would touch a large
+    share of its pages, which are read back from disk once the file outgrows
+    the page cache (at 100M points about 20 s a tile, the pace of the whole
+    run); appended to the bucket of :data:`BUCKET_ROWS` input rows each falls in,
+    they are written sequentially, and :func:`merge_buckets` puts every bucket
+    into place once. The appends go through the page cache, not flushed: the
+    driver's loop does not wait for the disk. :func:`slim_tiles` makes them durable.
     """
     with np.load(tile_file) as data:
         rows = data["rows"]
-        block = np.zeros(len(rows), dtype=RECORD)
+        block = np.zeros(len(rows), dtype=BUCKET_RECORD)
+        block["row"] = rows
+        record = block["record"]
         for name in RESULT_FIELDS:
-            block[name] = data[name]
-        block["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"]
-        block["winding"] = (np.int64(tile) << PATCH_SHIFT) | data["winding"]
-        block["winding_fine"] = (np.int64(tile) << PATCH_SHIFT) | data["winding_fine"]
-        block["vote_weight"], block["vote_normal"] = data["vote_weight"], data["vote_normal"]
-        block["computed"] = 1
-    order = np.argsort(rows)
-    rows, block = rows[order], block[order]
-    # one window of the file mapped at a time: a tile's rows are spread over the whole file, and a
-    # whole-file map keeps every page it touched resident (a 12M-point run's driver grew by GBs)
-    for window in np.unique(rows // WINDOW_ROWS).tolist():
-        lo, hi = np.searchsorted(rows, [window * WINDOW_ROWS, (window + 1) * WINDOW_ROWS])
-        write_records(path, block[lo:hi], rows[lo:hi])
+            record[name] = data[name]
+        record["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"]
+        record["winding"] = (np.int64(tile) << PATCH_SHIFT) | data["winding"]
+        record["winding_fine"] = (np.int64(tile) << PATCH_SHIFT) | data["winding_fine"]
+        record["vote_weight"], record["vote_normal"] = data["vote_weight"], data["vote_normal"]
+        record["computed"] = 1
+    bucket = rows // BUCKET_ROWS
+    order = np.argsort(bucket, kind="stable")
+    block, bucket = block[order], bucket[order]
+    cuts = np.flatnonzero(np.diff(bucket)) + 1
+    for lo, hi in zip([0, *cuts.tolist()], [*cuts.tolist(), len(block)]):
+        with open(bucket_path(buckets, int(bucket[lo])), "ab") as stream:
+            block[lo:hi].tofile(stream)
     return len(rows)
 
 
-def slim_tiles(path, tile_files) -> None:
-    """Make ``results.rec`` durable (fsync), then slim each stored tile file to :data:`STORED_KEYS`.
+def prepare_buckets(buckets, keep: bool) -> None:
+    """Create the bucket directory, emptied unless ``keep`` (a resume).
+
+    A kept bucket is cut back to whole records: a crash mid-append may have
+    left part of one, which would shift every record appended after it.
+    """
+    if not keep:
+        shutil.rmtree(buckets, ignore_errors=True)
+    os.makedirs(buckets, exist_ok=True)
+    for name in os.listdir(buckets):
+        bucket_file = os.path.join(buckets, name)
+        size = os.path.getsize(bucket_file)
+        if size % BUCKET_RECORD.itemsize:
+            os.truncate(bucket_file, size - size % BUCKET_RECORD.itemsize)
+
+
+def merge_buckets(path, buckets) -> None:
+    """Put every bucket's rows into ``results.rec`` at their input rows, one bucket at a time, and delete it.
+
+    A bucket's span of ``results.rec`` is read, overlaid with the bucket's rows
+    (a row stored twice, by a tile computed again after a resume, has the same
+    record both times) and written back in one sequential write, made durable
+    before the bucket file is deleted: a merge cut short resumes from the
+    buckets left.
+    """
+    count = os.path.getsize(path) // RECORD.itemsize
+    names = sorted(name for name in os.listdir(buckets) if name.startswith("bucket_") and name.endswith(".rec"))
+    for name in names:
+        bucket_file = os.path.join(buckets, name)
+        stored = np.fromfile(bucket_file, dtype=BUCKET_RECORD)
+        first = int(name[len("bucket_"):-len(".rec")]) * BUCKET_ROWS
+        span = read_results(path, first, min(count, first + BUCKET_ROWS))
+        span[stored["row"] - first] = stored["record"]
+        with open(path, "r+b") as stream:
+            stream.seek(first * RECORD.itemsize)
+            span.tofile(stream)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.unlink(bucket_file)
+
+
+def slim_tiles(buckets, tile_files) -> None:
+    """Make the bucket files durable (fsync), then slim each stored tile file to :data:`STORED_KEYS`.
 
     Each file is replaced atomically by its seam-vote inputs and a ``stored``
-    mark: a resumed run finds its rows in the kept ``results.rec``. A file not
-    slimmed yet still holds its rows and is stored again on resume.
+    mark: a resumed run finds its rows in the kept buckets (or in
+    ``results.rec``, once merged). A file not slimmed yet still holds its rows
+    and is stored again on resume.
     """
     if not tile_files:
         return
-    descriptor = os.open(path, os.O_RDWR)
-    try:
-        os.fsync(descriptor)
-    finally:
-        os.close(descriptor)
+    for name in os.listdir(buckets):
+        descriptor = os.open(os.path.join(buckets, name), os.O_RDONLY)
+        try:
+            os.fsync(descriptor)
+        finally:
+            os.close(descriptor)
     for tile_file in tile_files:
         with np.load(tile_file) as data:
             if "stored" in data.files:

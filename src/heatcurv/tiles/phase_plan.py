@@ -20,7 +20,7 @@ from ..errors import HeatcurvError
 from . import compute, job
 from .job import Job
 from .neighbours import list_bytes
-from .output import RECORD
+from .output import BUCKET_RECORD
 from .plan import (
     DRIVER_MEMORY,
     CloudStats,
@@ -87,11 +87,12 @@ def make_plan(run: Job, identity: dict, tile_size, skip_nonfinite: bool, timings
         if run.in_process and plan_workers(room, run.requested, 2 * tile_size, run.cpus) < 1:
             # no worker process holds a tile and its halo: one tile at a time in this process
             tile_size = default_tile_size(room, 1, in_process=True)
-    # points.f8 + rows.i8 with the halos' copies (~1.25x), results.rec, the slimmed tile files (their
+    # points.f8 + rows.i8 with the halos' copies (~1.25x), the buckets (merged into results.rec, a bucket
+    # file deleted as its span is written: together never much more than the buckets), the slimmed tile files (their
     # halo rows, normals and patches) and the few full ones in flight, the survey's neighbour lists and, while
     # it runs, the lists its tiles queried for their halos (at most about half as many: heatcurv.tiles.neighbours)
     lists = list_bytes(stats.finite, compute.operator_neighbours(run.options))
-    need = stats.finite * (48 + RECORD.itemsize + 48) + lists + lists // 2
+    need = stats.finite * (48 + BUCKET_RECORD.itemsize + 48) + lists + lists // 2
     check_disk(run.work, need, f"the scratch files of {stats.finite} points")
     if os.stat(run.work).st_dev == os.stat(run.dst.parent).st_dev:
         need += stats.count * 100

@@ -1,11 +1,12 @@
 """The tiles phase of a tiled run: every tile computed with its halo, stored as it finishes; then the cloud's flags.
 
 :func:`.tasks.run_tile` runs on every tile not done yet, at most ``2 x slots``
-in flight; each finished tile is copied into the index-addressed
-``results.rec`` (:class:`TileStore`), and every :data:`SLIM_POINTS` core points
-``results.rec`` is fsynced and the stored tiles' files slimmed
-(:func:`.output.slim_tiles`). Once every tile is in, :func:`cloud_flags`
-compares each point with the whole cloud's medians.
+in flight; each finished tile's rows are appended to the bucket files of
+their input rows (:class:`TileStore`), and every :data:`SLIM_POINTS` core points
+the buckets are fsynced and the stored tiles' files slimmed
+(:func:`.output.slim_tiles`). Once every tile is in, the buckets are merged
+into the index-addressed ``results.rec`` and :func:`cloud_flags` compares each
+point with the whole cloud's medians.
 """
 
 from __future__ import annotations
@@ -19,22 +20,22 @@ from . import job
 from .context import SurveyContext
 from .job import Job
 from .medians import apply_cloud_flags
-from .output import create_results, is_stored, slim_tiles, store_tile
+from .output import create_results, is_stored, merge_buckets, prepare_buckets, slim_tiles, store_tile
 from .plan import TilePlan
 from .progressbar import TileProgress
 from .tasks import TileTask, run_tile, tile_path
 
 __all__ = ["TileStore", "cloud_flags", "compute_tiles", "SLIM_POINTS"]
 
-#: Core points of stored tiles after which :func:`.output.slim_tiles` fsyncs ``results.rec`` and slims their
+#: Core points of stored tiles after which :func:`.output.slim_tiles` fsyncs the buckets and slims their
 #: files (about 350 MB of rows): the scratch stays near one copy of the results, the loop rarely waits.
 SLIM_POINTS = 2_000_000
 
 
 class TileStore:
-    """Finished tiles into ``results.rec``, and the progress bar (:func:`compute_tiles`).
+    """Finished tiles into the buckets, then ``results.rec``; the progress bar (:func:`compute_tiles`).
 
-    ``unslimmed``: tile file -> core points whose rows are in ``results.rec``,
+    ``unslimmed``: tile file -> core points whose rows are in the buckets,
     not yet fsynced and slimmed (:func:`.output.slim_tiles`); ``results``:
     what each tile computed here returned.
     """
@@ -42,24 +43,27 @@ class TileStore:
     def __init__(self, run: Job):
         self.run = run
         self.path = run.work / "results.rec"
+        self.buckets = run.work / "buckets"
         self.bar = TileProgress(run.progress, 1, 1)
         self.unslimmed = {}
         self.results = {}
 
     def resume(self, plan: TilePlan) -> set:
-        """Create ``results.rec`` (kept if tiles are stored in it) and store the finished tiles; the tiles done."""
+        """Create ``results.rec`` and the buckets (kept if tiles are stored), store finished tiles; the tiles done."""
         n_tiles = len(plan.tiling.counts)
         work = self.run.work
         done = {t for t in range(n_tiles) if os.path.exists(tile_path(work, t))}
         stored = {t for t in done if is_stored(tile_path(work, t))}
-        if not create_results(self.path, plan.stats.count, keep=bool(stored)) and stored:
+        kept = create_results(self.path, plan.stats.count, keep=bool(stored))
+        prepare_buckets(self.buckets, keep=kept)
+        if not kept and stored:
             # their rows were in a results.rec that is gone: those tiles are computed again
             for t in stored:
                 os.unlink(tile_path(work, t))
             self.run.say(f"{len(stored)} finished tile(s) must be computed again: {self.path} is missing")
             done -= stored
         for t in sorted(done - stored):
-            self.unslimmed[tile_path(work, t)] = store_tile(self.path, tile_path(work, t), t)
+            self.unslimmed[tile_path(work, t)] = store_tile(self.buckets, tile_path(work, t), t)
         if done:
             self.run.say(f"resuming: {len(done)} of {n_tiles} tiles already computed in {work}")
         self.bar.close()
@@ -68,9 +72,9 @@ class TileStore:
         return done
 
     def finished(self, tile: int, result: dict) -> None:
-        """A tile computed: its rows into ``results.rec``; every :data:`SLIM_POINTS` points, fsync and slim."""
+        """A tile computed: its rows into the buckets; every :data:`SLIM_POINTS` points, fsync and slim."""
         path = tile_path(self.run.work, tile)
-        self.unslimmed[path] = store_tile(self.path, path, tile)
+        self.unslimmed[path] = store_tile(self.buckets, path, tile)
         self.results[tile] = result
         self.bar(result["points"])
         if sum(self.unslimmed.values()) >= SLIM_POINTS:
@@ -78,7 +82,7 @@ class TileStore:
 
     def slim(self) -> None:
         """Make the stored tiles' rows durable and slim their files."""
-        slim_tiles(self.path, list(self.unslimmed))
+        slim_tiles(self.buckets, list(self.unslimmed))
         self.unslimmed.clear()
 
     def abandon(self) -> None:
@@ -95,14 +99,16 @@ class TileStore:
 
 
 def compute_tiles(run: Job, plan: TilePlan, context: SurveyContext, store: TileStore, timings: dict):
-    """The tiles phase: every tile not done yet, stored as it finishes; ``(scheduler name, workers, resumed)``."""
+    """The tiles phase: every tile not done yet, stored, then merged; ``(scheduler name, workers, resumed)``."""
     n_tiles = len(plan.tiling.counts)
     phase = job.phase(run, plan, float(context.halo), "tiles")
     done = store.resume(plan)
     tic = time.perf_counter()
     specs = {t: TileTask(str(run.work), t, phase.options, context) for t in range(n_tiles) if t not in done}
     name = job.submit(phase.executor, phase.workers, run_tile, specs, store.finished, run.say, "tile", n_tiles)
-    store.slim()  # before the output takes its disk space
+    store.slim()
+    store.bar.stage("merging")
+    merge_buckets(store.path, store.buckets)
     timings["tiles"] = time.perf_counter() - tic
     return name, phase.workers, len(done)
 
@@ -110,7 +116,7 @@ def compute_tiles(run: Job, plan: TilePlan, context: SurveyContext, store: TileS
 def cloud_flags(run: Job, plan: TilePlan, timings: dict) -> dict:
     """The flags that compare each point with the whole cloud's medians, once every tile is in."""
     tic = time.perf_counter()
-    medians = apply_cloud_flags(run.work / "results.rec", plan.stats.count)
+    medians = apply_cloud_flags(run.work / "results.rec", plan.stats.count, plan.stats.finite)
     timings["reliability"] = time.perf_counter() - tic
     return medians
 
@@ -120,7 +126,7 @@ def _cleanup(work: Path, keep_done: bool) -> str:
     for stray in [*work.glob("tiles/*.tmp.npz"), *work.glob("knn/*.tmp.npy")]:  # results, neighbour lists
         stray.unlink(missing_ok=True)
     done = sorted(work.glob("tiles/tile_*.npz"))  # after the strays, whose names start alike
-    if keep_done and done:  # results.rec holds the rows of the tiles already stored
+    if keep_done and done:  # results.rec and the buckets hold the rows of the tiles already stored
         return f"{len(done)} finished tile(s) are kept in {work}: run the same command again to resume, or delete it"
     shutil.rmtree(work, ignore_errors=True)
     return ""
