@@ -224,6 +224,47 @@ def test_not_enough_disk_is_found_before_the_run(torus_file, tmp_path, monkeypat
     assert os.listdir(tmp_path) == []
 
 
+def _scratch_size(path) -> int:
+    return sum(os.stat(os.path.join(root, name)).st_blocks * 512 for root, _, files in os.walk(path) for name in files)
+
+
+def test_disk_check_model_bounds_the_scratch(torus_file, tmp_path, monkeypatch):
+    """The disk check's model of each phase's scratch (phase_plan.scratch_bytes) holds what the scratch holds at
+    the survey's end (every neighbour list, the halo lists) and before the last tiles are slimmed (every bucket, the
+    full files of the tiles not slimmed yet: all of them, in a cloud this small), and is not
+    far above it: small tiles, whose halos hold several times their cores, as large ones."""
+    import numpy as np
+
+    from heatcurv.tiles import compute, phase_plan, phase_survey, phase_tiles
+    from heatcurv.tiles.plan import TilePlan, halo_points
+    from heatcurv.tiles.tasks import load_plan
+
+    seen = {}
+
+    def measured(phase, original):
+        def hook(*args):
+            work = tmp_path / f".{phase[0]}.ply.heatcurv-tiles"
+            seen[phase] = max(seen.get(phase, 0), _scratch_size(work))
+            plan = TilePlan.from_json(load_plan(work))
+            halo = halo_points(plan.tiling, plan.stats, plan.survey_halos) - np.asarray(plan.tiling.counts)
+            seen[phase + ("model",)] = phase_plan.scratch_bytes(
+                plan.stats.finite, compute.operator_neighbours({}), int(halo.sum()),
+                phase_tiles.SLIM_POINTS + max(plan.tiling.counts))[phase[1]]
+            return original(*args)
+        return hook
+
+    for tile_size in (1200, 3000):
+        monkeypatch.setattr(phase_survey, "remove_halo_lists",
+                            measured((str(tile_size), "survey"), phase_survey.remove_halo_lists))
+        monkeypatch.setattr(phase_tiles, "slim_tiles", measured((str(tile_size), "tiles"), phase_tiles.slim_tiles))
+        compute_file(torus_file[0], tmp_path / f"{tile_size}.ply", tile_size=tile_size, scheduler="serial")
+        monkeypatch.undo()
+    print({k: v / 6000 for k, v in seen.items()})
+    for tile_size in ("1200", "3000"):
+        for phase in ("survey", "tiles"):
+            assert seen[(tile_size, phase)] <= seen[(tile_size, phase, "model")] <= 1.3 * seen[(tile_size, phase)]
+
+
 def test_budget_too_small_for_a_tile(torus_file, tmp_path, monkeypatch):
     # below the driver and the smallest tile (700M fits one tile at a time in the driver's process: test_plan_memory)
     with pytest.raises(HeatcurvError, match=r"a memory budget of 524 MB is too small for a tiled run"):

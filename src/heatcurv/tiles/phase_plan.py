@@ -16,11 +16,14 @@ import time
 from functools import partial
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import HeatcurvError
 from . import compute, job
 from .job import Job
 from .neighbours import list_bytes
-from .output import BUCKET_RECORD
+from .output import BUCKET_RECORD, RECORD
+from .phase_tiles import SLIM_POINTS
 from .plan import (
     DRIVER_MEMORY,
     CloudStats,
@@ -87,25 +90,84 @@ def make_plan(run: Job, identity: dict, tile_size, skip_nonfinite: bool, timings
         if run.in_process and plan_workers(room, run.requested, 2 * tile_size, run.cpus) < 1:
             # no worker process holds a tile and its halo: one tile at a time in this process
             tile_size = default_tile_size(room, 1, in_process=True)
-    # points.f8 + rows.i8 with the halos' copies (~1.25x), the buckets (merged into results.rec, a bucket
-    # file deleted as its span is written: together never much more than the buckets), the slimmed tile files (their
-    # halo rows, normals and patches) and the few full ones in flight, the survey's neighbour lists and, while
-    # it runs, the lists its tiles queried for their halos (at most about half as many: heatcurv.tiles.neighbours)
-    lists = list_bytes(stats.finite, compute.operator_neighbours(run.options))
-    need = stats.finite * (48 + BUCKET_RECORD.itemsize + 48) + lists + lists // 2
-    check_disk(run.work, need, f"the scratch files of {stats.finite} points")
-    if os.stat(run.work).st_dev == os.stat(run.dst.parent).st_dev:
-        need += stats.count * 100
-    check_disk(run.dst.parent, need if run.dst.parent == run.root else stats.count * 100, f"the output {run.dst.name}")
+    neighbours = compute.operator_neighbours(run.options)
+    output = stats.count * OUTPUT_BYTES
+    same_disk = os.stat(run.work).st_dev == os.stat(run.dst.parent).st_dev
+    # before anything is written, the least the scratch will hold (no halo): a disk too small fails now
+    least = scratch_bytes(stats.finite, neighbours)
+    _check_space(run, stats.finite, max(least["survey"], least["tiles"] + output * same_disk), output)
     job.warm_workers(run, stats.finite, tile_size, warm_up)  # their imports while this process tiles the cloud
     measure = partial(_tile_cloud, run.source, stats, run.work, run.options, timings, bar)
     tile_size, (tiling, stats, survey_halos, key_halos), _ = fit_tiles(
         measure, tile_size, run.budget, run.requested, run.cpus, in_process=run.in_process, given=given, say=run.say)
     plan = TilePlan(identity, tiling, stats, int(tile_size), tuple(survey_halos), tuple(key_halos))
+    # the points are in scratch now: the halos' share, the rest of the scratch
+    halo_rows = int((halo_points(tiling, stats, survey_halos) - np.asarray(tiling.counts)).sum())
+    need = scratch_bytes(stats.finite, neighbours, halo_rows, in_flight=SLIM_POINTS + int(max(tiling.counts)))
+    written = SCATTER_BYTES * stats.finite
+    _check_space(run, stats.finite, max(need["survey"], need["tiles"] + output * same_disk) - written, output)
     _write_json(run.work / "plan.json", plan.to_json())
     run.say(f"tiled {run.src.name}: {stats.count} points in {len(tiling.counts)} tiles of at most {tile_size} "
             f"points (budget {size_text(run.budget)})")
     return plan
+
+
+#: Bytes a point of the scratch's points in tile order (``points.f8`` and ``rows.i8``).
+SCATTER_BYTES = 32
+#: The share of the survey's halo rows whose lists it keeps: those in tiles not surveyed yet (the first tiles
+#: surveyed keep all of theirs, the last none; about half, measured 0.45-0.5 on the test torus).
+HALO_LIST_SHARE = 0.6
+#: Bytes a halo row of a tile's result file keeps for the seam vote (its row, normal and patch).
+STORED_HALO_BYTES = 40
+#: Bytes a winding source of a tile's result file keeps (row, position, normal, area, labels, roundness).
+SOURCE_BYTES = 96
+#: Bytes a point of the output, allowed for (a LAZ of the default fields takes about 56, a PLY about 90).
+OUTPUT_BYTES = 100
+
+
+def scratch_bytes(points: int, neighbours: int, halo_rows: int = 0, in_flight: int = 0) -> dict:
+    """The scratch's peak bytes in the survey and in the tiles phase.
+
+    Both hold the points in tile order and every core point's neighbour list
+    (:func:`.neighbours.list_bytes`). The survey also holds the lists its tiles
+    queried for the halo points of tiles not surveyed yet (:data:`HALO_LIST_SHARE`),
+    deleted when it ends. The tiles phase holds the buckets
+    (:data:`.output.BUCKET_RECORD` a row; merged into ``results.rec`` a bucket at
+    a time, never much more), the tiles' halo rows and winding sources (at most
+    two per source the cloud has, :data:`heatcurv.orient.enclosure.MAX_SOURCES`),
+    and the fields of up to ``in_flight`` core points whose files are not slimmed yet.
+
+    Parameters
+    ----------
+    points : int
+        The cloud's finite points.
+    neighbours : int
+        The operator's neighbour count (a list's length).
+    halo_rows : int
+        Halo rows summed over the tiles (:func:`.plan.halo_points` minus the cores).
+    in_flight : int
+        Core points whose tile files are not slimmed yet, at most.
+
+    Returns
+    -------
+    dict
+        ``{"survey": bytes, "tiles": bytes}``.
+    """
+    from ..orient.enclosure import MAX_SOURCES
+
+    shared = SCATTER_BYTES * points + list_bytes(points, neighbours)
+    survey = shared + int(HALO_LIST_SHARE * list_bytes(halo_rows, neighbours))
+    tiles = (shared + BUCKET_RECORD.itemsize * points + STORED_HALO_BYTES * halo_rows
+             + SOURCE_BYTES * min(points, 2 * MAX_SOURCES) + RECORD.itemsize * min(points, in_flight))
+    return {"survey": survey, "tiles": tiles}
+
+
+def _check_space(run: Job, points: int, scratch: int, output: int) -> None:
+    """Fail if the scratch's disk has less than ``scratch`` bytes free (its peak, the output included when it is
+    on the same disk), or the output's directory less than ``output``."""
+    check_disk(run.work, scratch, f"the scratch files of {points} points")
+    if run.dst.parent != run.root:
+        check_disk(run.dst.parent, output, f"the output {run.dst.name}")
 
 
 def _tile_cloud(source, stats: CloudStats, work: Path, options: dict, timings: dict, bar, tile_size: int):
