@@ -233,8 +233,6 @@ def test_disk_check_model_bounds_the_scratch(torus_file, tmp_path, monkeypatch):
     the survey's end (every neighbour list, the halo lists) and before the last tiles are slimmed (every bucket, the
     full files of the tiles not slimmed yet: all of them, in a cloud this small), and is not
     far above it: small tiles, whose halos hold several times their cores, as large ones."""
-    import numpy as np
-
     from heatcurv.tiles import compute, phase_plan, phase_survey, phase_tiles
     from heatcurv.tiles.plan import TilePlan, halo_points
     from heatcurv.tiles.tasks import load_plan

@@ -121,8 +121,7 @@ def store_tile(buckets, tile_file, tile: int) -> int:
     A tile's rows are spread over the whole input (in any order a file may
     have). Written at their rows into ``results.rec`` they would touch a large
     share of its pages, which are read back from disk once the file outgrows
-    the page cache (at 100M points about 20 s a tile, the pace of the whole
-    run); appended to the bucket of :data:`BUCKET_ROWS` input rows each falls in,
+    the page cache; appended to the bucket of :data:`BUCKET_ROWS` input rows each falls in,
     they are written sequentially, and :func:`merge_buckets` puts every bucket
     into place once. The appends go through the page cache, not flushed: the
     driver's loop does not wait for the disk. :func:`slim_tiles` makes them durable.

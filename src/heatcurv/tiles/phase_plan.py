@@ -114,8 +114,8 @@ def make_plan(run: Job, identity: dict, tile_size, skip_nonfinite: bool, timings
 
 #: Bytes a point of the scratch's points in tile order (``points.f8`` and ``rows.i8``).
 SCATTER_BYTES = 32
-#: The share of the survey's halo rows whose lists it keeps: those in tiles not surveyed yet (the first tiles
-#: surveyed keep all of theirs, the last none; about half, measured 0.45-0.5 on the test torus).
+#: The share of the survey's halo rows whose lists it keeps, with a margin: those in tiles not surveyed yet
+#: (the first tiles surveyed keep all of theirs, the last none: about half).
 HALO_LIST_SHARE = 0.6
 #: Bytes a halo row of a tile's result file keeps for the seam vote (its row, normal and patch).
 STORED_HALO_BYTES = 40
