@@ -128,19 +128,19 @@ def store_tile(buckets, tile_file, tile: int) -> int:
     """
     with np.load(tile_file) as data:
         rows = data["rows"]
-        block = np.zeros(len(rows), dtype=BUCKET_RECORD)
-        block["row"] = rows
+        bucket = rows // BUCKET_ROWS
+        order = np.argsort(bucket, kind="stable")  # each column gathered into bucket order as it is copied
+        bucket = bucket[order]
+        block = np.empty(len(rows), dtype=BUCKET_RECORD)
+        block["row"] = rows[order]
         record = block["record"]
         for name in RESULT_FIELDS:
-            record[name] = data[name]
-        record["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"]
-        record["winding"] = (np.int64(tile) << PATCH_SHIFT) | data["winding"]
-        record["winding_fine"] = (np.int64(tile) << PATCH_SHIFT) | data["winding_fine"]
-        record["vote_weight"], record["vote_normal"] = data["vote_weight"], data["vote_normal"]
+            record[name] = data[name][order]
+        record["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"][order]
+        record["winding"] = (np.int64(tile) << PATCH_SHIFT) | data["winding"][order]
+        record["winding_fine"] = (np.int64(tile) << PATCH_SHIFT) | data["winding_fine"][order]
+        record["vote_weight"], record["vote_normal"] = data["vote_weight"][order], data["vote_normal"][order]
         record["computed"] = 1
-    bucket = rows // BUCKET_ROWS
-    order = np.argsort(bucket, kind="stable")
-    block, bucket = block[order], bucket[order]
     cuts = np.flatnonzero(np.diff(bucket)) + 1
     for lo, hi in zip([0, *cuts.tolist()], [*cuts.tolist(), len(block)]):
         with open(bucket_path(buckets, int(bucket[lo])), "ab") as stream:
