@@ -174,11 +174,11 @@ def merge_buckets(path, buckets) -> None:
     buckets left.
     """
     count = os.path.getsize(path) // RECORD.itemsize
-    names = sorted(name for name in os.listdir(buckets) if name.startswith("bucket_") and name.endswith(".rec"))
-    for name in names:
-        bucket_file = os.path.join(buckets, name)
+    for first in range(0, count, BUCKET_ROWS):
+        bucket_file = bucket_path(buckets, first // BUCKET_ROWS)
+        if not os.path.exists(bucket_file):
+            continue
         stored = np.fromfile(bucket_file, dtype=BUCKET_RECORD)
-        first = int(name[len("bucket_"):-len(".rec")]) * BUCKET_ROWS
         span = read_results(path, first, min(count, first + BUCKET_ROWS))
         span[stored["row"] - first] = stored["record"]
         with open(path, "r+b") as stream:
