@@ -1,10 +1,10 @@
 """A cost model of a tiled run, fitted here: the time on N workers, and where the driver or the file system limits it.
 
 Runs, each in a fresh process (the LiDAR-like terrain and the runner of ``benchmarks/tiles.py``, tiles of
-``--tile-size`` core points): the 1M-point terrain with one worker process at two tile sizes, the 2M-point terrain
-with one worker, then the 1M terrain with two worker processes and on a local Dask cluster of two single-thread
-workers. The model is fitted to the one-worker runs only and then predicts the two-worker runs; both are printed
-beside each other. Then it extrapolates to clusters.
+``--tile-size`` core points, one thread a worker): the 1M-point terrain with one worker process at two tile sizes,
+the 2M-point terrain with one worker, then the 1M terrain with two worker processes and on a local Dask cluster of
+two single-thread workers. The model is fitted to the one-worker runs only and then predicts the two-worker
+runs; both are printed beside each other. Then it extrapolates to clusters.
 
 The model, seconds, for ``n`` points cut into ``T`` tiles on ``N`` workers (tile ``t``: ``m_t`` core points,
 ``h_t`` halo points computed with them):
@@ -46,9 +46,15 @@ DRIVER_PHASES = ("stats", "tiling", "scatter", "reliability", "orientation", "wr
 
 
 def run(src: Path, work: Path, tile_size: int, workers: int, scheduler: str = "processes") -> dict:
-    """One tiled run in a fresh process: its report's numbers and the scratch directory's peak size."""
+    """One tiled run in a fresh process: its report's numbers and the scratch directory's peak size.
+
+    Each worker computes with one thread (``workers=1``), as a cluster's workers started with ``--nthreads 1``:
+    a lone local worker would otherwise take every core's threads, and the one-worker costs the model is
+    fitted to would not be one core's.
+    """
     dst = work / f"out_{src.stem}_{tile_size}_{workers}_{scheduler}.laz"
-    arg = {"tile_size": tile_size, "tile_workers": workers, "scheduler": scheduler, "scratch": str(work)}
+    arg = {"tile_size": tile_size, "tile_workers": workers, "workers": 1, "scheduler": scheduler,
+           "scratch": str(work)}
     r = tiles.measure("tiled", src, dst, arg, work / f".{dst.name}.heatcurv-tiles")
     r["n"], r["bytes_out"] = r["points"], dst.stat().st_size
     r["bytes_in"] = src.stat().st_size
@@ -126,6 +132,11 @@ def main(argv=None) -> None:
         if not clouds[millions].exists():
             tiles.generate(clouds[millions], millions * 1_000_000)
     size = args.tile_size
+    # a first small run compiles the kernels into numba's cache (a fresh checkout has none), untimed
+    warm = work / "terrain_warm.laz"
+    if not warm.exists():
+        tiles.generate(warm, 50_000)
+    run(warm, work, 20_000, 1)
     ones = [run(clouds[1], work, size, 1), run(clouds[1], work, size // 2, 1), run(clouds[2], work, size, 1)]
     twos = [run(clouds[1], work, size, 2), run(clouds[1], work, size, 2, "dask")]
     model = Model(ones)
