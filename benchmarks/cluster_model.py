@@ -22,7 +22,7 @@ The model, seconds, for ``n`` points cut into ``T`` tiles on ``N`` workers (tile
 ``T(N) = D + max(S + P + 2 o R, file-system floor)``. The driver becomes the bottleneck when ``D`` exceeds the
 tasks' share; the speed-up over one worker is then bounded by ``(D + S + P)(1) / D``.
 
-    python benchmarks/cluster_model.py            # about 6 minutes on 2 cores
+    python benchmarks/cluster_model.py            # about 4 minutes on 2 cores
     python benchmarks/cluster_model.py --markdown # the tables of docs/tiles.md
 """
 
