@@ -159,6 +159,36 @@ def test_buckets_put_every_stored_row_in_place(tmp_path, monkeypatch):
     assert os.listdir(buckets) == []
 
 
+def test_cloud_flags_rewrite_only_the_rows_they_turn(tmp_path, monkeypatch):
+    """The cloud-wide misfit flags over 1000 rows in chunks of 64: the rows whose residual is far above their width's
+    median lose ``reliable``, the others keep their local flag, and only the rows that turn are written back (the
+    other pages of a 25 GB ``results.rec`` at 100M points are not rewritten)."""
+    from heatcurv.flags.reliability import misfits
+    from heatcurv.tiles.medians import apply_cloud_flags
+
+    path = tmp_path / "results.rec"
+    tiled_output.create_results(path, 1000)
+    rng = np.random.default_rng(8)
+    block = np.zeros(1000, dtype=tiled_output.RECORD)
+    block["computed"] = block["counted"] = 1
+    block["fit_width"] = rng.integers(0, 2, 1000)
+    block["misfit_residual"] = rng.uniform(0.5, 1.5, 1000)
+    far = rng.choice(1000, 25, replace=False)
+    block["misfit_residual"][far] = 100.0
+    local = rng.random(1000) > 0.1
+    block["reliable"] = local
+    tiled_output.write_records(path, block, np.arange(1000))
+    written = []
+    real = tiled_output.write_records
+    monkeypatch.setattr(tiled_output, "write_records", lambda p, r, rows: (written.append(rows), real(p, r, rows)))
+    out = apply_cloud_flags(path, 1000, 1000, chunk=64)
+    bad = misfits(block["misfit_residual"], block["fit_width"], out["baselines"])
+    assert set(np.flatnonzero(bad)) == set(far.tolist())
+    records = tiled_output.read_results(path, 0, 1000)
+    assert np.array_equal(records["reliable"] == 1, local & ~bad)
+    assert np.array_equal(np.concatenate(written), np.flatnonzero(local & bad))  # the turned rows alone
+
+
 def test_records_written_and_gathered_window_by_window(tmp_path, monkeypatch):
     """Rows written and gathered across several windows of results.rec come back as written, the rest zero."""
     monkeypatch.setattr(tiled_output, "WINDOW_ROWS", 64)

@@ -86,7 +86,7 @@ def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 2
     The medians (each kernel width's residual, the resolution) are taken over
     every computed, counted row (:func:`streaming_medians`), exactly as
     :func:`heatcurv.flags.reliability.cloud_flags` takes them in memory; then each
-    chunk's ``reliable`` is rewritten in place. ``finite``: the rows every tile
+    chunk's rows whose ``reliable`` the flags turn are rewritten in place. ``finite``: the rows every tile
     together computed; fewer computed rows mean scratch files went missing.
 
     Returns
@@ -134,12 +134,15 @@ def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 2
     coarse = resolution > TUNING.resolution_limit
     if coarse:
         warn_too_coarse(resolution, stacklevel=3)
-    for start, block, _ in blocks():  # rewritten chunk by chunk: no map of the whole file stays resident
+    for start, block, _ in blocks():
         width = block["fit_width"]
         for k in np.unique(width).tolist():
             baselines.setdefault(int(k), TUNING.misfit_floor)  # a width with no counted row: the floor
         local = block["reliable"] == 1
         bad = misfits(block["misfit_residual"], width, baselines)
-        block["reliable"] = (local & ~bad & ~coarse).astype(np.uint8)
-        write_records(results_path, block, np.arange(start, start + len(block)))
+        reliable = (local & ~bad & ~coarse).astype(np.uint8)
+        # only the rows the flags turn: the pages of the others are not written back
+        changed = np.flatnonzero(reliable != block["reliable"])
+        block["reliable"] = reliable
+        write_records(results_path, block[changed], start + changed)
     return {"baselines": baselines, "resolution": resolution}
