@@ -136,9 +136,8 @@ def store_tile(buckets, tile_file, tile: int) -> int:
         record = block["record"]
         for name in RESULT_FIELDS:
             record[name] = data[name][order]
-        record["patch"] = (np.int64(tile) << PATCH_SHIFT) | data["patch"][order]
-        record["winding"] = (np.int64(tile) << PATCH_SHIFT) | data["winding"][order]
-        record["winding_fine"] = (np.int64(tile) << PATCH_SHIFT) | data["winding_fine"][order]
+        for key in ("patch", "winding", "winding_fine"):  # the tile's labels, made the cloud's keys
+            record[key] = (np.int64(tile) << PATCH_SHIFT) | data[key][order]
         record["vote_weight"], record["vote_normal"] = data["vote_weight"][order], data["vote_normal"][order]
         record["computed"] = 1
     cuts = np.flatnonzero(np.diff(bucket)) + 1
