@@ -36,6 +36,24 @@ def test_the_noise_gate_between_a_clean_ellipsoid_and_a_barely_noisy_one(noise, 
     assert heatcurv.estimate(sample.points).info["scale"].fit == fit
 
 
+@pytest.mark.parametrize("name, n, noise, low, high", [
+    ("ellipsoid", 10_000, 1e-4, 0.85, 1.1),  # measured 0.93
+    ("sphere", 8000, 0.003, 0.85, 1.1),  # 0.93
+    ("torus", 8000, 0.006, 0.85, 1.1),  # 0.98
+    ("ellipsoid", 10_000, 1e-6, 4.0, 10.0),  # 6.3: the fit's misfit, not noise, is the residual
+])
+def test_the_residual_rise_tells_noise_from_a_models_misfit(name, n, noise, low, high):
+    scale = heatcurv.estimate(surfaces.get(name).sample(n, "random", seed=3, noise=noise).points).info["scale"]
+    assert scale.fit.startswith("denoised") and low < scale.residual_rise < high
+
+
+def test_the_residual_rise_is_not_measured_on_clean_or_small_clouds():
+    # a clean cloud takes the chord fit at the narrowest kernel; 500 points stop the ladder at 120
+    for n, noise in ((8000, 0.0), (500, 0.003)):
+        scale = heatcurv.estimate(surfaces.Torus().sample(n, "random", seed=3, noise=noise).points).info["scale"]
+        assert np.isnan(scale.residual_rise), (n, noise)
+
+
 def test_wide_kernels_are_fitted_with_every_point_of_the_ball(records):
     # kernels wider than 240 neighbours were once fitted against a random quarter of the cloud
     sample = surfaces.Sphere().sample(8000, "random", seed=4, noise=0.003)

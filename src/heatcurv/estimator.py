@@ -70,7 +70,7 @@ from .operators.operator import HeatKernelOperator
 from .options import resolve_options
 from .orient.enclosure import warn_undecided
 from .orient.orientation import Orientation, as_viewpoint, axisless_balls
-from .orient.visibility import escaping_turns
+from .orient.visibility import escaping_turns, own_layer
 from .progress import StageClock
 from .results import CurvatureResult
 from .tuning import TUNING
@@ -475,8 +475,9 @@ def _turned_to_escape(op: HeatKernelOperator, fitted: Fitted, errors: StandardEr
     Only on a closed or undecided cloud (which has ``orientation.sources``), and not on its objects
     that are open on their own (``orientation.open``: they keep their sides).
     The occluders are the winding number's sources, discs across their
-    fitted normals (:mod:`heatcurv.orient.visibility`); the count goes to
-    the report's ``escaped``, the time to the ``orientation`` stage.
+    fitted normals (:mod:`heatcurv.orient.visibility`), past the noise's layer
+    where the kernel choice measured noise; the count goes to the report's
+    ``escaped``, the time to the ``orientation`` stage.
     """
     source = orientation.sources
     if source is None:
@@ -484,7 +485,8 @@ def _turned_to_escape(op: HeatKernelOperator, fitted: Fitted, errors: StandardEr
     if orientation.open is not None:
         tested = tested & ~orientation.open
     with StageClock(timings=timings).stage("orientation", report=False):
-        turn = escaping_turns(op.points, fitted.normals, tested, op.points[source], fitted.normals[source])
+        layer = 0.0 if fitted.scale is None else own_layer(fitted.scale.sigma, fitted.scale.residual_rise)
+        turn = escaping_turns(op.points, fitted.normals, tested, op.points[source], fitted.normals[source], layer)
     if errors is not None:  # k1 and k2 trade places where the side turns
         errors = replace(errors, k1=np.where(turn, errors.k2, errors.k1), k2=np.where(turn, errors.k1, errors.k2))
     report = replace(orientation.report, escaped=int(turn.sum()))

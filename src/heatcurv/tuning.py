@@ -143,6 +143,10 @@ class Tuning:
     #: 2.08; 0.15: 1.26 / 1.41 / 2.15; 0.25: 1.30 / 1.45 / 2.24; 0.4: 1.48 % clean.
     escape_margin: float = _knob(0.15, "share of rays escaping more against than along its normal that turns a "
                                        "closed cloud's unreliable point")
+    #: The rays clear a noise layer (:func:`heatcurv.orient.visibility.own_layer`) where the denoised residual at
+    #: four times the narrowest kernel is at most this multiple of the narrowest's: noise leaves the same residual
+    #: at every width, the misfit of a coarse mesh (which the choice reads as noise) grows as ``R^2``.
+    noise_rise: float = _knob(1.4, "rise of the residual over two doublings of the kernel below which it is noise")
     tiny_patch: int = _knob(2, "pieces of fewer points join a neighbouring winding-number patch")
     level_tolerance: float = _knob(0.4, "distance of a winding level from its target that contradicts a side")
     sure_cost: float = _knob(0.7, "largest spanning-tree cost of an edge inside a winding-number patch")

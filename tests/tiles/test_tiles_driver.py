@@ -340,6 +340,24 @@ def test_points_turned_to_where_their_rays_escape_are_the_in_memory_runs(tmp_pat
     np.testing.assert_allclose(tiled["mean"], memory.mean, rtol=1e-9)
 
 
+def test_a_noisy_tubes_rays_clear_its_noise_layer_as_in_memory(tmp_path):
+    """An open tube as short as it is wide with noise of 0.6 % of its diagonal, in 4 tiles: the rays clear
+    the noise layer the survey's choice measured (heatcurv.orient.visibility.own_layer), as in memory (without
+    it 775 points turn in memory)."""
+    sample = heatcurv.surfaces.Cylinder(1.0, 1.0).sample(3000, "random", noise=0.006, seed=1)
+    src, out = tmp_path / "tube.npy", tmp_path / "tube.ply"
+    np.save(src, sample.points)
+    with pytest.warns(heatcurv.HeatcurvWarning, match="cannot tell whether the cloud encloses a volume"):
+        memory = heatcurv.estimate(sample.points)
+        report = compute_file(src, out, tile_size=750, scheduler="serial", dtype="float64", progress=False,
+                              fields=("nx", "ny", "nz", "mean", "reliable"))
+    assert report.tiles >= 4 and report.orientation["undecided"]
+    assert report.orientation["escaped"] == memory.info["orientation"].escaped == 7
+    tiled = read_fields(out)
+    np.testing.assert_allclose(np.column_stack([tiled["nx"], tiled["ny"], tiled["nz"]]), memory.normals, atol=1e-9)
+    np.testing.assert_allclose(tiled["mean"], memory.mean, rtol=1e-9)
+
+
 def test_a_point_is_judged_by_the_sources_in_its_operator_ball_as_in_memory():
     """Over 6000 points the winding number samples its sources, and a point that is not one is flagged when
     most sources in its operator ball disagree (heatcurv.orient.enclosure). The tiles judge within the same

@@ -63,8 +63,8 @@ from ..operators.kernel import tapered_heat_weights
 from ..tuning import TUNING
 
 __all__ = [
-    "CentreFits", "CentreFitter", "ScaleChoice", "ScaleReport", "decide_scale", "in_low_noise_band", "level_sizes",
-    "select_scale", "select_form",
+    "CentreFits", "CentreFitter", "RISE_LEVELS", "ScaleChoice", "ScaleReport", "decide_scale", "in_low_noise_band",
+    "level_sizes", "residual_rise", "select_scale", "select_form",
 ]
 
 
@@ -97,6 +97,11 @@ class ScaleChoice:
         The very-low-noise path (:func:`decide_scale`, step 5 of the module): the kernel was
         widened for the denoised form's low-noise refit, which the anchors then fit
         (:mod:`heatcurv.fits.anchors`).
+    residual_rise : float
+        The denoised fit's median residual at four times the narrowest kernel over its residual
+        at the narrowest (:func:`residual_rise`): about 1 where the residual is noise, growing
+        where it is the model's misfit; NaN on a clean cloud, with a fixed kernel, or where the
+        ladder stops short of it.
     """
 
     scale: Scale
@@ -109,6 +114,7 @@ class ScaleChoice:
     centres: np.ndarray | None = None
     k_centre: np.ndarray | None = None
     low_noise: bool = False
+    residual_rise: float = float("nan")
 
     def at_points(self, points: np.ndarray, workers: int = -1) -> ScaleChoice:
         """The choice with ``k_per_point`` for ``points`` (shape (n, 3)): each takes its nearest centre's width.
@@ -158,6 +164,8 @@ class ScaleReport:
         Narrowest and widest kernel chosen at any point (``k`` is the median point's).
     low_noise : bool
         The very-low-noise path ran (:attr:`ScaleChoice.low_noise`, module docstring step 5).
+    residual_rise : float
+        :attr:`ScaleChoice.residual_rise`.
     """
 
     k: int
@@ -174,6 +182,7 @@ class ScaleReport:
     k_min: int = 0
     k_max: int = 0
     low_noise: bool = False
+    residual_rise: float = float("nan")
 
     def in_unit(self, unit: float) -> ScaleReport:
         """The report with its lengths multiplied by ``unit`` (the stages' unit back to the input's)."""
@@ -201,7 +210,7 @@ class ScaleReport:
         return cls(
             support_radius=float(finite.max()) if finite.size else float("nan"), anchors=int(anchors),
             k_min=choice.scale.k if k is None else int(k.min()), k_max=choice.scale.k if k is None else int(k.max()),
-            low_noise=bool(choice.low_noise),
+            low_noise=bool(choice.low_noise), residual_rise=choice.residual_rise,
             k=choice.scale.k if k is None else int(np.median(k)),
             fit=label,
             radius=float(np.percentile(radius, 99)),
@@ -591,6 +600,7 @@ def decide_scale(
         centres=at,
         k_centre=k_centre,
         low_noise=bool(low_noise),
+        residual_rise=residual_rise(ladder_fits),
     )
 
 
@@ -644,6 +654,29 @@ class _LadderFits:
         size, tiny = self.sizes[j], np.finfo(float).tiny
         return [np.abs(self.means[j] - self.means[i][:size]) / np.maximum(self.sds[i][:size], tiny)
                 for i in range(j)]
+
+
+#: Doublings of the narrowest kernel :func:`residual_rise` compares it with.
+RISE_LEVELS = 2
+
+
+def residual_rise(ladder_fits: _LadderFits) -> float:
+    """The median residual of the ladder's candidate :data:`RISE_LEVELS` over the narrowest's (NaN without it).
+
+    Noise leaves about the same residual at every width; a model's misfit (a
+    coarse mesh's facets, a surface curving within the ball) grows as ``R^2``,
+    about 4 over two doublings of the neighbours. The candidate is fitted here
+    when Lepski's rule stopped short of it (at the same centres as the rule's
+    fits: a tiled run's survey holds it).
+    """
+    if len(ladder_fits.ladder) <= RISE_LEVELS:
+        return float("nan")
+    if len(ladder_fits.residuals) > RISE_LEVELS:
+        wide = ladder_fits.residuals[RISE_LEVELS]
+    else:
+        size = ladder_fits.level_sizes[RISE_LEVELS]
+        wide = float(np.median(ladder_fits.fits(ladder_fits.ladder[RISE_LEVELS], size).sigma))
+    return wide / max(ladder_fits.residuals[0], np.finfo(float).tiny)
 
 
 def _noise_regions(noise: np.ndarray) -> np.ndarray:

@@ -19,6 +19,15 @@ are the point's own surface). The point's vote is the share of its rays along
 armpit, the gap between two legs) see no escape either way (vote 0) and keep
 their side.
 
+On a noisy cloud a point's own surface is a layer as thick as the noise: a
+point low in it sees its neighbours' discs above it, and on an open noisy tube
+its outward rays stop there while its inward ones leave through the ends. So
+hits within :data:`NOISE_CLEARANCE` noise deviations are the point's own
+surface too (:func:`own_layer`), but only where the kernel choice's residual is
+noise: on a coarse mesh the residual is the facets' misfit, as large as its
+thin parts are thick, and widening the clearance there would hide the far side
+of a leg.
+
 The occluders are the winding number's sources (every point of a small cloud,
 a sample of a large one: the same sample in a tiled run), their discs as wide as
 the distance to their :data:`DISC_NEIGHBOURS`-th nearest source, so that a
@@ -34,7 +43,8 @@ from .._kernels.visibility import escaping_rays
 from ..geometry.validation import row_hashes
 from ..tuning import TUNING
 
-__all__ = ["CONE", "DISC_NEIGHBOURS", "MAX_TESTED", "REACH", "escape_votes", "escaping_turns", "lowest_keys"]
+__all__ = ["CONE", "DISC_NEIGHBOURS", "MAX_TESTED", "NOISE_CLEARANCE", "REACH", "escape_votes", "escaping_turns",
+           "lowest_keys", "own_layer"]
 
 #: The rays around each side of a normal: (angle from the normal in degrees, rays at that angle).
 CONE = ((0.0, 1), (30.0, 6), (60.0, 8))
@@ -42,12 +52,33 @@ CONE = ((0.0, 1), (30.0, 6), (60.0, 8))
 DISC_NEIGHBOURS = 6
 #: Hits nearer than this many median occluder spacings are the point's own surface.
 REACH = 1.5
+#: Hits nearer than this many noise deviations are the point's own surface: two points of one noisy
+#: surface lie up to about three deviations either side of it.
+NOISE_CLEARANCE = 6.0
 #: Most points tested in one cloud (those of lowest coordinate rank, :func:`lowest_keys`).
 MAX_TESTED = 100_000
 
 
+def own_layer(sigma: float, rise: float) -> float:
+    """The distance within which a ray's hits are its point's own surface, beyond :data:`REACH` spacings.
+
+    Parameters
+    ----------
+    sigma : float
+        The kernel choice's noise (:attr:`heatcurv.choice.scale.ScaleChoice.sigma`), in the points' unit.
+    rise : float
+        Its :attr:`heatcurv.choice.scale.ScaleChoice.residual_rise` (NaN: not measured).
+
+    Returns
+    -------
+    float
+        ``NOISE_CLEARANCE * sigma`` where the residual is noise (``rise <= TUNING.noise_rise``), else 0.
+    """
+    return NOISE_CLEARANCE * sigma if rise <= TUNING.noise_rise else 0.0
+
+
 def escape_votes(points: np.ndarray, normals: np.ndarray, occluders: np.ndarray,
-                 occluder_normals: np.ndarray) -> np.ndarray:
+                 occluder_normals: np.ndarray, layer: float = 0.0) -> np.ndarray:
     """The share of each point's rays that escape along its normal minus the share that escape against it.
 
     Parameters
@@ -60,6 +91,8 @@ def escape_votes(points: np.ndarray, normals: np.ndarray, occluders: np.ndarray,
         The discs' centres (``s >= DISC_NEIGHBOURS + 1``).
     occluder_normals : ndarray, shape (s, 3)
         The discs' unit axes (either sign).
+    layer : float, optional
+        Hits this near are the point's own surface too (:func:`own_layer`).
 
     Returns
     -------
@@ -77,12 +110,12 @@ def escape_votes(points: np.ndarray, normals: np.ndarray, occluders: np.ndarray,
     radius = np.clip(radius, 1e-3 * spacing, 2.0 * np.median(radius))
     # one grid for both fans: the points twice, along their normals, then against them
     escaped = escaping_rays(np.concatenate([points, points]), np.concatenate([_fan(normals), _fan(-normals)]),
-                            REACH * spacing, occluders, occluder_normals, radius)
+                            max(REACH * spacing, layer), occluders, occluder_normals, radius)
     return (escaped[:m] - escaped[m:]) / sum(count for _, count in CONE)
 
 
 def escaping_turns(points: np.ndarray, normals: np.ndarray, tested: np.ndarray, occluders: np.ndarray,
-                   occluder_normals: np.ndarray) -> np.ndarray:
+                   occluder_normals: np.ndarray, layer: float = 0.0) -> np.ndarray:
     """The tested points whose rays escape clearly more against their normal than along it.
 
     Parameters
@@ -93,6 +126,7 @@ def escaping_turns(points: np.ndarray, normals: np.ndarray, tested: np.ndarray, 
         rank (:func:`heatcurv.geometry.validation.row_hashes`, the same in any
         tile).
     occluders, occluder_normals : ndarray, shape (s, 3)
+    layer : float, optional
         As :func:`escape_votes`.
 
     Returns
@@ -103,7 +137,7 @@ def escaping_turns(points: np.ndarray, normals: np.ndarray, tested: np.ndarray, 
     rows = np.flatnonzero(tested)
     rows = rows[lowest_keys(row_hashes(points[rows]))]
     turn = np.zeros(points.shape[0], dtype=bool)
-    votes = escape_votes(points[rows], normals[rows], occluders, occluder_normals)
+    votes = escape_votes(points[rows], normals[rows], occluders, occluder_normals, layer)
     turn[rows[votes < -TUNING.escape_margin]] = True
     return turn
 

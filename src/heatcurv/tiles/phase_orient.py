@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from ..orient.enclosure import warn_undecided
+from ..orient.visibility import own_layer
 from . import compute
 from .context import SurveyContext
 from .job import Job
@@ -53,7 +54,9 @@ def orient_cloud(run: Job, plan: TilePlan, context: SurveyContext, timings: dict
     orientation["second_sheet"] = flag_second_sheets(results_path, tile_files, flips)
     if sides is not None and (sides.closed or sides.undecided):
         alpha = compute.resolved_options(run.options).alpha
-        report, escaping = flag_unsupported(results_path, run.source, context.choices.frame, sides, alpha, flips)
+        scale = context.choices.scale
+        report, escaping = flag_unsupported(results_path, run.source, context.choices.frame, sides, alpha, flips,
+                                            own_layer(scale.sigma, scale.residual_rise))
         orientation.update(report)
         flips.append(("row", escaping, np.ones(escaping.size, dtype=bool)))
     timings["orientation"] = time.perf_counter() - tic

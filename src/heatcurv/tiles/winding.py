@@ -255,7 +255,7 @@ def winding_sides(tile_files: dict, seam_keys: np.ndarray, seam_flip: np.ndarray
                         sides.upward_components)
 
 
-def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: float, flips,
+def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: float, flips, layer: float = 0.0,
                      chunk: int = 1 << 20) -> tuple[dict, np.ndarray]:
     """Clear ``reliable`` in ``results.rec`` where the winding number contradicts a point's side (closed clouds),
     and find the points not reliable that face away from where their rays escape.
@@ -288,6 +288,10 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
     flips : list
         The seam and winding flips so far (:func:`.output.chunk_flips`): a
         point's side is its record's turned by them.
+    layer : float, optional
+        The rays' noise layer, stages' units (:func:`heatcurv.orient.visibility.own_layer`).
+    chunk : int, optional
+        Rows read at a time.
 
     Returns
     -------
@@ -328,7 +332,7 @@ def flag_unsupported(results_path, source, frame, sides: WindingSides, alpha: fl
         tested = _lowest({"key": row_hashes(x), "row": rows + start, "x": x, "normals": normals}, tested)
     occluder_normals = np.memmap(results_path, dtype=RECORD, mode="r")[sides.rows]["normals"]
     # the tested points are already those of lowest rank: their votes as escaping_turns reads them
-    turn = escape_votes(tested["x"], tested["normals"], sides.x, occluder_normals) < -TUNING.escape_margin
+    turn = escape_votes(tested["x"], tested["normals"], sides.x, occluder_normals, layer) < -TUNING.escape_margin
     rows = np.sort(tested["row"][turn])
     return {"turned": turned, "unsupported": unsupported, "escaped": int(rows.size)}, rows
 
