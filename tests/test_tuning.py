@@ -2,6 +2,7 @@
 
 import ast
 import dataclasses
+import re
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,8 @@ from heatcurv.surfaces import Torus
 from heatcurv.tuning import TUNING, Tuning, reasons
 
 SRC = Path(heatcurv.__file__).parent
+#: The page whose "## Thresholds" section holds what was measured when each value was set.
+HOW_IT_WORKS = Path(__file__).parent.parent / "docs" / "how_it_works.md"
 
 #: The stages that pick a fit path or flag a point.
 DECISION_MODULES = (
@@ -36,6 +39,19 @@ def test_every_threshold_has_a_one_line_reason():
     assert set(said) == {f.name for f in dataclasses.fields(Tuning)} and len(said) >= 60
     for name, reason in said.items():
         assert reason and "\n" not in reason and len(reason) <= 120, name
+
+
+def test_every_threshold_is_in_the_thresholds_table():
+    """Each field of :class:`Tuning` is named in docs/how_it_works.md's thresholds section (what was measured).
+
+    The name must stand as a word of its own (``TUNING.noise_levels`` or ``noise_levels``): ``low_noise_levels``
+    does not name ``noise_levels``.
+    """
+    text = HOW_IT_WORKS.read_text(encoding="utf-8")
+    assert "\n## Thresholds\n" in text
+    section = text.split("\n## Thresholds\n", 1)[1].split("\n## ", 1)[0]
+    missing = [f.name for f in dataclasses.fields(Tuning) if not re.search(rf"(?<!\w){f.name}(?!\w)", section)]
+    assert not missing, f"fields of Tuning not in docs/how_it_works.md, section Thresholds: {missing}"
 
 
 def test_the_thresholds_are_frozen_and_a_study_replaces_them():

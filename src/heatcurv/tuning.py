@@ -45,7 +45,7 @@ class Tuning:
 
     # --- the noise gate and the kernel choice (heatcurv.choice.scale) ---
     #: Largest noise of a clean cloud, in spacings, beside the gate's residual ratio: strong noise saturates the
-    #: chord residual (``|kN| <= 1 / |z|``) so the ratio alone cannot tell; clean clouds stay below 3.5e-4.
+    #: chord residual (``|kN| <= 1 / |z|``) so the ratio alone cannot tell; clean clouds stay far below it.
     clean_noise_limit: float = _knob(0.01, "noise past which no cloud is clean, whatever the chord/denoised ratio")
     #: Upper end of the very-low-noise band (:attr:`heatcurv.choice.scale.ScaleChoice.low_noise`): above the
     #: rounding of a LAZ file's millimetres and synthetic noise up to 1e-4 of the diagonal, below 0.12 % noise
@@ -63,8 +63,8 @@ class Tuning:
     #: less than :attr:`noise_growth` (bias grows as ``R^2``, a factor 2 a doubling).
     noise_levels: int = _knob(4, "candidate widths whose residuals measure the noise")
     noise_growth: float = _knob(1.5, "rise of the residual per doubling below which it is still noise, not bias")
-    #: A LiDAR tile's tree crowns (4 % of its points) were otherwise fitted as a noisier surface and passed as
-    #: reliable; a low-poly bone's coarser facets (10-25 %) took a kernel too wide for its normals.
+    #: A few per cent of vegetation or edges is no noisier surface: fitted as one, a LiDAR tile's tree crowns
+    #: passed as reliable and a low-poly bone's coarser facets took a kernel too wide for its normals.
     min_region: float = _knob(0.25, "smallest share of the centres a noise region of its own must hold")
     tau_local: float = _knob(3.0, "standard deviations of a local bias before it narrows a region's kernel")
     #: A tiled run's halo must hold the widest candidate ball: twice the widest any of our noisy clouds chose.
@@ -159,7 +159,8 @@ class Tuning:
     #: An open sheet curved like a bowl has levels near 0 and 1/2.
     closed_share: float = _knob(0.3, "share of the area with clean winding levels from which a cloud is closed")
     closed_tolerance: float = _knob(0.25, "distance of a clean winding level from 0 or 1")
-    #: Closed models a few points across their legs 0.12-0.26; open scans and turned tiles 0.06-0.19.
+    #: Closed models a few points across their legs score between open scans and closed objects; what tells
+    #: them from an open scene is their outside levels (outside_share).
     undecided_share: float = _knob(0.1, "clean-level share from which, below closed_share, a cloud is undecided")
     #: Median PCA roundness of the sources' balls: CGAL's coarse models (elk, dino, elephant at a quarter to a
     #: half of their vertices) 0.27-0.47; open clouds (terrain, a LiDAR tile, a face, graphs, an arch) 0.00-0.01.
@@ -203,8 +204,8 @@ class Tuning:
     isolation_factor: float = _knob(3.0, "d_6 over its ball's median d_6 that isolates a point")
     ball_ratio_max: float = _knob(2.0, "ball radius over the neighbours' median that isolates a point")
     own_share: float = _knob(0.5, "least share of a ball in the point's own component; most of it strays")
-    #: With 60 neighbours the interior offset has a standard deviation of about 0.065 R per axis: 1 false alarm in
-    #: 1700 interior points; a point on a straight border has 0.42 R.
+    #: Well above an interior ball's offset, which shrinks as ``R / sqrt(k)``, and below a straight border's: its
+    #: ball is a half disc, whose centroid lies ``4 R / (3 pi) = 0.42 R`` inside.
     border_offset: float = _knob(0.25, "centroid offset (ball radii) above which a point is on a border")
     #: The chord fit interpolates (2.4 effective neighbours: 0.13 % off), the tensor fit averages (5.4: 8 % off).
     chord_support: tuple = _knob((2.0, 3.0), "median effective neighbours of the chord fit below which it is an "
