@@ -15,12 +15,13 @@ from heatcurv.tuning import TUNING
 def _reference_escapes(origins, directions, reach, centres, axes, radii):
     """Every ray against every disc with numpy: the rays that hit none beyond ``reach``."""
     out = np.zeros(len(origins), dtype=np.int64)
+    reach = np.broadcast_to(reach, directions.shape[1:2])
     for a, o in enumerate(origins):
-        for d in directions[a]:
+        for r, d in enumerate(directions[a]):
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = np.einsum("ij,ij->i", centres - o, axes) / (axes @ d)
                 off = o + t[:, None] * d - centres
-                hit = (t > reach) & (np.einsum("ij,ij->i", off, off) <= radii**2)
+                hit = (t > reach[r]) & (np.einsum("ij,ij->i", off, off) <= radii**2)
             out[a] += not hit.any()
     return out
 
@@ -35,10 +36,12 @@ def test_ray_kernel_matches_numpy():
     directions = rng.normal(size=(300, 7, 3))
     directions /= np.linalg.norm(directions, axis=2, keepdims=True)
     directions[:5, 0] = [1.0, 0.0, 0.0]  # along a grid axis: the walk's ties
-    got = escaping_rays(origins, directions, 0.05, centres, axes, radii)
-    want = _reference_escapes(origins, directions, 0.05, centres, axes, radii)
-    assert 0 < want.sum() < 300 * 7  # rays both hit and escape
-    np.testing.assert_array_equal(got, want)
+    for reach in (0.05, np.linspace(0.0, 0.6, 7)):  # one for every ray, or one per ray of the fan
+        got = escaping_rays(origins, directions, reach, centres, axes, radii)
+        want = _reference_escapes(origins, directions, reach, centres, axes, radii)
+        assert 0 < want.sum() < 300 * 7  # rays both hit and escape
+        np.testing.assert_array_equal(got, want)
+    assert not np.array_equal(want, _reference_escapes(origins, directions, 0.05, centres, axes, radii))
 
 
 def test_the_fan_is_unit_rays_around_each_normal():
@@ -94,23 +97,21 @@ def test_on_a_noisy_surface_the_noise_layer_is_the_points_own_surface():
     points, outward, sigma = _noisy_tube(3000, 1.0)
     tested = np.ones(len(points), dtype=bool)
     assert escaping_turns(points, outward, tested, points, outward).sum() > 500
-    # past the layer of NOISE_CLEARANCE deviations they escape outward (measured: 12 turned)
-    assert escaping_turns(points, outward, tested, points, outward, own_layer(sigma, 1.0)).sum() <= 24
+    # past the layer of NOISE_CLEARANCE deviations (farther along a slanted ray) they escape outward
+    assert escaping_turns(points, outward, tested, points, outward, own_layer(sigma, 1.0)).sum() == 0
     # the layer holds only where the residual is noise
     assert own_layer(sigma, 1.0) == NOISE_CLEARANCE * sigma
     assert own_layer(sigma, TUNING.noise_rise * 1.01) == own_layer(sigma, np.nan) == 0.0
 
 
-def test_a_noisy_open_tube_keeps_its_side(records):
+def test_a_noisy_open_tube_keeps_its_side():
     # as short as it is wide, its sides' levels disagree (undecided) and every point is tested: without the
     # noise layer 775 of its 3000 points turned inside out
     points, outward, _ = _noisy_tube(3000, 1.0)
     with pytest.warns(heatcurv.HeatcurvWarning, match="cannot tell whether the cloud encloses a volume"):
         res = heatcurv.estimate(points)
     assert res.info["scale"].residual_rise < TUNING.noise_rise
-    inward = np.einsum("ij,ij->i", res.normals, outward) < 0
-    assert not np.any(inward & res.reliable)
-    records.check("visibility/noisy-open-tube-3000", inward=100 * inward.mean())
+    assert np.all(np.einsum("ij,ij->i", res.normals, outward) > 0) and res.info["orientation"].escaped == 0
 
 
 def test_past_the_cap_the_lowest_keys_are_tested():

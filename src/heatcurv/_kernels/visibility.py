@@ -23,7 +23,7 @@ from . import ROW_CORE, as_floats, parallel_rows
 __all__ = ["escaping_rays"]
 
 
-def escaping_rays(origins, directions, reach: float, centres, axes, radii) -> np.ndarray:
+def escaping_rays(origins, directions, reach, centres, axes, radii) -> np.ndarray:
     """How many of each origin's rays leave the grid without hitting a disc beyond ``reach``.
 
     Parameters
@@ -31,8 +31,8 @@ def escaping_rays(origins, directions, reach: float, centres, axes, radii) -> np
     origins : ndarray, shape (m, 3)
     directions : ndarray, shape (m, k, 3)
         Unit directions of each origin's ``k`` rays.
-    reach : float
-        Hits at this distance from the origin or nearer do not count.
+    reach : float or ndarray, shape (k,)
+        Hits at this distance from the origin or nearer do not count (one per ray of a fan).
     centres, axes : ndarray, shape (s, 3)
         The discs' centres and unit axes.
     radii : ndarray, shape (s,)
@@ -63,7 +63,8 @@ def escaping_rays(origins, directions, reach: float, centres, axes, radii) -> np
     starts = np.append(starts, keys.size).astype(np.int64)
     out = np.zeros(origins.shape[0], dtype=np.int64)
     grid = (as_floats(lo), float(side), dims, cells, starts, owners)
-    parallel_rows(_escaping_rows, out.shape[0], origins, as_floats(directions), float(reach), grid, centres,
+    reach = np.broadcast_to(np.asarray(reach, dtype=np.float64), directions.shape[1:2]).copy()
+    parallel_rows(_escaping_rows, out.shape[0], origins, as_floats(directions), reach, grid, centres,
                   as_floats(axes), radii * radii, out)
     return out
 
@@ -101,7 +102,7 @@ def _escaping_rows(row0, row1, origins, directions, reach, grid, centres, axes, 
                             continue
                         t = ((centres[j, 0] - ox) * axes[j, 0] + (centres[j, 1] - oy) * axes[j, 1]
                              + (centres[j, 2] - oz) * axes[j, 2]) / den
-                        if t <= reach:
+                        if t <= reach[r]:
                             continue
                         hx = ox + t * dx - centres[j, 0]
                         hy = oy + t * dy - centres[j, 1]

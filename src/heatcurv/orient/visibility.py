@@ -22,8 +22,9 @@ their side.
 On a noisy cloud a point's own surface is a layer as thick as the noise: a
 point low in it sees its neighbours' discs above it, and on an open noisy tube
 its outward rays stop there while its inward ones leave through the ends. So
-hits within :data:`NOISE_CLEARANCE` noise deviations are the point's own
-surface too (:func:`own_layer`), but only where the kernel choice's residual is
+hits within :data:`NOISE_CLEARANCE` noise deviations (along a slanted ray, as
+far as it takes to cross that layer) are the point's own surface too
+(:func:`own_layer`), but only where the kernel choice's residual is
 noise: on a coarse mesh the residual is the facets' misfit, as large as its
 thin parts are thick, and widening the clearance there would hide the far side
 of a leg.
@@ -60,7 +61,7 @@ MAX_TESTED = 100_000
 
 
 def own_layer(sigma: float, rise: float) -> float:
-    """The distance within which a ray's hits are its point's own surface, beyond :data:`REACH` spacings.
+    """How far from its point, along the normal, a ray's hits are the point's own surface (besides :data:`REACH`).
 
     Parameters
     ----------
@@ -92,7 +93,8 @@ def escape_votes(points: np.ndarray, normals: np.ndarray, occluders: np.ndarray,
     occluder_normals : ndarray, shape (s, 3)
         The discs' unit axes (either sign).
     layer : float, optional
-        Hits this near are the point's own surface too (:func:`own_layer`).
+        The thickness of the point's own surface (:func:`own_layer`): a ray at angle ``a``
+        from the normal ignores hits within ``layer / cos(a)`` too.
 
     Returns
     -------
@@ -109,8 +111,10 @@ def escape_votes(points: np.ndarray, normals: np.ndarray, occluders: np.ndarray,
     # a sparse spot's disc is no wider than twice the median's (the grid's cells are as wide as the widest)
     radius = np.clip(radius, 1e-3 * spacing, 2.0 * np.median(radius))
     # one grid for both fans: the points twice, along their normals, then against them
+    # a slanted ray meets a neighbour's disc in the layer farther from its point, by 1 / cos of its angle
+    slant = np.concatenate([np.full(count, 1.0 / np.cos(np.radians(angle))) for angle, count in CONE])
     escaped = escaping_rays(np.concatenate([points, points]), np.concatenate([_fan(normals), _fan(-normals)]),
-                            max(REACH * spacing, layer), occluders, occluder_normals, radius)
+                            np.maximum(REACH * spacing, layer * slant), occluders, occluder_normals, radius)
     return (escaped[:m] - escaped[m:]) / sum(count for _, count in CONE)
 
 
