@@ -13,6 +13,7 @@ from heatcurv.choice.scale import in_low_noise_band
 from heatcurv.fits.anchors import (
     anchor_rows,
     anchors_per_ball,
+    ball_roundness,
     carry_degree,
     carry_fits,
     fit_anchors,
@@ -441,3 +442,41 @@ def test_fine_rounding_takes_the_plain_denoised_fit(monkeypatch, records):
     assert path.info["plan"].refit
     assert median_error(res) < 0.5 * median_error(path)
     records.check("anchors/torus-random-200000-6-decimals", median_mean=100 * median_error(res))
+
+
+@pytest.mark.parametrize("chord", [0.5, 2**0.5, 1.8])
+def test_ball_roundness_of_a_spherical_cap(chord):
+    # a ball of radius R centred on the unit sphere holds a cap of cos(theta) = c = 1 - R^2 / 2; uniform
+    # over it (Archimedes: z uniform on [c, 1]) Var(z) = (1 - c)^2 / 12 and each tangential variance
+    # (1 - c)(2 + c) / 6, so lambda_0 / lambda_1 = (1 - c) / (2 (2 + c)): 0.022 for a small cap, 0.25 for a
+    # hemisphere, 0.59 when the ball reaches far round the sphere
+    points = surfaces.Sphere().sample(40_000, "fibonacci").points
+    c = 1.0 - chord**2 / 2
+    k = int(round(points.shape[0] * (1.0 - c) / 2))
+    centres = np.array([0, 12_345, 39_999])
+    nbhd = knn_neighbourhood(points, k, queries=points[centres])
+    c_ball = 1.0 - nbhd.radius**2 / 2  # the k-th neighbour's distance is the cap's chord
+    exact = (1.0 - c_ball) / (2.0 * (2.0 + c_ball))
+    np.testing.assert_allclose(ball_roundness(points, nbhd, centres), exact, rtol=0.01)
+
+
+def test_a_cup_narrower_than_the_noisy_kernel_is_flagged_not_guessed(monkeypatch):
+    # z = 5 (x^2 + y^2): radius of curvature 0.1 at the bottom; noise of 0.6 % of the diagonal (0.062) makes the
+    # kernel choice take 1920 neighbours, balls about 1 across. Over the bottom they are round (the surface
+    # turns by more than a right angle within them): 132 reliable normals were 30-90 degrees off there, the
+    # mean curvature 75-97 % low. Those balls are now flagged; the rest of the cup keeps its values.
+    sample = surfaces.Paraboloid(a=5.0).sample(20_000, "random", seed=1, noise=0.006)
+    radial = np.hypot(sample.clean_points[:, 0], sample.clean_points[:, 1])
+
+    def off_by_30_degrees(result):
+        cosine = np.abs(np.einsum("ij,ij->i", result.normals, sample.normals))
+        return np.count_nonzero(result.reliable & (cosine < np.cos(np.radians(30))))
+
+    res = heatcurv.estimate(sample.points)
+    assert res.info["plan"].k >= 960 and res.info["scale"].anchors > 0
+    assert res.info["scale"].residual_rise <= TUNING.noise_rise  # the residual is noise (1.18)
+    assert off_by_30_degrees(res) == 0
+    assert not res.reliable[radial < 0.2].any()
+    assert res.reliable.mean() > 0.85  # 18 190 of 20 000: the bottom and the border
+    monkeypatch.setattr("heatcurv.fit_stages.TUNING", dataclasses.replace(TUNING, round_ball=np.inf))
+    assert off_by_30_degrees(heatcurv.estimate(sample.points)) > 100

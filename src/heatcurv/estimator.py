@@ -267,6 +267,8 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: Fitted, ball_shape, orie
     local = ~nbhd.augmented & (planarity >= TUNING.planarity_min) & pc.well_posed & (areas > 0) & ~fitted.border
     local &= op.area_solve.converged & ~orientation.ambiguous & ~outliers.mask
     local &= ~_no_surface(fitted, axisless_balls(roundness, orientation.report.mode))
+    if fitted.wrapped is not None:  # a wide kernel's ball round about the point: no tangent plane to fit over
+        local &= ~fitted.wrapped
     if coarse is not None:
         local &= ~coarse
     m = op.points.shape[0]

@@ -52,11 +52,11 @@ from .._kernels import anchors as kernels
 from ..backend import map_blocks
 from ..fits.balls import Scale, fit_balls
 from ..flags.border import centroid_offset
-from ..geometry.neighbourhood import block_ranges, knn_neighbourhood, rows_per_block
+from ..geometry.neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
 from ..geometry.sampling import key_thinning
 from ..operators.areas import density_areas
 from ..operators.kernel import tapered_heat_weights
-from ..orient.normals import tangent_frames
+from ..orient.normals import pca_normals, tangent_frames
 from ..orient.orientation import Orientation, orient
 from ..tuning import TUNING
 from .chordfit import ChordFit
@@ -64,7 +64,7 @@ from .principal import PrincipalCurvatures, tensor_to_principal
 
 __all__ = [
     "CARRIED_ANCHORS", "PCA_NEIGHBOURS", "REGRESSED_ANCHORS", "AnchorFits", "CarriedFit", "anchor_normals",
-    "anchor_rows", "anchors_per_ball", "carry_degree", "carry_fits", "fit_anchors",
+    "anchor_rows", "anchors_per_ball", "ball_roundness", "carry_degree", "carry_fits", "fit_anchors",
 ]
 
 #: Anchors each point's values are carried from (the farthest gets weight 0).
@@ -98,6 +98,8 @@ class AnchorFits:
         Tangential centroid offset of each ball in ball radii (:func:`heatcurv.flags.border.centroid_offset`).
     density_area : ndarray, shape (m,)
         Area per point at the anchor, from its ball's count (:func:`heatcurv.operators.areas.density_areas`).
+    roundness : ndarray, shape (m,)
+        ``lambda_0 / lambda_1`` of each ball's plain covariance (:func:`ball_roundness`).
     """
 
     index: np.ndarray
@@ -106,6 +108,7 @@ class AnchorFits:
     radius: np.ndarray
     offset: np.ndarray
     density_area: np.ndarray
+    roundness: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -118,10 +121,10 @@ class CarriedFit:
         Unit normals.
     principal : PrincipalCurvatures
         ``well_posed`` is False where no usable anchor reached the point.
-    sigma, offset, radius, density_area : ndarray, shape (n,)
+    sigma, offset, radius, density_area, roundness : ndarray, shape (n,)
         The anchors' residual (the most-weighted anchor's: averaged, a tree
         crown's residuals were diluted by the ground's around it), centroid
-        offset, ball radius and area per point (weighted as the curvatures).
+        offset, ball radius, area per point and ball roundness (weighted as the curvatures).
     noise : ndarray, shape (n,)
         The anchors' noise estimate (:attr:`heatcurv.fits.chordfit.ChordFit.noise`), weighted as the curvatures.
     noise_factors : ndarray, shape (n, 5)
@@ -138,6 +141,7 @@ class CarriedFit:
     offset: np.ndarray
     radius: np.ndarray
     density_area: np.ndarray
+    roundness: np.ndarray
     noise: np.ndarray
     noise_factors: np.ndarray
     support: np.ndarray
@@ -360,7 +364,7 @@ def fit_anchors(
     """
     index, k = np.asarray(index), np.asarray(k)
     m = index.shape[0]
-    radius, offset, density = np.empty(m), np.empty(m), np.empty(m)
+    radius, offset, density, roundness = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
 
     def fit_block(rows: np.ndarray, width: int) -> tuple:
         # two passes (a tilt-refined normal, then the curvatures) unless the normals are the caller's
@@ -371,6 +375,7 @@ def fit_anchors(
         )
         offset[rows] = centroid_offset(points, nbhd, fit.normals, taper=taper, centres=points[index[rows]])
         density[rows] = density_areas(nbhd)
+        roundness[rows] = ball_roundness(points, nbhd, index[rows])
         radius[rows] = nbhd.radius
         return rows, fit
 
@@ -395,7 +400,34 @@ def fit_anchors(
     back = np.empty(m, dtype=np.int64)
     back[np.concatenate(slots)] = np.arange(m)
     fit = ChordFit.concatenate(parts).take(back)
-    return AnchorFits(index=index, k=k, fit=fit, radius=radius, offset=offset, density_area=density)
+    return AnchorFits(index=index, k=k, fit=fit, radius=radius, offset=offset, density_area=density,
+                      roundness=roundness)
+
+
+def ball_roundness(points: np.ndarray, nbhd: Neighbourhood, centres: np.ndarray) -> np.ndarray:
+    """``lambda_0 / lambda_1`` of the plain covariance of each ball of ``nbhd`` (rows centred at ``points[centres]``).
+
+    Near 0 for a disc of surface; towards 1 where the surface turns within the ball by about as
+    much as the ball is wide (the bottom of a cup narrower than the ball, a tube across it): such
+    a ball has no tangent plane for a height fit to be taken over.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 3)
+    nbhd : Neighbourhood
+        One row per centre, indices into ``points``.
+    centres : ndarray of int, shape (r,)
+
+    Returns
+    -------
+    ndarray, shape (r,)
+        NaN where ``lambda_1`` vanishes.
+    """
+    # the covariance kernel reads row i's centre at row i of its points: the centres go first
+    r = centres.shape[0]
+    shifted = Neighbourhood(nbhd.indptr, nbhd.indices.astype(np.int64) + r, nbhd.distances, nbhd.radius,
+                            nbhd.augmented, nbhd.by_distance)
+    return pca_normals(np.concatenate([points[centres], points]), shifted, roundness=True)[2]
 
 
 def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray | None = None,
@@ -435,7 +467,7 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
         return CarriedFit(
             normals=fit.normals if normals is None else normals, principal=fit.principal, sigma=fit.sigma,
             offset=anchors.offset, radius=anchors.radius, density_area=anchors.density_area,
-            noise=fit.noise, noise_factors=fit.noise_factors, support=anchors.radius,
+            roundness=anchors.roundness, noise=fit.noise, noise_factors=fit.noise_factors, support=anchors.radius,
             nearest=np.argsort(anchors.index),
         )
     if reference is None:
@@ -467,17 +499,18 @@ def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray |
     support[own] = anchors.radius
     return CarriedFit(
         normals=normals, principal=pc, sigma=values[:, 0], offset=values[:, 1], radius=values[:, 2],
-        density_area=values[:, 3], noise=values[:, 4], noise_factors=values[:, 5:], support=support,
-        nearest=nearest,
+        density_area=values[:, 3], roundness=values[:, 10], noise=values[:, 4], noise_factors=values[:, 5:10],
+        support=support, nearest=nearest,
     )
 
 
 def _anchor_scalars(anchors: AnchorFits) -> np.ndarray:
-    """The per-anchor values carried beside the fits, shape (m, 10): the residual ``sigma`` (carried as the
-    most-weighted anchor's), centroid offset, ball radius, density area, noise and the five noise factors."""
+    """The per-anchor values carried beside the fits, shape (m, 11): the residual ``sigma`` (carried as the
+    most-weighted anchor's), centroid offset, ball radius, density area, noise, the five noise factors and the
+    ball's roundness."""
     fit = anchors.fit
     return np.column_stack([fit.sigma, anchors.offset, anchors.radius, anchors.density_area, fit.noise,
-                            fit.noise_factors])
+                            fit.noise_factors, anchors.roundness])
 
 
 def _carried_sums(points: np.ndarray, anchors: AnchorFits, reference: np.ndarray | None, carried: int,
@@ -490,7 +523,7 @@ def _carried_sums(points: np.ndarray, anchors: AnchorFits, reference: np.ndarray
         The weighted sum of the carried normals (not normalised).
     tensor : ndarray, shape (n, 6)
         The carried curvature tensor (``xx, xy, xz, yy, yz, zz``).
-    values : ndarray, shape (n, 10)
+    values : ndarray, shape (n, 11)
         The carried :func:`_anchor_scalars`; where no anchor's weight reached the point, the nearest anchor's.
     support : ndarray, shape (n,)
         Distance to the farthest anchor used plus its ball radius.
