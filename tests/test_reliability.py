@@ -84,3 +84,23 @@ def test_a_torus_whose_tube_is_three_spacings_across_is_too_coarse(seed):
         warnings.simplefilter("error", HeatcurvWarning)
         res = heatcurv.estimate(thick.points)
     assert res.reliable.mean() > 0.97 and res.info["resolution"] < TUNING.resolution_limit
+
+
+def test_balls_round_from_noise_are_not_called_a_coarse_cloud(tmp_path):
+    # a 20 000-point torus with noise of 3 % of its diagonal: the kernel choice measures noise of 0.69 of its
+    # spacing, the operator's balls are round from the noise alone; "sample it more densely" would make it worse
+    import heatcurv
+    from heatcurv import surfaces
+    from heatcurv.flags.reliability import noise_swamps_balls
+
+    sample = surfaces.Torus().sample(20_000, "random", seed=1, noise=0.03)
+    with pytest.warns(HeatcurvWarning, match="noise is about as thick as they are wide") as caught:
+        res = heatcurv.estimate(sample.points)
+    assert not any("Sample it more densely" in str(w.message) for w in caught)
+    assert noise_swamps_balls(res.info["scale"]) and res.info["resolution"] == np.inf and not res.reliable.any()
+    # a tiled run reads the same noise from its survey and says the same
+    src = tmp_path / "torus.npy"
+    np.save(src, sample.points)
+    with pytest.warns(HeatcurvWarning, match="noise is about as thick as they are wide"):
+        heatcurv.compute_file(src, tmp_path / "torus.ply", tile_size=5000, scheduler="serial", progress=False,
+                              fields=("mean", "reliable"))

@@ -58,6 +58,7 @@ from .flags.reliability import (
     cloud_flags,
     coordinate_rounding,
     imprecise,
+    noise_swamps_balls,
     precision_step,
     rounding_height_variance,
     rounding_uncertainty,
@@ -380,7 +381,7 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     inputs = _reliability_inputs(op, fitted, ball_shape, orientation, outliers, areas, coarse)
     back = prepared.to_input_order
     if whole_cloud:
-        reliable, resolution = cloud_flags(inputs, stacklevel=3)
+        reliable, resolution = cloud_flags(inputs, stacklevel=3, swamped=noise_swamps_balls(fitted.scale))
         extra = {}
         fitted, errors, orientation = _turned_to_escape(op, fitted, errors, orientation, ~reliable & ~outliers.mask,
                                                         timings)

@@ -35,7 +35,8 @@ from ..tuning import TUNING
 
 __all__ = [
     "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "imprecise", "misfit_baselines",
-    "misfits", "precision_step", "resolution", "rounding_height_variance", "rounding_uncertainty", "warn_too_coarse",
+    "misfits", "noise_swamps_balls", "precision_step", "resolution", "rounding_height_variance", "rounding_uncertainty",
+    "warn_too_coarse",
 ]
 
 
@@ -112,8 +113,19 @@ def resolution(rho: np.ndarray, counted: np.ndarray) -> float:
     return float(np.median(values)) if values.size else 0.0
 
 
-def warn_too_coarse(rho: float, stacklevel: int = 2) -> None:
-    """Warn that the cloud's resolution ``rho`` (:func:`resolution`) is past ``TUNING.resolution_limit``."""
+def warn_too_coarse(rho: float, stacklevel: int = 2, swamped: bool = False) -> None:
+    """Warn that the cloud's resolution ``rho`` (:func:`resolution`) is past ``TUNING.resolution_limit``.
+
+    ``swamped``: the kernel choice measured noise above ``TUNING.strong_noise`` (:func:`noise_swamps_balls`),
+    as thick as the operator's balls are wide; round balls then say that, not that the cloud is coarse.
+    """
+    if np.isinf(rho) and swamped:
+        warnings.warn("most of the cloud's balls are round, not flat: its noise is about as thick as they are "
+                      "wide; every value is marked unreliable. Denser sampling makes the noise thicker in "
+                      "spacings, not thinner; a wider neighbourhood (neighbours=, up to 1920) can average over it "
+                      "where the noise is small beside the curvature (check the reliable share and the standard "
+                      "errors).", HeatcurvWarning, stacklevel=stacklevel + 1)
+        return
     measure = ("most of its balls are round, not flat: the surface wraps around within them (a part a few "
                "spacings across), or the points fill a volume instead of lining a surface") if np.isinf(rho) else (
         f"a median point's spacing is {rho:.2g} radii of curvature (at most {TUNING.resolution_limit:g}: about 12 "
@@ -123,8 +135,14 @@ def warn_too_coarse(rho: float, stacklevel: int = 2) -> None:
                   f"{advice}.", HeatcurvWarning, stacklevel=stacklevel + 1)
 
 
+def noise_swamps_balls(scale) -> bool:
+    """Whether the kernel choice ``scale`` (a :class:`heatcurv.choice.scale.ScaleChoice` or its report; None:
+    no choice) measured noise above ``TUNING.strong_noise`` of its spacing, as thick as the operator's balls."""
+    return scale is not None and bool(scale.relative_noise > TUNING.strong_noise)
+
+
 def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolution_value: float | None = None,
-                stacklevel: int = 2) -> tuple[np.ndarray, float]:
+                stacklevel: int = 2, swamped: bool = False) -> tuple[np.ndarray, float]:
     """``reliable`` for every point, from the whole cloud's inputs.
 
     Parameters
@@ -136,6 +154,8 @@ def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolu
         tiles); default: from ``inputs``.
     stacklevel : int, optional
         Of the warning.
+    swamped : bool, optional
+        The noise is as thick as the operator's balls (:func:`noise_swamps_balls`): the warning says so.
 
     Returns
     -------
@@ -152,7 +172,7 @@ def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolu
     reliable = inputs.local & ~misfits(inputs.residual, inputs.width, baselines or {})
     rho = resolution(inputs.rho, inputs.counted) if resolution_value is None else resolution_value
     if rho > TUNING.resolution_limit:
-        warn_too_coarse(rho, stacklevel + 1)
+        warn_too_coarse(rho, stacklevel + 1, swamped)
         reliable = np.zeros_like(reliable)
     return reliable, rho
 

@@ -11,7 +11,7 @@ because every choice that is not a point's own is made once
   (:func:`survey_tile`, :mod:`heatcurv.choice.survey`), joined in key order and
   decided once (:func:`merge_surveys`);
 * the **medians** of the reliability flags after every tile is done
-  (:func:`finish_reliability`, from the per-point inputs each tile returns).
+  (:func:`heatcurv.tiles.medians.apply_cloud_flags`, from the per-point inputs each tile returns).
 
 Every other stage is local: a core point's values depend only on the points
 within its reach (:func:`compute_tile` returns it; the task's certificate
@@ -28,7 +28,6 @@ from ..choice.survey import GATE_LEVELS, fit_centres, join_keys, key_part, merge
 from ..choice.survey import merge_surveys as merge_centre_surveys
 from ..estimator import estimate
 from ..flags.outliers import find_outliers
-from ..flags.reliability import ReliabilityInputs, cloud_flags
 from ..geometry.validation import bounding_box_frame
 from ..operators.operator import HeatKernelOperator
 from ..options import Options, resolve_options
@@ -38,7 +37,7 @@ from .context import SurveyContext
 __all__ = [
     "survey_tile", "survey_halo", "survey_reach", "merge_surveys", "compute_tile", "cloud_frame", "describe",
     "key_halo", "key_tile", "plan_centres", "centre_reach", "gate_levels", "fit_tile_centres", "merge_rounds",
-    "orients_outward", "orients_automatically", "finish_reliability", "RESULT_FIELDS", "RELIABILITY_FIELDS",
+    "orients_outward", "orients_automatically", "RESULT_FIELDS", "RELIABILITY_FIELDS",
     "DEPTH", "HALO_MARGIN", "SURVEY_MARGIN", "ERRORS_HALO",
 ]
 
@@ -71,7 +70,7 @@ RESULT_FIELDS = {
     "normal_se": (1, np.float64),
 }
 #: The fields of :data:`RESULT_FIELDS` that hold :class:`heatcurv.flags.reliability.ReliabilityInputs`, in its order
-#: (``reliable`` holds its ``local`` flags until :func:`finish_reliability`).
+#: (``reliable`` holds its ``local`` flags until :func:`heatcurv.tiles.medians.apply_cloud_flags`).
 RELIABILITY_FIELDS = ("reliable", "misfit_residual", "fit_width", "resolution_rho", "counted")
 
 
@@ -302,7 +301,7 @@ def compute_tile(points: np.ndarray, core: np.ndarray, context: SurveyContext, o
     dict of str to ndarray
         The :data:`RESULT_FIELDS` of the core rows (shapes (c,) or (c, 3);
         ``reliable`` without the cloud-wide flags, which
-        :func:`finish_reliability` adds); ``support`` (c,): each core row's
+        :func:`heatcurv.tiles.medians.apply_cloud_flags` adds); ``support`` (c,): each core row's
         reach (its values depend on no point farther); ``halo_normals``
         (m - c, 3) of the halo rows; ``patch`` (m,) int: the connected pieces
         of the tile's surface, each of which the outward orientation signed on
@@ -351,33 +350,6 @@ def _unsettled_sheets(pairs, core: np.ndarray, out: dict, winding: dict) -> tupl
     out["reliable"][at] = False
     keep = mine & ~settled
     return p[keep], q[keep]
-
-
-def finish_reliability(columns, medians=None) -> tuple[np.ndarray, float]:
-    """``reliable`` of rows from their :data:`RELIABILITY_FIELDS` columns and the cloud's medians.
-
-    Parameters
-    ----------
-    columns : dict
-        The :data:`RELIABILITY_FIELDS` arrays of some rows.
-    medians : tuple, optional
-        ``(baselines, resolution)`` over the whole cloud
-        (:func:`heatcurv.flags.reliability.misfit_baselines`,
-        :func:`heatcurv.flags.reliability.resolution`); default: from these rows.
-
-    Returns
-    -------
-    reliable : ndarray of bool
-    resolution : float
-    """
-    residual = np.asarray(columns["misfit_residual"], dtype=float)
-    inputs = ReliabilityInputs(
-        np.asarray(columns["reliable"], dtype=bool), None if np.isnan(residual).all() else residual,
-        np.asarray(columns["fit_width"], dtype=np.int64), np.asarray(columns["resolution_rho"], dtype=float),
-        np.asarray(columns["counted"], dtype=bool),
-    )
-    baselines, rho = (None, None) if medians is None else medians
-    return cloud_flags(inputs, baselines, rho, stacklevel=3)
 
 
 def resolved_options(options: dict) -> Options:

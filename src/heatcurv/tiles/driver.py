@@ -241,7 +241,7 @@ def compute_file(
         context = survey(run, plan, timings, store.bar)
         name, workers, resumed = compute_tiles(run, plan, context, store, timings)
         run.pools.close()  # the last phase with workers: theirs is memory the phases left need
-        medians = cloud_flags(run, plan, timings)
+        medians = cloud_flags(run, plan, context, timings)
         flips, orientation = orient_cloud(run, plan, context, timings, store.bar)
         parameters = write(run, plan, context, medians, flips, timings, store.bar)
     except BaseException as exc:

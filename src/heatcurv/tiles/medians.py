@@ -80,14 +80,16 @@ def streaming_medians(chunks) -> dict:
     return medians
 
 
-def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 20) -> dict:
+def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 20, swamped: bool = False) -> dict:
     """Add the cloud-wide reliability flags to ``results.rec`` (its ``reliable`` column holds the local ones).
 
     The medians (each kernel width's residual, the resolution) are taken over
     every computed, counted row (:func:`streaming_medians`), exactly as
     :func:`heatcurv.flags.reliability.cloud_flags` takes them in memory; then each
     chunk's rows whose ``reliable`` the flags turn are rewritten in place. ``finite``: the rows every tile
-    together computed; fewer computed rows mean scratch files went missing.
+    together computed; fewer computed rows mean scratch files went missing. ``swamped``: the survey's
+    kernel choice measured noise as thick as the operator's balls
+    (:func:`heatcurv.flags.reliability.noise_swamps_balls`), which the warning of a coarse cloud then names.
 
     Returns
     -------
@@ -133,7 +135,7 @@ def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 2
     baselines = {k: max(v, TUNING.misfit_floor) for k, v in medians.items()}
     coarse = resolution > TUNING.resolution_limit
     if coarse:
-        warn_too_coarse(resolution, stacklevel=3)
+        warn_too_coarse(resolution, stacklevel=3, swamped=swamped)
     for start, block, _ in blocks():
         width = block["fit_width"]
         for k in np.unique(width).tolist():

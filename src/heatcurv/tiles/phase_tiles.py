@@ -16,6 +16,7 @@ import shutil
 import time
 from pathlib import Path
 
+from ..flags.reliability import noise_swamps_balls
 from . import job
 from .context import SurveyContext
 from .job import Job
@@ -113,10 +114,11 @@ def compute_tiles(run: Job, plan: TilePlan, context: SurveyContext, store: TileS
     return name, phase.workers, len(done)
 
 
-def cloud_flags(run: Job, plan: TilePlan, timings: dict) -> dict:
+def cloud_flags(run: Job, plan: TilePlan, context: SurveyContext, timings: dict) -> dict:
     """The flags that compare each point with the whole cloud's medians, once every tile is in."""
     tic = time.perf_counter()
-    medians = apply_cloud_flags(run.work / "results.rec", plan.stats.count, plan.stats.finite)
+    medians = apply_cloud_flags(run.work / "results.rec", plan.stats.count, plan.stats.finite,
+                                swamped=noise_swamps_balls(context.choices.scale))
     timings["reliability"] = time.perf_counter() - tic
     return medians
 
