@@ -117,14 +117,16 @@ def warn_too_coarse(rho: float, stacklevel: int = 2, swamped: bool = False) -> N
     """Warn that the cloud's resolution ``rho`` (:func:`resolution`) is past ``TUNING.resolution_limit``.
 
     ``swamped``: the kernel choice measured noise above ``TUNING.strong_noise`` (:func:`noise_swamps_balls`),
-    as thick as the operator's balls are wide; round balls then say that, not that the cloud is coarse.
+    as thick as the operator's balls are wide (or no surface at all: a volume reads as such noise);
+    round balls then say that, not that the cloud is too sparse.
     """
     if np.isinf(rho) and swamped:
         warnings.warn("most of the cloud's balls are round, not flat: its noise is about as thick as they are "
-                      "wide; every value is marked unreliable. Denser sampling makes the noise thicker in "
-                      "spacings, not thinner; a wider neighbourhood (neighbours=, up to 1920) can average over it "
-                      "where the noise is small beside the curvature (check the reliable share and the standard "
-                      "errors).", HeatcurvWarning, stacklevel=stacklevel + 1)
+                      "wide, or its points fill a volume instead of lining a surface; every value is marked "
+                      "unreliable. Denser sampling makes noise thicker in spacings, not thinner: check that it is "
+                      "a surface; a wider neighbourhood (neighbours=, up to 1920) can average over noise that is "
+                      "small beside the curvature (check the reliable share and the standard errors).",
+                      HeatcurvWarning, stacklevel=stacklevel + 1)
         return
     measure = ("most of its balls are round, not flat: the surface wraps around within them (a part a few "
                "spacings across), or the points fill a volume instead of lining a surface") if np.isinf(rho) else (
