@@ -91,7 +91,7 @@ def test_balls_round_from_noise_are_not_called_a_coarse_cloud(tmp_path):
     # spacing, the operator's balls are round from the noise alone; "sample it more densely" would make it worse
     import heatcurv
     from heatcurv import surfaces
-    from heatcurv.flags.reliability import noise_swamps_balls
+    from heatcurv.choice.plan import noise_swamps_balls
 
     sample = surfaces.Torus().sample(20_000, "random", seed=1, noise=0.03)
     with pytest.warns(HeatcurvWarning, match="noise is about as thick as they are wide") as caught:

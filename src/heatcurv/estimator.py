@@ -40,7 +40,7 @@ import numpy as np
 from .backend import threads
 from .choice.choices import frame_of
 from .choice.kernel_check import check_ball_counts, check_kernel
-from .choice.plan import plan_fit
+from .choice.plan import noise_swamps_balls, plan_fit
 from .fit_stages import (
     Fitted,
     anchored_fit_stages,
@@ -58,7 +58,6 @@ from .flags.reliability import (
     cloud_flags,
     coordinate_rounding,
     imprecise,
-    noise_swamps_balls,
     precision_step,
     rounding_height_variance,
     rounding_uncertainty,

@@ -36,10 +36,11 @@ from .tuning import TUNING
 class Fitted:
     """What the method-specific stages produce, over the distinct points (operator order).
 
-    ``wrapped`` (shape (m,), bool, or None where not assessed) marks the points of a noisy cloud
-    whose wide kernel's ball is round (``TUNING.round_ball``): the surface turns within it by about
-    as much as it is wide, so it has no tangent plane a height fit could be taken over, and under
-    that noise no narrower kernel resolves it either.
+    ``wrapped`` (shape (m,), bool, or None where the plan does not assess it:
+    :attr:`heatcurv.choice.plan.FitPlan.wrapped`) marks the points whose wide kernel's ball is round
+    (``TUNING.round_ball``): the surface turns within it by about as much as it is wide, so it has no
+    tangent plane a height fit could be taken over, and under that noise no narrower kernel resolves it
+    either.
     """
 
     normals: np.ndarray
@@ -304,22 +305,8 @@ def anchored_fit_stages(
     return Fitted(
         carried.normals, pc.mean, pc, areas, border, plan, report, carried.sigma, carried.radius, reoriented, k_point,
         carried.support, carried.mean_variance_factor, carried.noise, carried.noise_factors,
-        wrapped=_wrapped(carried.roundness, choice.residual_rise),
+        wrapped=carried.roundness > TUNING.round_ball if plan.wrapped else None,
     )
-
-
-def _wrapped(roundness: np.ndarray, rise: float) -> np.ndarray | None:
-    """Points whose anchors' balls are round (``roundness``, carried; shape (m,)), where the residual is noise.
-
-    Only the noise widens a kernel past what the surface allows (the kernel choice's
-    ``residual_rise`` at most ``TUNING.noise_rise``; NaN: not measured). On a coarse clean cloud
-    the wide balls are round wherever its parts are a few spacings across, and those points'
-    values are no worse than their neighbours': that is the cloud's resolution
-    (:func:`heatcurv.flags.reliability.resolution`), not a point's flag. None: not assessed.
-    """
-    if not rise <= TUNING.noise_rise:
-        return None
-    return roundness > TUNING.round_ball
 
 
 def _corrected_areas(

@@ -36,7 +36,7 @@ import numpy as np
 from ..fits.anchors import anchors_per_ball, carry_degree
 from ..tuning import TUNING
 
-__all__ = ["FORMS", "FitPlan", "plan_fit"]
+__all__ = ["FORMS", "FitPlan", "noise_swamps_balls", "plan_fit"]
 
 #: The fit forms a plan names: the chord fit, its denoised form (:mod:`heatcurv.fits.chordfit`) and the paper's
 #: tensor fit with or without its constraint (:mod:`heatcurv.fits.principal`).
@@ -72,6 +72,13 @@ class FitPlan:
         models, 3 the cubic regression of the anchors' own tensors (very low noise).
     keep_normals : bool
         The caller gave the normals: the fit keeps them.
+    wrapped : bool
+        Anchored on a cloud whose residual is noise (the kernel choice's ``residual_rise`` at most
+        ``TUNING.noise_rise``, the gate of the rays' noise layer too): a point whose anchors' balls are
+        round (``TUNING.round_ball``) is not reliable (:attr:`heatcurv.fit_stages.Fitted.wrapped`). Only
+        the noise widens a kernel past what the surface allows; on a coarse clean cloud the wide balls
+        are round wherever a part is a few spacings across, and that is the cloud's resolution
+        (:func:`heatcurv.flags.reliability.resolution`), not a point's flag.
     standard_errors : bool
         The chord fit's standard errors are computed (:mod:`heatcurv.fits.uncertainty`): with its own
         kernel choice (not ``radius=``), on a whole cloud (not a tile's part) and unless ``se=False``.
@@ -90,6 +97,7 @@ class FitPlan:
     refit: bool = False
     carry_degree: int = 0
     keep_normals: bool = False
+    wrapped: bool = False
     standard_errors: bool = True
     reason: str = ""
 
@@ -120,6 +128,7 @@ class FitPlan:
         widths = f", {self.k_min}-{self.k_max} neighbours by region" if self.k_min != self.k_max else ""
         extras = [text for flag, text in ((self.refit, "low-noise refit"),
                                           (self.anchor_normals, "anchors orient their own normals"),
+                                          (self.wrapped, "round wide balls flagged"),
                                           (self.keep_normals, "given normals kept")) if flag]
         return (f"{self.label}{widths}, {where}" + "".join(f"; {text}" for text in extras)
                 + (f" ({self.reason})" if self.reason else ""))
@@ -167,9 +176,15 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     low_noise = bool(choice.low_noise)
     if low_noise:
         why += "; very low noise"
-    strong = not keep_normals and choice.relative_noise > TUNING.strong_noise
+    strong = not keep_normals and noise_swamps_balls(choice)
     return FitPlan(
         "denoised", k=scale.k, k_min=k_min, k_max=k_max, anchored=True, anchors_per_ball=anchors_per_ball(low_noise),
         anchor_normals=strong, refit=low_noise, carry_degree=carry_degree(low_noise), keep_normals=keep_normals,
-        standard_errors=errors, reason=why,
+        wrapped=bool(choice.residual_rise <= TUNING.noise_rise), standard_errors=errors, reason=why,
     )
+
+
+def noise_swamps_balls(scale) -> bool:
+    """Whether the kernel choice ``scale`` (a :class:`heatcurv.choice.scale.ScaleChoice` or its report; None:
+    no choice) measured noise above ``TUNING.strong_noise`` of its spacing, as thick as the operator's balls."""
+    return scale is not None and bool(scale.relative_noise > TUNING.strong_noise)

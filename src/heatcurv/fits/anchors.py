@@ -423,11 +423,7 @@ def ball_roundness(points: np.ndarray, nbhd: Neighbourhood, centres: np.ndarray)
     ndarray, shape (r,)
         NaN where ``lambda_1`` vanishes.
     """
-    # the covariance kernel reads row i's centre at row i of its points: the centres go first
-    r = centres.shape[0]
-    shifted = Neighbourhood(nbhd.indptr, nbhd.indices.astype(np.int64) + r, nbhd.distances, nbhd.radius,
-                            nbhd.augmented, nbhd.by_distance)
-    return pca_normals(np.concatenate([points[centres], points]), shifted, roundness=True)[2]
+    return pca_normals(points, nbhd, roundness=True, centres=centres)[2]
 
 
 def carry_fits(points: np.ndarray, anchors: AnchorFits, *, normals: np.ndarray | None = None,

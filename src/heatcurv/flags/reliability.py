@@ -35,8 +35,7 @@ from ..tuning import TUNING
 
 __all__ = [
     "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "imprecise", "misfit_baselines",
-    "misfits", "noise_swamps_balls", "precision_step", "resolution", "rounding_height_variance", "rounding_uncertainty",
-    "warn_too_coarse",
+    "misfits", "precision_step", "resolution", "rounding_height_variance", "rounding_uncertainty", "warn_too_coarse",
 ]
 
 
@@ -116,9 +115,10 @@ def resolution(rho: np.ndarray, counted: np.ndarray) -> float:
 def warn_too_coarse(rho: float, stacklevel: int = 2, swamped: bool = False) -> None:
     """Warn that the cloud's resolution ``rho`` (:func:`resolution`) is past ``TUNING.resolution_limit``.
 
-    ``swamped``: the kernel choice measured noise above ``TUNING.strong_noise`` (:func:`noise_swamps_balls`),
-    as thick as the operator's balls are wide (or no surface at all: a volume reads as such noise);
-    round balls then say that, not that the cloud is too sparse.
+    ``swamped``: the kernel choice measured noise above ``TUNING.strong_noise``
+    (:func:`heatcurv.choice.plan.noise_swamps_balls`), as thick as the operator's balls are wide (or no
+    surface at all: a volume reads as such noise); round balls then say that, not that the cloud is too
+    sparse.
     """
     if np.isinf(rho) and swamped:
         warnings.warn("most of the cloud's balls are round, not flat: its noise is about as thick as they are "
@@ -137,12 +137,6 @@ def warn_too_coarse(rho: float, stacklevel: int = 2, swamped: bool = False) -> N
                   f"{advice}.", HeatcurvWarning, stacklevel=stacklevel + 1)
 
 
-def noise_swamps_balls(scale) -> bool:
-    """Whether the kernel choice ``scale`` (a :class:`heatcurv.choice.scale.ScaleChoice` or its report; None:
-    no choice) measured noise above ``TUNING.strong_noise`` of its spacing, as thick as the operator's balls."""
-    return scale is not None and bool(scale.relative_noise > TUNING.strong_noise)
-
-
 def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolution_value: float | None = None,
                 stacklevel: int = 2, swamped: bool = False) -> tuple[np.ndarray, float]:
     """``reliable`` for every point, from the whole cloud's inputs.
@@ -157,7 +151,8 @@ def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolu
     stacklevel : int, optional
         Of the warning.
     swamped : bool, optional
-        The noise is as thick as the operator's balls (:func:`noise_swamps_balls`): the warning says so.
+        The noise is as thick as the operator's balls (:func:`heatcurv.choice.plan.noise_swamps_balls`):
+        the warning says so.
 
     Returns
     -------

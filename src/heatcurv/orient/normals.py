@@ -30,7 +30,7 @@ __all__ = [
 
 def pca_normals(
     points: np.ndarray, nbhd: Neighbourhood, weights: np.ndarray | None = None, *, taper: bool = False,
-    roundness: bool = False, rows: np.ndarray | None = None,
+    roundness: bool = False, rows: np.ndarray | None = None, centres: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """Unoriented PCA normals of the ball neighbourhoods.
 
@@ -53,6 +53,9 @@ def pca_normals(
     rows : ndarray of int, shape (r,), optional
         Only these rows' normals (the same numbers as the full computation's
         rows); then every output has ``r`` rows. Not together with ``weights``.
+    centres : ndarray of int, shape (r,), optional
+        Row ``i`` of ``nbhd`` is a ball about ``points[centres[i]]`` (a neighbourhood queried at
+        other positions than its rows', e.g. anchors). Not together with ``weights`` or ``rows``.
 
     Returns
     -------
@@ -70,15 +73,17 @@ def pca_normals(
     """
     if weights is not None and taper:
         raise HeatcurvError("give pca_normals either weights or taper=True, not both")
-    if rows is not None:
-        if weights is not None:
-            raise HeatcurvError("give pca_normals either weights or rows, not both")
-        # the kernel reads row i's own point at points[i]: the chosen rows' points go first
-        rows = np.asarray(rows, dtype=np.int64)
-        nbhd = nbhd.take_rows(rows)
-        nbhd = Neighbourhood(nbhd.indptr, nbhd.indices.astype(np.int64) + rows.size, nbhd.distances, nbhd.radius,
+    if rows is not None or centres is not None:
+        if weights is not None or (rows is not None and centres is not None):
+            raise HeatcurvError("give pca_normals at most one of weights or rows or centres")
+        if rows is not None:
+            centres = np.asarray(rows, dtype=np.int64)
+            nbhd = nbhd.take_rows(centres)
+        # the kernel reads row i's own point at points[i]: the centres' points go first
+        centres = np.asarray(centres, dtype=np.int64)
+        nbhd = Neighbourhood(nbhd.indptr, nbhd.indices.astype(np.int64) + centres.size, nbhd.distances, nbhd.radius,
                              nbhd.augmented, nbhd.by_distance)
-        points = np.concatenate([points[rows], points])
+        points = np.concatenate([points[centres], points])
     if weights is None:
         cov = kernels.weighted_covariances(
             points, nbhd.indptr, nbhd.indices, nbhd.distances, nbhd.radius, TAPER_START, taper

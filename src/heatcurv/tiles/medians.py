@@ -89,7 +89,7 @@ def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 2
     chunk's rows whose ``reliable`` the flags turn are rewritten in place. ``finite``: the rows every tile
     together computed; fewer computed rows mean scratch files went missing. ``swamped``: the survey's
     kernel choice measured noise as thick as the operator's balls
-    (:func:`heatcurv.flags.reliability.noise_swamps_balls`), which the warning of a coarse cloud then names.
+    (:func:`heatcurv.choice.plan.noise_swamps_balls`), which the warning of a coarse cloud then names.
 
     Returns
     -------

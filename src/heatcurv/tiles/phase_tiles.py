@@ -16,7 +16,7 @@ import shutil
 import time
 from pathlib import Path
 
-from ..flags.reliability import noise_swamps_balls
+from ..choice.plan import noise_swamps_balls
 from . import job
 from .context import SurveyContext
 from .job import Job
