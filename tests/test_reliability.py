@@ -104,3 +104,44 @@ def test_balls_round_from_noise_are_not_called_a_coarse_cloud(tmp_path):
     with pytest.warns(HeatcurvWarning, match="noise is about as thick as they are wide"):
         heatcurv.compute_file(src, tmp_path / "torus.ply", tile_size=5000, scheduler="serial", progress=False,
                               fields=("mean", "reliable"))
+
+
+def test_a_misfit_is_judged_against_the_noise_on_a_noisy_cloud():
+    # the same residuals, against the bound of a cloud whose residual is noise (TUNING.noise_misfit_factor)
+    from heatcurv.choice.plan import misfit_bound
+
+    inputs = _inputs()
+    residual = inputs.residual.copy()
+    residual[0] = 0.5 * (TUNING.noise_misfit_factor + TUNING.misfit_factor) * 0.01  # between the two bounds
+    noisy = ReliabilityInputs(inputs.local, residual, inputs.width, inputs.rho, inputs.counted)
+    assert cloud_flags(noisy)[0].all()
+    reliable, _ = cloud_flags(noisy, misfit_factor=misfit_bound(True))
+    assert not reliable[0] and reliable[1:].all()
+    assert misfit_bound(False) == TUNING.misfit_factor
+
+
+def test_sharp_edges_under_noise_are_not_reliable():
+    """The simulated CAD part with noise of 0.02 mm (its ball radius 2.8 mm): the residual of a ball over a
+    sharp edge is 5-9 times the faces' noise, under the clean clouds' bound of 10, so 1823 of its 2148 points
+    within 0.5 mm of an edge were reliable with their crease's curvature, and the reliable points within a
+    ball radius of an edge were off by 0.035 / mm at the median and 0.40 at the 95th percentile (faces far
+    away 0.0029). Against the noise's bound: 3 such points, and 0.0114 and 0.0755 (tests/tiles/
+    test_tiles_driver.py: a tiled run flags the same points)."""
+    import heatcurv
+    from heatcurv import surfaces
+
+    part = surfaces.cad_part(20_000, noise=0.02)
+    res = heatcurv.estimate(part.points)
+    plan = res.info["plan"]
+    assert plan.noisy_misfits and plan.misfit_factor == TUNING.noise_misfit_factor
+    assert "misfits from" in plan.describe()
+    assert np.count_nonzero(res.reliable & part.sharp) <= 10, np.count_nonzero(res.reliable & part.sharp)
+    radius = np.median(res.fit_radius)
+    far = part.edge_distance > 2 * radius
+    assert res.reliable[far].mean() > 0.999  # the faces away from the edges keep their values
+    near = res.reliable & (part.edge_distance < radius) & np.isfinite(part.mean)
+    error = np.abs(res.mean - part.mean)
+    assert np.median(error[near]) < 0.015 and np.percentile(error[near], 95) < 0.1
+    # a smooth noisy surface has no misfits: its residual is the noise everywhere
+    torus = surfaces.Torus().sample(20_000, "random", seed=1, noise=0.006)
+    assert heatcurv.estimate(torus.points).reliable.mean() > 0.99

@@ -231,7 +231,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
     if orientation.report.undecided:
         warn_undecided(orientation.report.agreement, orientation.report.outside_share, stacklevel=3)
     return _result(op, fitted, ball_shape, K, orientation, outliers, clock.timings, whole_cloud=choices is None,
-                   rounding=rounding, half_step=half_step, errors=errors)
+                   rounding=rounding, half_step=half_step, errors=errors, misfit_factor=plan.misfit_factor)
 
 
 def fit_standard_errors(op: HeatKernelOperator, fitted: Fitted, weights_areas: np.ndarray, keys: np.ndarray,
@@ -357,7 +357,7 @@ def _precision(op: HeatKernelOperator, fitted: Fitted, rounding, stage_step: np.
 
 def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: Orientation, outliers: Outliers,
             timings, whole_cloud: bool = True, rounding=None, half_step: np.ndarray | None = None,
-            errors: StandardErrors | None = None):
+            errors: StandardErrors | None = None, misfit_factor: float | None = None):
     """The reliability flags, and every field back in the input order and unit (a :class:`CurvatureResult`).
 
     Outliers stand for no measured surface, and a point whose ball holds both sides of a thin
@@ -369,7 +369,8 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     and their inputs returned in ``info["reliability"]`` (input order). ``rounding``: the input
     coordinates' rounding (:func:`_precision`; ``info["precision"]``), None if they are exact, and ``half_step``
     the same per distinct point in the stages' unit (:func:`_stage_rounding`). ``errors``:
-    the standard errors (:mod:`heatcurv.fits.uncertainty`), None where not computed.
+    the standard errors (:mod:`heatcurv.fits.uncertainty`), None where not computed. ``misfit_factor``: the
+    plan's (:attr:`heatcurv.choice.plan.FitPlan.misfit_factor`; None: a clean cloud's).
     """
     nbhd, prepared, pc = op.neighbourhood, op.prepared, fitted.principal
     unit = prepared.unit
@@ -380,7 +381,8 @@ def _result(op: HeatKernelOperator, fitted: Fitted, ball_shape, K, orientation: 
     inputs = _reliability_inputs(op, fitted, ball_shape, orientation, outliers, areas, coarse)
     back = prepared.to_input_order
     if whole_cloud:
-        reliable, resolution = cloud_flags(inputs, stacklevel=3, swamped=noise_swamps_balls(fitted.scale))
+        reliable, resolution = cloud_flags(inputs, stacklevel=3, swamped=noise_swamps_balls(fitted.scale),
+                                           misfit_factor=misfit_factor)
         extra = {}
         fitted, errors, orientation = _turned_to_escape(op, fitted, errors, orientation, ~reliable & ~outliers.mask,
                                                         timings)

@@ -455,3 +455,21 @@ def test_every_patch_of_a_tiles_core_gets_a_winding_source():
     for rows in ([2, 3, 4], [5, 6]):  # patches 1 and 2
         assert out[rows].sum() == 1 and out[rows[int(np.argmin(keys[rows]))]]
     assert not source[1:].any()  # the input is not changed
+
+
+def test_sharp_edges_under_noise_are_misfits_in_tiles_as_in_memory(tmp_path):
+    """The CAD part with noise of 0.03 mm in 4 tiles: its residual is noise, so a misfit is judged against
+    TUNING.noise_misfit_factor times the median (heatcurv.choice.plan.FitPlan.noisy_misfits), over all tiles'
+    medians as over the whole cloud in memory; 6 of its 1248 points within 0.5 mm of an edge are reliable in
+    both (1246 against the clean clouds' bound)."""
+    part = heatcurv.surfaces.cad_part(12_000, noise=0.03)
+    src, out = tmp_path / "part.npy", tmp_path / "part.ply"
+    np.save(src, part.points)
+    memory = heatcurv.estimate(part.points)
+    assert memory.info["plan"].noisy_misfits
+    report = compute_file(src, out, tile_size=3000, scheduler="serial", dtype="float64", progress=False,
+                          fields=("mean", "reliable"))
+    assert report.tiles >= 4
+    tiled = read_fields(out)
+    np.testing.assert_array_equal(tiled["reliable"].astype(bool), memory.reliable)
+    assert np.count_nonzero(memory.reliable & part.sharp) <= 20

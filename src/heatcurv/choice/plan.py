@@ -36,7 +36,7 @@ import numpy as np
 from ..fits.anchors import anchors_per_ball, carry_degree
 from ..tuning import TUNING
 
-__all__ = ["FORMS", "FitPlan", "noise_swamps_balls", "plan_fit"]
+__all__ = ["FORMS", "FitPlan", "misfit_bound", "noise_swamps_balls", "noisy_residuals", "plan_fit"]
 
 #: The fit forms a plan names: the chord fit, its denoised form (:mod:`heatcurv.fits.chordfit`) and the paper's
 #: tensor fit with or without its constraint (:mod:`heatcurv.fits.principal`).
@@ -79,6 +79,12 @@ class FitPlan:
         the noise widens a kernel past what the surface allows; on a coarse clean cloud the wide balls
         are round wherever a part is a few spacings across, and that is the cloud's resolution
         (:func:`heatcurv.flags.reliability.resolution`), not a point's flag.
+    noisy_misfits : bool
+        The kernel choice measured noise above the very-low-noise band (:func:`noisy_residuals`): the fit's residual
+        on a smooth surface is that noise, nearly the same at every point, and a point whose residual
+        exceeds ``TUNING.noise_misfit_factor`` times its kernel width's median is a misfit
+        (:func:`heatcurv.flags.reliability.misfits`). On a clean cloud the residual is the surface's own
+        misfit, which varies from point to point, and the bound is ``TUNING.misfit_factor``.
     standard_errors : bool
         The chord fit's standard errors are computed (:mod:`heatcurv.fits.uncertainty`): with its own
         kernel choice (not ``radius=``), on a whole cloud (not a tile's part) and unless ``se=False``.
@@ -98,6 +104,7 @@ class FitPlan:
     carry_degree: int = 0
     keep_normals: bool = False
     wrapped: bool = False
+    noisy_misfits: bool = False
     standard_errors: bool = True
     reason: str = ""
 
@@ -105,6 +112,11 @@ class FitPlan:
     def denoise(self) -> bool:
         """Whether the fit is the denoised form (an offset and tilt fitted, not the chords' own heights)."""
         return self.form == "denoised"
+
+    @property
+    def misfit_factor(self) -> float:
+        """The residual, in its kernel width's median residuals, from which a point is a misfit."""
+        return misfit_bound(self.noisy_misfits)
 
     @property
     def label(self) -> str:
@@ -129,6 +141,7 @@ class FitPlan:
         extras = [text for flag, text in ((self.refit, "low-noise refit"),
                                           (self.anchor_normals, "anchors orient their own normals"),
                                           (self.wrapped, "round wide balls flagged"),
+                                          (self.noisy_misfits, f"misfits from {self.misfit_factor:g}x the noise"),
                                           (self.keep_normals, "given normals kept")) if flag]
         return (f"{self.label}{widths}, {where}" + "".join(f"; {text}" for text in extras)
                 + (f" ({self.reason})" if self.reason else ""))
@@ -164,12 +177,13 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     gate = f"noise {choice.relative_noise:.2g} h" if scale.denoise else "clean"
     if options.radius is not None:
         return FitPlan(form, k=scale.k, k_min=k_min, k_max=k_max, radius=float(options.radius),
-                       keep_normals=keep_normals, standard_errors=False, reason=f"radius={options.radius:g}; {gate}")
+                       keep_normals=keep_normals, noisy_misfits=noisy_residuals(choice), standard_errors=False,
+                       reason=f"radius={options.radius:g}; {gate}")
     errors = bool(options.se)
     k_fit = int(options.scale_tuning.k_fit)
     if not scale.denoise and scale.k <= k_fit:
         return FitPlan("chord", k=scale.k, k_min=k_min, k_max=k_max, keep_normals=keep_normals,
-                       standard_errors=errors, reason=gate)
+                       noisy_misfits=noisy_residuals(choice), standard_errors=errors, reason=gate)
     # noise, or a kernel too wide to fit at every point: the denoised form at anchors (its offset
     # absorbs the centre's own height error, which a carried chord fit would keep)
     why = gate if scale.denoise else f"clean, but {scale.k} neighbours is wider than k_fit = {k_fit}"
@@ -180,8 +194,26 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     return FitPlan(
         "denoised", k=scale.k, k_min=k_min, k_max=k_max, anchored=True, anchors_per_ball=anchors_per_ball(low_noise),
         anchor_normals=strong, refit=low_noise, carry_degree=carry_degree(low_noise), keep_normals=keep_normals,
-        wrapped=bool(choice.residual_rise <= TUNING.noise_rise), standard_errors=errors, reason=why,
+        wrapped=bool(choice.residual_rise <= TUNING.noise_rise), noisy_misfits=noisy_residuals(choice),
+        standard_errors=errors, reason=why,
     )
+
+
+def noisy_residuals(choice) -> bool:
+    """Whether the kernel choice ``choice`` (a :class:`heatcurv.choice.scale.ScaleChoice`; None: no choice) found
+    noise above the very-low-noise band (``relative_noise`` at least ``TUNING.low_noise``), so that a smooth
+    surface's fit residual is that noise (:attr:`FitPlan.noisy_misfits`).
+
+    Below it a scanner's fine noise is less than the misfit of the surface's own detail at the kernel's scale
+    (a range map's folds, a mesh's ears), as on a clean cloud.
+    """
+    return choice is not None and bool(choice.scale.denoise) and bool(choice.relative_noise >= TUNING.low_noise)
+
+
+def misfit_bound(noisy: bool) -> float:
+    """The residual, in its kernel width's median residuals, from which a point is a misfit: ``noisy`` residuals
+    (:func:`noisy_residuals`) ``TUNING.noise_misfit_factor``, else ``TUNING.misfit_factor``."""
+    return TUNING.noise_misfit_factor if noisy else TUNING.misfit_factor
 
 
 def noise_swamps_balls(scale) -> bool:

@@ -7,7 +7,9 @@ them once all tiles are done:
 
 * a **misfit** is a point whose fit residual (in units of its spacing) exceeds
   ``TUNING.misfit_factor`` times the median of the points fitted at the same
-  kernel width: one smooth surface does not explain its ball;
+  kernel width (``TUNING.noise_misfit_factor`` where the kernel choice measured
+  noise, which is about the same at every point of a smooth surface): one smooth
+  surface does not explain its ball;
 * the **resolution** of the cloud is the median point's sampling spacing in
   radii of curvature; above ``TUNING.resolution_limit`` the balls wrap around the
   surface and no value is reliable.
@@ -94,12 +96,17 @@ def misfit_baselines(residual: np.ndarray, width: np.ndarray, counted: np.ndarra
     return baselines
 
 
-def misfits(residual: np.ndarray | None, width: np.ndarray, baselines: dict) -> np.ndarray:
-    """Points whose residual exceeds ``TUNING.misfit_factor`` times their width's baseline, shape (n,), bool."""
+def misfits(residual: np.ndarray | None, width: np.ndarray, baselines: dict, factor: float | None = None) -> np.ndarray:
+    """Points whose residual exceeds ``factor`` times their width's baseline, shape (n,), bool.
+
+    ``factor``: the fit plan's (:attr:`heatcurv.choice.plan.FitPlan.misfit_factor`); default
+    ``TUNING.misfit_factor``, a clean cloud's.
+    """
     if residual is None:
         return np.zeros(width.shape[0], dtype=bool)
+    factor = TUNING.misfit_factor if factor is None else float(factor)
     widths = np.array(sorted(baselines), dtype=np.int64)
-    limit = TUNING.misfit_factor * np.array([baselines[k] for k in widths.tolist()])
+    limit = factor * np.array([baselines[k] for k in widths.tolist()])
     return residual > limit[np.searchsorted(widths, width)]
 
 
@@ -138,7 +145,8 @@ def warn_too_coarse(rho: float, stacklevel: int = 2, swamped: bool = False) -> N
 
 
 def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolution_value: float | None = None,
-                stacklevel: int = 2, swamped: bool = False) -> tuple[np.ndarray, float]:
+                stacklevel: int = 2, swamped: bool = False, misfit_factor: float | None = None,
+                ) -> tuple[np.ndarray, float]:
     """``reliable`` for every point, from the whole cloud's inputs.
 
     Parameters
@@ -153,6 +161,8 @@ def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolu
     swamped : bool, optional
         The noise is as thick as the operator's balls (:func:`heatcurv.choice.plan.noise_swamps_balls`):
         the warning says so.
+    misfit_factor : float, optional
+        The residual, in its width's baselines, from which a point is a misfit (:func:`misfits`).
 
     Returns
     -------
@@ -166,7 +176,7 @@ def cloud_flags(inputs: ReliabilityInputs, baselines: dict | None = None, resolu
     """
     if inputs.residual is not None and baselines is None:
         baselines = misfit_baselines(inputs.residual, inputs.width, inputs.counted)
-    reliable = inputs.local & ~misfits(inputs.residual, inputs.width, baselines or {})
+    reliable = inputs.local & ~misfits(inputs.residual, inputs.width, baselines or {}, misfit_factor)
     rho = resolution(inputs.rho, inputs.counted) if resolution_value is None else resolution_value
     if rho > TUNING.resolution_limit:
         warn_too_coarse(rho, stacklevel + 1, swamped)

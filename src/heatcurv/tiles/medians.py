@@ -80,7 +80,8 @@ def streaming_medians(chunks) -> dict:
     return medians
 
 
-def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 20, swamped: bool = False) -> dict:
+def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 20, swamped: bool = False,
+                      misfit_factor: float | None = None) -> dict:
     """Add the cloud-wide reliability flags to ``results.rec`` (its ``reliable`` column holds the local ones).
 
     The medians (each kernel width's residual, the resolution) are taken over
@@ -90,6 +91,7 @@ def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 2
     together computed; fewer computed rows mean scratch files went missing. ``swamped``: the survey's
     kernel choice measured noise as thick as the operator's balls
     (:func:`heatcurv.choice.plan.noise_swamps_balls`), which the warning of a coarse cloud then names.
+    ``misfit_factor``: the fit plan's (:attr:`heatcurv.choice.plan.FitPlan.misfit_factor`).
 
     Returns
     -------
@@ -141,7 +143,7 @@ def apply_cloud_flags(results_path, count: int, finite: int, chunk: int = 1 << 2
         for k in np.unique(width).tolist():
             baselines.setdefault(int(k), TUNING.misfit_floor)  # a width with no counted row: the floor
         local = block["reliable"] == 1
-        bad = misfits(block["misfit_residual"], width, baselines)
+        bad = misfits(block["misfit_residual"], width, baselines, misfit_factor)
         reliable = (local & ~bad & ~coarse).astype(np.uint8)
         # only the rows the flags turn: the pages of the others are not written back
         changed = np.flatnonzero(reliable != block["reliable"])

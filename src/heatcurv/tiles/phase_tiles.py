@@ -16,7 +16,7 @@ import shutil
 import time
 from pathlib import Path
 
-from ..choice.plan import noise_swamps_balls
+from ..choice.plan import misfit_bound, noise_swamps_balls, noisy_residuals
 from . import job
 from .context import SurveyContext
 from .job import Job
@@ -117,8 +117,9 @@ def compute_tiles(run: Job, plan: TilePlan, context: SurveyContext, store: TileS
 def cloud_flags(run: Job, plan: TilePlan, context: SurveyContext, timings: dict) -> dict:
     """The flags that compare each point with the whole cloud's medians, once every tile is in."""
     tic = time.perf_counter()
+    scale = context.choices.scale
     medians = apply_cloud_flags(run.work / "results.rec", plan.stats.count, plan.stats.finite,
-                                swamped=noise_swamps_balls(context.choices.scale))
+                                swamped=noise_swamps_balls(scale), misfit_factor=misfit_bound(noisy_residuals(scale)))
     timings["reliability"] = time.perf_counter() - tic
     return medians
 
