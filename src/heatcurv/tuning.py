@@ -185,7 +185,8 @@ class Tuning:
     misfit_factor: float = _knob(10.0, "chord residual over the cloud's median that is not one smooth surface")
     #: Where the residual is noise it is the same on every smooth part: 24 noisy analytic clouds at most 1.37 times
     #: their median, a torus whose noise grows twelvefold across it 2.25; a CAD part's sharp edges under noise of
-    #: 0.02-0.05 mm 3-9, a LiDAR tile's roofs and walls about 10 (their values 0.08-0.16 / m off).
+    #: 0.02-0.05 mm 3-9, a LiDAR tile's roofs and walls about 10 (their values 0.08-0.16 / m off). Used where the
+    #: quietest centres' residual is noise (:func:`heatcurv.choice.plan.noisy_residuals`).
     noise_misfit_factor: float = _knob(3.0, "fit residual over the cloud's median that is not one smooth surface, "
                                             "where the kernel choice measured noise")
     misfit_floor: float = _knob(1e-3, "floor of the median residual (spacings) misfits are measured against")

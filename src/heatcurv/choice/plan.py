@@ -80,7 +80,8 @@ class FitPlan:
         are round wherever a part is a few spacings across, and that is the cloud's resolution
         (:func:`heatcurv.flags.reliability.resolution`), not a point's flag.
     noisy_misfits : bool
-        The kernel choice measured noise above the very-low-noise band (:func:`noisy_residuals`): the fit's residual
+        The kernel choice measured noise, and its quietest centres' residual did not grow with the kernel
+        (:func:`noisy_residuals`): the fit's residual
         on a smooth surface is that noise, nearly the same at every point, and a point whose residual
         exceeds ``TUNING.noise_misfit_factor`` times its kernel width's median is a misfit
         (:func:`heatcurv.flags.reliability.misfits`). On a clean cloud the residual is the surface's own
@@ -201,13 +202,15 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
 
 def noisy_residuals(choice) -> bool:
     """Whether the kernel choice ``choice`` (a :class:`heatcurv.choice.scale.ScaleChoice`; None: no choice) found
-    noise above the very-low-noise band (``relative_noise`` at least ``TUNING.low_noise``), so that a smooth
-    surface's fit residual is that noise (:attr:`FitPlan.noisy_misfits`).
+    noise, and the residual of the cloud's quietest parts stays that noise as the kernel widens
+    (``quiet_rise`` at most ``TUNING.noise_rise``): a smooth surface's fit residual is then its noise
+    (:attr:`FitPlan.noisy_misfits`).
 
-    Below it a scanner's fine noise is less than the misfit of the surface's own detail at the kernel's scale
-    (a range map's folds, a mesh's ears), as on a clean cloud.
+    Where the residual is the surface's own misfit (a coarse mesh's facets, a range map's folds, a scan's
+    detail at the kernel's scale) it grows with the kernel even there, and varies from point to point as
+    on a clean cloud. NaN (a fixed kernel, a ladder too short) counts as not noise.
     """
-    return choice is not None and bool(choice.scale.denoise) and bool(choice.relative_noise >= TUNING.low_noise)
+    return choice is not None and bool(choice.scale.denoise) and bool(choice.quiet_rise <= TUNING.noise_rise)
 
 
 def misfit_bound(noisy: bool) -> float:

@@ -102,6 +102,9 @@ class ScaleChoice:
         at the narrowest (:func:`residual_rise`): about 1 where the residual is noise, growing
         where it is the model's misfit; NaN on a clean cloud, with a fixed kernel, or where the
         ladder stops short of it.
+    quiet_rise : float
+        The same rise of the quietest centres' residual (:func:`residual_rise`): about 1 where the
+        residual of the smooth parts is noise, even where most wide balls reach a sharp edge.
     """
 
     scale: Scale
@@ -115,6 +118,7 @@ class ScaleChoice:
     k_centre: np.ndarray | None = None
     low_noise: bool = False
     residual_rise: float = float("nan")
+    quiet_rise: float = float("nan")
 
     def at_points(self, points: np.ndarray, workers: int = -1) -> ScaleChoice:
         """The choice with ``k_per_point`` for ``points`` (shape (n, 3)): each takes its nearest centre's width.
@@ -164,8 +168,8 @@ class ScaleReport:
         Narrowest and widest kernel chosen at any point (``k`` is the median point's).
     low_noise : bool
         The very-low-noise path ran (:attr:`ScaleChoice.low_noise`, module docstring step 5).
-    residual_rise : float
-        :attr:`ScaleChoice.residual_rise`.
+    residual_rise, quiet_rise : float
+        :attr:`ScaleChoice.residual_rise`, :attr:`ScaleChoice.quiet_rise`.
     """
 
     k: int
@@ -183,6 +187,7 @@ class ScaleReport:
     k_max: int = 0
     low_noise: bool = False
     residual_rise: float = float("nan")
+    quiet_rise: float = float("nan")
 
     def in_unit(self, unit: float) -> ScaleReport:
         """The report with its lengths multiplied by ``unit`` (the stages' unit back to the input's)."""
@@ -210,7 +215,7 @@ class ScaleReport:
         return cls(
             support_radius=float(finite.max()) if finite.size else float("nan"), anchors=int(anchors),
             k_min=choice.scale.k if k is None else int(k.min()), k_max=choice.scale.k if k is None else int(k.max()),
-            low_noise=bool(choice.low_noise), residual_rise=choice.residual_rise,
+            low_noise=bool(choice.low_noise), residual_rise=choice.residual_rise, quiet_rise=choice.quiet_rise,
             k=choice.scale.k if k is None else int(np.median(k)),
             fit=label,
             radius=float(np.percentile(radius, 99)),
@@ -590,6 +595,7 @@ def decide_scale(
     evaluated = ladder[: len(means)]
     sd = [float(np.sqrt(np.mean(x**2))) for x in sds]
     k_centre = k_all[chosen]
+    rise, quiet_rise = residual_rise(ladder_fits)
     return ScaleChoice(
         scale=Scale(int(np.median(k_centre)), True),
         sigma=sigma,
@@ -600,7 +606,8 @@ def decide_scale(
         centres=at,
         k_centre=k_centre,
         low_noise=bool(low_noise),
-        residual_rise=residual_rise(ladder_fits),
+        residual_rise=rise,
+        quiet_rise=quiet_rise,
     )
 
 
@@ -620,6 +627,7 @@ class _LadderFits:
         self.noise = _window_medians(base.sigma, _windows(at, at, window, workers), q)
         self.means, self.factors, self.sizes = [base.mean], [base.factor], [q]
         self.sds: list = []
+        self.sigmas = [np.asarray(base.sigma)]  # each evaluated candidate's residual at its centres
         self.residuals = [float(np.median(base.sigma))]
         self.growing = True  # the residual still grows like noise being uncovered, not like bias
 
@@ -630,6 +638,7 @@ class _LadderFits:
         self.means.append(fit.mean)
         self.factors.append(fit.factor)
         self.sizes.append(size)
+        self.sigmas.append(np.asarray(fit.sigma))
         residual = float(np.median(fit.sigma))
         if j <= TUNING.noise_levels and self.growing and residual < TUNING.noise_growth * self.residuals[-1]:
             mine = self.at[:size]
@@ -660,23 +669,37 @@ class _LadderFits:
 RISE_LEVELS = 2
 
 
-def residual_rise(ladder_fits: _LadderFits) -> float:
-    """The median residual of the ladder's candidate :data:`RISE_LEVELS` over the narrowest's (NaN without it).
+def residual_rise(ladder_fits: _LadderFits) -> tuple[float, float]:
+    """How the denoised residual grows from the narrowest candidate to candidate :data:`RISE_LEVELS`.
 
     Noise leaves about the same residual at every width; a model's misfit (a
     coarse mesh's facets, a surface curving within the ball) grows as ``R^2``,
     about 4 over two doublings of the neighbours. The candidate is fitted here
     when Lepski's rule stopped short of it (at the same centres as the rule's
     fits: a tiled run's survey holds it).
+
+    Returns
+    -------
+    rise : float
+        The wider candidate's median residual over the narrowest's (NaN without it).
+    quiet_rise : float
+        The same of the residuals' 10th percentiles over the wider candidate's centres: the quietest
+        centres, away from edges and detail. Where a wide ball reaches a sharp edge at most centres
+        (a CAD part), the median rises with the edges' misfit while the quietest centres' residual
+        is still the noise; where it is the surface's own misfit (a coarse mesh), it rises there too.
     """
     if len(ladder_fits.ladder) <= RISE_LEVELS:
-        return float("nan")
-    if len(ladder_fits.residuals) > RISE_LEVELS:
-        wide = ladder_fits.residuals[RISE_LEVELS]
+        return float("nan"), float("nan")
+    if len(ladder_fits.sigmas) > RISE_LEVELS:
+        wide = ladder_fits.sigmas[RISE_LEVELS]
     else:
         size = ladder_fits.level_sizes[RISE_LEVELS]
-        wide = float(np.median(ladder_fits.fits(ladder_fits.ladder[RISE_LEVELS], size).sigma))
-    return wide / max(ladder_fits.residuals[0], np.finfo(float).tiny)
+        wide = np.asarray(ladder_fits.fits(ladder_fits.ladder[RISE_LEVELS], size).sigma)
+    tiny = np.finfo(float).tiny
+    narrow = ladder_fits.sigmas[0]
+    rise = float(np.median(wide)) / max(ladder_fits.residuals[0], tiny)
+    quiet = float(np.percentile(wide, 10)) / max(float(np.percentile(narrow[: wide.shape[0]], 10)), tiny)
+    return rise, quiet
 
 
 def _noise_regions(noise: np.ndarray) -> np.ndarray:
