@@ -81,11 +81,11 @@ class FitPlan:
         (:func:`heatcurv.flags.reliability.resolution`), not a point's flag.
     noisy_misfits : bool
         The kernel choice measured noise, and its quietest centres' residual did not grow with the kernel
-        (:func:`noisy_residuals`): the fit's residual
-        on a smooth surface is that noise, nearly the same at every point, and a point whose residual
-        exceeds ``TUNING.noise_misfit_factor`` times its kernel width's median is a misfit
-        (:func:`heatcurv.flags.reliability.misfits`). On a clean cloud the residual is the surface's own
-        misfit, which varies from point to point, and the bound is ``TUNING.misfit_factor``.
+        (:func:`noisy_residuals`): the fit's residual on a smooth surface is that noise, nearly the same
+        at every point, and a point whose residual exceeds ``TUNING.noise_misfit_factor`` times its
+        kernel width's median is a misfit (:func:`heatcurv.flags.reliability.misfits`). Elsewhere the
+        residual is the surface's own misfit, which varies from point to point, and the bound is
+        ``TUNING.misfit_factor``.
     standard_errors : bool
         The chord fit's standard errors are computed (:mod:`heatcurv.fits.uncertainty`): with its own
         kernel choice (not ``radius=``), on a whole cloud (not a tile's part) and unless ``se=False``.

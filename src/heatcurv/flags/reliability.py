@@ -7,9 +7,10 @@ them once all tiles are done:
 
 * a **misfit** is a point whose fit residual (in units of its spacing) exceeds
   ``TUNING.misfit_factor`` times the median of the points fitted at the same
-  kernel width (``TUNING.noise_misfit_factor`` where the kernel choice measured
-  noise, which is about the same at every point of a smooth surface): one smooth
-  surface does not explain its ball;
+  kernel width (``TUNING.noise_misfit_factor`` where the residual of the cloud's
+  smooth parts is noise, about the same at every point:
+  :func:`heatcurv.choice.plan.noisy_residuals`): one smooth surface does not
+  explain its ball;
 * the **resolution** of the cloud is the median point's sampling spacing in
   radii of curvature; above ``TUNING.resolution_limit`` the balls wrap around the
   surface and no value is reliable.
