@@ -108,16 +108,16 @@ def test_balls_round_from_noise_are_not_called_a_coarse_cloud(tmp_path):
 
 def test_a_misfit_is_judged_against_the_noise_on_a_noisy_cloud():
     # the same residuals, against the bound of a cloud whose residual is noise (TUNING.noise_misfit_factor)
-    from heatcurv.choice.plan import misfit_bound
+    from heatcurv.choice.plan import FitPlan
 
     inputs = _inputs()
     residual = inputs.residual.copy()
     residual[0] = 0.5 * (TUNING.noise_misfit_factor + TUNING.misfit_factor) * 0.01  # between the two bounds
     noisy = ReliabilityInputs(inputs.local, residual, inputs.width, inputs.rho, inputs.counted)
     assert cloud_flags(noisy)[0].all()
-    reliable, _ = cloud_flags(noisy, misfit_factor=misfit_bound(True))
+    reliable, _ = cloud_flags(noisy, misfit_factor=FitPlan("denoised", noisy_misfits=True).misfit_factor)
     assert not reliable[0] and reliable[1:].all()
-    assert misfit_bound(False) == TUNING.misfit_factor
+    assert FitPlan("denoised").misfit_factor == TUNING.misfit_factor
 
 
 def test_sharp_edges_under_noise_are_not_reliable():

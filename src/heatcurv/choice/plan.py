@@ -36,7 +36,7 @@ import numpy as np
 from ..fits.anchors import anchors_per_ball, carry_degree
 from ..tuning import TUNING
 
-__all__ = ["FORMS", "FitPlan", "misfit_bound", "noise_swamps_balls", "noisy_residuals", "plan_fit"]
+__all__ = ["FORMS", "FitPlan", "noise_swamps_balls", "noisy_residuals", "plan_fit"]
 
 #: The fit forms a plan names: the chord fit, its denoised form (:mod:`heatcurv.fits.chordfit`) and the paper's
 #: tensor fit with or without its constraint (:mod:`heatcurv.fits.principal`).
@@ -117,7 +117,7 @@ class FitPlan:
     @property
     def misfit_factor(self) -> float:
         """The residual, in its kernel width's median residuals, from which a point is a misfit."""
-        return misfit_bound(self.noisy_misfits)
+        return TUNING.noise_misfit_factor if self.noisy_misfits else TUNING.misfit_factor
 
     @property
     def label(self) -> str:
@@ -211,12 +211,6 @@ def noisy_residuals(choice) -> bool:
     on a clean cloud. NaN (a fixed kernel, a ladder too short) counts as not noise.
     """
     return choice is not None and bool(choice.scale.denoise) and bool(choice.quiet_rise <= TUNING.noise_rise)
-
-
-def misfit_bound(noisy: bool) -> float:
-    """The residual, in its kernel width's median residuals, from which a point is a misfit: ``noisy`` residuals
-    (:func:`noisy_residuals`) ``TUNING.noise_misfit_factor``, else ``TUNING.misfit_factor``."""
-    return TUNING.noise_misfit_factor if noisy else TUNING.misfit_factor
 
 
 def noise_swamps_balls(scale) -> bool:

@@ -16,8 +16,9 @@ import shutil
 import time
 from pathlib import Path
 
-from ..choice.plan import misfit_bound, noise_swamps_balls, noisy_residuals
+from ..choice.plan import noise_swamps_balls, plan_fit
 from . import job
+from .compute import resolved_options
 from .context import SurveyContext
 from .job import Job
 from .medians import apply_cloud_flags
@@ -118,8 +119,9 @@ def cloud_flags(run: Job, plan: TilePlan, context: SurveyContext, timings: dict)
     """The flags that compare each point with the whole cloud's medians, once every tile is in."""
     tic = time.perf_counter()
     scale = context.choices.scale
+    fit = plan_fit(resolved_options(run.options), scale)  # the in-memory run's plan, whose misfit bound it takes
     medians = apply_cloud_flags(run.work / "results.rec", plan.stats.count, plan.stats.finite,
-                                swamped=noise_swamps_balls(scale), misfit_factor=misfit_bound(noisy_residuals(scale)))
+                                swamped=noise_swamps_balls(scale), misfit_factor=fit.misfit_factor)
     timings["reliability"] = time.perf_counter() - tic
     return medians
 
