@@ -120,6 +120,9 @@ class Tuning:
     #: Facades with 2 cm of noise: sample n_z within 0.05; a tilted face's chin, which must count, -0.1 to -0.3.
     auto_wall_cosine: float = _knob(0.1, "|n_z| of a flat sample normal from which its side counts as up or down")
     auto_flatness: float = _knob(0.15, "lambda_0 / lambda_1 of a flat sample point; tree crowns are not flat")
+    #: 2000-point samples: the LiDAR tile 86-87 %, noisy open patches 65-100 %, a sphere with noise of 1.2 % of
+    #: its diagonal 25 %; noise as thick as the sample's balls (3-5 % of the diagonal) 0.05-0.45 %.
+    auto_flat_share: float = _knob(0.05, "least share of flat sample points from which orient='auto' may say up")
     #: A thin closed object lying flat is two sheets one over the other, which the sample's tree orients alike.
     auto_layered_share: float = _knob(0.1, "largest share of flat sample points with a sheet over them that says up")
     auto_layer_height: float = _knob(0.5, "least height of such a second sheet, in sample spacings")

@@ -553,7 +553,8 @@ def upward_sides(nz: np.ndarray, weight: np.ndarray, flat: np.ndarray, labels: n
     of its weight within 45 degrees of vertical, and at most
     ``TUNING.auto_down_share`` of ``sum |n_z|`` over its flat normals that are
     not walls (``|n_z| >= TUNING.auto_wall_cosine``) on the side that faces
-    the other way.
+    the other way, with at least ``TUNING.auto_flat_share`` of its weight on
+    flat normals.
 
     Parameters
     ----------
@@ -578,7 +579,8 @@ def upward_sides(nz: np.ndarray, weight: np.ndarray, flat: np.ndarray, labels: n
     steep = total(weight * (np.abs(nz) >= TUNING.auto_vertical_cosine)) >= TUNING.auto_share * total(weight)
     upward, downward = vertical_sums(nz, weight, flat, labels, n_labels)
     one_side = np.minimum(upward, downward) <= TUNING.auto_down_share * (upward + downward)
-    over = steep & one_side & (upward + downward > 0.0)
+    flat_enough = total(weight * flat) >= TUNING.auto_flat_share * total(weight)
+    over = steep & one_side & flat_enough & (upward + downward > 0.0)
     return np.where(over, np.where(upward >= downward, 1.0, -1.0), 0.0)
 
 
@@ -793,8 +795,10 @@ def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.n
     dipoles = nrm * weight[:, None]
     rows = np.repeat(np.arange(m), k + 1)[in_plane.ravel()]
     near = idx.ravel()[in_plane.ravel()]
-    share = weight[near] / disc_area[rows]
-    cap = 0.5 * (1.0 - delta / np.sqrt(delta**2 + radius**2))  # the disc's solid angle over 4 pi
+    # a disc of sources without area (a tiled run's second-sheet points, area 0) stands for nothing
+    share = np.divide(weight[near], disc_area[rows], out=np.zeros(near.shape), where=disc_area[rows] > 0)
+    reach = np.sqrt(delta**2 + radius**2)
+    cap = 0.5 * (1.0 - np.divide(delta, reach, out=np.ones_like(reach), where=reach > 0))  # solid angle / 4 pi
     fields = []
     for side in (1.0, -1.0):
         q = x + side * delta[:, None] * nrm

@@ -287,6 +287,11 @@ class AutoPolicy:
         Share of the sample's points whose balls' residuals split in two
         layers (``TUNING.auto_split_share``): large for a plate too thin for
         ``layered``.
+    flat : float
+        Share of the sample's points whose balls are flat
+        (``TUNING.auto_flatness``): most of a surface's; near 0 where noise as
+        thick as the sample's balls leaves no surface to read, and then no
+        share above says anything (``TUNING.auto_flat_share``).
     towards : tuple of float or None
         ``"up"`` along the sample's own axis (a surface over a plane turned
         away from horizontal): the unit direction the normals face, shape (3,),
@@ -303,6 +308,7 @@ class AutoPolicy:
     down: float
     layered: float = 0.0
     split: float = 0.0
+    flat: float = 1.0
     towards: tuple | None = None
     convex: bool = False
 
@@ -310,7 +316,8 @@ class AutoPolicy:
     def reason(self) -> str:
         """Why, in words: the report's :attr:`OrientationReport.reason`."""
         axis = "vertical" if self.towards is None else "the axis"
-        measured = (f"{100 * self.vertical:.0f} % of the sampled normals within 45 degrees of {axis}; "
+        measured = (f"{100 * self.flat:.0f} % of the sampled balls flat, "
+                    f"{100 * self.vertical:.0f} % of the sampled normals within 45 degrees of {axis}; "
                     f"consistently oriented, {100 * self.down:.1f} % of their extent along it faces the other way; "
                     f"{100 * self.layered:.0f} % of the flat ones lie over or under another sheet, "
                     f"{100 * self.split:.0f} % have balls split in two layers")
