@@ -192,6 +192,12 @@ class Tuning:
     #: quietest centres' residual is noise (:func:`heatcurv.choice.plan.noisy_residuals`).
     noise_misfit_factor: float = _knob(3.0, "fit residual over the cloud's median that is not one smooth surface, "
                                             "where the kernel choice measured noise")
+    #: The kernel weighs a neighbour by its noisy distance, so the fitted heights flatten: a noisy sphere's mean
+    #: curvature is off by about 15-30 (sigma / R)^2 (R the fit's ball radius), 1 % at 0.025 (the noise table's
+    #: sphere), 8-11 % at 0.07-0.076, 17-25 % at 0.09-0.11; the noise table and held-out clouds at most 0.056
+    #: (torus, 0.6 % noise: its error 5.3 %). Used where the residual is noise (:attr:`FitPlan.noisy_misfits`).
+    noise_flattening: float = _knob(0.07, "noise over the fit's ball radius from which the noise flattens the "
+                                          "fitted curvature by about 10 %: not reliable")
     misfit_floor: float = _knob(1e-3, "floor of the median residual (spacings) misfits are measured against")
     #: Fewer than about 12 points around an osculating circle: the balls wrap around the surface.
     resolution_limit: float = _knob(0.5, "median spacing in radii of curvature above which a cloud is unresolved")

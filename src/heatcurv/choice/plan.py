@@ -85,7 +85,10 @@ class FitPlan:
         at every point, and a point whose residual exceeds ``TUNING.noise_misfit_factor`` times its
         kernel width's median is a misfit (:func:`heatcurv.flags.reliability.misfits`). Elsewhere the
         residual is the surface's own misfit, which varies from point to point, and the bound is
-        ``TUNING.misfit_factor``.
+        ``TUNING.misfit_factor``. Where it is noise, a point whose ball radius is under
+        ``1 / TUNING.noise_flattening`` times the noise is not reliable either: the kernel, which weighs
+        each neighbour by its noisy distance, flattens the fitted heights, and the curvature by about
+        ``20 (sigma / R)^2`` (:func:`heatcurv.flags.reliability.flattened`).
     standard_errors : bool
         The chord fit's standard errors are computed (:mod:`heatcurv.fits.uncertainty`): with its own
         kernel choice (not ``radius=``), on a whole cloud (not a tile's part) and unless ``se=False``.
@@ -142,7 +145,9 @@ class FitPlan:
         extras = [text for flag, text in ((self.refit, "low-noise refit"),
                                           (self.anchor_normals, "anchors orient their own normals"),
                                           (self.wrapped, "round wide balls flagged"),
-                                          (self.noisy_misfits, f"misfits from {self.misfit_factor:g}x the noise"),
+                                          (self.noisy_misfits, f"misfits from {self.misfit_factor:g}x the noise, "
+                                                               f"balls under {1 / TUNING.noise_flattening:.0f}x "
+                                                               "it flagged"),
                                           (self.keep_normals, "given normals kept")) if flag]
         return (f"{self.label}{widths}, {where}" + "".join(f"; {text}" for text in extras)
                 + (f" ({self.reason})" if self.reason else ""))
@@ -203,14 +208,20 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
 def noisy_residuals(choice) -> bool:
     """Whether the kernel choice ``choice`` (a :class:`heatcurv.choice.scale.ScaleChoice`; None: no choice) found
     noise, and the residual of the cloud's quietest parts stays that noise as the kernel widens
-    (``quiet_rise`` at most ``TUNING.noise_rise``): a smooth surface's fit residual is then its noise
+    (``quiet_rise`` at most ``TUNING.noise_rise``), or the noise swamps the operator's balls
+    (:func:`noise_swamps_balls`): a smooth surface's fit residual is then its noise
     (:attr:`FitPlan.noisy_misfits`).
 
     Where the residual is the surface's own misfit (a coarse mesh's facets, a range map's folds, a scan's
     detail at the kernel's scale) it grows with the kernel even there, and varies from point to point as
-    on a clean cloud. NaN (a fixed kernel, a ladder too short) counts as not noise.
+    on a clean cloud. So does the residual of noise as thick as a small cloud's balls, whose wide kernels
+    also take in the curvature (a sphere of 5000 points with noise of 3 % of its diagonal: ``quiet_rise``
+    1.40-1.46); its noise, not misfit, is what swamps the balls (coarse meshes measure at most 0.42 of
+    their spacing). NaN (a fixed kernel, a ladder too short) counts as not noise.
     """
-    return choice is not None and bool(choice.scale.denoise) and bool(choice.quiet_rise <= TUNING.noise_rise)
+    if choice is None or not choice.scale.denoise:
+        return False
+    return bool(choice.quiet_rise <= TUNING.noise_rise) or noise_swamps_balls(choice)
 
 
 def noise_swamps_balls(scale) -> bool:

@@ -23,7 +23,9 @@ coordinates. Coordinates stored in float32, or rounded to a grid (a LAS file's
 scale), are each off by up to half a step of that grid;
 :func:`coordinate_rounding` finds the step and :func:`imprecise` flags the
 points whose curvature that rounding can move by more than
-``TUNING.precision_tolerance`` of its size.
+``TUNING.precision_tolerance`` of its size. So is another limit of the data
+rather than of the point: noise too thick for the fit's ball
+(:func:`flattened`).
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ from ..errors import HeatcurvError, HeatcurvWarning
 from ..tuning import TUNING
 
 __all__ = [
-    "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "imprecise", "misfit_baselines",
+    "PrecisionReport", "ReliabilityInputs", "cloud_flags", "coordinate_rounding", "flattened", "imprecise",
+    "misfit_baselines",
     "misfits", "precision_step", "resolution", "rounding_height_variance", "rounding_uncertainty", "warn_too_coarse",
 ]
 
@@ -211,6 +214,28 @@ class PrecisionReport:
     flagged: int
     uncertainty: np.ndarray
     reason: str
+
+
+def flattened(noise: float, radius: np.ndarray) -> np.ndarray:
+    """Points whose fit the noise flattens by about 10 % or more, shape (n,), bool.
+
+    The heat kernel weighs a neighbour by its distance, noise included: a
+    neighbour whose noise moves it towards the centre's tangent plane weighs
+    more, so the fitted heights, and the curvatures with them, come out too
+    small, by about ``20 (noise / R)^2`` of their value on a noisy sphere (``R``
+    the ball radius of the point's fit; docs/accuracy.md). Lepski's rule
+    widens the kernel against the noise's variance, not against this bias; a
+    cloud with few points for its noise cannot widen it enough, and from
+    ``noise > TUNING.noise_flattening * R`` on its values are not reliable.
+
+    Parameters
+    ----------
+    noise : float
+        The kernel choice's noise (:attr:`heatcurv.choice.scale.ScaleChoice.sigma`), length units.
+    radius : ndarray, shape (n,)
+        Each point's fit ball radius, the same units.
+    """
+    return noise > TUNING.noise_flattening * np.asarray(radius)
 
 
 def precision_step(coordinate_precision) -> np.ndarray | None:
