@@ -464,11 +464,7 @@ def test_a_cup_narrower_than_the_noisy_kernel_is_flagged_not_guessed(monkeypatch
     # z = 5 (x^2 + y^2): radius of curvature 0.1 at the bottom; noise of 0.6 % of the diagonal (0.062) makes the
     # kernel choice take 1920 neighbours, balls about 1 across. Over the bottom they are round (the surface
     # turns by more than a right angle within them): 132 reliable normals were 30-90 degrees off there, the
-    # mean curvature 75-97 % low. Those balls are now flagged; the rest of the cup keeps its values. The cup is
-    # a deep bag, which the winding number takes for closed, with or without noise (the clean cup: 83 %
-    # reliable, its rim flagged); under this noise its sides are voted over 172 anchors, whose doubt reaches
-    # more of the rim: 53 % reliable (91 % while the anchors' winding number weighed them alike, not by
-    # area, and read the cup as open).
+    # mean curvature 75-97 % low. Those balls are now flagged; the rest of the cup keeps its values.
     sample = surfaces.Paraboloid(a=5.0).sample(20_000, "random", seed=1, noise=0.006)
     radial = np.hypot(sample.clean_points[:, 0], sample.clean_points[:, 1])
 
@@ -481,8 +477,6 @@ def test_a_cup_narrower_than_the_noisy_kernel_is_flagged_not_guessed(monkeypatch
     assert res.info["scale"].residual_rise <= TUNING.noise_rise  # the residual is noise (1.18)
     assert off_by_30_degrees(res) == 0
     assert not res.reliable[radial < 0.2].any()
-    assert res.reliable.mean() > 0.45  # 10 637 of 20 000: the bottom, the border and the rim
-    assert res.reliable[(radial > 0.4) & (radial < 0.8)].mean() > 0.9  # the cup's flank: 95 %
+    assert res.reliable.mean() > 0.85  # 18 190 of 20 000: the bottom and the border
     monkeypatch.setattr("heatcurv.fit_stages.TUNING", dataclasses.replace(TUNING, round_ball=np.inf))
-    # without the rule, 51 reliable normals 30-90 degrees off (132 before the rim was flagged as well)
-    assert off_by_30_degrees(heatcurv.estimate(sample.points)) > 30
+    assert off_by_30_degrees(heatcurv.estimate(sample.points)) > 100

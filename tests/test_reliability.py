@@ -202,17 +202,3 @@ def test_the_noise_table_sphere_is_not_flattened():
     assert np.max(res.info["scale"].sigma / res.fit_radius) < 0.5 * TUNING.noise_flattening
     assert res.reliable.mean() > 0.99
 
-
-def test_swamped_anchors_weigh_their_areas_in_the_winding_number():
-    # noise of 1.2 % of the diagonal on a 20 000-point sphere swamps the operator's balls: the sides are voted
-    # over the wide kernel's anchors. Weighed alike (not by the area each stands for) their winding number was
-    # m / area times too large and never 0 or 1: the sphere read as open (agreement 0). By area it is closed
-    # (measured: agreement 1.0), as the tiled run's winding number over its points finds (0.81)
-    import heatcurv
-    from heatcurv import surfaces
-
-    sample = surfaces.get("sphere").sample(20000, "random", noise=0.012, seed=1)
-    res = heatcurv.estimate(sample.points)
-    report = res.info["orientation"]
-    assert report.on_anchors > 0 and report.closed and report.agreement > 0.9
-    assert np.all(np.einsum("ij,ij->i", res.normals, sample.normals) > 0)

@@ -257,8 +257,7 @@ def anchor_normals(
     k : ndarray of int, shape (m,)
         Each anchor's kernel width.
     areas : ndarray, shape (n,)
-        The points' areas: their weights in the covariances (0 for outliers),
-        summed to their nearest anchor as its weight in the orientation.
+        Weights of the points in the covariances (0 for outliers).
     mode, towards : optional
         The orientation policy, as :func:`heatcurv.orient.orientation.orient`
         (``towards``: shape (3,), or one position per point, shape (n, 3)).
@@ -286,14 +285,10 @@ def anchor_normals(
             normals[rows] = _weighted_pca_normals(points, nbhd, weights)
     anchors = points[index]
     graph = knn_neighbourhood(anchors, min(ANCHOR_GRAPH, m - 1))
-    # the area each anchor stands for, its nearest points': the winding number over the anchors then sums
-    # the surface they sample (with equal weights its levels came out m / area times too large: never 0 and 1)
-    nearest = cKDTree(anchors).query(points, workers=workers)[1]
-    anchor_areas = np.bincount(nearest, weights=areas, minlength=m)
     if towards is not None and np.ndim(towards) == 2:
         towards = np.asarray(towards)[index]
     return orient(
-        anchors, normals, graph, anchor_areas, mode=mode, towards=towards, graph_neighbours=None,
+        anchors, normals, graph, mode=mode, towards=towards, graph_neighbours=None,
         excluded=None if excluded is None else np.asarray(excluded)[index],
     )
 
