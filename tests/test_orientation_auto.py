@@ -327,6 +327,25 @@ def test_noise_is_not_a_second_sheet():
     assert result.info["orientation"].policy.split <= 0.1
 
 
+def test_a_tiled_run_takes_noise_as_thick_as_the_sample_balls_for_no_terrain_too(tmp_path):
+    # the survey reads the same centres: outward (it was up, 46 % of the points inside out, 34 % reliable so),
+    # and the noise's flattening flags every point in both runs (TUNING.noise_flattening)
+    from heatcurv.io import read_points
+
+    sample = surfaces.get("sphere").sample(5000, "random", noise=0.03, seed=1)
+    src, dst = tmp_path / "sphere.npy", tmp_path / "sphere.ply"
+    np.save(src, sample.points)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", heatcurv.HeatcurvWarning)
+        report = heatcurv.compute_file(src, dst, tile_size=1250, scheduler="serial", dtype="float64", progress=False,
+                                       fields=("nx", "ny", "nz", "reliable"))
+        in_memory = heatcurv.estimate(sample.points)
+    assert report.context["auto_orientation"] == "outward"
+    out = read_points(dst)
+    assert np.all(np.einsum("ij,ij->i", out.normals, sample.normals) > 0)
+    assert np.array_equal(out.fields["reliable"].astype(bool), in_memory.reliable)
+
+
 def test_a_tiled_run_takes_a_thin_plate_for_closed_too(tmp_path):
     # the survey decides on the same centres with the kernel choice's sigma as the noise: outward too
     # (had it chosen up, the bottom face would be inward: half the points)
