@@ -51,8 +51,8 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     (:func:`_split_share`: the same object thinner still). Under noise as
     thick as the sample's balls almost none of them is flat and the tests
     read noise, so at least ``TUNING.auto_flat_share`` of the sample must be
-    flat (a sphere with noise of 3 % of its diagonal, 5000 points, passed
-    for terrain and came out half inside out).
+    flat (a sphere of 5000 points with noise of 3 % of its diagonal has
+    0.25 % of its sample flat, and those few may all face up).
 
     A cloud that fails this test along ``z``, or passes it with fewer than
     ``TUNING.auto_level_share`` of its normals within 45 degrees of vertical,
