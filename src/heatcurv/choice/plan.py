@@ -81,8 +81,9 @@ class FitPlan:
         (:func:`heatcurv.flags.reliability.resolution`), not a point's flag.
     noisy_misfits : bool
         The kernel choice measured noise, and its quietest centres' residual did not grow with the kernel
-        or the noise swamps the operator's balls (:func:`noisy_residuals`): the fit's residual on a smooth surface is that noise, nearly the same
-        at every point, and a point whose residual exceeds ``TUNING.noise_misfit_factor`` times its
+        or the noise swamps the operator's balls (:func:`noisy_residuals`): the fit's residual on a
+        smooth surface is that noise, nearly the same at every point, and a point whose residual exceeds
+        ``TUNING.noise_misfit_factor`` times its
         kernel width's median is a misfit (:func:`heatcurv.flags.reliability.misfits`). Elsewhere the
         residual is the surface's own misfit, which varies from point to point, and the bound is
         ``TUNING.misfit_factor``. Where it is noise, a point whose ball radius is under
