@@ -198,6 +198,11 @@ class Tuning:
     #: (torus, 0.6 % noise: its error 5.3 %). Used where the residual is noise (:attr:`FitPlan.noisy_misfits`).
     noise_flattening: float = _knob(0.07, "noise over the fit's ball radius from which the noise flattens the "
                                           "fitted curvature by about 10 %: not reliable")
+    #: The sphere's flattening is 12-18 (sigma / R)^2, a torus's and a cylinder's less and of either sign: 10 brings
+    #: 10 of the error-bar benchmark's 62 clouds into its coverage band (7 without, 8 at 15, where the 0.6 %
+    #: ellipsoid's bars grow too wide).
+    flattening_bias: float = _knob(10.0, "the noise's flattening of a curvature, in (sigma / R)^2 of its value, that "
+                                         "its standard error counts")
     misfit_floor: float = _knob(1e-3, "floor of the median residual (spacings) misfits are measured against")
     #: Fewer than about 12 points around an osculating circle: the balls wrap around the surface.
     resolution_limit: float = _knob(0.5, "median spacing in radii of curvature above which a cloud is unresolved")

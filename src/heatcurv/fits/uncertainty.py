@@ -9,7 +9,11 @@ Each standard error is the root of the value's estimated mean square error, the 
   and Gaussian curvatures and the normal, and ``sigma`` is the fit's own estimate of the
   noise (:attr:`heatcurv.fits.chordfit.ChordFit.noise`). Beyond first order, a noisy
   umbilic point's curvatures split (:func:`_eigenvalue_spread`), and the noise moves the
-  point along the surface, which turns the true normal at it by ``sigma k``. On a cloud
+  point along the surface, which turns the true normal at it by ``sigma k``. The kernel's
+  weights, on the noisy distance, flatten the fitted curvatures by about
+  ``TUNING.flattening_bias (sigma / R)^2`` of their value (``R`` the fit's ball radius;
+  :func:`heatcurv.flags.reliability.flattened`); its sign depends on the shape (negative on a
+  sphere, positive on a cylinder), so it is counted as an error of that size. On a cloud
   the kernel choice calls clean (the chord fit) the residual is the model's misfit, not
   noise, and this part is left out: the two below measure that error instead.
 * **bias**: a kernel of ``k`` neighbours bends the fit away from the surface by an
@@ -49,6 +53,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..geometry.sampling import key_thinning
+from ..tuning import TUNING
 from .balls import Scale, fit_blocks
 from .chordfit import NOISE_FIELDS, ChordFit
 
@@ -273,6 +278,10 @@ def standard_errors(points: np.ndarray, tree: cKDTree, areas: np.ndarray, normal
     # the noise moves the point itself along the surface too (isotropic noise): the true normal at
     # its measured position turns by sigma k along each principal direction
     variance[:, 4] += noise**2 * (values[:, 1] ** 2 + values[:, 2] ** 2)
+    # the noise's flattening, a share of each curvature (twice it of K = k1 k2)
+    flattening = TUNING.flattening_bias * (noise / radius) ** 2
+    variance[:, :3] += (flattening[:, None] * values[:, :3]) ** 2
+    variance[:, 3] += (2.0 * flattening * values[:, 3]) ** 2
     bias2 = np.maximum(squared - _window_mean(change_noise, near, alike), 0.0)
     blended, blend_reach = _blend(tree_c, points, bias2 + carry, level, level[centres], window_reach, workers)
     return _with_rounding(variance + blended, values, radius, fitted, np.maximum(reach, blend_reach))
