@@ -193,7 +193,8 @@ class Tuning:
     noise_misfit_factor: float = _knob(3.0, "fit residual over the cloud's median that is not one smooth surface, "
                                             "where the kernel choice measured noise")
     #: The kernel weighs a neighbour by its noisy distance, so the fitted heights flatten: a noisy sphere's mean
-    #: curvature is off by about 15-30 (sigma / R)^2 (R the fit's ball radius), 1 % at 0.025 (the noise table's
+    #: curvature is off by about 15-30 (sigma / R)^2 with the kernel choice's sigma (12-18 with the true one; R the
+    #: fit's ball radius), 1 % at 0.025 (the noise table's
     #: sphere), 8-11 % at 0.07-0.076, 17-25 % at 0.09-0.11; the noise table and held-out clouds at most 0.056
     #: (torus, 0.6 % noise: its error 5.3 %). Used where the residual is noise (:attr:`FitPlan.noisy_misfits`).
     noise_flattening: float = _knob(0.07, "noise over the fit's ball radius from which the noise flattens the "
