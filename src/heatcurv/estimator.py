@@ -272,7 +272,7 @@ def _reliability_inputs(op: HeatKernelOperator, fitted: Fitted, ball_shape, orie
         local &= ~fitted.wrapped
     if coarse is not None:
         local &= ~coarse
-    if fitted.plan is not None and fitted.plan.noisy_misfits:  # the residual is noise: its flattening
+    if fitted.plan is not None and fitted.plan.flattening:
         local &= ~flattened(fitted.scale.sigma, nbhd.radius if fitted.radius is None else fitted.radius)
     m = op.points.shape[0]
     width = np.zeros(m, dtype=np.int64) if fitted.width is None else np.asarray(fitted.width, dtype=np.int64)

@@ -196,9 +196,12 @@ class Tuning:
     #: curvature is off by about 15-30 (sigma / R)^2 with the kernel choice's sigma (12-18 with the true one; R the
     #: fit's ball radius), 1 % at 0.025 (the noise table's
     #: sphere), 8-11 % at 0.07-0.076, 17-25 % at 0.09-0.11; the noise table and held-out clouds at most 0.056
-    #: (torus, 0.6 % noise: its error 5.3 %). Used where the residual is noise (:attr:`FitPlan.noisy_misfits`).
+    #: (torus, 0.6 % noise: its error 5.3 %). Used where :attr:`FitPlan.flattening`.
     noise_flattening: float = _knob(0.07, "noise over the fit's ball radius from which the noise flattens the "
                                           "fitted curvature by about 10 %: not reliable")
+    #: The small clouds the flag is for measure 0.30-0.63; CGAL's noisy camel (0.1 % noise, its coarse mesh's misfit
+    #: doubling the residual) 0.17, where the flag would take 26 % of its points.
+    flattening_noise: float = _knob(0.25, "noise, in spacings, from which the noise's flattening is flagged")
     #: The sphere's flattening is 12-18 (sigma / R)^2, a torus's and a cylinder's less and of either sign: 10 brings
     #: 10 of the error-bar benchmark's 62 clouds into its coverage band (7 without, 8 at 15, where the 0.6 %
     #: ellipsoid's bars grow too wide).

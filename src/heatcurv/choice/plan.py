@@ -36,7 +36,7 @@ import numpy as np
 from ..fits.anchors import anchors_per_ball, carry_degree
 from ..tuning import TUNING
 
-__all__ = ["FORMS", "FitPlan", "noise_swamps_balls", "noisy_residuals", "plan_fit"]
+__all__ = ["FORMS", "FitPlan", "flattening", "noise_swamps_balls", "noisy_residuals", "plan_fit"]
 
 #: The fit forms a plan names: the chord fit, its denoised form (:mod:`heatcurv.fits.chordfit`) and the paper's
 #: tensor fit with or without its constraint (:mod:`heatcurv.fits.principal`).
@@ -86,10 +86,14 @@ class FitPlan:
         ``TUNING.noise_misfit_factor`` times its
         kernel width's median is a misfit (:func:`heatcurv.flags.reliability.misfits`). Elsewhere the
         residual is the surface's own misfit, which varies from point to point, and the bound is
-        ``TUNING.misfit_factor``. Where it is noise, a point whose ball radius is under
-        ``1 / TUNING.noise_flattening`` times the noise is not reliable either: the kernel, which weighs
-        each neighbour by its noisy distance, flattens the fitted heights, and the curvature by about
-        ``20 (sigma / R)^2`` (:func:`heatcurv.flags.reliability.flattened`).
+        ``TUNING.misfit_factor``.
+    flattening : bool
+        With ``noisy_misfits``, and noise of at least ``TUNING.flattening_noise`` of the spacing: a point
+        whose ball radius is under ``1 / TUNING.noise_flattening`` times the noise is not reliable: the
+        kernel, which weighs each neighbour by its noisy distance, flattens the fitted heights, and the
+        curvature by about ``20 (sigma / R)^2`` (:func:`heatcurv.flags.reliability.flattened`). Under less
+        noise the residual a coarse mesh's facets add (CGAL's camel with noise of 0.1 % of its diagonal:
+        twice the noise) would make ``sigma`` overstate the flattening.
     standard_errors : bool
         The chord fit's standard errors are computed (:mod:`heatcurv.fits.uncertainty`): with its own
         kernel choice (not ``radius=``), on a whole cloud (not a tile's part) and unless ``se=False``.
@@ -110,6 +114,7 @@ class FitPlan:
     keep_normals: bool = False
     wrapped: bool = False
     noisy_misfits: bool = False
+    flattening: bool = False
     standard_errors: bool = True
     reason: str = ""
 
@@ -146,9 +151,9 @@ class FitPlan:
         extras = [text for flag, text in ((self.refit, "low-noise refit"),
                                           (self.anchor_normals, "anchors orient their own normals"),
                                           (self.wrapped, "round wide balls flagged"),
-                                          (self.noisy_misfits, f"misfits from {self.misfit_factor:g}x the noise, "
-                                                               f"balls under {1 / TUNING.noise_flattening:.0f}x "
-                                                               "it flagged"),
+                                          (self.noisy_misfits, f"misfits from {self.misfit_factor:g}x the noise"),
+                                          (self.flattening, f"balls under {1 / TUNING.noise_flattening:.0f}x "
+                                                            "the noise flagged"),
                                           (self.keep_normals, "given normals kept")) if flag]
         return (f"{self.label}{widths}, {where}" + "".join(f"; {text}" for text in extras)
                 + (f" ({self.reason})" if self.reason else ""))
@@ -184,13 +189,15 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
     gate = f"noise {choice.relative_noise:.2g} h" if scale.denoise else "clean"
     if options.radius is not None:
         return FitPlan(form, k=scale.k, k_min=k_min, k_max=k_max, radius=float(options.radius),
-                       keep_normals=keep_normals, noisy_misfits=noisy_residuals(choice), standard_errors=False,
+                       keep_normals=keep_normals, noisy_misfits=noisy_residuals(choice),
+                       flattening=flattening(choice), standard_errors=False,
                        reason=f"radius={options.radius:g}; {gate}")
     errors = bool(options.se)
     k_fit = int(options.scale_tuning.k_fit)
     if not scale.denoise and scale.k <= k_fit:
         return FitPlan("chord", k=scale.k, k_min=k_min, k_max=k_max, keep_normals=keep_normals,
-                       noisy_misfits=noisy_residuals(choice), standard_errors=errors, reason=gate)
+                       noisy_misfits=noisy_residuals(choice), flattening=flattening(choice), standard_errors=errors,
+                       reason=gate)
     # noise, or a kernel too wide to fit at every point: the denoised form at anchors (its offset
     # absorbs the centre's own height error, which a carried chord fit would keep)
     why = gate if scale.denoise else f"clean, but {scale.k} neighbours is wider than k_fit = {k_fit}"
@@ -202,6 +209,7 @@ def plan_fit(options, choice=None, *, keep_normals: bool = False) -> FitPlan:
         "denoised", k=scale.k, k_min=k_min, k_max=k_max, anchored=True, anchors_per_ball=anchors_per_ball(low_noise),
         anchor_normals=strong, refit=low_noise, carry_degree=carry_degree(low_noise), keep_normals=keep_normals,
         wrapped=bool(choice.residual_rise <= TUNING.noise_rise), noisy_misfits=noisy_residuals(choice),
+        flattening=flattening(choice),
         standard_errors=errors, reason=why,
     )
 
@@ -223,6 +231,12 @@ def noisy_residuals(choice) -> bool:
     if choice is None or not choice.scale.denoise:
         return False
     return bool(choice.quiet_rise <= TUNING.noise_rise) or noise_swamps_balls(choice)
+
+
+def flattening(choice) -> bool:
+    """Whether points the noise flattens are flagged (:attr:`FitPlan.flattening`): the residual is noise
+    (:func:`noisy_residuals`) of at least ``TUNING.flattening_noise`` of the spacing."""
+    return noisy_residuals(choice) and bool(choice.relative_noise >= TUNING.flattening_noise)
 
 
 def noise_swamps_balls(scale) -> bool:
