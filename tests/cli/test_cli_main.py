@@ -175,7 +175,10 @@ def slow(stream, output, target):
     stream.write(b"x" * (32 << 20))  # 32 MB of the output written, then wait to be terminated
     stream.flush()
     print("writing", flush=True)
-    time.sleep(120)
+    # Short sleeps: a process-directed SIGTERM may land on another thread (numba's, tqdm's), and
+    # Python runs its handler only when the main thread next wakes up.
+    for _ in range(1200):
+        time.sleep(0.1)
 
 hio._WRITERS[".ply"] = slow
 sys.exit(main(["compute", sys.argv[1], "-o", sys.argv[2], "--quiet"]))
