@@ -161,6 +161,22 @@ def test_turning_an_open_surface_over_its_own_plane_turns_its_normals_with_it():
         assert np.all(np.einsum("ij,ij->i", after.normals, before.normals @ turn.T) > 0)
 
 
+def test_a_noisy_open_surface_on_its_side_faces_its_own_axis_at_the_anchors_too():
+    # noise over half the spacing: the anchors orient their own normals, along the axis the policy
+    # found, not +z (with +z, a sheet standing on its side split: 47 % of its points faced inward,
+    # a third of the reliable ones too)
+    sample = surfaces.get("paraboloid").sample(20000, "random", noise=0.01, seed=3)
+    standing = sample.points @ Rotation.from_euler("x", 90.0, degrees=True).as_matrix().T
+    res = heatcurv.estimate(standing)
+    report = res.info["orientation"]
+    assert report.mode == "up" and report.policy.convex and report.on_anchors > 0
+    towards = np.asarray(report.policy.towards)
+    # every true normal is within 55 degrees of the axis; measured at least 0.48 in cosine
+    assert np.min(res.normals @ towards) > 0.25
+    assert np.all(res.mean[res.reliable] > 0)  # the convex side out: positive everywhere
+    assert np.mean(res.reliable) > 0.7  # measured 0.771, as the same cloud lying flat
+
+
 def test_a_lidar_tile_turned_away_from_up_and_its_half_agree(records):
     # turned at random, the tile is no longer over the horizontal plane but still over its own: oriented
     # along its ground's axis, point by point as it is up when it lies. Its sheet is too flat for a convex
@@ -391,6 +407,25 @@ def test_the_ground_beside_a_closed_object_faces_up_as_it_does_alone():
     assert named.info["orientation"].upward_components == 0 and np.all(named.normals[:20000, 2] < 0)
 
 
+@pytest.mark.parametrize("scene, noise", [("boulder", 0.03), ("dish", 0.04)])
+def test_noisy_ground_beside_another_object_faces_up_as_it_does_alone(scene, noise):
+    # noise of 0.45-0.53 spacings: the boulder's cloud is closed and its valley an object open on its own,
+    # the dish's cloud open and each object judged alone; measured: every ground point up. Before, the
+    # valley kept its convex side (down) on 100 % of its points, 80-85 % of them reliable: at 0.45
+    # spacings 1.6 % of its sources' balls were flat, under the sample's least share; at 0.53 the anchors,
+    # which orient their own normals, did not turn open objects up
+    ground, other = valley_and_boulder()[:2] if scene == "boulder" else valley_and_dish()
+    points = np.vstack([ground, other])
+    points = points + np.random.default_rng(1).normal(0.0, noise, points.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", heatcurv.HeatcurvWarning)
+        res = heatcurv.estimate(points)
+    report = res.info["orientation"]
+    assert report.mode == "outward" and report.upward_components == 1
+    assert (report.on_anchors > 0) == (scene == "dish")
+    assert np.all(res.normals[: len(ground), 2] > 0)
+
+
 def test_terrain_in_an_open_cloud_over_no_plane_faces_up():
     # the cloud fails auto's test along z (the dish), so it is oriented outward, and was open: each component by
     # its outward vote, the valley down at every point, reliable, its curvature's sign turned. Each component is
@@ -441,12 +476,10 @@ def test_the_upward_side_reads_one_consistent_side_over_the_plane():
     assert upward_sides(mixed, weight, np.arange(400) >= 8, np.zeros(400, dtype=int), 1).tolist() == [-1.0]
     # weightless normals (another kind of object) decide nothing
     assert upward_sides(down, np.zeros(400), flat, np.zeros(400, dtype=int), 1).tolist() == [0.0]
-    # an object almost none of whose balls are flat shows no surface over a plane: its few flat normals
-    # facing up say nothing (TUNING.auto_flat_share)
+    # an object few of whose balls are flat (noise of half their spacing) is judged by those few: the
+    # cloud's own test has read the sample's flat share (TUNING.auto_flat_share) already
     few = np.arange(400) < 0.5 * TUNING.auto_flat_share * 400
-    assert upward_sides(down, weight, few, np.zeros(400, dtype=int), 1).tolist() == [0.0]
-    assert upward_sides(down, weight, np.arange(400) < 2 * TUNING.auto_flat_share * 400,
-                        np.zeros(400, dtype=int), 1).tolist() == [-1.0]
+    assert upward_sides(down, weight, few, np.zeros(400, dtype=int), 1).tolist() == [-1.0]
 
 
 @pytest.mark.parametrize("name, noise, n", [("sphere", 0.03, 5000), ("sphere", 0.05, 2000), ("torus", 0.05, 1000)])

@@ -200,6 +200,8 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
         nrm, ball_shape, orientation, policy = normal_stages(op, normals, mode, towards, outliers.mask, clock,
                                                              keys, choices)
         mode = orientation.report.mode
+        if policy is not None and policy.towards is not None:
+            towards = policy.towards  # a sheet's own axis: the anchors' normals face it too
         with clock.stage("mean_curvature_normal"):
             K = op.mean_curvature_normal()
         # the areas of the fit weights W_ij A_j (the density areas are positive by construction)
@@ -215,7 +217,7 @@ def estimate(points, normals=None, *, method: str = "default", viewpoint=None, p
             fitted = paper_fit_stages(op, plan, nrm, K, weights_areas, clock)
         elif plan.anchored:
             fitted = anchored_fit_stages(op, plan, choice, nrm, weights_areas, keys, clock, mode, towards,
-                                          outliers.mask)
+                                          outliers.mask, open_up=policy is not None)
             if fitted.orientation is not None:  # oriented again over the anchors (strong noise)
                 orientation = fitted.orientation
         else:

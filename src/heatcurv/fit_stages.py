@@ -237,7 +237,7 @@ def _centre_gain(nbhd, weights: np.ndarray) -> np.ndarray:
 
 def anchored_fit_stages(
     op: HeatKernelOperator, plan: FitPlan, choice, nrm: np.ndarray, fit_areas: np.ndarray, keys: np.ndarray,
-    clock: StageClock, mode: str, towards, outlier: np.ndarray,
+    clock: StageClock, mode: str, towards, outlier: np.ndarray, open_up: bool = False,
 ) -> Fitted:
     """The anchored fit: the wide kernel at anchors, carried to every point (:mod:`heatcurv.fits.anchors`).
 
@@ -246,7 +246,8 @@ def anchored_fit_stages(
     carry); ``choice`` is the kernel choice, ``fit_areas`` the areas weighting
     the fit (0 for outliers), ``keys`` the sampling keys the anchors are drawn
     by, ``mode`` and ``towards`` the orientation policy and its reference
-    (:func:`heatcurv.normal_stages.viewpoint_reference`) for the anchors' own normals. With
+    (:func:`heatcurv.normal_stages.viewpoint_reference`, or the policy's own axis) for the anchors' own
+    normals, ``open_up`` whether ``"outward"`` was chosen by ``orient="auto"``. With
     :attr:`~heatcurv.choice.plan.FitPlan.anchor_normals` the result's orientation is the anchors'
     (:func:`heatcurv.fits.anchors.anchor_normals`).
     """
@@ -261,7 +262,7 @@ def anchored_fit_stages(
         with clock.stage("anchor_fit", report=False):
             on_anchors = anchor_normals(
                 X, op.tree, index, k_point[index], fit_areas, mode=mode, towards=towards, excluded=outlier,
-                alpha=opts.alpha, workers=opts.workers,
+                alpha=opts.alpha, workers=opts.workers, open_up=open_up,
             )
         start = on_anchors.normals
     with clock.stage("anchor_fit", report=False):

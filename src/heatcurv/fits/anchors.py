@@ -236,6 +236,7 @@ def anchor_normals(
     excluded: np.ndarray | None = None,
     alpha: float = 2.0,
     workers: int = -1,
+    open_up: bool = False,
 ) -> Orientation:
     """The anchors' own normals, oriented over a graph of the anchors: for noise that swamps the small balls.
 
@@ -266,6 +267,8 @@ def anchor_normals(
     alpha : float, optional
         Ball radius in heat-kernel spacings.
     workers : int, optional
+    open_up : bool, optional
+        ``"outward"`` chosen by ``orient="auto"``: as :func:`heatcurv.orient.orientation.orient`.
 
     Returns
     -------
@@ -289,7 +292,7 @@ def anchor_normals(
         towards = np.asarray(towards)[index]
     return orient(
         anchors, normals, graph, mode=mode, towards=towards, graph_neighbours=None,
-        excluded=None if excluded is None else np.asarray(excluded)[index],
+        excluded=None if excluded is None else np.asarray(excluded)[index], open_up=open_up,
     )
 
 

@@ -47,7 +47,7 @@ from .tasks import load_plan, warm_up
 __all__ = ["find_plan", "identity_of", "make_plan", "PLAN_VERSION"]
 
 #: Plan file version: a plan of another version is never resumed.
-PLAN_VERSION = 17
+PLAN_VERSION = 18
 
 
 def identity_of(run: Job, tile_size, skip_nonfinite: bool) -> dict:
