@@ -249,6 +249,8 @@ MIN_WINDOW = 50
 
 def _is_clean(sigma_chord: float, sigma: float, h0: float, clean_ratio: float) -> bool:
     """The noise gate: the chord fit's residual is not clearly above the denoised fit's."""
+    if sigma_chord <= TUNING.exact_residual * h0:
+        return True  # both residuals are rounding (planar faces): their ratio is chance
     # large noise saturates the chord residual (|kN| <= 1/|z|), so the ratio alone
     # cannot tell; no clean cloud has sigma / h past TUNING.clean_noise_limit (measured <= 3.5e-4)
     return sigma_chord <= clean_ratio * sigma and sigma < TUNING.clean_noise_limit * h0
