@@ -49,6 +49,23 @@ def test_a_closed_surface_faces_down_as_much_as_up(name, turn):
     assert policy.down >= 0.4
 
 
+def test_a_sphere_a_hundred_times_denser_on_top_is_closed_not_terrain():
+    # the sample is as dense as the cloud: 99 % of its centres on the upper half, whose normals face up. Counted
+    # per centre the down share was 0.49 % (under TUNING.auto_down_share) and the sphere was oriented up: 287 of
+    # its 301 lower points inward, 147 of them reliable. Weighed by the area each centre stands for (at most
+    # TUNING.auto_area_range times the median): 2.0 %
+    rng = np.random.default_rng(7)
+    points = rng.normal(size=(200_000, 3))
+    points /= np.linalg.norm(points, axis=1)[:, None]
+    points = points[(points[:, 2] > 0) | (rng.uniform(size=len(points)) < 0.01)][:30_000]
+    res = heatcurv.estimate(points)
+    report = res.info["orientation"]
+    assert report.mode == "outward" and report.closed
+    assert report.policy.down > 2 * TUNING.auto_down_share  # measured 0.0197
+    inward = np.einsum("ij,ij->i", res.normals, points) < 0
+    assert not np.any(inward & res.reliable)
+
+
 def test_a_sphere_sampled_in_two_caps_is_joined_and_closed():
     # a sample without its equator (as keys that vary with latitude alone leave a lattice sphere): its
     # spanning forest is two caps 0.3 apart (5.6 sample spacings), each a graph over the plane; joined,

@@ -127,6 +127,11 @@ class Tuning:
     #: 2000-point samples: the LiDAR tile 86-87 %, noisy open patches 65-100 %, a sphere with noise of 1.2 % of
     #: its diagonal 25 %; noise as thick as the sample's balls (3-5 % of the diagonal) 0.05-0.45 %.
     auto_flat_share: float = _knob(0.05, "least share of flat sample points from which orient='auto' may say up")
+    #: How far from the median a sample centre's area may weigh in orient='auto''s down share: a sphere sampled a
+    #: hundred times more densely on top has 1 % of its centres below, which counted as points faced down by
+    #: 0.49 % and made it terrain; a stray point's area, its nearest centres a diagonal away, would outweigh
+    #: the surface.
+    auto_area_range: float = _knob(4.0, "largest ratio of a sample centre's area to the median in the down share")
     #: A thin closed object lying flat is two sheets one over the other, which the sample's tree orients alike.
     auto_layered_share: float = _knob(0.1, "largest share of flat sample points with a sheet over them that says up")
     auto_layer_height: float = _knob(0.5, "least height of such a second sheet, in sample spacings")

@@ -99,7 +99,13 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
     oriented, labels = _joined_trees(centres, oriented, labels, spacing)
     split = _split_share(centres, normals, tree, spacing)  # the balls' split needs no vertical: read once
-    sample = _Sample(centres, normals, flat, oriented, labels, spacing, noise, split)
+    # each centre's share of the surface: the sample is as dense as the cloud, so a centre stands for the area
+    # of its k nearest over k; the down share sums n_z over area (the divergence theorem), not over points.
+    # Within TUNING.auto_area_range of the median: a stray point far from the surface stands for no more
+    area = nbhd.radius**2
+    typical = float(np.median(area))
+    area = np.clip(area, typical / TUNING.auto_area_range, typical * TUNING.auto_area_range)
+    sample = _Sample(centres, normals, flat, oriented, labels, spacing, noise, split, area)
     # the flat normals' own axis: a surface over a plane turned away from horizontal, a plate's normal
     axis = np.linalg.eigh(np.einsum("ni,nj->ij", normals[flat], normals[flat]))[1][:, -1] if flat.any() else None
     vertical = _over_plane(sample, np.array([0.0, 0.0, 1.0]), axis)
@@ -173,6 +179,7 @@ class _Sample(NamedTuple):
     spacing: float  # median distance to the nearest sample point
     noise: float  # the cloud's noise, length units
     split: float  # _split_share
+    area: np.ndarray  # (q,), the area each centre stands for
 
 
 def _over_plane(sample: _Sample, up: np.ndarray, axis: np.ndarray | None) -> AutoPolicy:
@@ -187,10 +194,10 @@ def _over_plane(sample: _Sample, up: np.ndarray, axis: np.ndarray | None) -> Aut
     flat, labels, spacing, noise, split = sample.flat, sample.labels, sample.spacing, sample.noise, sample.split
     nz, n_comp = oriented[:, 2], int(labels.max()) + 1
     # per component, the smaller of the upward and downward sums of n_z over its flat points that are not walls
-    # (either side: the tree's root chose it)
-    upward, downward = vertical_sums(nz, np.ones_like(nz), flat, labels, n_comp)
-    total = float((upward + downward).sum())
-    down = float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
+    # (either side: the tree's root chose it); counted per centre and per area, the larger: a small closed object
+    # on wide terrain faces down over few square metres but many points, a sparse half over few points but
+    # much area, and either makes the cloud no terrain
+    down = max(_down_share(nz, weight, flat, labels, n_comp) for weight in (np.ones_like(nz), sample.area))
     share = float(np.mean(np.abs(nz) >= TUNING.auto_vertical_cosine))
     layered = _layered_share(centres, normals, flat, noise, spacing)
     if axis is not None and not np.array_equal(axis, up):
@@ -201,6 +208,13 @@ def _over_plane(sample: _Sample, up: np.ndarray, axis: np.ndarray | None) -> Aut
     terrain = share >= TUNING.auto_share and down <= TUNING.auto_down_share and flat_share >= TUNING.auto_flat_share
     mode = "up" if terrain and layered <= TUNING.auto_layered_share and split <= TUNING.auto_split_share else "outward"
     return AutoPolicy(mode, share, down, layered, split, flat_share)
+
+
+def _down_share(nz: np.ndarray, weight: np.ndarray, flat: np.ndarray, labels: np.ndarray, n_comp: int) -> float:
+    """The share of ``sum w |n_z|`` (flat, not walls) on each component's less-faced side, over all components."""
+    upward, downward = vertical_sums(nz, weight, flat, labels, n_comp)
+    total = float((upward + downward).sum())
+    return float(np.minimum(upward, downward).sum() / total) if total > 0 else 0.0
 
 
 def _in_frame(sample: _Sample, up: np.ndarray) -> tuple:
