@@ -127,7 +127,7 @@ class Tuning:
     #: 2000-point samples: the LiDAR tile 86-87 %, noisy open patches 65-100 %, a sphere with noise of 1.2 % of
     #: its diagonal 25 %; noise as thick as the sample's balls (3-5 % of the diagonal) 0.05-0.45 %.
     auto_flat_share: float = _knob(0.05, "least share of flat sample points from which orient='auto' may say up")
-    #: How far from the median a sample centre's area may weigh in orient='auto''s down share: a sphere sampled a
+    #: How far from the median a sample centre's area may weigh in the auto policy's down share: a sphere sampled a
     #: hundred times more densely on top has 1 % of its centres below, which counted as points faced down by
     #: 0.49 % and made it terrain; a stray point's area, its nearest centres a diagonal away, would outweigh
     #: the surface.

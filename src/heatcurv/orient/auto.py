@@ -43,8 +43,10 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     seventh) and at most ``TUNING.auto_down_share`` of the ``sum |n_z|`` of the
     flat ones (``TUNING.auto_flatness``: not a tree crown's scatter) that face
     up or down at all (``|n_z| >= TUNING.auto_wall_cosine``: not a wall, whose
-    ``n_z`` is noise) faces down, and at most ``TUNING.auto_layered_share`` of
-    the flat points lie straight over or under another sheet, seen along
+    ``n_z`` is noise) faces down, counted per point and per the area each
+    stands for (``TUNING.auto_area_range``), the larger, and at most
+    ``TUNING.auto_layered_share`` of the flat points lie straight over or
+    under another sheet, seen along
     ``z`` or along the cloud's own axis (:func:`_layered_share`: a thin closed
     object, whose two sides the tree can orient alike) and at most
     ``TUNING.auto_split_share`` have balls whose residuals split in two layers
@@ -99,9 +101,9 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     spacing = float(np.median(nbhd.distances[nbhd.indptr[:-1]]))  # to each point's nearest: rows nearest first
     oriented, labels = _joined_trees(centres, oriented, labels, spacing)
     split = _split_share(centres, normals, tree, spacing)  # the balls' split needs no vertical: read once
-    # each centre's share of the surface: the sample is as dense as the cloud, so a centre stands for the area
-    # of its k nearest over k; the down share sums n_z over area (the divergence theorem), not over points.
-    # Within TUNING.auto_area_range of the median: a stray point far from the surface stands for no more
+    # each centre's share of the surface: the sample is as dense as the cloud, so a centre stands for an area
+    # in proportion to its k nearest's disc; the down share sums n_z over area (the divergence theorem), not
+    # over points. Within TUNING.auto_area_range of the median: a stray point far from the surface no more
     area = nbhd.radius**2
     typical = float(np.median(area))
     area = np.clip(area, typical / TUNING.auto_area_range, typical * TUNING.auto_area_range)
