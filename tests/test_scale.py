@@ -36,15 +36,17 @@ def test_the_noise_gate_between_a_clean_ellipsoid_and_a_barely_noisy_one(noise, 
     assert heatcurv.estimate(sample.points).info["scale"].fit == fit
 
 
-@pytest.mark.parametrize("turn", [False, True], ids=["as-is", "turned"])
-def test_planar_faces_are_clean_whatever_the_ratio_of_their_rounding(turn):
+@pytest.mark.parametrize("move", ["as-is", "turned", "utm"])
+def test_planar_faces_are_clean_whatever_the_ratio_of_their_rounding(move):
     # two exact planes at a right angle: the chord and denoised residuals are both float64 rounding (1e-16 h),
     # and their ratio was chance: this fold took the denoised fit at 960 neighbours, and 1658 reliable points
     # within half a ball of the crease had |H| R of 0.05 to 2.6 where the faces have none
     from scipy.spatial.transform import Rotation
 
+    # (at coordinates of 4e6, a UTM northing, the rounding is 2.5e-9 h)
     sample = surfaces.FoldedSquare().sample(10_000, "random", seed=3)
-    points = sample.points @ Rotation.random(random_state=3).as_matrix().T if turn else sample.points
+    points = {"as-is": sample.points, "turned": sample.points @ Rotation.random(random_state=3).as_matrix().T,
+              "utm": sample.points + [4.0e6, 4.0e6, 0.0]}[move]
     res = heatcurv.estimate(points)
     assert res.info["scale"].fit == "chord-60"
     # the faces are planes: every reliable point within 0.002 / R of zero (measured 0.0011)

@@ -48,9 +48,10 @@ class Tuning:
     #: chord residual (``|kN| <= 1 / |z|``) so the ratio alone cannot tell; clean clouds stay far below it.
     clean_noise_limit: float = _knob(0.01, "noise past which no cloud is clean, whatever the chord/denoised ratio")
     #: The chord fit's residual, in spacings, below which a cloud is exact (planar faces: float64 rounding,
-    #: 1e-16 to 1e-15), whatever the ratio of two such residuals; the rounding of coordinates written with 5-6
-    #: decimals is 1.5e-6 and is noise the denoised fit removes.
-    exact_residual: float = _knob(1e-9, "chord residual (spacings) below which a cloud has nothing to denoise")
+    #: 1e-16 to 1e-15 near the origin, 2.5e-9 at coordinates of 4e6, a UTM northing), whatever the ratio of two
+    #: such residuals; the rounding of coordinates written with 5-6 decimals is 1.5e-6 and is noise the denoised
+    #: fit removes.
+    exact_residual: float = _knob(1e-7, "chord residual (spacings) below which a cloud has nothing to denoise")
     #: Upper end of the very-low-noise band (:attr:`heatcurv.choice.scale.ScaleChoice.low_noise`): above the
     #: rounding of a LAZ file's millimetres and synthetic noise up to 1e-4 of the diagonal, below 0.12 % noise
     #: and the LiDAR tile.
