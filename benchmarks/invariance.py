@@ -63,9 +63,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import datetime
-import os
-import platform
 import sys
 import time
 import warnings
@@ -78,7 +75,7 @@ import heatcurv
 from heatcurv import surfaces
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from machine import commit, cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
+from machine import run_header, table  # noqa: E402  (benchmarks/machine.py)
 
 UTM = np.array([512345.0, 4123456.0, 250.0])
 
@@ -164,20 +161,6 @@ def measure(load) -> list:
             f"{100 * conv:.0f}", f"{h_moved:.1e}", f"{100 * wrong:.2f}"]
 
 
-def show(rows: list, markdown: bool) -> None:
-    if markdown:
-        print("| " + " | ".join(COLUMNS) + " |")
-        print("|" + "---|" * len(COLUMNS))
-        for r in rows:
-            print("| " + " | ".join(r) + " |")
-    else:
-        widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(COLUMNS)]
-        print("  ".join(c.rjust(w) for c, w in zip(COLUMNS, widths)))
-        for r in rows:
-            print("  ".join(c.rjust(w) for c, w in zip(r, widths)))
-    print()
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
@@ -188,12 +171,8 @@ def main(argv=None) -> int:
     for name, load in CLOUDS.items():
         rows.append([name, *measure(load)])
         print(f"  {name}: done", file=sys.stderr, flush=True)
-    print(f"date (UTC)   {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}")
-    system = f"{platform.system()} {platform.release()}"
-    print(f"machine      {cpu_model()}, {os.cpu_count()} cores{memory_text()}; {system}")
-    print(f"python       {platform.python_version()}, numpy {np.__version__}")
-    print(f"heatcurv     {heatcurv.__version__} (commit {commit()})\n")
-    show(rows, args.markdown)
+    print(run_header())
+    print(table("Moved, turned and rescaled copies", COLUMNS, rows, args.markdown))
     print(f"wall time {time.perf_counter() - start:.0f} s")
     return 0
 

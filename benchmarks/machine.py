@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import datetime
+import os
 import platform
 import subprocess
 from pathlib import Path
@@ -57,3 +59,18 @@ def table(title: str, header: list, rows: list, markdown: bool, heading: str = "
     out = [title, "=" * len(title), line, "-" * len(line)]
     out += ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in rows]
     return "\n".join(out) + "\n"
+
+
+def run_header() -> str:
+    """The lines a benchmark's output starts with: date, machine, Python and numpy, heatcurv and its commit."""
+    import numpy as np
+
+    import heatcurv
+
+    system = f"{platform.system()} {platform.release()}"
+    return "\n".join([
+        f"date (UTC)   {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}",
+        f"machine      {cpu_model()}, {os.cpu_count()} cores{memory_text()}; {system}",
+        f"python       {platform.python_version()}, numpy {np.__version__}",
+        f"heatcurv     {heatcurv.__version__} (commit {commit()})",
+    ]) + "\n"

@@ -64,9 +64,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import datetime
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -80,7 +77,7 @@ from heatcurv.data import load_bunny
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # tests/support: the real scans
-from machine import commit, cpu_model, memory_text  # noqa: E402  (benchmarks/machine.py)
+from machine import run_header  # noqa: E402  (benchmarks/machine.py)
 
 TURN = (30.0, 50.0, 20.0)
 
@@ -223,11 +220,7 @@ def main(argv=None) -> int:
         results = [measure(name, load, Rotation.random(random_state=i).as_matrix()) for i in range(8)]
         poses.append(pose_cells(name, results))
         print(f"  {name} in 8 poses: done", file=sys.stderr, flush=True)
-    print(f"date (UTC)   {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M}")
-    system = f"{platform.system()} {platform.release()}"
-    print(f"machine      {cpu_model()}, {os.cpu_count()} cores{memory_text()}; {system}")
-    print(f"python       {platform.python_version()}, numpy {np.__version__}")
-    print(f"heatcurv     {heatcurv.__version__} (commit {commit()})\n")
+    print(run_header())
     show(COLUMNS, rows, args.markdown)
     show(POSE_COLUMNS, poses, args.markdown)
     print(f"wall time {time.perf_counter() - start:.0f} s")
