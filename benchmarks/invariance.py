@@ -62,7 +62,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 import warnings
@@ -75,7 +74,7 @@ import heatcurv
 from heatcurv import surfaces
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from machine import run_header, table  # noqa: E402  (benchmarks/machine.py)
+from machine import markdown_arguments, run_header, table, warm_up  # noqa: E402  (benchmarks/machine.py)
 
 UTM = np.array([512345.0, 4123456.0, 250.0])
 
@@ -162,10 +161,8 @@ def measure(load) -> list:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
-    args = parser.parse_args(argv)
-    heatcurv.estimate(surfaces.get("sphere").sample(500, "fibonacci").points)  # compile the kernels first
+    args = markdown_arguments(__doc__, argv)
+    warm_up()
     start = time.perf_counter()
     rows = []
     for name, load in CLOUDS.items():

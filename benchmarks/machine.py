@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import datetime
 import os
 import platform
@@ -74,3 +75,18 @@ def run_header() -> str:
         f"python       {platform.python_version()}, numpy {np.__version__}",
         f"heatcurv     {heatcurv.__version__} (commit {commit()})",
     ]) + "\n"
+
+
+def markdown_arguments(doc: str, argv=None) -> argparse.Namespace:
+    """The arguments of a benchmark whose only option is ``--markdown``; ``doc`` its help text."""
+    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--markdown", action="store_true", help="print the tables as Markdown")
+    return parser.parse_args(argv)
+
+
+def warm_up() -> None:
+    """Compile heatcurv's kernels on a small cloud, so that no timed call pays for it."""
+    import heatcurv
+    from heatcurv import surfaces
+
+    heatcurv.estimate(surfaces.get("sphere").sample(500, "fibonacci").points)

@@ -63,7 +63,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -77,7 +76,7 @@ from heatcurv.data import load_bunny
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # tests/support: the real scans
-from machine import run_header  # noqa: E402  (benchmarks/machine.py)
+from machine import markdown_arguments, run_header, warm_up  # noqa: E402  (benchmarks/machine.py)
 
 TURN = (30.0, 50.0, 20.0)
 
@@ -206,10 +205,8 @@ def show(header: list, rows: list, markdown: bool) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
-    args = parser.parse_args(argv)
-    heatcurv.estimate(surfaces.get("sphere").sample(500, "fibonacci").points)  # compile the kernels first
+    args = markdown_arguments(__doc__, argv)
+    warm_up()
     start = time.perf_counter()
     rows = []
     for name in CLOUDS:
