@@ -103,7 +103,8 @@ def auto_policy(centres: np.ndarray, noise: float = 0.0) -> AutoPolicy:
     split = _split_share(centres, normals, tree, spacing)  # the balls' split needs no vertical: read once
     # each centre's share of the surface: the sample is as dense as the cloud, so a centre stands for an area
     # in proportion to its k nearest's disc; the down share sums n_z over area (the divergence theorem), not
-    # over points. Within TUNING.auto_area_range of the median: a stray point far from the surface no more
+    # over points, each area kept within TUNING.auto_area_range of the median so that a stray point far from
+    # the surface weighs no more than a few centres
     area = nbhd.radius**2
     typical = float(np.median(area))
     area = np.clip(area, typical / TUNING.auto_area_range, typical * TUNING.auto_area_range)
