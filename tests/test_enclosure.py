@@ -120,7 +120,7 @@ def test_a_part_turned_inside_out_is_turned_back(records):
     outward = np.einsum("ij,ij->i", result.normals, s.normals) > 0
     assert outward.all()
     assert result.flipped == turned.sum()
-    # where the turned part met the rest, the tree's patches straddled the seam: a few points flagged
+    # where the turned part met the rest, the tree's patches straddled the seam: at most a few points flagged
     assert result.unsupported.mean() < 0.01
     records.check("enclosure/torus-third-turned", agreement_shortfall=100 * (1 - result.agreement),
                   unsupported=100 * result.unsupported.mean())
@@ -280,30 +280,38 @@ def _straddling_patch(turned_share):
     return s.points, normals, np.full(3000, s.total_area / 3000), label, in_patch, along
 
 
+def _beside(points, normals, flagged):
+    """The largest distance, in spacings of the 3000-point sphere, from a ``flagged`` point to a turned one."""
+    turned = np.einsum("ij,ij->i", normals, points) < 0
+    return cKDTree(points[turned]).query(points[flagged])[0].max(initial=0.0) / np.sqrt(4 * np.pi / 3000)
+
+
 def test_a_patch_mostly_contradicted_is_flagged_whole(monkeypatch):
-    # 45 % of the patch turned: the field contradicts the levels of 87 of its 499 sources, 17 % of it
-    # (a turned spot's own levels agree away from its rim); past the patch share the whole patch is in doubt.
-    # The levels alone: no cosine is below -2, so the field's own normals flag nothing here
+    # 30 % of the patch turned: the levels contradict 134 of its 150 turned sources (28 % of the patch)
+    # and 10 right ones of the next patches beside them (within 1.32 spacings); past the patch share the
+    # whole patch is in doubt. The levels alone: no cosine is below -2, so the field's own normals flag nothing
     levels_only = dataclasses.replace(TUNING, field_agreement=-2.0)
     monkeypatch.setattr("heatcurv.orient.enclosure.TUNING", levels_only)
-    points, normals, area, label, in_patch, _ = _straddling_patch(0.45)
+    points, normals, area, label, in_patch, _ = _straddling_patch(0.3)
     sides = patch_sides(points, normals, area, label, 6)
     assert sides.closed and 0 < sides.bad[in_patch].mean() < TUNING.patch_share
-    assert not sides.bad[~in_patch].any()
+    assert _beside(points, normals, sides.bad & ~in_patch) < 1.5
     monkeypatch.setattr("heatcurv.orient.enclosure.TUNING", dataclasses.replace(levels_only, patch_share=0.1))
     sides = patch_sides(points, normals, area, label, 6)
-    assert sides.bad[in_patch].all() and not sides.bad[~in_patch].any()
+    assert sides.bad[in_patch].all() and _beside(points, normals, sides.bad & ~in_patch) < 1.5
 
 
-def test_the_winding_fields_own_normals_flag_a_turned_spot_whose_levels_agree():
-    # the same patch without its pieces: its turned 45 % keep the wrong side, and the levels flag only
-    # 17 % of the patch; the field solved from no orientation points against every turned source
-    points, normals, area, label, in_patch, _ = _straddling_patch(0.45)
+def test_the_winding_fields_own_normals_flag_a_turned_spot_whose_levels_agree(monkeypatch):
+    # the same patch: its turned 30 % keep the wrong side, and the levels leave 16 of its 150 turned
+    # sources agreeing; the field solved from no orientation points against every turned source
+    points, normals, area, label, in_patch, _ = _straddling_patch(0.3)
     outward = np.einsum("ij,ij->i", normals, points) > 0
     sides = patch_sides(points, normals, area, label, 6)
     wrong = sides.sign[label] * np.where(outward, 1, -1) < 0
-    assert sides.closed and wrong.sum() == pytest.approx(0.45 * in_patch.sum(), abs=2)
-    assert sides.bad[wrong].all() and not sides.bad[~in_patch].any()
+    assert sides.closed and wrong.sum() == pytest.approx(0.3 * in_patch.sum(), abs=2)
+    assert sides.bad[wrong].all() and _beside(points, normals, sides.bad & ~in_patch) < 1.5
+    monkeypatch.setattr("heatcurv.orient.enclosure.TUNING", dataclasses.replace(TUNING, field_agreement=-2.0))
+    assert not patch_sides(points, normals, area, label, 6).bad[wrong].all()
 
 
 def test_the_winding_fields_own_normals_point_out_of_smooth_clouds_noisy_or_not():
@@ -445,3 +453,47 @@ def test_rays_leave_the_sides_of_an_open_component_alone():
     into_bowl = np.einsum("ij,ij->i", res.normals[6000:], np.column_stack([-0.8 * xy, np.ones(len(xy))])) > 0
     # 2 rim points the tree itself left facing in (measured), flagged: none reliable
     assert into_bowl.sum() <= 2 and not res.reliable[6000:][into_bowl].any()
+
+
+def _cube(n, seed=4):
+    """``n`` random points on the faces of the cube ``[-1, 1]^3`` (exact: each face's coordinate is +-1), normals."""
+    rng = np.random.default_rng(seed)
+    face, uv = rng.integers(0, 6, n), rng.uniform(-1, 1, (n, 2))
+    axis, side = face // 2, np.where(face % 2 == 0, 1.0, -1.0)
+    points, normals = np.zeros((n, 3)), np.zeros((n, 3))
+    for a in range(3):
+        on, (b, c) = axis == a, [d for d in range(3) if d != a]
+        points[on, a], points[on, b], points[on, c] = side[on], uv[on, 0], uv[on, 1]
+        normals[on, a] = side[on]
+    return points, normals
+
+
+def test_a_neighbour_in_the_plane_facing_the_other_way_does_not_pull_the_queries_onto_it():
+    # an exact plane whose two halves the tree oriented apart: a source's neighbour across the seam lies
+    # in its plane (height 0) but is no disc member; it is on the sheet, not the far side of a thin part
+    # that bounds the queries' offset, so the queries stay off the plane (on it they were the sources
+    # themselves: 0 / 0 in 180 of the 2000 rows)
+    rng = np.random.default_rng(1)
+    x = np.column_stack([rng.uniform(-1, 1, (2000, 2)), np.zeros(2000)])
+    label = (x[:, 0] > 0).astype(int)
+    nrm = np.zeros_like(x)
+    nrm[:, 2] = np.where(label == 1, -1.0, 1.0)
+    along, against, _ = patch_fields(x, nrm, np.full(2000, 4.0 / 2000), label, 2)
+    # with the halves' signs made to agree, the field jumps by 1 across the sheet (measured 0.80-1.29 a
+    # fifth of the side from its edges, 0.91-1.29 along the seam)
+    sign = np.array([1.0, -1.0])
+    jump = (against @ sign - along @ sign) * sign[label]
+    inside = np.abs(x[:, :2]).max(axis=1) < 0.8
+    assert np.isfinite(jump).all()
+    assert np.all((jump[inside] > 0.75) & (jump[inside] < 1.35))
+
+
+def test_a_cube_of_exact_planes_faces_out():
+    # random points on an exact axis-aligned cube: every height in a face's plane is exactly 0
+    points, normals = _cube(24000)
+    res = heatcurv.estimate(points)
+    assert res.info["orientation"].closed
+    outward = np.einsum("ij,ij->i", res.normals, normals) > 0
+    faces = np.sort(np.abs(points), axis=1)[:, 1] < 0.9  # a tenth of the edge away from the edges
+    assert outward[faces].all()
+    assert not np.any(~outward & res.reliable)

@@ -29,8 +29,8 @@ GEOMETRY = {
     ("enclosure", "ACROSS = ..."),
     ("areas", "keep = x[order] > -0.95"),
     ("areas", "converged = residual <= max(rtol, 1e-12) * 10"),
-    ("enclosure", 'in_plane = (height <= np.maximum(0.5 * dist, scatter[:, None])) & (np.einsum("ijk,ik->ij", '
-                  'nrm[idx], nrm) >= 0.5)'),
+    ("enclosure", "flat = height <= np.maximum(0.5 * dist, scatter[:, None])"),
+    ("enclosure", 'in_plane = flat & (np.einsum("ijk,ik->ij", nrm[idx], nrm) >= 0.5)'),
 }
 
 

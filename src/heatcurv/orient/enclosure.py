@@ -758,8 +758,9 @@ def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.n
     is ``2 pi (1 - delta / sqrt(delta^2 + A / pi))``, shared among their
     patches by area. ``delta_i`` is :data:`QUERY_OFFSET` times the disc's
     radius, at most :data:`ACROSS` times the depth, below or above the
-    tangent plane, of the nearest neighbour off it (the other side of a thin
-    part, or a part close by, which the query must not reach), and at least
+    tangent plane, of the nearest neighbour off it, whichever way it faces
+    (the other side of a thin part, or a part close by, which the query must
+    not reach; a neighbour in the plane is on the sheet), and at least
     the noise's scatter: :data:`NOISE_CLEARANCE` robust standard deviations of
     the heights of the :data:`NOISE_NEIGHBOURS` nearest over the plane.
 
@@ -788,9 +789,12 @@ def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.n
     height = np.abs(np.einsum("ijk,ik->ij", rel, nrm))
     # the scatter of the nearest heights: noise (a point off the plane by less is still on the sheet)
     scatter = NOISE_CLEARANCE * 1.4826 * np.median(height[:, 1:NOISE_NEIGHBOURS + 1], axis=1)
-    in_plane = (height <= np.maximum(0.5 * dist, scatter[:, None])) & (np.einsum("ijk,ik->ij", nrm[idx], nrm) >= 0.5)
+    flat = height <= np.maximum(0.5 * dist, scatter[:, None])
+    in_plane = flat & (np.einsum("ijk,ik->ij", nrm[idx], nrm) >= 0.5)
     in_plane[:, 0] = True
-    off_plane = np.where(in_plane, np.inf, height).min(axis=1)
+    # a neighbour in the plane facing the other way (across a seam between patches the tree turned apart)
+    # is on the sheet: no disc member, its dipole points the other way, and no bound on the queries' offset
+    off_plane = np.where(flat, np.inf, height).min(axis=1)
     disc_area = np.where(in_plane, weight[idx], 0.0).sum(axis=1)
     radius = np.sqrt(disc_area / np.pi)
     delta = np.maximum(np.minimum(QUERY_OFFSET * radius, ACROSS * off_plane), scatter)
