@@ -44,6 +44,9 @@ def test_anchors_are_about_per_ball_in_each_ball():
         assert len(index) == pytest.approx(len(pts) * TUNING.anchors_per_ball / k, rel=0.15)
         assert np.all(np.diff(index) > 0)
     assert len(anchor_rows(keys, np.full(len(pts), 8))) == len(pts)  # narrower than per_ball: every point
+    # keys crowded into a band the draw misses: the per_ball points with the smallest keys
+    crowded = 0.5 + 1e-6 * keys
+    assert np.array_equal(anchor_rows(crowded, np.full(len(pts), 1920)), np.sort(np.argsort(keys)[:16]))
     # wider kernels, sparser anchors, point by point
     k = np.where(pts[:, 0] < 0, 240, 1920)
     index = anchor_rows(keys, k)

@@ -377,6 +377,17 @@ def test_points_filling_a_volume_are_unreliable_and_the_warning_says_so():
     assert not res.reliable.any()
 
 
+def test_two_tight_clusters_far_apart_are_unreliable_and_the_warning_says_so():
+    # two balls of 300 points each, a millimetre wide and 100 apart: every point lies at about the same
+    # distance from the centroid with the same spacing, so the sampling keys crowd into a narrow band and
+    # the anchors' draw found none (numpy's error on -1 neighbours); the anchors fall back to the smallest keys
+    rng = np.random.default_rng(0)
+    points = np.vstack([rng.normal(size=(300, 3)) * 1e-3, rng.normal(size=(300, 3)) * 1e-3 + 100.0])
+    with pytest.warns(heatcurv.HeatcurvWarning, match=r"round, not flat.*fill a volume"):
+        res = heatcurv.estimate(points)
+    assert np.isfinite(res.mean).all() and not res.reliable.any()
+
+
 def test_a_resolved_cloud_is_not_called_coarse():
     # a 600-point torus: 0.38 radii of curvature per spacing, mean within 2.9 % (median)
     sample = heatcurv.surfaces.Torus(0.6, 1.4).sample(600, "random", seed=1)

@@ -53,7 +53,7 @@ from ..backend import map_blocks
 from ..fits.balls import Scale, fit_balls
 from ..flags.border import centroid_offset
 from ..geometry.neighbourhood import Neighbourhood, block_ranges, knn_neighbourhood, rows_per_block
-from ..geometry.sampling import key_thinning
+from ..geometry.sampling import key_sample, key_thinning
 from ..operators.areas import density_areas
 from ..operators.kernel import tapered_heat_weights
 from ..orient.normals import pca_normals, tangent_frames
@@ -217,11 +217,14 @@ def anchor_rows(keys: np.ndarray, k: np.ndarray, seed: int = 0, per_ball: int = 
     Returns
     -------
     ndarray of int, shape (m,)
-        Increasing rows; every point is an anchor where ``k <= TUNING.every_point * per_ball``.
+        Increasing rows; every point is an anchor where ``k <= TUNING.every_point * per_ball``, and
+        at least ``min(n, per_ball)`` when the draw finds fewer than two (keys crowded into a narrow
+        band, as on a few tight clusters far apart: the points with the smallest keys).
     """
     k = np.asarray(k, dtype=np.float64)
     fraction = np.where(k <= TUNING.every_point * per_ball, 1.0, per_ball / k)
-    return key_thinning(keys, fraction, seed)
+    rows = key_thinning(keys, fraction, seed)
+    return rows if rows.size >= 2 else key_sample(keys, min(keys.shape[0], per_ball), seed)
 
 
 def anchor_normals(
