@@ -191,6 +191,8 @@ class Tuning:
     #: Tori and spheres with noise of 0.12-0.6 % of their diagonal: 4 leaves 0.02-0.27 % of the field's normals
     #: over 53 degrees off, 6 none; CGAL's models flag as many at 8.
     field_roughness: float = _knob(6.0, "least narrowest width of the winding field's normals, in roughnesses")
+    field_group_gap: float = _knob(0.5, "gap between two objects' boxes, in the smaller one's size, up to which "
+                                        "their winding field is solved together")
 
     # --- reliability flags (heatcurv.flags.reliability, sheets, outliers, border, kernel_check, areas) ---
     planarity_min: float = _knob(0.05, "PCA planarity of a ball below which it is no surface patch")
