@@ -26,6 +26,11 @@ the bounding-box diagonal)
                                      (``FoldedSquare``);
 ``sphere 100:1``                     30 000 points of a unit sphere a hundred
                                      times denser above its equator;
+``cube 24k``                         random points on the faces of the cube
+                                     ``[-1, 1]^3`` (exact planes: every height in
+                                     a face's plane is 0);
+``sphere & torus apart``             a unit sphere (5000) and a torus scaled into
+                                     the unit ball (8000), 64 diameters apart;
 ``lidar``                            :func:`heatcurv.surfaces.lidar_tile` (20 000).
 
 Columns
@@ -52,7 +57,9 @@ Columns
 The clouds were chosen where a sweep of such copies found heatcurv reading a
 coordinate it should not (2026-12-07: an anchors' reference of +z under strong
 noise, a noise gate that compared two float64 roundings, a down share counted
-per point on a cloud of uneven density); see docs/robustness.md.
+per point on a cloud of uneven density; a winding query on its own source where
+a plane's heights are exactly 0, the winding field's widths taken from the box
+of the whole cloud); see docs/robustness.md.
 
 Usage::
 
@@ -100,6 +107,25 @@ def _uneven_sphere():
     return points, points.copy()
 
 
+def _cube():
+    rng = np.random.default_rng(4)
+    face, uv = rng.integers(0, 6, 24_000), rng.uniform(-1.0, 1.0, (24_000, 2))
+    axis, side = face // 2, np.where(face % 2 == 0, 1.0, -1.0)
+    points, normals = np.zeros((24_000, 3)), np.zeros((24_000, 3))
+    for a in range(3):
+        on, (b, c) = axis == a, [d for d in range(3) if d != a]
+        points[on, a], points[on, b], points[on, c] = side[on], uv[on, 0], uv[on, 1]
+        normals[on, a] = side[on]
+    return points, normals
+
+
+def _apart():
+    sphere = surfaces.get("sphere").sample(5000, "random", seed=1)
+    torus = surfaces.get("torus").sample(8000, "random", seed=2)
+    return (np.vstack([sphere.points, torus.points / 3.37 + [130.0, 0.0, 0.0]]),
+            np.vstack([sphere.normals, torus.normals]))
+
+
 def _lidar():
     tile = surfaces.lidar_tile(20000)
     return tile.points, tile.normals
@@ -109,7 +135,8 @@ CLOUDS = {
     "sphere 20k": _sample("sphere", 20000), "sphere 20k 0.8 %": _sample("sphere", 20000, 0.008),
     "torus 20k": _sample("torus", 20000), "torus 20k 0.8 %": _sample("torus", 20000, 0.008),
     "paraboloid 20k 1 %": _sample("paraboloid", 20000, 0.01), "saddle 20k 0.8 %": _sample("saddle", 20000, 0.008),
-    "fold 10k": _fold, "sphere 100:1": _uneven_sphere, "lidar": _lidar,
+    "fold 10k": _fold, "sphere 100:1": _uneven_sphere, "cube 24k": _cube, "sphere & torus apart": _apart,
+    "lidar": _lidar,
 }
 
 COPIES = {
