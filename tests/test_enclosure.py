@@ -13,12 +13,11 @@ from heatcurv import surfaces
 from heatcurv._kernels.dipoles import GRADIENT, TRANSPOSED, WINDING, dipole_sums
 from heatcurv._kernels.winding import winding_numbers
 from heatcurv.geometry.neighbourhood import knn_neighbourhood
-from heatcurv.orient.consistency import DipoleGrid, field_normals
+from heatcurv.orient.consistency import DipoleGrid, field_normals, object_groups
 from heatcurv.orient.enclosure import (
     Enclosure,
     _recut,
     enclose,
-    object_groups,
     patch_fields,
     patch_sides,
     patches,

@@ -28,18 +28,22 @@ the points disagree about the side, and the point's side is in doubt.
 
 The sums run over a one-level grid (:class:`DipoleGrid`): a cell counts as one
 dipole for points farther than twice its side from its centre, the authors'
-criterion for their octree's nodes.
+criterion for their octree's nodes. The widths and the cells are fractions of
+the box, which the preset expects one object to fill: the objects of a cloud
+are solved in groups of nearby ones (:func:`object_groups`), each in its box.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from .._kernels.dipoles import GRADIENT, TRANSPOSED, WINDING, dipole_sums
 from ..tuning import TUNING
 
-__all__ = ["DipoleGrid", "WIDTHS", "field_normals", "roughness"]
+__all__ = ["DipoleGrid", "WIDTHS", "field_normals", "object_groups", "roughness"]
 
 #: the smoothing width's narrowest and widest value in the scaled box: Lin et al.'s preset for real scans
 WIDTHS = (0.01, 0.04)
@@ -91,6 +95,47 @@ def field_normals(points: np.ndarray, widths: tuple[float, float] = WIDTHS,
         direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), np.finfo(float).tiny)
         mu = direction * np.linalg.norm(mu, axis=1, keepdims=True)
     return direction
+
+
+def object_groups(x: np.ndarray, objects: np.ndarray) -> np.ndarray:
+    """The group of every source, shape (m,), int, numbered from 0: objects whose boxes lie within
+    ``TUNING.field_group_gap`` times the smaller box's size of each other, joined.
+
+    The winding field's own normals (:func:`field_normals`) are smoothed
+    over widths that are fractions of the box they are solved in, and the pairs nearer than the width
+    are left out of the sums: over a box much larger than an object (two parts a hundred sizes
+    apart) the width spans the object, its own sources drop out, and its normals follow the other
+    object's field. Objects that nest or lie close (a cavity inside a shell, the pieces of one
+    sampled surface) stay in one group, whose field still sees them together.
+
+    Parameters
+    ----------
+    x : ndarray, shape (m, 3)
+        The sources.
+    objects : ndarray, shape (m,), int
+        Their objects (:func:`heatcurv.orient.enclosure.source_objects`).
+
+    Returns
+    -------
+    ndarray of int, shape (m,)
+    """
+    _, inverse = np.unique(objects, return_inverse=True)
+    k = int(inverse.max()) + 1
+    if k == 1:
+        return np.zeros(x.shape[0], dtype=np.int64)
+    low, high = np.full((k, 3), np.inf), np.full((k, 3), -np.inf)
+    np.minimum.at(low, inverse, x)
+    np.maximum.at(high, inverse, x)
+    size = np.max(high - low, axis=1)
+    # candidate pairs by their boxes' centres, then the gap between the boxes along the axis that parts them most
+    centre = (low + high) / 2.0
+    reach = (np.sqrt(3.0) + TUNING.field_group_gap) * float(size.max())
+    pairs = cKDTree(centre).query_pairs(reach, output_type="ndarray")
+    i, j = pairs[:, 0], pairs[:, 1]
+    gap = np.max(np.maximum(low[i] - high[j], low[j] - high[i]), axis=1)
+    near = gap <= TUNING.field_group_gap * np.minimum(size[i], size[j])
+    graph = sp.csr_matrix((np.ones(np.count_nonzero(near)), (i[near], j[near])), shape=(k, k))
+    return csgraph.connected_components(graph, directed=False)[1][inverse]
 
 
 def roughness(x: np.ndarray, axes: np.ndarray) -> float:

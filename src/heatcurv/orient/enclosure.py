@@ -95,7 +95,7 @@ from ..errors import HeatcurvWarning
 from ..geometry.neighbourhood import Neighbourhood
 from ..geometry.validation import row_hashes
 from ..tuning import TUNING
-from .consistency import field_normals
+from .consistency import field_normals, object_groups
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "upward_sides",
@@ -400,47 +400,6 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
                 field = field_normals(x[members], axes=own[members])
                 doubt[members] = np.einsum("ij,ij->i", own[members], field) < TUNING.field_agreement
     return dataclasses.replace(sides, bad=sides.bad | doubt)
-
-
-def object_groups(x: np.ndarray, objects: np.ndarray) -> np.ndarray:
-    """The group of every source, shape (m,), int, numbered from 0: objects whose boxes lie within
-    ``TUNING.field_group_gap`` times the smaller box's size of each other, joined.
-
-    The winding field's own normals (:func:`heatcurv.orient.consistency.field_normals`) are smoothed
-    over widths that are fractions of the box they are solved in, and the pairs nearer than the width
-    are left out of the sums: over a box much larger than an object (two parts a hundred sizes
-    apart) the width spans the object, its own sources drop out, and its normals follow the other
-    object's field. Objects that nest or lie close (a cavity inside a shell, the pieces of one
-    sampled surface) stay in one group, whose field still sees them together.
-
-    Parameters
-    ----------
-    x : ndarray, shape (m, 3)
-        The sources.
-    objects : ndarray, shape (m,), int
-        Their objects (:func:`source_objects`).
-
-    Returns
-    -------
-    ndarray of int, shape (m,)
-    """
-    _, inverse = np.unique(objects, return_inverse=True)
-    k = int(inverse.max()) + 1
-    if k == 1:
-        return np.zeros(x.shape[0], dtype=np.int64)
-    low, high = np.full((k, 3), np.inf), np.full((k, 3), -np.inf)
-    np.minimum.at(low, inverse, x)
-    np.maximum.at(high, inverse, x)
-    size = np.max(high - low, axis=1)
-    # candidate pairs by their boxes' centres, then the gap between the boxes along the axis that parts them most
-    centre = (low + high) / 2.0
-    reach = (np.sqrt(3.0) + TUNING.field_group_gap) * float(size.max())
-    pairs = cKDTree(centre).query_pairs(reach, output_type="ndarray")
-    i, j = pairs[:, 0], pairs[:, 1]
-    gap = np.max(np.maximum(low[i] - high[j], low[j] - high[i]), axis=1)
-    near = gap <= TUNING.field_group_gap * np.minimum(size[i], size[j])
-    graph = sp.csr_matrix((np.ones(np.count_nonzero(near)), (i[near], j[near])), shape=(k, k))
-    return csgraph.connected_components(graph, directed=False)[1][inverse]
 
 
 def _winding_sides(x, nrm, weight, label, n_patch, fine, n_fine, roundness, objects, open_up=False) -> PatchSides:
