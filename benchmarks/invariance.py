@@ -31,6 +31,9 @@ the bounding-box diagonal)
                                      a face's plane is 0);
 ``sphere & torus apart``             a unit sphere (5000) and a torus scaled into
                                      the unit ball (8000), 64 diameters apart;
+``UV sphere 128 x 62``               the vertices of a UV sphere: 62 rings of 128
+                                     and the poles (a symmetric cloud: its keys
+                                     come from positions, which a turn changes);
 ``lidar``                            :func:`heatcurv.surfaces.lidar_tile` (20 000).
 
 Columns
@@ -59,7 +62,8 @@ coordinate it should not (2026-12-07: an anchors' reference of +z under strong
 noise, a noise gate that compared two float64 roundings, a down share counted
 per point on a cloud of uneven density; a winding query on its own source where
 a plane's heights are exactly 0, the winding field's widths taken from the box
-of the whole cloud); see docs/robustness.md.
+of the whole cloud, sampling keys that took a symmetric cloud's rings whole);
+see docs/robustness.md.
 
 Usage::
 
@@ -119,6 +123,15 @@ def _cube():
     return points, normals
 
 
+def _uv_sphere():
+    polar = np.linspace(0.0, np.pi, 64)[1:-1]
+    turn = np.linspace(0.0, 2.0 * np.pi, 128, endpoint=False)
+    ring = np.stack(np.broadcast_arrays(np.sin(polar)[:, None] * np.cos(turn), np.sin(polar)[:, None] * np.sin(turn),
+                                        np.cos(polar)[:, None]), axis=-1).reshape(-1, 3)
+    points = np.vstack([ring, [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]])
+    return points, points.copy()
+
+
 def _apart():
     sphere = surfaces.get("sphere").sample(5000, "random", seed=1)
     torus = surfaces.get("torus").sample(8000, "random", seed=2)
@@ -136,6 +149,7 @@ CLOUDS = {
     "torus 20k": _sample("torus", 20000), "torus 20k 0.8 %": _sample("torus", 20000, 0.008),
     "paraboloid 20k 1 %": _sample("paraboloid", 20000, 0.01), "saddle 20k 0.8 %": _sample("saddle", 20000, 0.008),
     "fold 10k": _fold, "sphere 100:1": _uneven_sphere, "cube 24k": _cube, "sphere & torus apart": _apart,
+    "UV sphere 128 x 62": _uv_sphere,
     "lidar": _lidar,
 }
 

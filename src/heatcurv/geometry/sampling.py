@@ -14,9 +14,18 @@ its distance to the cloud's centroid and the size of its neighbourhood (the
 k-th and the nearest neighbour's distances, or the count in a fixed ball), the
 lengths relative to the cloud's root-mean-square radius (a quantity a tiled
 run knows before it reads any tile, :mod:`heatcurv.choice.choices`). A subset of size ``s`` is the
-``s`` points with the smallest keys. Points with equal keys are symmetric
-images of each other (a lattice's rows, a surface of revolution's rings), so
-whichever of them a tie-break picks measures the same geometry.
+``s`` points with the smallest keys.
+
+On a cloud with a symmetry of its own (the vertices of a UV sphere, a grid on a
+surface of revolution) every point of a ring has the same features, so an
+invariant key would take whole rings or none: a sample of a few rings far apart,
+which the orientation read as terrain (a UV sphere of 8000 vertices or more
+came out "up", half of it inside out and reliable). A point with such a twin
+among its nearest neighbours (features equal within :data:`TIE_TOLERANCE`)
+takes its key from its position instead (:func:`position_keys`): the same in
+every tile, and unchanged by a translation or a uniform scaling, but not by a
+rotation; on a symmetric cloud a rotation of the whole maps its rings onto
+themselves anyway.
 """
 
 from __future__ import annotations
@@ -25,7 +34,8 @@ import numpy as np
 
 from .neighbourhood import Neighbourhood
 
-__all__ = ["geometric_keys", "key_sample", "key_spread", "key_thinning", "draw_subset", "shifted_keys"]
+__all__ = ["geometric_keys", "key_sample", "key_spread", "key_thinning", "draw_subset", "position_keys",
+           "shifted_keys"]
 
 #: Multiplier of the invariant features before their fractional part is taken: large enough that
 #: neighbouring points' keys are unrelated (features differ by about 1e-3 between neighbours),
@@ -34,6 +44,14 @@ __all__ = ["geometric_keys", "key_sample", "key_spread", "key_thinning", "draw_s
 KEY_SPREAD = 2.0**12
 _GOLDEN = 0.6180339887498949
 _SILVER = 0.4142135623730951
+#: Relative difference within which two neighbours' features are equal (a symmetric image): coordinates
+#: written with 6 decimals move them by about 1e-7; a random sample's neighbours differ by 1e-3 or more
+#: (none of CGAL's models or a random torus has such a pair, a LiDAR tile 1 point in 10 000).
+TIE_TOLERANCE = 1e-5
+#: Nearest neighbours searched for a point's symmetric image.
+TIE_NEIGHBOURS = 8
+#: Grid of the positions :func:`position_keys` hashes, in root-mean-square radii.
+_POSITION_STEP = 2.0**-24
 
 
 def geometric_keys(points: np.ndarray, nbhd: Neighbourhood, frame=None) -> np.ndarray:
@@ -80,8 +98,45 @@ def geometric_keys(points: np.ndarray, nbhd: Neighbourhood, frame=None) -> np.nd
         if filled.any():
             nearest[filled] = np.minimum.reduceat(nbhd.distances, nbhd.indptr[:-1][filled])
         local = counts * 1e-3 + nearest / max(scale, np.finfo(float).tiny)
-    feature = _GOLDEN * r / max(scale, np.finfo(float).tiny) + _SILVER * local
-    return np.modf(feature * key_spread(n_cloud))[0]
+    radius = r / max(scale, np.finfo(float).tiny)
+    keys = np.modf((_GOLDEN * radius + _SILVER * local) * key_spread(n_cloud))[0]
+    twin = _has_twin(radius, local, nbhd)
+    keys[twin] = position_keys(centred[twin] / max(scale, np.finfo(float).tiny))
+    return keys
+
+
+def _has_twin(radius: np.ndarray, local: np.ndarray, nbhd: Neighbourhood) -> np.ndarray:
+    """Points with a symmetric image among their :data:`TIE_NEIGHBOURS` nearest, shape (n,), bool: a
+    neighbour whose both features are within :data:`TIE_TOLERANCE` of the point's."""
+    near = nbhd.nearest(TIE_NEIGHBOURS + 1)
+    rows = np.repeat(np.arange(nbhd.n_points), near.counts)
+    other = near.indices
+    same = other != rows
+    for feature in (radius, local):
+        same &= np.abs(feature[other] - feature[rows]) <= TIE_TOLERANCE * np.abs(feature[rows])
+    twin = np.zeros(nbhd.n_points, dtype=bool)
+    twin[rows[same]] = True
+    return twin
+
+
+def position_keys(scaled: np.ndarray) -> np.ndarray:
+    """A pseudo-random number in [0, 1) per position, shape (n,): a hash of the position on a fine grid.
+
+    Parameters
+    ----------
+    scaled : ndarray, shape (n, 3)
+        Positions relative to the cloud's centroid, in its root-mean-square radius.
+    """
+    cell = np.clip(np.round(scaled / _POSITION_STEP), -(2.0**62), 2.0**62).astype(np.int64).view(np.uint64)
+    h = cell[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ cell[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
+    h ^= cell[:, 2] * np.uint64(0x165667B19E3779F9)
+    # the finaliser of splitmix64: every input bit reaches every output bit
+    h ^= h >> np.uint64(30)
+    h *= np.uint64(0xBF58476D1CE4E5B9)
+    h ^= h >> np.uint64(27)
+    h *= np.uint64(0x94D049BB133111EB)
+    h ^= h >> np.uint64(31)
+    return (h >> np.uint64(11)).astype(np.float64) / 2.0**53
 
 
 def key_spread(n_points: int) -> float:
