@@ -85,7 +85,9 @@ import heatcurv
 from heatcurv import surfaces
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))  # tests/support
 from machine import markdown_arguments, run_header, table, warm_up  # noqa: E402  (benchmarks/machine.py)
+from support.solids import cube_faces, uv_sphere  # noqa: E402
 
 UTM = np.array([512345.0, 4123456.0, 250.0])
 
@@ -112,23 +114,11 @@ def _uneven_sphere():
 
 
 def _cube():
-    rng = np.random.default_rng(4)
-    face, uv = rng.integers(0, 6, 24_000), rng.uniform(-1.0, 1.0, (24_000, 2))
-    axis, side = face // 2, np.where(face % 2 == 0, 1.0, -1.0)
-    points, normals = np.zeros((24_000, 3)), np.zeros((24_000, 3))
-    for a in range(3):
-        on, (b, c) = axis == a, [d for d in range(3) if d != a]
-        points[on, a], points[on, b], points[on, c] = side[on], uv[on, 0], uv[on, 1]
-        normals[on, a] = side[on]
-    return points, normals
+    return cube_faces(24_000)
 
 
 def _uv_sphere():
-    polar = np.linspace(0.0, np.pi, 64)[1:-1]
-    turn = np.linspace(0.0, 2.0 * np.pi, 128, endpoint=False)
-    ring = np.stack(np.broadcast_arrays(np.sin(polar)[:, None] * np.cos(turn), np.sin(polar)[:, None] * np.sin(turn),
-                                        np.cos(polar)[:, None]), axis=-1).reshape(-1, 3)
-    points = np.vstack([ring, [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]])
+    points = uv_sphere(62, 128)
     return points, points.copy()
 
 

@@ -26,6 +26,7 @@ from heatcurv.orient.enclosure import (
 )
 from heatcurv.orient.orientation import _spanning_forest
 from heatcurv.tuning import TUNING
+from support.solids import cube_faces
 
 
 def _reference_winding(queries, sources, dipoles, labels, n_labels):
@@ -455,19 +456,6 @@ def test_rays_leave_the_sides_of_an_open_component_alone():
     assert into_bowl.sum() <= 2 and not res.reliable[6000:][into_bowl].any()
 
 
-def _cube(n, seed=4):
-    """``n`` random points on the faces of the cube ``[-1, 1]^3`` (exact: each face's coordinate is +-1), normals."""
-    rng = np.random.default_rng(seed)
-    face, uv = rng.integers(0, 6, n), rng.uniform(-1, 1, (n, 2))
-    axis, side = face // 2, np.where(face % 2 == 0, 1.0, -1.0)
-    points, normals = np.zeros((n, 3)), np.zeros((n, 3))
-    for a in range(3):
-        on, (b, c) = axis == a, [d for d in range(3) if d != a]
-        points[on, a], points[on, b], points[on, c] = side[on], uv[on, 0], uv[on, 1]
-        normals[on, a] = side[on]
-    return points, normals
-
-
 def test_a_neighbour_in_the_plane_facing_the_other_way_does_not_pull_the_queries_onto_it():
     # an exact plane whose two halves the tree oriented apart: a source's neighbour across the seam lies
     # in its plane (height 0) but is no disc member; it is on the sheet, not the far side of a thin part
@@ -490,7 +478,7 @@ def test_a_neighbour_in_the_plane_facing_the_other_way_does_not_pull_the_queries
 
 def test_a_cube_of_exact_planes_faces_out():
     # random points on an exact axis-aligned cube: every height in a face's plane is exactly 0
-    points, normals = _cube(24000)
+    points, normals = cube_faces(24000)
     res = heatcurv.estimate(points)
     assert res.info["orientation"].closed
     outward = np.einsum("ij,ij->i", res.normals, normals) > 0

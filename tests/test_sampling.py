@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 import heatcurv
 from heatcurv.geometry.neighbourhood import ball_neighbourhood, knn_neighbourhood
 from heatcurv.geometry.sampling import _has_twin, geometric_keys, key_sample
+from support.solids import uv_sphere
 
 
 @pytest.fixture(scope="module")
@@ -51,19 +52,10 @@ def test_ball_keys_spread_a_sample_over_a_sphere():
     assert cKDTree(sample).query(pts)[0].max() < 0.2
 
 
-def _uv_sphere(rings, per_ring):
-    """The vertices of a UV sphere: ``rings`` circles of latitude of ``per_ring`` vertices each, and the poles."""
-    polar = np.linspace(0.0, np.pi, rings + 2)[1:-1]
-    turn = np.linspace(0.0, 2.0 * np.pi, per_ring, endpoint=False)
-    ring = np.stack(np.broadcast_arrays(np.sin(polar)[:, None] * np.cos(turn), np.sin(polar)[:, None] * np.sin(turn),
-                                        np.cos(polar)[:, None]), axis=-1).reshape(-1, 3)
-    return np.vstack([ring, [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]])
-
-
 def test_keys_of_a_symmetric_cloud_spread_a_sample_over_it():
     # a UV sphere's rings: every vertex of a ring has the same distance to the centroid and the same
     # neighbourhood, so keys from those alone take whole rings; its twins take their keys from their positions
-    pts = _uv_sphere(126, 256)
+    pts = uv_sphere(126, 256)
     keys = _keys(pts)
     assert np.all(np.abs(np.histogram(keys, bins=10, range=(0, 1))[0] / keys.size - 0.1) < 0.01)  # sd 0.17 %
     sample = pts[key_sample(keys, 2000)]
@@ -79,14 +71,14 @@ def test_only_symmetric_images_are_twins():
     features = lambda p: (np.linalg.norm(p - p.mean(0), axis=1), nbhd(p).radius)  # noqa: E731
     random = heatcurv.surfaces.Torus(0.6, 1.4).sample(20000, "random", seed=2).points
     assert not _has_twin(*features(random), nbhd(random)).any()
-    ring = _uv_sphere(30, 64)
+    ring = uv_sphere(30, 64)
     assert _has_twin(*features(ring), nbhd(ring))[:-2].all()  # every ring vertex; the poles have none
 
 
 def test_a_uv_sphere_faces_out():
     # 128 vertices a ring on 62 rings: sampled by whole rings, the orientation read it as terrain and turned
     # it up (47 % of its points inside out and reliable); 1.6 % inside out now, none reliable (the poles' rings)
-    pts = _uv_sphere(62, 128)
+    pts = uv_sphere(62, 128)
     result = heatcurv.estimate(pts)
     assert result.info["orientation"].mode == "outward"
     inward = np.einsum("ij,ij->i", result.normals, pts) < 0

@@ -32,5 +32,8 @@ demo uses them, so they ship in :mod:`heatcurv.surfaces.accuracy`.
                        mouse input, take screenshots (the viewer's tests)
 ``scenes``             clouds of several objects apart (terrain beside a
                        closed or an open object), for the orientation tests
+``solids``             a cube of exact planes and a UV sphere's vertices (a
+                       symmetric cloud), for the tests and the invariance
+                       benchmark
 =====================  ======================================================
 """
