@@ -111,13 +111,15 @@ def _has_twin(radius: np.ndarray, local: np.ndarray, nbhd: Neighbourhood) -> np.
     """Points with a symmetric image among their :data:`TIE_NEIGHBOURS` nearest, shape (n,), bool: a
     neighbour whose both features are within :data:`TIE_TOLERANCE` of the point's."""
     near = nbhd.nearest(TIE_NEIGHBOURS + 1)
-    rows = np.repeat(np.arange(nbhd.n_points), near.counts)
-    other = near.indices
-    same = other != rows
-    for feature in (radius, local):
-        same &= np.abs(feature[other] - feature[rows]) <= TIE_TOLERANCE * np.abs(feature[rows])
+    start, counts = near.indptr[:-1], near.counts
     twin = np.zeros(nbhd.n_points, dtype=bool)
-    twin[rows[same]] = True
+    # one rank of neighbours at a time, the radius first: most pairs fail it, and the rest are few to gather
+    for rank in range(int(counts.max(initial=0))):
+        rows = np.flatnonzero(counts > rank)
+        other = near.indices[start[rows] + rank]
+        keep = (other != rows) & (np.abs(radius[other] - radius[rows]) <= TIE_TOLERANCE * np.abs(radius[rows]))
+        rows, other = rows[keep], other[keep]
+        twin[rows[np.abs(local[other] - local[rows]) <= TIE_TOLERANCE * np.abs(local[rows])]] = True
     return twin
 
 
