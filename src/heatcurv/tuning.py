@@ -193,6 +193,14 @@ class Tuning:
     field_roughness: float = _knob(6.0, "least narrowest width of the winding field's normals, in roughnesses")
     field_group_gap: float = _knob(0.5, "gap between two objects' boxes, in the smaller one's size, up to which "
                                         "their winding field is solved together")
+    #: heatcurv.orient.consistency.split_sheets: surfaces passing through each other
+    seam_tilt: float = _knob(0.2, "sine of the angle off each other's tangent plane within which two nearest "
+                                  "sources are on one sheet")
+    seam_parallel: float = _knob(0.9, "|cosine| of two sources' normals from which they are on one sheet")
+    seam_along: float = _knob(0.99, "cosine of two sources' normals on one sheet from which they are one "
+                                    "consistently oriented region")
+    seam_pairs: int = _knob(3, "pairs of sources on one sheet facing opposite ways that join two regions "
+                               "into one sheet with a seam")
 
     # --- reliability flags (heatcurv.flags.reliability, sheets, outliers, border, kernel_check, areas) ---
     planarity_min: float = _knob(0.05, "PCA planarity of a ball below which it is no surface patch")

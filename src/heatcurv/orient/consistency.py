@@ -1,4 +1,4 @@
-"""Normals of the winding field itself, solved from no orientation: a second opinion on every side.
+"""Normals of the winding field itself, solved from no orientation, and the seams of sheets: second opinions.
 
 :mod:`heatcurv.orient.enclosure` chooses the side of each patch of the
 spanning tree, so its answer starts from the tree's normals. This module
@@ -31,6 +31,12 @@ dipole for points farther than twice its side from its centre, the authors'
 criterion for their octree's nodes. The widths and the cells are fractions of
 the box, which the preset expects one object to fill: the objects of a cloud
 are solved in groups of nearby ones (:func:`object_groups`), each in its box.
+
+The field cannot see one mistake: where closed surfaces pass through each
+other, their parts inside each other turned over leave a field as clean as
+the right sides. Each surface's sheet goes on smoothly through the other, and
+its normals turn over where it enters: :func:`split_sheets` finds such seams
+and flags the side they contradict.
 """
 
 from __future__ import annotations
@@ -43,7 +49,7 @@ from scipy.spatial import cKDTree
 from .._kernels.dipoles import GRADIENT, TRANSPOSED, WINDING, dipole_sums
 from ..tuning import TUNING
 
-__all__ = ["DipoleGrid", "WIDTHS", "field_normals", "object_groups", "roughness"]
+__all__ = ["DipoleGrid", "WIDTHS", "field_normals", "object_groups", "roughness", "split_sheets"]
 
 #: the smoothing width's narrowest and widest value in the scaled box: Lin et al.'s preset for real scans
 WIDTHS = (0.01, 0.04)
@@ -51,6 +57,11 @@ WIDTHS = (0.01, 0.04)
 CELL_POINTS = 32
 #: nearest points whose heights over a point's tangent plane measure the cloud's roughness
 ROUGHNESS_NEIGHBOURS = 8
+#: nearest sources a source's sheet is followed to (:func:`split_sheets`)
+SHEET_NEIGHBOURS = 8
+#: a neighbour within this many robust standard deviations of the heights of the nearest few over a
+#: source's tangent plane is on its sheet, whatever its tilt (noise)
+SCATTER_CLEARANCE, SCATTER_NEIGHBOURS = 2.0, 6
 
 
 def field_normals(points: np.ndarray, widths: tuple[float, float] = WIDTHS,
@@ -136,6 +147,106 @@ def object_groups(x: np.ndarray, objects: np.ndarray) -> np.ndarray:
     near = gap <= TUNING.field_group_gap * np.minimum(size[i], size[j])
     graph = sp.csr_matrix((np.ones(np.count_nonzero(near)), (i[near], j[near])), shape=(k, k))
     return csgraph.connected_components(graph, directed=False)[1][inverse]
+
+
+def split_sheets(x: np.ndarray, normals: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """Sources whose side a smooth sheet's continuation contradicts, shape (m,), bool.
+
+    Two nearest sources are on one smooth sheet when each lies within
+    ``TUNING.seam_tilt`` (a sine) of the other's tangent plane, or within the
+    noise's scatter of it (:data:`SCATTER_CLEARANCE` robust standard deviations
+    of the heights of the :data:`SCATTER_NEIGHBOURS` nearest), and their normals'
+    axes agree (``|cos| >= TUNING.seam_parallel``). Along such pairs whose normals
+    agree closely (``cos >= TUNING.seam_along``: where two surfaces cross, the
+    fitted normals bend from one to the other, and a looser test would join
+    them), the sources fall into consistently oriented regions; at least
+    ``TUNING.seam_pairs`` pairs on one sheet whose normals point opposite ways
+    join two regions into one sheet whose normals turn over along a seam. That is
+    what the winding number leaves where closed surfaces pass through each other
+    (a sphere through a torus): with the parts of each inside the other turned
+    over, the field is 1 inside their union and 0 in the overlap, as clean as the
+    right answer. The regions joined by seams are made consistent (each seam
+    turns one side), and each such sheet is given the side that makes its
+    signed volume about its centroid, ``sum_i A_i (x_i - c) . n_i``, positive
+    (outward, as the divergence theorem has it for a closed sheet); a source
+    whose side this contradicts is in doubt, and so is every source of a sheet
+    whose seams cannot all be made consistent. A pair facing opposite ways is
+    on a seam only where each lies on the other's outer side as it would on one
+    sheet (with one normal turned, the heights of each over the other's tangent
+    plane have opposite signs); the two faces of a thin part folded at a knife
+    edge (a plate's rim) each lie behind the other, and in a crease in front.
+
+    Parameters
+    ----------
+    x, normals : ndarray, shape (m, 3)
+        Sources and their oriented unit normals.
+    weight : ndarray, shape (m,)
+        Their areas.
+
+    Returns
+    -------
+    ndarray of bool, shape (m,)
+    """
+    m = x.shape[0]
+    k = min(SHEET_NEIGHBOURS, m - 1)
+    doubt = np.zeros(m, dtype=bool)
+    if k < 1:
+        return doubt
+    idx = cKDTree(x).query(x, k + 1)[1][:, 1:]
+    offset = x[idx] - x[:, None, :]
+    length = np.maximum(np.linalg.norm(offset, axis=2), np.finfo(float).tiny)
+    # heights over each end's tangent plane, within the tilt or the noise's scatter there
+    signed = np.einsum("ijk,ik->ij", offset, normals)
+    signed_back = -np.einsum("ijk,ijk->ij", offset, normals[idx])
+    height, back = np.abs(signed), np.abs(signed_back)
+    scatter = SCATTER_CLEARANCE * 1.4826 * np.median(height[:, :SCATTER_NEIGHBOURS], axis=1)
+    level = (height <= np.maximum(TUNING.seam_tilt * length, scatter[:, None])) & (
+        back <= np.maximum(TUNING.seam_tilt * length, scatter[idx]))
+    cosine = np.einsum("ijk,ik->ij", normals[idx], normals)
+    sheet = level & (np.abs(cosine) >= TUNING.seam_parallel)
+    rows, cols = np.repeat(np.arange(m), k), idx.ravel()
+    along = (sheet & (cosine >= TUNING.seam_along)).ravel()
+    n_region, region = csgraph.connected_components(
+        sp.csr_matrix((np.ones(np.count_nonzero(along)), (rows[along], cols[along])), shape=(m, m)), directed=False)
+    # pairs on one sheet facing opposite ways: on a seam each lies on the other's outer side, as on one
+    # smooth sheet; two faces folded at a knife edge (a thin plate's rim) each lie behind the other (in front,
+    # in a crease). Two regions are joined by a seam where enough such pairs join them, more seams than folds
+    opposite = (sheet & (cosine < 0)).ravel()
+    ends, first = np.unique(np.sort(np.column_stack([rows[opposite], cols[opposite]]), axis=1), axis=0,
+                            return_index=True)
+    is_seam = (signed * signed_back <= 0).ravel()[opposite][first]
+    a, b = np.sort(region[ends], axis=1).T
+    apart = a != b
+    pairs, which, count = np.unique(np.column_stack([a, b])[apart], axis=0, return_inverse=True,
+                                    return_counts=True)
+    seam_count = np.bincount(which.ravel(), weights=is_seam[apart], minlength=len(pairs))
+    pairs = pairs[(seam_count >= TUNING.seam_pairs) & (2 * seam_count > count)]
+    if not pairs.size:
+        return doubt
+    seams = sp.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n_region, n_region))
+    n_sheet, sheet_of = csgraph.connected_components(seams, directed=False)
+    # each seam turns one side: a region's parity is that of its depth in a breadth-first tree of its sheet
+    parity = np.zeros(n_region, dtype=np.int64)
+    for root in np.unique(pairs[:, 0][np.unique(sheet_of[pairs[:, 0]], return_index=True)[1]]):
+        order, parent = csgraph.breadth_first_order(seams, root, directed=False, return_predecessors=True)
+        for child in order[1:]:
+            parity[child] = parity[parent[child]] ^ 1
+    sign = np.where(parity[region] == 1, -1.0, 1.0)
+    joined = np.bincount(sheet_of[np.unique(pairs)], minlength=n_sheet) > 0
+    member = joined[sheet_of[region]]
+    # the side of each joined sheet: its signed volume about its centroid
+    owner = sheet_of[region][member]
+    total = np.bincount(owner, weights=weight[member], minlength=n_sheet)
+    centre = np.column_stack([np.bincount(owner, weights=weight[member] * x[member, d], minlength=n_sheet)
+                              for d in range(3)]) / np.maximum(total, np.finfo(float).tiny)[:, None]
+    volume = np.bincount(owner, weights=weight[member] * sign[member] * np.einsum(
+        "ij,ij->i", x[member] - centre[owner], normals[member]), minlength=n_sheet)
+    sign[member] *= np.where(volume[owner] < 0, -1.0, 1.0)
+    doubt[member] = sign[member] < 0
+    # a seam that the parities do not resolve (an odd cycle of seams): the whole sheet is in doubt
+    unresolved = parity[pairs[:, 0]] == parity[pairs[:, 1]]
+    doubt |= np.isin(sheet_of[region], sheet_of[pairs[unresolved, 0]])
+    return doubt
 
 
 def roughness(x: np.ndarray, axes: np.ndarray) -> float:

@@ -47,7 +47,10 @@ inside) out of ``[0, 1]``. This module uses that field three times.
 4. **A second opinion.** The winding field's own normals, solved over the
    sources from no orientation at all (:mod:`heatcurv.orient.consistency`),
    flag a source whose chosen normal points against them
-   (``TUNING.field_agreement``).
+   (``TUNING.field_agreement``), and so do the sheets the chosen sides
+   split along a seam (:func:`heatcurv.orient.consistency.split_sheets`):
+   surfaces passing through each other, whose parts inside each other the
+   field turns over.
 
 Each query's value is summed over point dipoles (Barill et al. 2018, "Fast
 winding numbers for soups and clouds"), except near its own point: the sources
@@ -95,7 +98,7 @@ from ..errors import HeatcurvWarning
 from ..geometry.neighbourhood import Neighbourhood
 from ..geometry.validation import row_hashes
 from ..tuning import TUNING
-from .consistency import field_normals, object_groups
+from .consistency import field_normals, object_groups, split_sheets
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "upward_sides",
@@ -354,7 +357,10 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
     orientation (:func:`heatcurv.orient.consistency.field_normals`, over the
     sources not open). A source whose chosen normal makes a cosine below
     ``TUNING.field_agreement`` with the field's is flagged too: where two
-    methods disagree about a side, neither is vouched for.
+    methods disagree about a side, neither is vouched for. So is a source
+    whose side contradicts the continuation of its smooth sheet
+    (:func:`heatcurv.orient.consistency.split_sheets`), where surfaces pass
+    through each other.
 
     Parameters
     ----------
@@ -399,6 +405,7 @@ def patch_sides(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.nd
             if members.size >= FEWEST_SOURCES:
                 field = field_normals(x[members], axes=own[members])
                 doubt[members] = np.einsum("ij,ij->i", own[members], field) < TUNING.field_agreement
+        doubt[judged] |= split_sheets(x[judged], own[judged], weight[judged])
     return dataclasses.replace(sides, bad=sides.bad | doubt)
 
 
