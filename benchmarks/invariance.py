@@ -31,6 +31,9 @@ the bounding-box diagonal)
                                      a face's plane is 0);
 ``sphere & torus apart``             a unit sphere (5000) and a torus scaled into
                                      the unit ball (8000), 64 diameters apart;
+``spheres through each other``       two unit spheres of 8000 points one radius
+                                     apart (surfaces passing through each other:
+                                     their parts inside each other are flagged);
 ``UV sphere 128 x 62``               the vertices of a UV sphere: 62 rings of 128
                                      and the poles (a symmetric cloud: its keys
                                      come from positions, which a turn changes);
@@ -129,6 +132,12 @@ def _apart():
             np.vstack([sphere.normals, torus.normals]))
 
 
+def _through():
+    first = surfaces.get("sphere").sample(8000, "random", seed=1)
+    second = surfaces.get("sphere").sample(8000, "random", seed=2)
+    return np.vstack([first.points, second.points + [1.0, 0.0, 0.0]]), np.vstack([first.normals, second.normals])
+
+
 def _lidar():
     tile = surfaces.lidar_tile(20000)
     return tile.points, tile.normals
@@ -139,7 +148,7 @@ CLOUDS = {
     "torus 20k": _sample("torus", 20000), "torus 20k 0.8 %": _sample("torus", 20000, 0.008),
     "paraboloid 20k 1 %": _sample("paraboloid", 20000, 0.01), "saddle 20k 0.8 %": _sample("saddle", 20000, 0.008),
     "fold 10k": _fold, "sphere 100:1": _uneven_sphere, "cube 24k": _cube, "sphere & torus apart": _apart,
-    "UV sphere 128 x 62": _uv_sphere,
+    "spheres through each other": _through, "UV sphere 128 x 62": _uv_sphere,
     "lidar": _lidar,
 }
 
