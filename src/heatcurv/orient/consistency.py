@@ -161,7 +161,8 @@ def split_sheets(x: np.ndarray, normals: np.ndarray, weight: np.ndarray) -> np.n
     fitted normals bend from one to the other, and a looser test would join
     them), the sources fall into consistently oriented regions; at least
     ``TUNING.seam_pairs`` pairs on one sheet whose normals point opposite ways
-    join two regions into one sheet whose normals turn over along a seam. That is
+    (more of them on a seam than on a fold, below) join two regions into one
+    sheet whose normals turn over along a seam. That is
     what the winding number leaves where closed surfaces pass through each other
     (a sphere through a torus): with the parts of each inside the other turned
     over, the field is 1 inside their union and 0 in the overlap, as clean as the
