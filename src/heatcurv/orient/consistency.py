@@ -49,7 +49,8 @@ from scipy.spatial import cKDTree
 from .._kernels.dipoles import GRADIENT, TRANSPOSED, WINDING, dipole_sums
 from ..tuning import TUNING
 
-__all__ = ["DipoleGrid", "WIDTHS", "field_normals", "object_groups", "roughness", "split_sheets"]
+__all__ = ["DipoleGrid", "WIDTHS", "field_normals", "noise_scatter", "object_groups", "roughness",
+           "split_sheets"]
 
 #: the smoothing width's narrowest and widest value in the scaled box: Lin et al.'s preset for real scans
 WIDTHS = (0.01, 0.04)
@@ -59,9 +60,9 @@ CELL_POINTS = 32
 ROUGHNESS_NEIGHBOURS = 8
 #: nearest sources a source's sheet is followed to (:func:`split_sheets`)
 SHEET_NEIGHBOURS = 8
-#: a neighbour within this many robust standard deviations of the heights of the nearest few over a
-#: source's tangent plane is on its sheet, whatever its tilt (noise)
-SCATTER_CLEARANCE, SCATTER_NEIGHBOURS = 2.0, 6
+#: the noise's scatter over a tangent plane: this many robust standard deviations of the heights of the
+#: ``NOISE_NEIGHBOURS`` nearest points over it (:func:`noise_scatter`)
+NOISE_CLEARANCE, NOISE_NEIGHBOURS = 2.0, 6
 
 
 def field_normals(points: np.ndarray, widths: tuple[float, float] = WIDTHS,
@@ -149,13 +150,25 @@ def object_groups(x: np.ndarray, objects: np.ndarray) -> np.ndarray:
     return csgraph.connected_components(graph, directed=False)[1][inverse]
 
 
+def noise_scatter(heights: np.ndarray) -> np.ndarray:
+    """How far off a tangent plane noise puts points, shape (m,): :data:`NOISE_CLEARANCE` robust standard
+    deviations (1.4826 median absolute heights) of the :data:`NOISE_NEIGHBOURS` nearest.
+
+    Parameters
+    ----------
+    heights : ndarray, shape (m, k)
+        Each point's nearest neighbours' absolute heights over its tangent plane, nearest first
+        (not the point itself).
+    """
+    return NOISE_CLEARANCE * 1.4826 * np.median(heights[:, :NOISE_NEIGHBOURS], axis=1)
+
+
 def split_sheets(x: np.ndarray, normals: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """Sources whose side a smooth sheet's continuation contradicts, shape (m,), bool.
 
     Two nearest sources are on one smooth sheet when each lies within
     ``TUNING.seam_tilt`` (a sine) of the other's tangent plane, or within the
-    noise's scatter of it (:data:`SCATTER_CLEARANCE` robust standard deviations
-    of the heights of the :data:`SCATTER_NEIGHBOURS` nearest), and their normals'
+    noise's scatter of it (:func:`noise_scatter`), and their normals'
     axes agree (``|cos| >= TUNING.seam_parallel``). Along such pairs whose normals
     agree closely (``cos >= TUNING.seam_along``: where two surfaces cross, the
     fitted normals bend from one to the other, and a looser test would join
@@ -200,7 +213,7 @@ def split_sheets(x: np.ndarray, normals: np.ndarray, weight: np.ndarray) -> np.n
     signed = np.einsum("ijk,ik->ij", offset, normals)
     signed_back = -np.einsum("ijk,ijk->ij", offset, normals[idx])
     height, back = np.abs(signed), np.abs(signed_back)
-    scatter = SCATTER_CLEARANCE * 1.4826 * np.median(height[:, :SCATTER_NEIGHBOURS], axis=1)
+    scatter = noise_scatter(height)
     level = (height <= np.maximum(TUNING.seam_tilt * length, scatter[:, None])) & (
         back <= np.maximum(TUNING.seam_tilt * length, scatter[idx]))
     cosine = np.einsum("ijk,ik->ij", normals[idx], normals)

@@ -98,7 +98,7 @@ from ..errors import HeatcurvWarning
 from ..geometry.neighbourhood import Neighbourhood
 from ..geometry.validation import row_hashes
 from ..tuning import TUNING
-from .consistency import field_normals, object_groups, split_sheets
+from .consistency import field_normals, noise_scatter, object_groups, split_sheets
 
 __all__ = [
     "Enclosure", "PatchSides", "enclose", "patch_sides", "patches", "sampled_sources", "source_keys", "upward_sides",
@@ -121,9 +121,6 @@ QUERY_OFFSET = 0.5
 DISC_NEIGHBOURS = 16
 #: Most a query's offset takes of the depth of the nearest neighbour off the tangent plane.
 ACROSS = 0.5
-#: Queries clear the noise: this many robust standard deviations of the heights of the nearest
-#: ``NOISE_NEIGHBOURS`` neighbours over the tangent plane.
-NOISE_CLEARANCE, NOISE_NEIGHBOURS = 2.0, 6
 
 
 @dataclass(frozen=True)
@@ -772,8 +769,8 @@ def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.n
     tangent plane, of the nearest neighbour off it, whichever way it faces
     (the other side of a thin part, or a part close by, which the query must
     not reach; a neighbour in the plane is on the sheet), and at least
-    the noise's scatter: :data:`NOISE_CLEARANCE` robust standard deviations of
-    the heights of the :data:`NOISE_NEIGHBOURS` nearest over the plane.
+    the noise's scatter (:func:`heatcurv.orient.consistency.noise_scatter` of
+    the heights of the nearest over the plane).
 
     Parameters
     ----------
@@ -799,7 +796,7 @@ def patch_fields(x: np.ndarray, nrm: np.ndarray, weight: np.ndarray, label: np.n
     rel = x[idx] - x[:, None, :]
     height = np.abs(np.einsum("ijk,ik->ij", rel, nrm))
     # the scatter of the nearest heights: noise (a point off the plane by less is still on the sheet)
-    scatter = NOISE_CLEARANCE * 1.4826 * np.median(height[:, 1:NOISE_NEIGHBOURS + 1], axis=1)
+    scatter = noise_scatter(height[:, 1:])
     flat = height <= np.maximum(0.5 * dist, scatter[:, None])
     in_plane = flat & (np.einsum("ijk,ik->ij", nrm[idx], nrm) >= 0.5)
     in_plane[:, 0] = True
